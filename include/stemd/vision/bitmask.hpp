@@ -1,0 +1,55 @@
+// A binary image packed 64 pixels to a word: the closing and labelling
+// stages work on whole words, which is what makes them cheap.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+
+#include "stemd/vision/types.hpp"
+
+namespace stemd::vision {
+
+class BitMask {
+public:
+    BitMask() = default;
+    BitMask(int width_px, int height_px) { reset(width_px, height_px); }
+
+    // Allocates (or keeps) storage for the size and clears every bit.
+    void reset(int width_px, int height_px);
+    void clear();
+
+    int width() const { return width_px_; }
+    int height() const { return height_px_; }
+    int words_per_row() const { return words_per_row_; }
+    std::uint64_t* row(int y) { return words_.data() + static_cast<std::size_t>(y) * words_per_row_; }
+    const std::uint64_t* row(int y) const { return words_.data() + static_cast<std::size_t>(y) * words_per_row_; }
+
+    bool get(int x, int y) const { return (row(y)[x >> 6] >> (x & 63)) & 1u; }
+    // Outside the image reads as background.
+    bool get_or_zero(int x, int y) const
+    {
+        return x >= 0 && y >= 0 && x < width_px_ && y < height_px_ && get(x, y);
+    }
+    void set(int x, int y) { row(y)[x >> 6] |= std::uint64_t{1} << (x & 63); }
+    long count() const;
+
+    // Mask of the valid bits of the last word of a row (bits past the width stay zero).
+    std::uint64_t last_word_mask() const { return last_word_mask_; }
+
+private:
+    int width_px_ = 0;
+    int height_px_ = 0;
+    int words_per_row_ = 0;
+    std::uint64_t last_word_mask_ = 0;
+    std::vector<std::uint64_t> words_;
+};
+
+// An 8-bit mask to bits: a pixel is set when it is nonzero (or zero, for
+// masks that mark vegetation with 0). `out` is resized if needed.
+void pack_mask(const cv::Mat& mask_u8, MaskVegetation vegetation, BitMask& out);
+// Bits to an 8-bit mask, 255 = set. `out` is (re)created with the mask's size.
+void unpack_mask(const BitMask& bits, cv::Mat& out_u8);
+
+}  // namespace stemd::vision

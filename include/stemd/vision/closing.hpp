@@ -1,0 +1,38 @@
+// Morphological closing of a bit mask with OpenCV's elliptic kernel of
+// size (2r+1)x(2r+1). Bit for bit equal to cv::morphologyEx(MORPH_CLOSE)
+// with the default border (outside is background for the dilation and
+// vegetation for the erosion), at a fraction of its cost.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "stemd/vision/bitmask.hpp"
+
+namespace stemd::vision {
+
+// Scratch memory of the closing; reserve() once, then close() allocates
+// nothing for that width and any radius up to the reserved one.
+class ClosingScratch {
+public:
+    void reserve(int width_px, int height_px, int max_radius_px);
+
+private:
+    friend void close_mask(const BitMask&, int, BitMask&, ClosingScratch&);
+    BitMask dilated_;
+    std::vector<std::uint64_t> ring_;      // horizontally dilated rows, one per kernel width
+    std::vector<std::uint64_t> row_tmp_;
+    std::vector<int> width_slot_;          // kernel row -> slot of its half width
+    std::vector<int> slot_half_width_;     // distinct half widths, ascending
+    int kernel_radius_ = -1;
+};
+
+// Kernel row half-widths of getStructuringElement(MORPH_ELLIPSE, 2r+1):
+// entry dy + r is the half width of row dy (every row is one centred run).
+std::vector<int> ellipse_half_widths(int radius_px);
+
+// out = close(in) with the (2r+1)-pixel ellipse. r = 0 copies. `in` and
+// `out` must be different objects.
+void close_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch);
+
+}  // namespace stemd::vision

@@ -1,0 +1,66 @@
+// The whole pipeline: index -> threshold -> closing -> plants -> leaves -> stems.
+#pragma once
+
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+
+#include "stemd/vision/bitmask.hpp"
+#include "stemd/vision/closing.hpp"
+#include "stemd/vision/index.hpp"
+#include "stemd/vision/leaves.hpp"
+#include "stemd/vision/plants.hpp"
+#include "stemd/vision/threshold.hpp"
+#include "stemd/vision/types.hpp"
+
+namespace stemd::vision {
+
+// Borrowed views of one frame. bgr: CV_8UC3; nir: CV_8UC1 (ndvi only);
+// mask: CV_8UC1 (mask segmentation only). Any of them may be empty when
+// the segmentation does not use it.
+struct FrameView {
+    cv::Mat bgr{};
+    cv::Mat nir{};
+    cv::Mat mask{};
+};
+
+// Every buffer one frame needs, allocated by the constructor for one frame
+// size; detect() then allocates nothing. One per processing thread.
+class Workspace {
+public:
+    Workspace(cv::Size frame_size, const Params& params);
+    cv::Size frame_size() const { return frame_size_; }
+
+    // Intermediate results of the last detect(), for tools and overlays.
+    const cv::Mat& index() const { return index_; }
+    const BitMask& vegetation() const { return vegetation_; }
+    const BitMask& closed() const { return closed_; }
+
+private:
+    friend void detect(const FrameView&, const Params&, Workspace&, Detections&, StageTimes*);
+    cv::Size frame_size_;
+    int reserved_radius_px_ = 0;
+    NdviTable ndvi_table_;
+    cv::Mat index_;
+    Histogram histogram_{};
+    BitMask vegetation_;
+    BitMask closed_;
+    ClosingScratch closing_;
+    LabelScratch labels_;
+    std::vector<Component> components_;
+    std::vector<cv::Point> contour_;
+    std::vector<int> hull_;
+    std::vector<int> hull_order_;
+    std::vector<Defect> defects_;
+};
+
+// Fills `out` (cleared first). A frame the workspace was not made for, or
+// one missing the image its segmentation needs, leaves out.status != ok
+// and no plants; nothing throws. `times` (optional) gets per-stage times.
+void detect(const FrameView& frame, const Params& params, Workspace& workspace, Detections& out,
+            StageTimes* times = nullptr);
+
+// Convenience for tests and tools: allocates a workspace for this frame.
+Detections detect(const FrameView& frame, const Params& params);
+
+}  // namespace stemd::vision

@@ -1,0 +1,29 @@
+// Vegetation indices, as 8-bit images so that the threshold works on a
+// 256-bin histogram.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include <opencv2/core/mat.hpp>
+
+namespace stemd::vision {
+
+// Excess Green 2G - R - B in [-510, 510], mapped linearly to [0, 255]:
+// index = (2G - R - B + 512) / 4, rounded down. `bgr` is CV_8UC3.
+void excess_green(const cv::Mat& bgr, cv::Mat& index_u8);
+
+// NDVI (NIR - R) / (NIR + R) in [-1, 1], mapped to round((ndvi + 1) * 127.5);
+// NIR + R = 0 gives 128 (ndvi 0). One 256x256 table replaces the division.
+class NdviTable {
+public:
+    NdviTable();
+    std::uint8_t operator()(std::uint8_t nir, std::uint8_t red) const { return table_[(nir << 8) | red]; }
+
+private:
+    std::array<std::uint8_t, 256 * 256> table_;
+};
+// `bgr` is CV_8UC3 (its red plane is used), `nir` CV_8UC1 of the same size.
+void ndvi(const cv::Mat& bgr, const cv::Mat& nir, const NdviTable& table, cv::Mat& index_u8);
+
+}  // namespace stemd::vision

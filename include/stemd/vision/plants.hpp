@@ -1,0 +1,39 @@
+// Plants = 8-connected components of the closed mask, found on runs of
+// set bits (union-find over runs of neighbouring rows). Holes are
+// background and never become plants.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <opencv2/core/types.hpp>
+
+#include "stemd/vision/bitmask.hpp"
+
+namespace stemd::vision {
+
+struct Component {
+    long area_px = 0;
+    int x_min = 0, y_min = 0, x_max = 0, y_max = 0;   // inclusive
+    double sum_x = 0, sum_y = 0;                       // for the centre of mass
+    cv::Point first_pixel;                             // top-most, then left-most
+};
+
+class LabelScratch {
+public:
+    // Enough for any mask of this size: at most (w/2 + 1) runs per row.
+    void reserve(int width_px, int height_px);
+
+private:
+    friend void label_components(const BitMask&, LabelScratch&, std::vector<Component>&);
+    struct Run { int y, x0, x1; };
+    std::vector<Run> runs_;
+    std::vector<int> parent_;
+    std::vector<int> root_slot_;
+};
+
+// Components in raster order of their first pixel. `out` is cleared and
+// refilled; reserve it (one entry per possible run) to avoid allocations.
+void label_components(const BitMask& mask, LabelScratch& scratch, std::vector<Component>& out);
+
+}  // namespace stemd::vision

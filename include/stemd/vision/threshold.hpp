@@ -1,0 +1,29 @@
+// Automatic thresholds on an 8-bit index and binarisation into bits.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include <opencv2/core/mat.hpp>
+
+#include "stemd/vision/bitmask.hpp"
+#include "stemd/vision/types.hpp"
+
+namespace stemd::vision {
+
+using Histogram = std::array<std::uint32_t, 256>;
+
+void compute_histogram(const cv::Mat& index_u8, Histogram& out);
+
+// Both return t such that "index > t" is vegetation, as cv::threshold does.
+// Otsu: maximises the between-class variance. Triangle (Zack et al. 1977):
+// the level farthest from the line joining the histogram peak to the far
+// end of its longer tail. Both equal OpenCV's THRESH_OTSU/THRESH_TRIANGLE.
+int otsu_threshold(const Histogram& histogram);
+int triangle_threshold(const Histogram& histogram);
+int auto_threshold(const Histogram& histogram, ThresholdMethod method);
+
+// index > threshold -> set bit. `out` is resized if needed.
+void threshold_to_bits(const cv::Mat& index_u8, int threshold, BitMask& out);
+
+}  // namespace stemd::vision

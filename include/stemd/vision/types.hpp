@@ -1,0 +1,152 @@
+// Result and parameter types of the stem pipeline. Fixed capacity so that
+// a Detections object allocated once can be refilled every frame without
+// touching the heap.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string_view>
+
+#include <opencv2/core/types.hpp>
+
+namespace stemd::vision {
+
+// A vector with its storage inline; push_back reports overflow instead of
+// growing, so the caller can count it.
+template <class T, std::size_t Capacity>
+class FixedVector {
+public:
+    static constexpr std::size_t capacity() { return Capacity; }
+    std::size_t size() const { return size_; }
+    bool empty() const { return size_ == 0; }
+    bool full() const { return size_ == Capacity; }
+    void clear() { size_ = 0; }
+    bool push_back(const T& value)
+    {
+        if (size_ == Capacity)
+            return false;
+        items_[size_++] = value;
+        return true;
+    }
+    T& back() { return items_[size_ - 1]; }
+    T& operator[](std::size_t i) { return items_[i]; }
+    const T& operator[](std::size_t i) const { return items_[i]; }
+    T* begin() { return items_.data(); }
+    T* end() { return items_.data() + size_; }
+    const T* begin() const { return items_.data(); }
+    const T* end() const { return items_.data() + size_; }
+
+private:
+    std::array<T, Capacity> items_{};
+    std::size_t size_ = 0;
+};
+
+enum class Segmentation : std::uint8_t { exg, ndvi, mask };
+enum class ThresholdMethod : std::uint8_t { otsu, triangle };
+// Which pixel value of an external mask means vegetation.
+enum class MaskVegetation : std::uint8_t { nonzero, zero };
+// How stems are estimated: the paper's leaf method or the centre of mass.
+enum class StemMethod : std::uint8_t { leaves, com };
+// Why a plant's stem is its centre of mass.
+enum class ComReason : std::uint8_t {
+    none,             // the stem came from the leaves
+    method_com,       // the centre-of-mass method was asked for
+    too_few_leaves,   // fewer than min_leaves leaves
+    no_intersections, // every pair of leaf directions was (nearly) parallel
+    outside_box,      // the leaf estimate left the plant's bounding box
+    contour_overflow, // the outer contour was longer than the workspace holds
+};
+
+std::string_view to_string(Segmentation v);
+std::string_view to_string(ThresholdMethod v);
+std::string_view to_string(MaskVegetation v);
+std::string_view to_string(StemMethod v);
+std::string_view to_string(ComReason v);
+std::optional<Segmentation> parse_segmentation(std::string_view s);
+std::optional<ThresholdMethod> parse_threshold_method(std::string_view s);
+std::optional<MaskVegetation> parse_mask_vegetation(std::string_view s);
+std::optional<StemMethod> parse_stem_method(std::string_view s);
+
+// The pipeline's parameters, in the units their names carry. Ranges are
+// enforced by the config schema (runtime/config_schema), not here.
+struct Params {
+    Segmentation segmentation = Segmentation::exg;
+    ThresholdMethod threshold = ThresholdMethod::otsu;
+    MaskVegetation mask_vegetation = MaskVegetation::nonzero;
+    int closing_radius_px = 10;         // paper's m
+    double gsd_mm_per_px = 0.33;        // ground sampling distance
+    double min_plant_area_mm2 = 10.0;   // smaller components are noise
+    double defect_depth_mm = 3.3;       // paper's defect threshold (10 px at 0.33 mm/px)
+    int min_leaves = 3;                 // paper's N
+    // Pairs of leaf lines meeting at a smaller angle are skipped: a 1 px error
+    // in a root moves their intersection by about 1/sin(angle) px, so nearly
+    // opposite leaves would throw the mean far off (the paper skips only
+    // exactly parallel pairs).
+    double min_intersection_angle_deg = 10.0;
+    StemMethod stem_method = StemMethod::leaves;
+};
+
+inline constexpr std::size_t kMaxLeaves = 16;
+inline constexpr std::size_t kMaxPlants = 256;
+inline constexpr int kMaxClosingRadiusPx = 50;  // larger radii are clamped
+
+struct Leaf {
+    cv::Point2f cut_a;   // convexity defect starting the leaf (contour order)
+    cv::Point2f cut_b;   // convexity defect ending the leaf
+    cv::Point2f root;    // mean of the two cut points
+    cv::Point2f centre;  // area centroid of the leaf polygon
+};
+
+struct Plant {
+    cv::Point2f stem;            // sub-pixel, image coordinates (pixel centres at integers)
+    StemMethod method = StemMethod::com;
+    ComReason com_reason = ComReason::none;
+    FixedVector<Leaf, kMaxLeaves> leaves;
+    int defects = 0;             // convexity defects deeper than the threshold
+    int area_px = 0;             // vegetation pixels (holes excluded)
+    cv::Rect bbox;               // inclusive of every plant pixel
+    cv::Point2f centre_of_mass;
+    cv::Point first_pixel;       // top-most, then left-most pixel: where its outer contour starts
+};
+
+// Per-frame counters of the pipeline; the daemon sums them into its status.
+struct DetectStats {
+    int threshold = -1;             // on the 8-bit index; -1 for external masks
+    int vegetation_px = 0;          // after thresholding, before closing
+    int components = 0;             // 8-connected components after closing
+    int small_components = 0;       // dropped below min_plant_area
+    int plants_over_capacity = 0;   // plants beyond kMaxPlants, not reported
+    int leaves_over_capacity = 0;   // leaves beyond kMaxLeaves, ignored
+    int outside_box_fallbacks = 0;  // leaf estimates replaced by the centre of mass
+    int contour_overflows = 0;      // contours longer than the workspace holds
+};
+
+enum class DetectStatus : std::uint8_t {
+    ok,
+    empty_frame,       // no pixels
+    bad_format,        // wrong channel count or depth
+    size_mismatch,     // frame does not match the workspace it was given
+    missing_nir,       // NDVI asked for without a NIR image of the same size
+    missing_mask,      // mask segmentation without a mask
+};
+std::string_view to_string(DetectStatus v);
+
+struct Detections {
+    DetectStatus status = DetectStatus::ok;
+    FixedVector<Plant, kMaxPlants> plants;
+    DetectStats stats;
+};
+
+// Wall time of each stage of one detect() call, CLOCK_MONOTONIC nanoseconds.
+struct StageTimes {
+    std::int64_t index_ns = 0;
+    std::int64_t threshold_ns = 0;
+    std::int64_t closing_ns = 0;
+    std::int64_t plants_ns = 0;
+    std::int64_t leaves_ns = 0;   // contours, hulls, defects, leaves and stems
+    std::int64_t total_ns = 0;
+};
+
+}  // namespace stemd::vision

@@ -1,0 +1,172 @@
+#include "stemd/vision/closing.hpp"
+
+#include <algorithm>
+#include <cstring>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace stemd::vision {
+
+std::vector<int> ellipse_half_widths(int radius_px)
+{
+    const int size = 2 * radius_px + 1;
+    const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(size, size));
+    std::vector<int> half_widths(static_cast<std::size_t>(size), -1);
+    for (int row = 0; row < size; ++row) {
+        const std::uint8_t* k = kernel.ptr<std::uint8_t>(row);
+        int first = -1, last = -1;
+        for (int col = 0; col < size; ++col) {
+            if (k[col]) {
+                if (first < 0)
+                    first = col;
+                last = col;
+            }
+        }
+        // OpenCV's ellipse rows are single runs centred on the anchor.
+        CV_Assert(first < 0 || (radius_px - first == last - radius_px));
+        half_widths[static_cast<std::size_t>(row)] = first < 0 ? -1 : radius_px - first;
+    }
+    return half_widths;
+}
+
+void ClosingScratch::reserve(int width_px, int height_px, int max_radius_px)
+{
+    dilated_.reset(width_px, height_px);
+    const std::size_t words = static_cast<std::size_t>(dilated_.words_per_row());
+    const std::size_t rows = static_cast<std::size_t>(2 * max_radius_px + 1);
+    const std::size_t slots = static_cast<std::size_t>(max_radius_px + 1);
+    ring_.resize(rows * slots * words);
+    row_tmp_.resize(2 * words);
+    width_slot_.reserve(rows);
+    slot_half_width_.reserve(slots);
+}
+
+namespace {
+
+enum class Op { dilate, erode };
+
+// One horizontal step: every pixel takes the OR (dilate) or AND (erode) of
+// itself and its two neighbours. Outside the row counts as 0 for dilation
+// and 1 for erosion, as in OpenCV's default morphology border.
+template <Op op>
+void horizontal_step(const std::uint64_t* in, std::uint64_t* out, int words)
+{
+    constexpr std::uint64_t outside = op == Op::dilate ? 0 : ~std::uint64_t{0};
+    for (int i = 0; i < words; ++i) {
+        const std::uint64_t previous = i > 0 ? in[i - 1] : outside;
+        const std::uint64_t next = i + 1 < words ? in[i + 1] : outside;
+        const std::uint64_t to_right = (in[i] << 1) | (previous >> 63);
+        const std::uint64_t to_left = (in[i] >> 1) | (next << 63);
+        if constexpr (op == Op::dilate)
+            out[i] = in[i] | to_right | to_left;
+        else
+            out[i] = in[i] & to_right & to_left;
+    }
+}
+
+struct Kernel {
+    int radius;
+    const std::vector<int>& width_slot;       // per kernel row
+    const std::vector<int>& slot_half_width;  // ascending
+};
+
+// dst = src (+) kernel or src (-) kernel, streaming rows through a ring of
+// 2r+1 rows, each kept at every half width the kernel uses.
+template <Op op>
+void morph_pass(const BitMask& src, BitMask& dst, const Kernel& kernel, std::uint64_t* ring, std::uint64_t* tmp)
+{
+    const int words = src.words_per_row();
+    const int height = src.height();
+    const int radius = kernel.radius;
+    const int ring_rows = 2 * radius + 1;
+    const int slots = static_cast<int>(kernel.slot_half_width.size());
+    const std::size_t slot_words = static_cast<std::size_t>(words);
+    const std::size_t row_words = slot_words * slots;
+    constexpr std::uint64_t outside = op == Op::dilate ? 0 : ~std::uint64_t{0};
+    const std::uint64_t pad_bits = ~src.last_word_mask();
+
+    auto ring_row = [&](int y) { return ring + static_cast<std::size_t>((y + ring_rows) % ring_rows) * row_words; };
+    auto load = [&](int y) {
+        std::uint64_t* slot0 = ring_row(y);
+        if (y < 0 || y >= height) {
+            std::fill(slot0, slot0 + row_words, outside);
+            return;
+        }
+        std::uint64_t* a = tmp;
+        std::uint64_t* b = tmp + slot_words;
+        std::memcpy(a, src.row(y), slot_words * sizeof(std::uint64_t));
+        if constexpr (op == Op::erode)
+            a[words - 1] |= pad_bits;  // beyond the width is outside: 1 for erosion
+        int width = 0;
+        for (int s = 0; s < slots; ++s) {
+            while (width < kernel.slot_half_width[static_cast<std::size_t>(s)]) {
+                horizontal_step<op>(a, b, words);
+                std::swap(a, b);
+                ++width;
+            }
+            std::memcpy(slot0 + s * slot_words, a, slot_words * sizeof(std::uint64_t));
+        }
+    };
+
+    for (int y = -radius; y < radius; ++y)
+        load(y);
+    for (int y = 0; y < height; ++y) {
+        load(y + radius);
+        std::uint64_t* out = dst.row(y);
+        std::fill(out, out + words, op == Op::dilate ? 0 : ~std::uint64_t{0});
+        for (int dy = -radius; dy <= radius; ++dy) {
+            const int slot = kernel.width_slot[static_cast<std::size_t>(dy + radius)];
+            const std::uint64_t* in = ring_row(y + dy) + slot * slot_words;
+            if constexpr (op == Op::dilate)
+                for (int i = 0; i < words; ++i)
+                    out[i] |= in[i];
+            else
+                for (int i = 0; i < words; ++i)
+                    out[i] &= in[i];
+        }
+        out[words - 1] &= src.last_word_mask();
+    }
+}
+
+}  // namespace
+
+void close_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch)
+{
+    CV_Assert(&in != &out);
+    if (out.width() != in.width() || out.height() != in.height())
+        out.reset(in.width(), in.height());
+    radius_px = std::max(radius_px, 0);
+    if (radius_px == 0 || in.width() == 0 || in.height() == 0) {
+        for (int y = 0; y < in.height(); ++y)
+            std::copy(in.row(y), in.row(y) + in.words_per_row(), out.row(y));
+        return;
+    }
+    const std::size_t words = static_cast<std::size_t>(in.words_per_row());
+    const std::size_t ring_needed = static_cast<std::size_t>(2 * radius_px + 1) * (radius_px + 1) * words;
+    if (scratch.dilated_.width() != in.width() || scratch.dilated_.height() != in.height() ||
+        scratch.ring_.size() < ring_needed)
+        scratch.reserve(in.width(), in.height(), std::max(radius_px, scratch.kernel_radius_));
+
+    if (scratch.kernel_radius_ != radius_px) {
+        // The kernel's shape, computed once per radius (allocation-free once reserved).
+        const std::vector<int> half_widths = ellipse_half_widths(radius_px);
+        scratch.slot_half_width_.clear();
+        for (const int w : half_widths)
+            if (std::find(scratch.slot_half_width_.begin(), scratch.slot_half_width_.end(), w) ==
+                scratch.slot_half_width_.end())
+                scratch.slot_half_width_.push_back(w);
+        std::sort(scratch.slot_half_width_.begin(), scratch.slot_half_width_.end());
+        scratch.width_slot_.clear();
+        for (const int w : half_widths)
+            scratch.width_slot_.push_back(static_cast<int>(
+                std::find(scratch.slot_half_width_.begin(), scratch.slot_half_width_.end(), w) -
+                scratch.slot_half_width_.begin()));
+        scratch.kernel_radius_ = radius_px;
+    }
+    const Kernel kernel{radius_px, scratch.width_slot_, scratch.slot_half_width_};
+    morph_pass<Op::dilate>(in, scratch.dilated_, kernel, scratch.ring_.data(), scratch.row_tmp_.data());
+    morph_pass<Op::erode>(scratch.dilated_, out, kernel, scratch.ring_.data(), scratch.row_tmp_.data());
+}
+
+}  // namespace stemd::vision

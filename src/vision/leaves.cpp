@@ -1,0 +1,129 @@
+#include "stemd/vision/leaves.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace stemd::vision {
+
+namespace {
+
+long long cross(const cv::Point& o, const cv::Point& a, const cv::Point& b)
+{
+    return static_cast<long long>(a.x - o.x) * (b.y - o.y) - static_cast<long long>(a.y - o.y) * (b.x - o.x);
+}
+
+}  // namespace
+
+void convex_hull_indices(std::span<const cv::Point> contour, std::vector<int>& hull, std::vector<int>& order)
+{
+    hull.clear();
+    order.clear();
+    const int n = static_cast<int>(contour.size());
+    if (n == 0)
+        return;
+    for (int i = 0; i < n; ++i)
+        order.push_back(i);
+    std::sort(order.begin(), order.end(), [&](int a, int b) {
+        const cv::Point& p = contour[static_cast<std::size_t>(a)];
+        const cv::Point& q = contour[static_cast<std::size_t>(b)];
+        return p.x != q.x ? p.x < q.x : (p.y != q.y ? p.y < q.y : a < b);
+    });
+    auto at = [&](int i) -> const cv::Point& { return contour[static_cast<std::size_t>(i)]; };
+    // Andrew's monotone chain; collinear and repeated points are dropped.
+    for (int pass = 0; pass < 2; ++pass) {
+        const std::size_t base = hull.size();
+        for (int k = 0; k < n; ++k) {
+            const int i = order[static_cast<std::size_t>(pass == 0 ? k : n - 1 - k)];
+            while (hull.size() >= base + 2 && cross(at(hull[hull.size() - 2]), at(hull.back()), at(i)) <= 0)
+                hull.pop_back();
+            hull.push_back(i);
+        }
+        hull.pop_back();  // the chain's last point starts the other chain
+    }
+    // Contour order, one index per distinct hull vertex.
+    std::sort(hull.begin(), hull.end());
+    hull.erase(std::unique(hull.begin(), hull.end(),
+                           [&](int a, int b) { return at(a) == at(b); }),
+               hull.end());
+    if (hull.empty())
+        hull.push_back(order.front());
+}
+
+void convexity_defects(std::span<const cv::Point> contour, std::span<const int> hull, float min_depth_px,
+                       std::vector<Defect>& out)
+{
+    out.clear();
+    const int n = static_cast<int>(contour.size());
+    const int h = static_cast<int>(hull.size());
+    if (n < 3 || h < 2)
+        return;
+    for (int k = 0; k < h; ++k) {
+        const int start = hull[static_cast<std::size_t>(k)];
+        const int end = hull[static_cast<std::size_t>((k + 1) % h)];
+        const int span_end = end > start ? end : end + n;  // the last edge wraps around
+        const cv::Point& a = contour[static_cast<std::size_t>(start)];
+        const cv::Point& b = contour[static_cast<std::size_t>(end)];
+        const double edge_x = b.x - a.x, edge_y = b.y - a.y;
+        const double edge_length = std::hypot(edge_x, edge_y);
+        double best_depth = 0;
+        int deepest = -1;
+        for (int j = start + 1; j < span_end; ++j) {
+            const cv::Point& p = contour[static_cast<std::size_t>(j % n)];
+            const double depth = edge_length > 0
+                                     ? std::abs(edge_x * (p.y - a.y) - edge_y * (p.x - a.x)) / edge_length
+                                     : std::hypot(p.x - a.x, p.y - a.y);
+            if (depth > best_depth) {
+                best_depth = depth;
+                deepest = j % n;
+            }
+        }
+        if (deepest >= 0 && best_depth > min_depth_px && out.size() < out.capacity())
+            out.push_back({start, end, deepest, static_cast<float>(best_depth)});
+    }
+    // The wrapping edge can put its cut before the others.
+    std::sort(out.begin(), out.end(), [](const Defect& x, const Defect& y) { return x.deepest < y.deepest; });
+}
+
+int leaves_from_defects(std::span<const cv::Point> contour, std::span<const Defect> defects,
+                        FixedVector<Leaf, kMaxLeaves>& out)
+{
+    out.clear();
+    const int n = static_cast<int>(contour.size());
+    const int d = static_cast<int>(defects.size());
+    if (d < 2 || n == 0)
+        return 0;
+    int dropped = 0;
+    for (int k = 0; k < d; ++k) {
+        const int from = defects[static_cast<std::size_t>(k)].deepest;
+        int to = defects[static_cast<std::size_t>((k + 1) % d)].deepest;
+        if (to <= from)
+            to += n;
+        // Shoelace over the contour from one cut to the next, closed by the cut.
+        double twice_area = 0, cx = 0, cy = 0, mean_x = 0, mean_y = 0;
+        const cv::Point& first = contour[static_cast<std::size_t>(from)];
+        for (int j = from; j <= to; ++j) {
+            const cv::Point& p = contour[static_cast<std::size_t>(j % n)];
+            const cv::Point& q = j < to ? contour[static_cast<std::size_t>((j + 1) % n)] : first;
+            const double c = static_cast<double>(p.x) * q.y - static_cast<double>(q.x) * p.y;
+            twice_area += c;
+            cx += (p.x + q.x) * c;
+            cy += (p.y + q.y) * c;
+            mean_x += p.x;
+            mean_y += p.y;
+        }
+        const int count = to - from + 1;
+        Leaf leaf;
+        leaf.cut_a = cv::Point2f(first);
+        leaf.cut_b = cv::Point2f(contour[static_cast<std::size_t>(to % n)]);
+        leaf.root = (leaf.cut_a + leaf.cut_b) * 0.5f;
+        if (std::abs(twice_area) >= 1.0)
+            leaf.centre = {static_cast<float>(cx / (3.0 * twice_area)), static_cast<float>(cy / (3.0 * twice_area))};
+        else
+            leaf.centre = {static_cast<float>(mean_x / count), static_cast<float>(mean_y / count)};
+        if (!out.push_back(leaf))
+            ++dropped;
+    }
+    return dropped;
+}
+
+}  // namespace stemd::vision

@@ -1,0 +1,114 @@
+#include "stemd/vision/plants.hpp"
+
+#include <algorithm>
+#include <bit>
+
+namespace stemd::vision {
+
+void LabelScratch::reserve(int width_px, int height_px)
+{
+    const std::size_t max_runs = static_cast<std::size_t>(width_px / 2 + 1) * static_cast<std::size_t>(height_px);
+    runs_.reserve(max_runs);
+    parent_.reserve(max_runs);
+    root_slot_.reserve(max_runs);
+}
+
+namespace {
+
+int find_root(std::vector<int>& parent, int i)
+{
+    while (parent[static_cast<std::size_t>(i)] != i) {
+        // Path halving keeps the trees flat without recursion.
+        int& p = parent[static_cast<std::size_t>(i)];
+        p = parent[static_cast<std::size_t>(p)];
+        i = p;
+    }
+    return i;
+}
+
+// The smaller run index becomes the root, so each root is its component's
+// first run in raster order.
+void unite(std::vector<int>& parent, int a, int b)
+{
+    a = find_root(parent, a);
+    b = find_root(parent, b);
+    if (a < b)
+        parent[static_cast<std::size_t>(b)] = a;
+    else if (b < a)
+        parent[static_cast<std::size_t>(a)] = b;
+}
+
+// Position of the first set (want_set) or clear bit at or after x, or width.
+int next_bit(const std::uint64_t* row, int words, int width, int x, bool want_set)
+{
+    int i = x >> 6;
+    if (i >= words)
+        return width;
+    std::uint64_t w = want_set ? row[i] : ~row[i];
+    w &= ~std::uint64_t{0} << (x & 63);
+    while (w == 0) {
+        if (++i >= words)
+            return width;
+        w = want_set ? row[i] : ~row[i];
+    }
+    return std::min(width, (i << 6) + std::countr_zero(w));
+}
+
+}  // namespace
+
+void label_components(const BitMask& mask, LabelScratch& scratch, std::vector<Component>& out)
+{
+    auto& runs = scratch.runs_;
+    auto& parent = scratch.parent_;
+    runs.clear();
+    parent.clear();
+    out.clear();
+    const int width = mask.width();
+    const int words = mask.words_per_row();
+    std::size_t previous_begin = 0, previous_end = 0;
+    for (int y = 0; y < mask.height(); ++y) {
+        const std::uint64_t* row = mask.row(y);
+        const std::size_t current_begin = runs.size();
+        std::size_t p = previous_begin;
+        for (int x = next_bit(row, words, width, 0, true); x < width;) {
+            const int end = next_bit(row, words, width, x, false);  // one past the run
+            const int index = static_cast<int>(runs.size());
+            runs.push_back({y, x, end - 1});
+            parent.push_back(index);
+            // 8-connectivity: runs touch if they overlap or meet diagonally.
+            while (p < previous_end && runs[p].x1 < x - 1)
+                ++p;
+            for (std::size_t q = p; q < previous_end && runs[q].x0 <= end; ++q)
+                unite(parent, index, static_cast<int>(q));
+            x = next_bit(row, words, width, end, true);
+        }
+        previous_begin = current_begin;
+        previous_end = runs.size();
+    }
+
+    auto& slot = scratch.root_slot_;
+    slot.assign(runs.size(), -1);
+    for (std::size_t i = 0; i < runs.size(); ++i) {
+        const int root = find_root(parent, static_cast<int>(i));
+        const auto& run = runs[i];
+        if (root == static_cast<int>(i)) {
+            slot[i] = static_cast<int>(out.size());
+            Component c;
+            c.x_min = run.x0;
+            c.x_max = run.x1;
+            c.y_min = c.y_max = run.y;
+            c.first_pixel = {run.x0, run.y};
+            out.push_back(c);
+        }
+        Component& c = out[static_cast<std::size_t>(slot[static_cast<std::size_t>(root)])];
+        const long n = run.x1 - run.x0 + 1;
+        c.area_px += n;
+        c.sum_x += static_cast<double>(run.x0 + run.x1) * static_cast<double>(n) / 2.0;
+        c.sum_y += static_cast<double>(run.y) * static_cast<double>(n);
+        c.x_min = std::min(c.x_min, run.x0);
+        c.x_max = std::max(c.x_max, run.x1);
+        c.y_max = run.y;
+    }
+}
+
+}  // namespace stemd::vision

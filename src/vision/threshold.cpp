@@ -1,0 +1,163 @@
+#include "stemd/vision/threshold.hpp"
+
+#include <algorithm>
+#include <cfloat>
+#include <cmath>
+
+#include <opencv2/core.hpp>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+namespace stemd::vision {
+
+void compute_histogram(const cv::Mat& index_u8, Histogram& out)
+{
+    CV_Assert(index_u8.type() == CV_8UC1);
+    // Four partial histograms break the store-to-load dependency on runs of equal values.
+    std::uint32_t partial[4][256] = {};
+    for (int y = 0; y < index_u8.rows; ++y) {
+        const std::uint8_t* p = index_u8.ptr<std::uint8_t>(y);
+        int x = 0;
+        for (; x + 4 <= index_u8.cols; x += 4) {
+            ++partial[0][p[x]];
+            ++partial[1][p[x + 1]];
+            ++partial[2][p[x + 2]];
+            ++partial[3][p[x + 3]];
+        }
+        for (; x < index_u8.cols; ++x)
+            ++partial[0][p[x]];
+    }
+    for (int v = 0; v < 256; ++v)
+        out[v] = partial[0][v] + partial[1][v] + partial[2][v] + partial[3][v];
+}
+
+int otsu_threshold(const Histogram& histogram)
+{
+    double total = 0;
+    for (const std::uint32_t n : histogram)
+        total += n;
+    if (total == 0)
+        return 0;
+    const double scale = 1.0 / total;
+    double mean = 0;
+    for (int v = 0; v < 256; ++v)
+        mean += v * (histogram[v] * scale);
+    // Class probability q1 and mean mu1 of the levels <= v, updated
+    // incrementally; the epsilon guards mirror OpenCV so results are equal.
+    double q1 = 0, mu1 = 0, best_variance = 0;
+    int best = 0;
+    for (int v = 0; v < 256; ++v) {
+        const double p = histogram[v] * scale;
+        mu1 *= q1;
+        q1 += p;
+        const double q2 = 1.0 - q1;
+        if (std::min(q1, q2) < FLT_EPSILON || std::max(q1, q2) > 1.0 - FLT_EPSILON)
+            continue;
+        mu1 = (mu1 + v * p) / q1;
+        const double mu2 = (mean - q1 * mu1) / q2;
+        const double between = q1 * q2 * (mu1 - mu2) * (mu1 - mu2);
+        if (between > best_variance) {
+            best_variance = between;
+            best = v;
+        }
+    }
+    return best;
+}
+
+int triangle_threshold(const Histogram& histogram)
+{
+    int left = 0;
+    while (left < 256 && histogram[left] == 0)
+        ++left;
+    if (left == 256)
+        return 0;
+    int right = 255;
+    while (right > 0 && histogram[right] == 0)
+        --right;
+    // The line runs from the peak to the first empty bin beyond the tail.
+    if (left > 0)
+        --left;
+    if (right < 255)
+        ++right;
+    int peak = 0;
+    for (int v = 1; v < 256; ++v)
+        if (histogram[v] > histogram[peak])
+            peak = v;
+
+    // Work on the left of the peak; mirror first if the longer tail is on the right.
+    const bool mirrored = (peak - left) < (right - peak);
+    if (mirrored) {
+        left = 255 - right;
+        peak = 255 - peak;
+    }
+    auto at = [&](int v) { return static_cast<double>(histogram[mirrored ? 255 - v : v]); };
+    // Distance of (v, h[v]) to the line from (left, 0) to (peak, h[peak]), up to a constant factor.
+    const double a = at(peak), b = left - peak;
+    int best = left;
+    double best_distance = 0;
+    for (int v = left + 1; v <= peak; ++v) {
+        const double distance = a * v + b * at(v);
+        if (distance > best_distance) {
+            best_distance = distance;
+            best = v;
+        }
+    }
+    best -= 1;
+    return mirrored ? 255 - best : best;
+}
+
+int auto_threshold(const Histogram& histogram, ThresholdMethod method)
+{
+    return method == ThresholdMethod::triangle ? triangle_threshold(histogram) : otsu_threshold(histogram);
+}
+
+namespace {
+
+// 64 pixels of one row to one word: bit i = (p[i] > threshold).
+inline std::uint64_t pack64(const std::uint8_t* p, int threshold)
+{
+#if defined(__SSE2__)
+    // Unsigned compare via the sign flip: (p ^ 0x80) > (t ^ 0x80) as signed bytes.
+    const __m128i flip = _mm_set1_epi8(static_cast<char>(0x80));
+    const __m128i t = _mm_set1_epi8(static_cast<char>(threshold ^ 0x80));
+    std::uint64_t word = 0;
+    for (int k = 0; k < 4; ++k) {
+        const __m128i v = _mm_xor_si128(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p + 16 * k)), flip);
+        const auto bits = static_cast<std::uint32_t>(_mm_movemask_epi8(_mm_cmpgt_epi8(v, t)));
+        word |= static_cast<std::uint64_t>(bits) << (16 * k);
+    }
+    return word;
+#else
+    std::uint64_t word = 0;
+    for (int i = 0; i < 64; ++i)
+        word |= static_cast<std::uint64_t>(p[i] > threshold) << i;
+    return word;
+#endif
+}
+
+}  // namespace
+
+void threshold_to_bits(const cv::Mat& index_u8, int threshold, BitMask& out)
+{
+    CV_Assert(index_u8.type() == CV_8UC1);
+    if (out.width() != index_u8.cols || out.height() != index_u8.rows)
+        out.reset(index_u8.cols, index_u8.rows);
+    const int width = index_u8.cols;
+    const int full_words = width / 64;
+    for (int y = 0; y < index_u8.rows; ++y) {
+        const std::uint8_t* p = index_u8.ptr<std::uint8_t>(y);
+        std::uint64_t* row = out.row(y);
+        for (int w = 0; w < full_words; ++w)
+            row[w] = pack64(p + 64 * w, threshold);
+        if (full_words < out.words_per_row()) {
+            std::uint64_t word = 0;
+            for (int x = 64 * full_words; x < width; ++x)
+                word |= static_cast<std::uint64_t>(p[x] > threshold) << (x & 63);
+            row[full_words] = word;
+        }
+    }
+}
+
+}  // namespace stemd::vision

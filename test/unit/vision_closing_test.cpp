@@ -1,0 +1,98 @@
+#include <gtest/gtest.h>
+
+#include <opencv2/imgproc.hpp>
+
+#include "stemd/vision/bitmask.hpp"
+#include "stemd/vision/closing.hpp"
+#include "vision_test_util.hpp"
+
+using namespace stemd::vision;
+
+namespace {
+
+cv::Mat opencv_close(const cv::Mat& mask, int radius)
+{
+    if (radius == 0)
+        return mask.clone();
+    const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1));
+    cv::Mat out;
+    cv::morphologyEx(mask, out, cv::MORPH_CLOSE, kernel);
+    return out;
+}
+
+cv::Mat our_close(const cv::Mat& mask, int radius)
+{
+    BitMask in, out;
+    ClosingScratch scratch;
+    pack_mask(mask, MaskVegetation::nonzero, in);
+    close_mask(in, radius, out, scratch);
+    cv::Mat result;
+    unpack_mask(out, result);
+    return result;
+}
+
+}  // namespace
+
+TEST(Closing, KernelRowsAreCentredRuns)
+{
+    for (int r = 0; r <= 30; ++r) {
+        const auto widths = ellipse_half_widths(r);
+        ASSERT_EQ(widths.size(), static_cast<std::size_t>(2 * r + 1));
+        EXPECT_EQ(widths[static_cast<std::size_t>(r)], r);  // the middle row spans the whole kernel
+        for (int dy = 0; dy <= r; ++dy)
+            EXPECT_EQ(widths[static_cast<std::size_t>(r + dy)], widths[static_cast<std::size_t>(r - dy)]);
+    }
+}
+
+TEST(Closing, BitExactWithOpenCvOnRandomMasks)
+{
+    const cv::Size sizes[] = {{1, 1}, {1, 17}, {63, 9}, {64, 64}, {65, 33}, {130, 70}, {257, 41}};
+    std::uint64_t seed = 1;
+    for (const cv::Size size : sizes) {
+        for (const int radius : {0, 1, 2, 3, 5, 6, 10, 13, 20}) {
+            for (const double salt : {0.0, 0.02, 0.3}) {
+                const cv::Mat mask = stemd::test::random_blob_mask(size, seed++, 8, salt);
+                const cv::Mat expected = opencv_close(mask, radius);
+                const cv::Mat actual = our_close(mask, radius);
+                ASSERT_EQ(cv::countNonZero(expected != actual), 0)
+                    << "size " << size << " radius " << radius << " salt " << salt;
+            }
+        }
+    }
+}
+
+TEST(Closing, BorderBehavesLikeOpenCv)
+{
+    // Vegetation along every edge and in the corners: the erosion must not
+    // eat it (outside counts as vegetation for the erosion, as in OpenCV).
+    cv::Mat mask = cv::Mat::zeros(50, 70, CV_8UC1);
+    mask.row(0).setTo(255);
+    mask.col(69).setTo(255);
+    mask(cv::Rect(0, 40, 10, 10)).setTo(255);
+    for (const int radius : {1, 4, 10, 25}) {
+        EXPECT_EQ(cv::countNonZero(opencv_close(mask, radius) != our_close(mask, radius)), 0) << radius;
+    }
+}
+
+TEST(Closing, AllSetAndEmptyStayAsTheyAre)
+{
+    const cv::Mat full(40, 100, CV_8UC1, cv::Scalar(255));
+    const cv::Mat empty = cv::Mat::zeros(40, 100, CV_8UC1);
+    EXPECT_EQ(cv::countNonZero(our_close(full, 10)), full.total());
+    EXPECT_EQ(cv::countNonZero(our_close(empty, 10)), 0);
+}
+
+TEST(Closing, ScratchIsReusableAcrossRadii)
+{
+    const cv::Mat mask = stemd::test::random_blob_mask({200, 90}, 99, 15, 0.01);
+    BitMask in, out;
+    ClosingScratch scratch;
+    scratch.reserve(200, 90, 12);
+    pack_mask(mask, MaskVegetation::nonzero, in);
+    for (const int radius : {12, 3, 7, 12, 20, 1}) {
+        close_mask(in, radius, out, scratch);
+        cv::Mat actual;
+        unpack_mask(out, actual);
+        EXPECT_EQ(cv::countNonZero(actual != opencv_close(mask, radius)), 0) << radius;
+    }
+}

@@ -1,0 +1,279 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include <opencv2/imgproc.hpp>
+
+#include "stemd/vision/detect.hpp"
+#include "vision_test_util.hpp"
+
+using namespace stemd::vision;
+
+namespace {
+
+struct LeafSpec {
+    double angle_deg;
+    double petiole_px;      // from the stem to the blade
+    double blade_length_px;
+    double blade_half_width_px;
+};
+
+// A rosette drawn leaf by leaf: a petiole band of constant half width and
+// an elliptic blade, both symmetric about the leaf's axis through `stem`.
+cv::Mat draw_plant(cv::Size size, cv::Point stem, const std::vector<LeafSpec>& leaves, int petiole_half_width_px)
+{
+    cv::Mat mask = cv::Mat::zeros(size, CV_8UC1);
+    for (const auto& leaf : leaves) {
+        const double a = leaf.angle_deg * std::numbers::pi / 180.0;
+        const cv::Point2d u(std::cos(a), std::sin(a));
+        const cv::Point2d n(-u.y, u.x);
+        const double end = leaf.petiole_px + 0.5 * leaf.blade_length_px;
+        const double w = petiole_half_width_px;
+        std::vector<cv::Point> band;
+        for (const cv::Point2d p : {cv::Point2d(stem) + n * w, cv::Point2d(stem) + u * end + n * w,
+                                    cv::Point2d(stem) + u * end - n * w, cv::Point2d(stem) - n * w})
+            band.emplace_back(cvRound(p.x), cvRound(p.y));
+        cv::fillConvexPoly(mask, band, 255, cv::LINE_8);
+        const cv::Point2d blade_centre = cv::Point2d(stem) + u * (leaf.petiole_px + 0.5 * leaf.blade_length_px);
+        cv::ellipse(mask, cv::RotatedRect(cv::Point2f(blade_centre), cv::Size2f(leaf.blade_length_px, 2 * leaf.blade_half_width_px),
+                                          static_cast<float>(leaf.angle_deg)),
+                    255, cv::FILLED, cv::LINE_8);
+    }
+    return mask;
+}
+
+Params mask_params()
+{
+    Params p;
+    p.segmentation = Segmentation::mask;
+    p.closing_radius_px = 0;
+    p.min_plant_area_mm2 = 0;
+    return p;
+}
+
+double distance(cv::Point2f a, cv::Point2f b) { return std::hypot(a.x - b.x, a.y - b.y); }
+
+void expect_stems_inside_boxes(const Detections& d)
+{
+    for (const auto& plant : d.plants) {
+        EXPECT_GE(plant.stem.x, plant.bbox.x - 0.5f);
+        EXPECT_LE(plant.stem.x, plant.bbox.x + plant.bbox.width - 0.5f);
+        EXPECT_GE(plant.stem.y, plant.bbox.y - 0.5f);
+        EXPECT_LE(plant.stem.y, plant.bbox.y + plant.bbox.height - 0.5f);
+    }
+}
+
+}  // namespace
+
+TEST(Detect, SymmetricFourLeafPlantHasItsStemAtTheCentre)
+{
+    const cv::Point stem(200, 150);
+    const cv::Mat mask = draw_plant({400, 300}, stem,
+                                    {{0, 20, 60, 16}, {90, 20, 60, 16}, {180, 20, 60, 16}, {270, 20, 60, 16}}, 4);
+    const Detections d = detect({.mask = mask}, mask_params());
+    ASSERT_EQ(d.status, DetectStatus::ok);
+    ASSERT_EQ(d.plants.size(), 1u);
+    const Plant& p = d.plants[0];
+    EXPECT_EQ(p.method, StemMethod::leaves);
+    EXPECT_EQ(p.leaves.size(), 4u);
+    EXPECT_LT(distance(p.stem, cv::Point2f(stem)), 0.5) << p.stem;
+}
+
+TEST(Detect, AsymmetricThreeLeafPlantIsRecoveredWhereTheCentreOfMassFails)
+{
+    const cv::Point stem(250, 200);
+    const cv::Mat mask =
+        draw_plant({500, 400}, stem, {{0, 25, 120, 28}, {100, 15, 40, 12}, {230, 15, 50, 14}}, 4);
+    const Detections d = detect({.mask = mask}, mask_params());
+    ASSERT_EQ(d.plants.size(), 1u);
+    const Plant& p = d.plants[0];
+    ASSERT_EQ(p.leaves.size(), 3u);
+    EXPECT_EQ(p.method, StemMethod::leaves);
+    EXPECT_GT(distance(p.centre_of_mass, cv::Point2f(stem)), 20.0) << "the test needs an off-centre mass";
+    EXPECT_LT(distance(p.stem, cv::Point2f(stem)), 1.0) << p.stem;
+}
+
+TEST(Detect, ComMethodReportsTheCentreOfMass)
+{
+    const cv::Mat mask = draw_plant({400, 300}, {200, 150}, {{0, 20, 60, 16}, {120, 20, 30, 10}, {240, 20, 40, 12}}, 4);
+    Params params = mask_params();
+    params.stem_method = StemMethod::com;
+    const Detections d = detect({.mask = mask}, params);
+    ASSERT_EQ(d.plants.size(), 1u);
+    EXPECT_EQ(d.plants[0].method, StemMethod::com);
+    EXPECT_EQ(d.plants[0].com_reason, ComReason::method_com);
+    const cv::Moments m = cv::moments(mask, true);
+    EXPECT_NEAR(d.plants[0].stem.x, m.m10 / m.m00, 1e-3);
+    EXPECT_NEAR(d.plants[0].stem.y, m.m01 / m.m00, 1e-3);
+    EXPECT_EQ(d.plants[0].area_px, cv::countNonZero(mask));
+}
+
+TEST(Detect, EmptyFrameHasNoPlants)
+{
+    const cv::Mat mask = cv::Mat::zeros(120, 160, CV_8UC1);
+    const Detections d = detect({.mask = mask}, mask_params());
+    EXPECT_EQ(d.status, DetectStatus::ok);
+    EXPECT_TRUE(d.plants.empty());
+}
+
+TEST(Detect, AllVegetationIsOnePlantWithAStemInside)
+{
+    const cv::Mat mask(120, 160, CV_8UC1, cv::Scalar(255));
+    Params params = mask_params();
+    params.closing_radius_px = 10;
+    const Detections d = detect({.mask = mask}, params);
+    ASSERT_EQ(d.plants.size(), 1u);
+    EXPECT_EQ(d.plants[0].area_px, 120 * 160);
+    expect_stems_inside_boxes(d);
+}
+
+TEST(Detect, OnePixelPlants)
+{
+    cv::Mat mask = cv::Mat::zeros(50, 50, CV_8UC1);
+    mask.at<std::uint8_t>(10, 10) = 255;
+    mask.at<std::uint8_t>(0, 49) = 255;
+    mask.at<std::uint8_t>(49, 0) = 255;
+    const Detections d = detect({.mask = mask}, mask_params());
+    ASSERT_EQ(d.plants.size(), 3u);
+    EXPECT_EQ(d.plants[0].stem, cv::Point2f(49, 0));
+    EXPECT_EQ(d.plants[1].stem, cv::Point2f(10, 10));
+    for (const auto& p : d.plants)
+        EXPECT_EQ(p.com_reason, ComReason::too_few_leaves);
+}
+
+TEST(Detect, MinimumAreaIsInSquareMillimetres)
+{
+    cv::Mat mask = cv::Mat::zeros(100, 100, CV_8UC1);
+    mask(cv::Rect(10, 10, 10, 10)).setTo(255);  // 100 px = 10.89 mm2 at 0.33 mm/px
+    mask(cv::Rect(50, 50, 9, 9)).setTo(255);    // 81 px = 8.82 mm2
+    Params params = mask_params();
+    params.min_plant_area_mm2 = 10.0;
+    const Detections d = detect({.mask = mask}, params);
+    ASSERT_EQ(d.plants.size(), 1u);
+    EXPECT_EQ(d.plants[0].area_px, 100);
+    EXPECT_EQ(d.stats.small_components, 1);
+}
+
+TEST(Detect, PlantTouchingTheBorder)
+{
+    const cv::Mat mask = draw_plant({300, 200}, {5, 100}, {{0, 20, 60, 16}, {90, 20, 60, 16}, {180, 20, 60, 16}, {270, 20, 60, 16}}, 4);
+    const Detections d = detect({.mask = mask}, mask_params());
+    ASSERT_EQ(d.plants.size(), 1u);
+    EXPECT_EQ(d.plants[0].bbox.x, 0);
+    expect_stems_inside_boxes(d);
+}
+
+TEST(Detect, PlantWithAHoleIsOnePlant)
+{
+    cv::Mat mask = cv::Mat::zeros(200, 200, CV_8UC1);
+    cv::circle(mask, {100, 100}, 60, 255, cv::FILLED);
+    cv::circle(mask, {100, 100}, 20, 0, cv::FILLED);
+    const Detections d = detect({.mask = mask}, mask_params());
+    ASSERT_EQ(d.plants.size(), 1u);
+    EXPECT_EQ(d.plants[0].area_px, cv::countNonZero(mask));
+}
+
+TEST(Detect, SpiralDoesNotBreakAnything)
+{
+    cv::Mat mask = cv::Mat::zeros(300, 300, CV_8UC1);
+    std::vector<cv::Point> spiral;
+    for (double t = 0; t < 6 * std::numbers::pi; t += 0.02)
+        spiral.emplace_back(cvRound(150 + 6 * t * std::cos(t)), cvRound(150 + 6 * t * std::sin(t)));
+    cv::polylines(mask, spiral, false, 255, 3);
+    Params params = mask_params();
+    params.min_leaves = 2;
+    const Detections d = detect({.mask = mask}, params);
+    ASSERT_EQ(d.plants.size(), 1u);
+    expect_stems_inside_boxes(d);
+}
+
+TEST(Detect, BadFramesAreRejectedNotCrashedOn)
+{
+    Params params;
+    Workspace ws({64, 48}, params);
+    Detections d;
+    detect({}, params, ws, d);
+    EXPECT_EQ(d.status, DetectStatus::empty_frame);
+    detect({.bgr = cv::Mat(48, 64, CV_8UC1)}, params, ws, d);
+    EXPECT_EQ(d.status, DetectStatus::bad_format);
+    detect({.bgr = cv::Mat(40, 64, CV_8UC3)}, params, ws, d);
+    EXPECT_EQ(d.status, DetectStatus::size_mismatch);
+    params.segmentation = Segmentation::ndvi;
+    detect({.bgr = cv::Mat(48, 64, CV_8UC3, cv::Scalar::all(0))}, params, ws, d);
+    EXPECT_EQ(d.status, DetectStatus::missing_nir);
+    params.segmentation = Segmentation::mask;
+    detect({.bgr = cv::Mat(48, 64, CV_8UC3)}, params, ws, d);
+    EXPECT_EQ(d.status, DetectStatus::missing_mask);
+    EXPECT_TRUE(d.plants.empty());
+}
+
+TEST(Detect, ExcessGreenFindsAGreenPlantOnSoil)
+{
+    cv::Mat bgr(300, 400, CV_8UC3, cv::Scalar(60, 80, 110));  // brownish soil
+    cv::RNG rng(3);
+    cv::Mat noise(bgr.size(), CV_8UC3);
+    rng.fill(noise, cv::RNG::UNIFORM, 0, 20);
+    bgr += noise;
+    const cv::Point stem(200, 150);
+    const cv::Mat plant = draw_plant(bgr.size(), stem, {{10, 20, 70, 18}, {100, 20, 60, 16}, {200, 20, 70, 18}, {290, 20, 50, 16}}, 4);
+    bgr.setTo(cv::Scalar(40, 150, 50), plant);
+    Params params;
+    params.closing_radius_px = 2;
+    const Detections d = detect({.bgr = bgr}, params);
+    ASSERT_EQ(d.status, DetectStatus::ok);
+    ASSERT_EQ(d.plants.size(), 1u);
+    EXPECT_EQ(d.plants[0].method, StemMethod::leaves);
+    EXPECT_LT(distance(d.plants[0].stem, cv::Point2f(stem)), 1.5);
+    EXPECT_GT(d.stats.threshold, 128);
+}
+
+TEST(Detect, NdviFindsThePlantFromTheNirImage)
+{
+    cv::Mat bgr(200, 200, CV_8UC3, cv::Scalar(80, 80, 90));
+    cv::Mat nir(200, 200, CV_8UC1, cv::Scalar(85));
+    cv::circle(nir, {100, 100}, 30, 220, cv::FILLED);
+    const Detections d = detect({.bgr = bgr, .nir = nir}, Params{.segmentation = Segmentation::ndvi});
+    ASSERT_EQ(d.status, DetectStatus::ok);
+    ASSERT_EQ(d.plants.size(), 1u);
+    EXPECT_NEAR(d.plants[0].centre_of_mass.x, 100, 0.5);
+    EXPECT_NEAR(d.plants[0].area_px, 2821, 60);  // about pi * 30^2
+}
+
+TEST(Detect, RandomMasksNeverThrowAndStemsStayInTheirBoxes)
+{
+    Params params;
+    params.segmentation = Segmentation::mask;
+    params.min_plant_area_mm2 = 0;
+    params.min_leaves = 2;
+    params.defect_depth_mm = 0.5;
+    Workspace ws({257, 130}, params);
+    Detections d;
+    for (std::uint64_t seed = 1; seed <= 150; ++seed) {
+        params.closing_radius_px = static_cast<int>(seed % 12);
+        const cv::Mat mask = stemd::test::random_blob_mask({257, 130}, seed, 30, (seed % 4) * 0.02);
+        ASSERT_NO_THROW(detect({.mask = mask}, params, ws, d));
+        ASSERT_EQ(d.status, DetectStatus::ok);
+        expect_stems_inside_boxes(d);
+        for (const auto& p : d.plants) {
+            EXPECT_EQ(p.method == StemMethod::leaves, p.com_reason == ComReason::none);
+            EXPECT_LE(p.leaves.size(), kMaxLeaves);
+        }
+    }
+}
+
+TEST(Detect, ReusedWorkspaceGivesTheSameResult)
+{
+    const cv::Mat a = stemd::test::random_blob_mask({200, 100}, 11, 20, 0.0);
+    const cv::Mat b = stemd::test::random_blob_mask({200, 100}, 12, 20, 0.0);
+    Params params = mask_params();
+    params.closing_radius_px = 4;
+    Workspace ws({200, 100}, params);
+    Detections first, again;
+    detect({.mask = a}, params, ws, first);
+    detect({.mask = b}, params, ws, again);
+    detect({.mask = a}, params, ws, again);
+    ASSERT_EQ(first.plants.size(), again.plants.size());
+    for (std::size_t i = 0; i < first.plants.size(); ++i)
+        EXPECT_EQ(first.plants[i].stem, again.plants[i].stem);
+}

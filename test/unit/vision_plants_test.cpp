@@ -1,0 +1,83 @@
+#include <gtest/gtest.h>
+
+#include <map>
+
+#include <opencv2/imgproc.hpp>
+
+#include "stemd/vision/plants.hpp"
+#include "vision_test_util.hpp"
+
+using namespace stemd::vision;
+
+namespace {
+
+std::vector<Component> label(const cv::Mat& mask)
+{
+    BitMask bits;
+    pack_mask(mask, MaskVegetation::nonzero, bits);
+    LabelScratch scratch;
+    scratch.reserve(mask.cols, mask.rows);
+    std::vector<Component> out;
+    label_components(bits, scratch, out);
+    return out;
+}
+
+}  // namespace
+
+TEST(Plants, SameComponentsAsOpenCvEightConnected)
+{
+    for (std::uint64_t seed = 1; seed <= 30; ++seed) {
+        const cv::Mat mask = stemd::test::random_blob_mask({150 + static_cast<int>(seed), 90}, seed, 25, 0.01);
+        cv::Mat labels, stats, centroids;
+        const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
+        const auto ours = label(mask);
+        ASSERT_EQ(static_cast<int>(ours.size()), n - 1) << "seed " << seed;
+        // Match by the label OpenCV gives our first pixel.
+        for (const Component& c : ours) {
+            const int l = labels.at<int>(c.first_pixel.y, c.first_pixel.x);
+            ASSERT_GT(l, 0);
+            EXPECT_EQ(c.area_px, stats.at<int>(l, cv::CC_STAT_AREA));
+            EXPECT_EQ(c.x_min, stats.at<int>(l, cv::CC_STAT_LEFT));
+            EXPECT_EQ(c.y_min, stats.at<int>(l, cv::CC_STAT_TOP));
+            EXPECT_EQ(c.x_max - c.x_min + 1, stats.at<int>(l, cv::CC_STAT_WIDTH));
+            EXPECT_EQ(c.y_max - c.y_min + 1, stats.at<int>(l, cv::CC_STAT_HEIGHT));
+            EXPECT_NEAR(c.sum_x / c.area_px, centroids.at<double>(l, 0), 1e-9);
+            EXPECT_NEAR(c.sum_y / c.area_px, centroids.at<double>(l, 1), 1e-9);
+        }
+    }
+}
+
+TEST(Plants, ComponentsComeInRasterOrderOfTheirFirstPixel)
+{
+    const auto ours = label(stemd::test::random_blob_mask({300, 200}, 7, 40, 0.0));
+    ASSERT_GT(ours.size(), 3u);
+    for (std::size_t i = 1; i < ours.size(); ++i) {
+        const auto& a = ours[i - 1].first_pixel;
+        const auto& b = ours[i].first_pixel;
+        EXPECT_TRUE(a.y < b.y || (a.y == b.y && a.x < b.x));
+    }
+    // The first pixel really is the top-most, then left-most one.
+    for (const auto& c : ours)
+        EXPECT_EQ(c.first_pixel.y, c.y_min);
+}
+
+TEST(Plants, HolesAreNotPlantsButIslandsAre)
+{
+    cv::Mat ring = cv::Mat::zeros(100, 100, CV_8UC1);
+    cv::circle(ring, {50, 50}, 30, 255, 6);
+    auto ours = label(ring);
+    ASSERT_EQ(ours.size(), 1u);
+    cv::circle(ring, {50, 50}, 5, 255, cv::FILLED);  // an island inside the hole
+    ours = label(ring);
+    EXPECT_EQ(ours.size(), 2u);
+}
+
+TEST(Plants, DiagonalNeighboursJoin)
+{
+    cv::Mat mask = cv::Mat::zeros(10, 10, CV_8UC1);
+    for (int i = 0; i < 10; ++i)
+        mask.at<std::uint8_t>(i, i) = 255;
+    const auto ours = label(mask);
+    ASSERT_EQ(ours.size(), 1u);
+    EXPECT_EQ(ours[0].area_px, 10);
+}

@@ -1,0 +1,32 @@
+// Helpers shared by the vision tests: deterministic random masks.
+#pragma once
+
+#include <cstdint>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace stemd::test {
+
+// Random blobs (filled circles and thick lines) on an empty mask, 255 = set,
+// plus salt noise of the given density. Deterministic in `seed`.
+inline cv::Mat random_blob_mask(cv::Size size, std::uint64_t seed, int blobs, double salt_density)
+{
+    cv::RNG rng(seed);
+    cv::Mat mask = cv::Mat::zeros(size, CV_8UC1);
+    for (int i = 0; i < blobs; ++i) {
+        const cv::Point c(rng.uniform(-5, size.width + 5), rng.uniform(-5, size.height + 5));
+        if (rng.uniform(0, 2) == 0) {
+            cv::circle(mask, c, rng.uniform(1, 12), 255, cv::FILLED, cv::LINE_8);
+        } else {
+            const cv::Point d(rng.uniform(-25, 25), rng.uniform(-25, 25));
+            cv::line(mask, c, c + d, 255, rng.uniform(1, 4), cv::LINE_8);
+        }
+    }
+    const int salt = static_cast<int>(salt_density * size.area());
+    for (int i = 0; i < salt; ++i)
+        mask.at<std::uint8_t>(rng.uniform(0, size.height), rng.uniform(0, size.width)) = 255;
+    return mask;
+}
+
+}  // namespace stemd::test
