@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <memory>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -38,6 +39,7 @@ void ClosingScratch::reserve(int width_px, int height_px, int max_radius_px)
     const std::size_t slots = static_cast<std::size_t>(max_radius_px + 1);
     ring_.resize(rows * slots * words);
     row_tmp_.resize(2 * words);
+    row_clear_ = std::make_unique<bool[]>(rows);
     width_slot_.reserve(rows);
     slot_half_width_.reserve(slots);
 }
@@ -74,7 +76,8 @@ struct Kernel {
 // dst = src (+) kernel or src (-) kernel, streaming rows through a ring of
 // 2r+1 rows, each kept at every half width the kernel uses.
 template <Op op>
-void morph_pass(const BitMask& src, BitMask& dst, const Kernel& kernel, std::uint64_t* ring, std::uint64_t* tmp)
+void morph_pass(const BitMask& src, BitMask& dst, const Kernel& kernel, std::uint64_t* ring, std::uint64_t* tmp,
+                bool* row_clear_flags)
 {
     const int words = src.words_per_row();
     const int height = src.height();
@@ -87,15 +90,28 @@ void morph_pass(const BitMask& src, BitMask& dst, const Kernel& kernel, std::uin
     const std::uint64_t pad_bits = ~src.last_word_mask();
 
     auto ring_row = [&](int y) { return ring + static_cast<std::size_t>((y + ring_rows) % ring_rows) * row_words; };
+    // Rows that are entirely clear stay clear at every width: they are only
+    // marked, which makes sparse frames cheap. For the erosion a clear row
+    // anywhere in the window clears the output row.
+    bool* row_clear = row_clear_flags;
     auto load = [&](int y) {
+        const int slot_row = (y + ring_rows) % ring_rows;
         std::uint64_t* slot0 = ring_row(y);
         if (y < 0 || y >= height) {
             std::fill(slot0, slot0 + row_words, outside);
+            row_clear[slot_row] = op == Op::dilate;
             return;
         }
+        const std::uint64_t* in = src.row(y);
+        std::uint64_t any = 0;
+        for (int i = 0; i < words; ++i)
+            any |= in[i];
+        row_clear[slot_row] = any == 0;
+        if (any == 0)
+            return;
         std::uint64_t* a = tmp;
         std::uint64_t* b = tmp + slot_words;
-        std::memcpy(a, src.row(y), slot_words * sizeof(std::uint64_t));
+        std::memcpy(a, in, slot_words * sizeof(std::uint64_t));
         if constexpr (op == Op::erode)
             a[words - 1] |= pad_bits;  // beyond the width is outside: 1 for erosion
         int width = 0;
@@ -114,8 +130,18 @@ void morph_pass(const BitMask& src, BitMask& dst, const Kernel& kernel, std::uin
     for (int y = 0; y < height; ++y) {
         load(y + radius);
         std::uint64_t* out = dst.row(y);
-        std::fill(out, out + words, op == Op::dilate ? 0 : ~std::uint64_t{0});
+        std::fill(out, out + words, 0);
+        if constexpr (op == Op::erode) {
+            bool any_clear = false;
+            for (int dy = -radius; dy <= radius && !any_clear; ++dy)
+                any_clear = row_clear[(y + dy + ring_rows) % ring_rows];
+            if (any_clear)
+                continue;
+            std::fill(out, out + words, ~std::uint64_t{0});
+        }
         for (int dy = -radius; dy <= radius; ++dy) {
+            if (op == Op::dilate && row_clear[(y + dy + ring_rows) % ring_rows])
+                continue;
             const int slot = kernel.width_slot[static_cast<std::size_t>(dy + radius)];
             const std::uint64_t* in = ring_row(y + dy) + slot * slot_words;
             if constexpr (op == Op::dilate)
@@ -165,8 +191,10 @@ void close_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& 
         scratch.kernel_radius_ = radius_px;
     }
     const Kernel kernel{radius_px, scratch.width_slot_, scratch.slot_half_width_};
-    morph_pass<Op::dilate>(in, scratch.dilated_, kernel, scratch.ring_.data(), scratch.row_tmp_.data());
-    morph_pass<Op::erode>(scratch.dilated_, out, kernel, scratch.ring_.data(), scratch.row_tmp_.data());
+    morph_pass<Op::dilate>(in, scratch.dilated_, kernel, scratch.ring_.data(), scratch.row_tmp_.data(),
+                           scratch.row_clear_.get());
+    morph_pass<Op::erode>(scratch.dilated_, out, kernel, scratch.ring_.data(), scratch.row_tmp_.data(),
+                          scratch.row_clear_.get());
 }
 
 }  // namespace stemd::vision

@@ -1,6 +1,7 @@
 #include "stemd/vision/threshold.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cfloat>
 #include <cmath>
 
@@ -108,9 +109,49 @@ int triangle_threshold(const Histogram& histogram)
     return mirrored ? 255 - best : best;
 }
 
+int min_error_threshold(const Histogram& histogram)
+{
+    // Prefix sums of n, n*v and n*v^2 give each class's weight, mean and
+    // variance in O(1) per candidate level.
+    std::array<double, 257> n{}, s1{}, s2{};
+    for (int v = 0; v < 256; ++v) {
+        n[v + 1] = n[v] + histogram[v];
+        s1[v + 1] = s1[v] + static_cast<double>(v) * histogram[v];
+        s2[v + 1] = s2[v] + static_cast<double>(v) * v * histogram[v];
+    }
+    const double total = n[256];
+    if (total == 0)
+        return 0;
+    double best_criterion = 0;
+    int best = -1;
+    for (int t = 0; t < 255; ++t) {
+        const double n1 = n[t + 1], n2 = total - n1;
+        if (n1 < 1 || n2 < 1)
+            continue;
+        const double m1 = s1[t + 1] / n1, m2 = (s1[256] - s1[t + 1]) / n2;
+        const double var1 = s2[t + 1] / n1 - m1 * m1, var2 = (s2[256] - s2[t + 1]) / n2 - m2 * m2;
+        if (var1 <= 1e-9 || var2 <= 1e-9)
+            continue;  // a class without spread makes the criterion -infinity
+        const double p1 = n1 / total, p2 = n2 / total;
+        // J(t) = 1 + 2 (P1 ln s1 + P2 ln s2) - 2 (P1 ln P1 + P2 ln P2), with ln s = ln(var) / 2.
+        const double criterion =
+            1.0 + p1 * std::log(var1) + p2 * std::log(var2) - 2.0 * (p1 * std::log(p1) + p2 * std::log(p2));
+        if (best < 0 || criterion < best_criterion) {
+            best_criterion = criterion;
+            best = t;
+        }
+    }
+    return best < 0 ? otsu_threshold(histogram) : best;
+}
+
 int auto_threshold(const Histogram& histogram, ThresholdMethod method)
 {
-    return method == ThresholdMethod::triangle ? triangle_threshold(histogram) : otsu_threshold(histogram);
+    switch (method) {
+    case ThresholdMethod::triangle: return triangle_threshold(histogram);
+    case ThresholdMethod::min_error: return min_error_threshold(histogram);
+    case ThresholdMethod::otsu: break;
+    }
+    return otsu_threshold(histogram);
 }
 
 namespace {

@@ -17,6 +17,7 @@ std::string_view to_string(ThresholdMethod v)
     switch (v) {
     case ThresholdMethod::otsu: return "otsu";
     case ThresholdMethod::triangle: return "triangle";
+    case ThresholdMethod::min_error: return "min_error";
     }
     return "?";
 }
@@ -77,6 +78,7 @@ std::optional<ThresholdMethod> parse_threshold_method(std::string_view s)
 {
     if (s == "otsu") return ThresholdMethod::otsu;
     if (s == "triangle") return ThresholdMethod::triangle;
+    if (s == "min_error") return ThresholdMethod::min_error;
     return std::nullopt;
 }
 

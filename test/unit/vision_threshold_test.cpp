@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <opencv2/imgproc.hpp>
 
 #include "stemd/vision/bitmask.hpp"
@@ -115,4 +117,71 @@ TEST(BitMask, PackUnpackRoundTripAndZeroVegetation)
     pack_mask(mask, MaskVegetation::zero, bits);
     EXPECT_EQ(bits.count(), static_cast<long>(mask.total()) - cv::countNonZero(mask));
     EXPECT_EQ(bits.row(3)[bits.words_per_row() - 1] & ~bits.last_word_mask(), 0u);
+}
+
+namespace {
+
+// The textbook criterion, computed directly for every level.
+int brute_force_min_error(const Histogram& h)
+{
+    double total = 0;
+    for (const auto v : h)
+        total += v;
+    double best_j = 0;
+    int best = -1;
+    for (int t = 0; t < 255; ++t) {
+        double n1 = 0, n2 = 0, m1 = 0, m2 = 0;
+        for (int i = 0; i <= t; ++i) { n1 += h[i]; m1 += i * double(h[i]); }
+        for (int i = t + 1; i < 256; ++i) { n2 += h[i]; m2 += i * double(h[i]); }
+        if (n1 < 1 || n2 < 1)
+            continue;
+        m1 /= n1;
+        m2 /= n2;
+        double v1 = 0, v2 = 0;
+        for (int i = 0; i <= t; ++i) v1 += h[i] * (i - m1) * (i - m1);
+        for (int i = t + 1; i < 256; ++i) v2 += h[i] * (i - m2) * (i - m2);
+        v1 /= n1;
+        v2 /= n2;
+        if (v1 <= 1e-9 || v2 <= 1e-9)
+            continue;
+        const double p1 = n1 / total, p2 = n2 / total;
+        const double j = 1 + 2 * (p1 * std::log(std::sqrt(v1)) + p2 * std::log(std::sqrt(v2))) -
+                         2 * (p1 * std::log(p1) + p2 * std::log(p2));
+        if (best < 0 || j < best_j) {
+            best_j = j;
+            best = t;
+        }
+    }
+    return best;
+}
+
+}  // namespace
+
+TEST(Threshold, MinErrorEqualsTheTextbookCriterion)
+{
+    for (int kind = 0; kind < 5; ++kind) {
+        for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+            Histogram h;
+            compute_histogram(test_image(kind, seed), h);
+            const int expected = brute_force_min_error(h);
+            if (expected >= 0) {
+                EXPECT_EQ(min_error_threshold(h), expected) << "kind " << kind << " seed " << seed;
+            }
+        }
+    }
+}
+
+TEST(Threshold, MinErrorFindsTheBayesBoundaryOfTwoGaussians)
+{
+    // A 10 % narrow bright class at 180 over a 90 % wide dark class at 100:
+    // the weighted densities cross at 166 (solved numerically), so the
+    // error-minimising rule is "index > 165".
+    Histogram h{};
+    for (int v = 0; v < 256; ++v) {
+        h[v] = static_cast<std::uint32_t>(9000 * std::exp(-0.5 * std::pow((v - 100) / 20.0, 2)) +
+                                          1000 * std::exp(-0.5 * std::pow((v - 180) / 6.0, 2)));
+    }
+    const int min_error = min_error_threshold(h);
+    EXPECT_NEAR(min_error, 165, 2);
+    EXPECT_EQ(auto_threshold(h, ThresholdMethod::min_error), min_error);
 }

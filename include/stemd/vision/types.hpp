@@ -44,7 +44,7 @@ private:
 };
 
 enum class Segmentation : std::uint8_t { exg, ndvi, mask };
-enum class ThresholdMethod : std::uint8_t { otsu, triangle };
+enum class ThresholdMethod : std::uint8_t { otsu, triangle, min_error };
 // Which pixel value of an external mask means vegetation.
 enum class MaskVegetation : std::uint8_t { nonzero, zero };
 // How stems are estimated: the paper's leaf method or the centre of mass.

@@ -1,0 +1,174 @@
+// stemd-bench: per-stage and whole-pipeline timings on synthetic
+// 1296x966 frames, one thread, with one cv::cvtColor BGR->GRAY pass over the
+// same frames as a yardstick of this machine's speed.
+//   stemd-bench [--json] [--preset early|late|dense] [--frames N] [--radius M] [benchmark flags]
+// Each repetition is one frame; medians and p90 are over repetitions.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <benchmark/benchmark.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "stemd/synth/synth.hpp"
+#include "stemd/vision/detect.hpp"
+
+using namespace stemd;
+
+namespace {
+
+struct Setup {
+    std::vector<synth::Frame> frames;
+    vision::Params params;
+    std::unique_ptr<vision::Workspace> workspace;
+    vision::Detections detections;
+    std::size_t next = 0;
+};
+
+Setup* g_setup = nullptr;  // benchmark callbacks are plain functions
+
+double percentile(std::vector<double> v, double q)
+{
+    if (v.empty())
+        return 0;
+    std::sort(v.begin(), v.end());
+    const auto i = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5);
+    return v[std::min(i, v.size() - 1)];
+}
+
+std::int64_t stage_ns(const vision::StageTimes& t, int stage)
+{
+    switch (stage) {
+    case 0: return t.index_ns;
+    case 1: return t.threshold_ns;
+    case 2: return t.closing_ns;
+    case 3: return t.plants_ns;
+    case 4: return t.leaves_ns;
+    default: return t.total_ns;
+    }
+}
+
+const char* const kStageNames[] = {"index", "threshold", "closing", "plants", "leaves", "frame"};
+
+void bench_stage(benchmark::State& state, int stage)
+{
+    Setup& s = *g_setup;
+    for (auto _ : state) {
+        const synth::Frame& f = s.frames[s.next++ % s.frames.size()];
+        vision::StageTimes times;
+        vision::detect({.bgr = f.bgr, .nir = f.nir, .mask = f.mask}, s.params, *s.workspace, s.detections, &times);
+        benchmark::DoNotOptimize(s.detections.plants.size());
+        state.SetIterationTime(static_cast<double>(stage_ns(times, stage)) * 1e-9);
+    }
+    state.counters["plants"] = static_cast<double>(s.detections.plants.size());
+}
+
+void bench_cvtcolor(benchmark::State& state)
+{
+    Setup& s = *g_setup;
+    cv::Mat gray;
+    for (auto _ : state) {
+        const synth::Frame& f = s.frames[s.next++ % s.frames.size()];
+        const auto t0 = std::chrono::steady_clock::now();
+        cv::cvtColor(f.bgr, gray, cv::COLOR_BGR2GRAY);
+        const auto t1 = std::chrono::steady_clock::now();
+        benchmark::DoNotOptimize(gray.data);
+        state.SetIterationTime(std::chrono::duration<double>(t1 - t0).count());
+    }
+}
+
+// Keeps the median and p90 of every benchmark; prints them as one JSON line.
+class JsonLineReporter : public benchmark::BenchmarkReporter {
+public:
+    bool ReportContext(const Context&) override { return true; }
+    void ReportRuns(const std::vector<Run>& runs) override
+    {
+        for (const Run& run : runs) {
+            if (run.aggregate_name == "median" || run.aggregate_name == "p90")
+                values_[run.run_name.function_name + "_ms_" + run.aggregate_name] = run.GetAdjustedRealTime();
+        }
+    }
+    void Print(int frames, const std::string& preset, int radius) const
+    {
+        std::printf("{\"frame_width_px\":1296,\"frame_height_px\":966,\"preset\":\"%s\",\"closing_radius_px\":%d,"
+                    "\"frames\":%d",
+                    preset.c_str(), radius, frames);
+        for (const auto& [key, value] : values_)
+            std::printf(",\"%s\":%.4f", key.c_str(), value);
+        std::printf("}\n");
+    }
+
+private:
+    std::map<std::string, double> values_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv)
+{
+    bool json = false;
+    std::string preset_name = "late";
+    int frame_count = 8, radius = 10, repetitions = 200;
+    std::vector<char*> rest{argv[0]};
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        auto next_int = [&](int& out) {
+            if (i + 1 >= argc || (out = std::atoi(argv[i + 1]), out <= 0 && a != "--radius")) {
+                std::fprintf(stderr, "stemd-bench: %s needs a positive integer\n", a.c_str());
+                std::exit(2);
+            }
+            ++i;
+        };
+        if (a == "--json") json = true;
+        else if (a == "--preset" && i + 1 < argc) preset_name = argv[++i];
+        else if (a == "--frames") next_int(frame_count);
+        else if (a == "--radius") next_int(radius);
+        else if (a == "--repetitions") next_int(repetitions);
+        else rest.push_back(argv[i]);
+    }
+    const auto preset = synth::parse_preset(preset_name);
+    if (!preset || radius < 0 || radius > vision::kMaxClosingRadiusPx) {
+        std::fprintf(stderr, "stemd-bench: bad --preset or --radius\n");
+        return 2;
+    }
+    cv::setNumThreads(1);
+
+    Setup setup;
+    synth::Options options;
+    options.preset = *preset;
+    options.seed = 2024;
+    for (int i = 0; i < frame_count; ++i)
+        setup.frames.push_back(synth::generate_frame(options, i));
+    setup.params.closing_radius_px = radius;
+    setup.workspace = std::make_unique<vision::Workspace>(setup.frames.front().bgr.size(), setup.params);
+    g_setup = &setup;
+
+    auto p90 = [](const std::vector<double>& v) { return percentile(v, 0.9); };
+    for (int stage = 0; stage < 6; ++stage)
+        benchmark::RegisterBenchmark(kStageNames[stage], bench_stage, stage)
+            ->UseManualTime()->Iterations(1)->Repetitions(repetitions)->ReportAggregatesOnly(true)
+            ->ComputeStatistics("p90", p90)->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark("cvtcolor", bench_cvtcolor)
+        ->UseManualTime()->Iterations(1)->Repetitions(repetitions)->ReportAggregatesOnly(true)
+        ->ComputeStatistics("p90", p90)->Unit(benchmark::kMillisecond);
+
+    int rest_argc = static_cast<int>(rest.size());
+    benchmark::Initialize(&rest_argc, rest.data());
+    if (benchmark::ReportUnrecognizedArguments(rest_argc, rest.data()))
+        return 2;
+    if (json) {
+        JsonLineReporter reporter;
+        benchmark::RunSpecifiedBenchmarks(&reporter);
+        reporter.Print(frame_count, preset_name, radius);
+    } else {
+        benchmark::RunSpecifiedBenchmarks();
+    }
+    benchmark::Shutdown();
+    return 0;
+}

@@ -1,0 +1,254 @@
+// stemd-detect: offline stem detection on images or recording directories.
+//   stemd-detect [--config FILE] [--set KEY=VALUE]... [--segment exg|ndvi|mask]
+//                [--csv OUT] [--mask-out DIR] [--overlay DIR] [--timing] INPUT...
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "stemd/io/csv.hpp"
+#include "stemd/io/recording.hpp"
+#include "stemd/runtime/config.hpp"
+#include "stemd/runtime/vision_config.hpp"
+#include "stemd/vision/detect.hpp"
+#include "stemd/viz/overlay.hpp"
+#include "tool_config.hpp"
+#include "tool_frames.hpp"
+
+namespace fs = std::filesystem;
+using namespace stemd;
+
+namespace {
+
+constexpr int kUsageError = 2;
+
+const char* const kUsage =
+    "usage: stemd-detect [--config FILE] [--set KEY=VALUE]... [--segment exg|ndvi|mask]\n"
+    "                    [--csv OUT] [--mask-out DIR] [--overlay DIR] [--timing] INPUT...\n"
+    "  INPUT       image files (RGB; masks with --segment mask, nonzero = vegetation)\n"
+    "              or recording directories (frames.csv: t_ns,rgb,nir,mask)\n"
+    "  --config    configuration file (see config/stemd.yaml)\n"
+    "  --set       override one configuration key, e.g. --set closing.radius_px=6\n"
+    "  --segment   shorthand for --set segment.method=...\n"
+    "  --csv       write image,plant,x,y,method,leaves,area_px ('-' = stdout)\n"
+    "  --mask-out  write each frame's vegetation mask (255 = vegetation) as PNG\n"
+    "  --overlay   write overlays (contour, hull, cuts, leaves, stem, centre of mass)\n"
+    "  --timing    per-frame stage times on stderr and medians at the end\n";
+
+struct Args {
+    tools::ConfigArgs config;
+    std::string csv_path;
+    std::string mask_dir;
+    std::string overlay_dir;
+    bool timing = false;
+    std::vector<std::string> inputs;
+};
+
+std::optional<Args> parse_args(int argc, char** argv, std::string& error)
+{
+    Args args;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        auto value = [&](std::string& out) {
+            if (i + 1 >= argc) {
+                error = a + " needs a value";
+                return false;
+            }
+            out = argv[++i];
+            return true;
+        };
+        std::string v;
+        if (a == "--config") {
+            if (!value(args.config.file)) return std::nullopt;
+        } else if (a == "--set") {
+            if (!value(v)) return std::nullopt;
+            args.config.sets.push_back(v);
+        } else if (a == "--segment") {
+            if (!value(v)) return std::nullopt;
+            args.config.sets.push_back("segment.method=" + v);
+        } else if (a == "--csv") {
+            if (!value(args.csv_path)) return std::nullopt;
+        } else if (a == "--mask-out") {
+            if (!value(args.mask_dir)) return std::nullopt;
+        } else if (a == "--overlay") {
+            if (!value(args.overlay_dir)) return std::nullopt;
+        } else if (a == "--timing") {
+            args.timing = true;
+        } else if (a.size() > 1 && a[0] == '-') {
+            error = "unknown option " + a;
+            return std::nullopt;
+        } else {
+            args.inputs.push_back(a);
+        }
+    }
+    if (args.inputs.empty()) {
+        error = "no INPUT given";
+        return std::nullopt;
+    }
+    return args;
+}
+
+double median(std::vector<double> v)
+{
+    if (v.empty())
+        return 0;
+    std::sort(v.begin(), v.end());
+    return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+bool ensure_dir(const std::string& dir, std::string& error)
+{
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) {
+        error = dir + ": cannot create directory: " + ec.message();
+        return false;
+    }
+    return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv)
+{
+    for (int i = 1; i < argc; ++i) {
+        if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h") {
+            std::cout << kUsage;
+            return 0;
+        }
+    }
+    std::string error;
+    const auto args = parse_args(argc, argv, error);
+    if (!args) {
+        std::cerr << "stemd-detect: " << error << "\n" << kUsage;
+        return kUsageError;
+    }
+    config::Config config;
+    if (const auto config_error = tools::build_config(args->config, config)) {
+        std::cerr << "stemd-detect: " << config_error->to_string() << "\n";
+        return kUsageError;
+    }
+    const vision::Params params = config::vision_params(config);
+
+    std::vector<tools::FrameJob> jobs;
+    if (!tools::collect_frames(args->inputs, params.segmentation, jobs, error)) {
+        std::cerr << "stemd-detect: " << error << "\n";
+        return kUsageError;
+    }
+    for (const std::string* dir : {&args->mask_dir, &args->overlay_dir}) {
+        if (!dir->empty() && !ensure_dir(*dir, error)) {
+            std::cerr << "stemd-detect: " << error << "\n";
+            return 1;
+        }
+    }
+
+    std::ofstream csv_file;
+    std::ostream* csv = nullptr;
+    if (args->csv_path == "-") {
+        csv = &std::cout;
+    } else if (!args->csv_path.empty()) {
+        csv_file.open(args->csv_path);
+        if (!csv_file) {
+            std::cerr << "stemd-detect: " << args->csv_path << ": cannot write\n";
+            return 1;
+        }
+        csv = &csv_file;
+    }
+    std::ostream& report = args->csv_path == "-" ? std::cerr : std::cout;
+    if (csv)
+        *csv << "image,plant,x,y,method,leaves,area_px\n";
+
+    std::unique_ptr<vision::Workspace> workspace;
+    auto detections = std::make_unique<vision::Detections>();
+    std::vector<double> stage_ms[6];
+    int skipped = 0, plants_total = 0;
+    tools::LoadedFrame frame;
+    for (const tools::FrameJob& job : jobs) {
+        if (!tools::load_frame(job, params.segmentation, !args->overlay_dir.empty(), frame, error)) {
+            std::cerr << "stemd-detect: skipped frame: " << error << "\n";
+            ++skipped;
+            continue;
+        }
+        const cv::Mat& bgr = frame.bgr;
+        const cv::Mat& mask = frame.mask;
+        const cv::Size size = params.segmentation == vision::Segmentation::mask ? mask.size() : bgr.size();
+        if (!workspace || workspace->frame_size() != size)
+            workspace = std::make_unique<vision::Workspace>(size, params);
+        vision::StageTimes times;
+        vision::detect({.bgr = bgr, .nir = frame.nir, .mask = mask}, params, *workspace, *detections, &times);
+        if (detections->status != vision::DetectStatus::ok) {
+            std::cerr << "stemd-detect: skipped frame: " << job.image << ": " << vision::to_string(detections->status)
+                      << "\n";
+            ++skipped;
+            continue;
+        }
+        const auto& d = *detections;
+        int from_leaves = 0;
+        for (std::size_t i = 0; i < d.plants.size(); ++i) {
+            const auto& p = d.plants[i];
+            from_leaves += p.method == vision::StemMethod::leaves;
+            if (csv) {
+                char xy[64];
+                std::snprintf(xy, sizeof xy, "%.3f,%.3f", p.stem.x, p.stem.y);
+                *csv << io::csv_field(job.image) << ',' << i << ',' << xy << ',' << vision::to_string(p.method) << ','
+                     << p.leaves.size() << ',' << p.area_px << '\n';
+            }
+        }
+        plants_total += static_cast<int>(d.plants.size());
+        report << job.image << ": " << d.plants.size() << " plants (" << from_leaves << " from leaves, "
+               << d.plants.size() - from_leaves << " centre of mass), threshold " << d.stats.threshold << "\n";
+
+        const std::string out_name = fs::path(job.image).filename().replace_extension(".png").string();
+        if (!args->mask_dir.empty()) {
+            cv::Mat veg;
+            vision::unpack_mask(workspace->vegetation(), veg);
+            const auto path = (fs::path(args->mask_dir) / out_name).string();
+            if (!cv::imwrite(path, veg)) {
+                std::cerr << "stemd-detect: " << path << ": cannot write\n";
+                return 1;
+            }
+        }
+        if (!args->overlay_dir.empty()) {
+            cv::Mat canvas;
+            if (!bgr.empty())
+                canvas = bgr.clone();
+            else
+                cv::cvtColor(mask, canvas, cv::COLOR_GRAY2BGR);
+            viz::draw_overlay(canvas, d, workspace->closed());
+            const auto path = (fs::path(args->overlay_dir) / out_name).string();
+            if (!cv::imwrite(path, canvas)) {
+                std::cerr << "stemd-detect: " << path << ": cannot write\n";
+                return 1;
+            }
+        }
+        if (args->timing) {
+            const double ms[6] = {times.index_ns / 1e6,  times.threshold_ns / 1e6, times.closing_ns / 1e6,
+                                  times.plants_ns / 1e6, times.leaves_ns / 1e6,    times.total_ns / 1e6};
+            for (int s = 0; s < 6; ++s)
+                stage_ms[s].push_back(ms[s]);
+            std::fprintf(stderr,
+                         "timing %s: index %.3f threshold %.3f closing %.3f plants %.3f leaves %.3f total %.3f ms\n",
+                         job.image.c_str(), ms[0], ms[1], ms[2], ms[3], ms[4], ms[5]);
+        }
+    }
+    if (args->timing && !stage_ms[5].empty())
+        std::fprintf(stderr,
+                     "timing median over %zu frames: index %.3f threshold %.3f closing %.3f plants %.3f leaves %.3f "
+                     "total %.3f ms\n",
+                     stage_ms[5].size(), median(stage_ms[0]), median(stage_ms[1]), median(stage_ms[2]),
+                     median(stage_ms[3]), median(stage_ms[4]), median(stage_ms[5]));
+    report << jobs.size() - skipped << " frames, " << plants_total << " plants";
+    if (skipped)
+        report << ", " << skipped << " frames skipped";
+    report << "\n";
+    return skipped ? 1 : 0;
+}

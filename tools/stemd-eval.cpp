@@ -1,0 +1,467 @@
+// stemd-eval: scores stem detections and vegetation masks against ground truth.
+//   stemd-eval GT.csv PRED.csv [--tol-mm MM] [--gsd-mm-per-px MM] [--json]
+//   stemd-eval --iou PRED_MASK_DIR RECORDING_DIR [--gt-vegetation nonzero|zero] [--json]
+//   stemd-eval --sweep GT.csv RECORDING_DIR [--config FILE] [--set KEY=VALUE]... [--radii 1,6,10,20]
+//              [--tol-mm MM] [--json]
+// Adding a mode: a Mode value, its row in kModes, its checks in check_mode()
+// and a run_<mode>(const Args&) function that returns the exit code.
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "stemd/eval/eval.hpp"
+#include "stemd/io/recording.hpp"
+#include "stemd/runtime/config.hpp"
+#include "stemd/runtime/vision_config.hpp"
+#include "stemd/vision/detect.hpp"
+#include "tool_config.hpp"
+#include "tool_frames.hpp"
+
+namespace fs = std::filesystem;
+using namespace stemd;
+
+namespace {
+
+constexpr int kOk = 0;
+constexpr int kError = 2;  // bad arguments, unreadable or malformed input
+
+const char* const kUsage =
+    "usage: stemd-eval GT.csv PRED.csv [--tol-mm MM] [--gsd-mm-per-px MM] [--json]\n"
+    "       stemd-eval --iou PRED_MASK_DIR RECORDING_DIR [--gt-vegetation nonzero|zero] [--json]\n"
+    "Stems (default mode): matches detected stems to ground truth one-to-one per image,\n"
+    "closest pairs first; a detection within --tol-mm of a true stem is correct.\n"
+    "  GT.csv           ground truth, columns image,x,y (stems.csv: image,x,y,kind,leaves)\n"
+    "  PRED.csv         detections, columns image,x,y (stemd-detect --csv output)\n"
+    "                   x, y in pixels; images are matched by equal 'image' strings\n"
+    "  --tol-mm         match tolerance in mm (default 5, the paper's 0.5 cm)\n"
+    "  --gsd-mm-per-px  ground sampling distance in mm per pixel (default 0.33)\n"
+    "  prints counts, precision = TP/predictions, recall = TP/ground truth, F1, mean\n"
+    "  error of the matches in mm (each 0 when its denominator is 0)\n"
+    "Masks (--iou): intersection over union of the vegetation, for every frame of\n"
+    "RECORDING_DIR (frames.csv) that has a mask path.\n"
+    "  PRED_MASK_DIR    predicted masks named as stemd-detect --mask-out writes them: the\n"
+    "                   frame's rgb file name (mask file name if it has no rgb) with .png;\n"
+    "                   nonzero = vegetation\n"
+    "  --gt-vegetation  ground-truth vegetation pixels: nonzero (default) or zero (CWFID\n"
+    "                   masks, which mark soil 255)\n"
+    "  prints each frame's IoU and the mean\n"
+    "Sweep (--sweep): runs the detector over RECORDING_DIR for each closing radius m, with\n"
+    "the centre-of-mass and the leaf method, and prints recall and precision like the\n"
+    "paper's tables 1-3. The ground sampling distance is the config's camera.gsd_mm_per_px.\n"
+    "  --config, --set  configuration as for stemd-detect (closing.radius_px and\n"
+    "                   stem.method are swept)\n"
+    "  --radii          comma-separated radii in px (default 1,6,10,20)\n"
+    "All: --json prints one line of JSON instead of the text summary.\n"
+    "Exit status: 0 done, 2 bad arguments or unreadable/malformed input.\n";
+
+enum class Mode { stems, iou, sweep };
+enum class Vegetation { nonzero, zero };
+
+struct Args {
+    Mode mode = Mode::stems;
+    std::vector<std::string> positional;
+    std::set<std::string> options;  // options given, to reject those the mode does not use
+    double tol_mm = 5.0;
+    double gsd_mm_per_px = 0.33;
+    Vegetation gt_vegetation = Vegetation::nonzero;
+    bool json = false;
+    tools::ConfigArgs config;
+    std::vector<int> radii{1, 6, 10, 20};
+};
+
+struct ModeSpec {
+    Mode mode;
+    const char* flag;  // nullptr: the default mode
+    const char* operands;
+    std::vector<std::string_view> options;
+};
+
+const ModeSpec kModes[] = {
+    {Mode::stems, nullptr, "GT.csv PRED.csv", {"--tol-mm", "--gsd-mm-per-px", "--json"}},
+    {Mode::iou, "--iou", "PRED_MASK_DIR RECORDING_DIR", {"--gt-vegetation", "--json"}},
+    {Mode::sweep, "--sweep", "GT.csv RECORDING_DIR", {"--tol-mm", "--json", "--config", "--set", "--radii"}},
+};
+
+const ModeSpec& spec(Mode mode)
+{
+    for (const auto& s : kModes)
+        if (s.mode == mode)
+            return s;
+    return kModes[0];
+}
+
+// Shortest text that reads back as the same double ("0.4", "5", "0.3333333333333333").
+std::string number(double v)
+{
+    char buf[64];
+    const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+    return ec == std::errc() ? std::string(buf, end) : std::string("0");
+}
+
+std::string fixed(double v, int decimals)
+{
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+    return buf;
+}
+
+bool parse_positive(std::string_view text, double& out)
+{
+    const char* const end = text.data() + text.size();
+    const auto [ptr, ec] = std::from_chars(text.data(), end, out);
+    return !text.empty() && ec == std::errc() && ptr == end && std::isfinite(out) && out > 0;
+}
+
+std::optional<Args> parse_args(int argc, char** argv, std::string& error)
+{
+    Args args;
+    bool options_done = false;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (options_done || a.size() < 2 || a[0] != '-') {
+            args.positional.push_back(a);
+            continue;
+        }
+        if (a == "--") {
+            options_done = true;
+            continue;
+        }
+        args.options.insert(a);
+        const char* value = nullptr;
+        if (a == "--tol-mm" || a == "--gsd-mm-per-px" || a == "--gt-vegetation" || a == "--config" || a == "--set" ||
+            a == "--radii") {
+            if (i + 1 >= argc) {
+                error = a + " needs a value";
+                return std::nullopt;
+            }
+            value = argv[++i];
+        }
+        if (a == "--iou") {
+            args.mode = Mode::iou;
+        } else if (a == "--sweep") {
+            args.mode = Mode::sweep;
+        } else if (a == "--config") {
+            args.config.file = value;
+        } else if (a == "--set") {
+            args.config.sets.emplace_back(value);
+        } else if (a == "--radii") {
+            args.radii.clear();
+            std::string_view rest = value;
+            while (!rest.empty()) {
+                const auto comma = rest.find(',');
+                const std::string item(rest.substr(0, comma));
+                long r = -1;
+                if (!tools::parse_int(item, r) || r < 0 || r > vision::kMaxClosingRadiusPx) {
+                    error = "--radii: '" + item + "' is not a radius in [0, " +
+                            std::to_string(vision::kMaxClosingRadiusPx) + "] px";
+                    return std::nullopt;
+                }
+                args.radii.push_back(static_cast<int>(r));
+                rest = comma == std::string_view::npos ? std::string_view{} : rest.substr(comma + 1);
+            }
+            if (args.radii.empty()) {
+                error = "--radii: no radius given";
+                return std::nullopt;
+            }
+        } else if (a == "--json") {
+            args.json = true;
+        } else if (a == "--tol-mm" || a == "--gsd-mm-per-px") {
+            double& out = a == "--tol-mm" ? args.tol_mm : args.gsd_mm_per_px;
+            if (!parse_positive(value, out)) {
+                error = a + ": '" + value + "' is not a number > 0";
+                return std::nullopt;
+            }
+        } else if (a == "--gt-vegetation") {
+            const std::string v = value;
+            if (v == "nonzero") {
+                args.gt_vegetation = Vegetation::nonzero;
+            } else if (v == "zero") {
+                args.gt_vegetation = Vegetation::zero;
+            } else {
+                error = "--gt-vegetation: '" + v + "' is neither nonzero nor zero";
+                return std::nullopt;
+            }
+        } else {
+            error = "unknown option " + a;
+            return std::nullopt;
+        }
+    }
+    return args;
+}
+
+// Options and operands that fit the chosen mode.
+bool check_mode(const Args& args, std::string& error)
+{
+    const ModeSpec& s = spec(args.mode);
+    const std::string mode_name = s.flag ? s.flag : "stem matching";
+    for (const std::string& option : args.options) {
+        if (s.flag && option == s.flag)
+            continue;
+        if (std::find(s.options.begin(), s.options.end(), option) == s.options.end()) {
+            error = option + " does not apply to " + mode_name;
+            return false;
+        }
+    }
+    if (args.positional.size() != 2) {
+        error = mode_name + " takes 2 operands (" + s.operands + "), got " + std::to_string(args.positional.size());
+        return false;
+    }
+    return true;
+}
+
+int fail(const std::string& message)
+{
+    std::cerr << "stemd-eval: " << message << "\n";
+    return kError;
+}
+
+// --- stems -------------------------------------------------------------------
+
+// Warns when both files have points but not one image name in common: the
+// names are compared as strings, so "rgb/000.png" and "000.png" differ
+// (stemd-detect writes the frames.csv path for recordings, the file name for
+// images given one by one).
+void warn_disjoint_images(std::span<const eval::StemPoint> gt, std::span<const eval::StemPoint> pred,
+                          const std::string& gt_path, const std::string& pred_path)
+{
+    if (gt.empty() || pred.empty())
+        return;
+    std::set<std::string_view> gt_images;
+    for (const auto& p : gt)
+        gt_images.insert(p.image);
+    for (const auto& p : pred)
+        if (gt_images.count(p.image))
+            return;
+    std::cerr << "stemd-eval: warning: no image name occurs in both " << gt_path << " and " << pred_path << " (e.g. '"
+              << gt.front().image << "' and '" << pred.front().image << "'), so nothing can match\n";
+}
+
+int run_stems(const Args& args)
+{
+    const std::string& gt_path = args.positional[0];
+    const std::string& pred_path = args.positional[1];
+    std::string error;
+    const auto gt = eval::read_stem_points(gt_path, error);
+    if (!gt)
+        return fail(error);
+    const auto pred = eval::read_stem_points(pred_path, error);
+    if (!pred)
+        return fail(error);
+    warn_disjoint_images(*gt, *pred, gt_path, pred_path);
+
+    const eval::MatchResult r = eval::match_stems(*gt, *pred, args.tol_mm, args.gsd_mm_per_px);
+    if (args.json) {
+        std::cout << "{\"ground_truth\":" << r.ground_truth << ",\"predictions\":" << r.predictions
+                  << ",\"true_positives\":" << r.true_positives << ",\"precision\":" << number(r.precision)
+                  << ",\"recall\":" << number(r.recall) << ",\"f1\":" << number(r.f1)
+                  << ",\"mean_error_mm\":" << number(r.mean_error_mm) << ",\"tol_mm\":" << number(args.tol_mm)
+                  << ",\"gsd_mm_per_px\":" << number(args.gsd_mm_per_px) << "}\n";
+        return kOk;
+    }
+    std::cout << "ground truth    " << r.ground_truth << " stems\n"
+              << "predictions     " << r.predictions << " stems\n"
+              << "true positives  " << r.true_positives << "\n"
+              << "precision       " << fixed(100 * r.precision, 1) << " %\n"
+              << "recall          " << fixed(100 * r.recall, 1) << " %\n"
+              << "F1              " << fixed(100 * r.f1, 1) << " %\n"
+              << "mean error      " << fixed(r.mean_error_mm, 2) << " mm over " << r.true_positives << " matches\n"
+              << "tolerance       " << number(args.tol_mm) << " mm = " << fixed(args.tol_mm / args.gsd_mm_per_px, 1)
+              << " px at " << number(args.gsd_mm_per_px) << " mm/px\n";
+    return kOk;
+}
+
+// --- iou ---------------------------------------------------------------------
+
+int run_iou(const Args& args)
+{
+    const fs::path pred_dir = args.positional[0];
+    std::string error;
+    std::error_code ec;
+    if (!fs::is_directory(pred_dir, ec))
+        return fail(pred_dir.string() + ": not a directory");
+    const auto rec = io::read_recording(args.positional[1], error);
+    if (!rec)
+        return fail(error);
+
+    // Everything is computed before anything is printed: an error leaves stdout empty.
+    struct FrameIou {
+        std::string name;
+        eval::IouResult iou;
+    };
+    std::vector<FrameIou> results;
+    cv::Mat pred, gt, gt_vegetation;
+    for (const io::RecordingFrame& f : rec->frames) {
+        if (f.mask.empty())
+            continue;
+        // stemd-detect names a frame by its rgb path (its mask path without rgb)
+        // and writes its mask as <that file name>.png.
+        const std::string& name = !f.rgb.empty() ? f.rgb : f.mask;
+        const fs::path pred_path = pred_dir / fs::path(name).filename().replace_extension(".png");
+        if (!io::load_image(pred_path, cv::IMREAD_GRAYSCALE, pred, error))
+            return fail("prediction " + error);
+        if (!io::load_image(rec->resolve(f.mask), cv::IMREAD_GRAYSCALE, gt, error))
+            return fail("ground truth " + error);
+        if (args.gt_vegetation == Vegetation::zero)
+            cv::compare(gt, 0, gt_vegetation, cv::CMP_EQ);
+        else
+            gt_vegetation = gt;
+        const auto r = eval::mask_iou(pred, gt_vegetation, error);
+        if (!r)
+            return fail(pred_path.string() + " vs " + rec->resolve(f.mask).string() + ": " + error);
+        results.push_back({name, *r});
+    }
+    if (results.empty())
+        return fail((rec->dir / "frames.csv").string() + ": no frame has a mask path, nothing to evaluate");
+
+    double sum = 0;
+    const FrameIou* worst = &results.front();
+    for (const FrameIou& r : results) {
+        sum += r.iou.iou;
+        if (r.iou.iou < worst->iou.iou)
+            worst = &r;
+    }
+    const double mean = sum / static_cast<double>(results.size());
+    if (args.json) {
+        std::cout << "{\"frames\":" << results.size() << ",\"mean_iou\":" << number(mean)
+                  << ",\"min_iou\":" << number(worst->iou.iou) << "}\n";
+        return kOk;
+    }
+    for (const FrameIou& r : results)
+        std::cout << r.name << "  IoU " << fixed(r.iou.iou, 4) << "  (intersection " << r.iou.intersection_px
+                  << " px, union " << r.iou.union_px << " px)\n";
+    std::cout << "mean IoU " << fixed(mean, 4) << " over " << results.size() << " frames (min "
+              << fixed(worst->iou.iou, 4) << ": " << worst->name << ")\n";
+    return kOk;
+}
+
+
+// --- sweep -------------------------------------------------------------------
+
+struct SweepRow {
+    std::string approach;
+    int radius_px = 0;
+    vision::StemMethod method = vision::StemMethod::leaves;
+    eval::MatchResult result;
+};
+
+int run_sweep(const Args& args)
+{
+    config::Config config;
+    if (const auto config_error = tools::build_config(args.config, config))
+        return fail(config_error->to_string());
+    const vision::Params base = config::vision_params(config);
+    std::string error;
+    const auto gt = eval::read_stem_points(args.positional[0], error);
+    if (!gt)
+        return fail(error);
+    std::vector<tools::FrameJob> jobs;
+    if (!io::is_recording_dir(args.positional[1]))
+        return fail(args.positional[1] + ": not a recording directory (no frames.csv)");
+    if (!tools::collect_frames({args.positional[1]}, base.segmentation, jobs, error))
+        return fail(error);
+    // Frames are decoded once and kept: the sweep runs over them many times.
+    std::vector<tools::LoadedFrame> frames(jobs.size());
+    for (std::size_t i = 0; i < jobs.size(); ++i)
+        if (!tools::load_frame(jobs[i], base.segmentation, false, frames[i], error))
+            return fail(error);
+
+    std::vector<SweepRow> rows;
+    for (const vision::StemMethod method : {vision::StemMethod::com, vision::StemMethod::leaves}) {
+        for (const int radius : args.radii) {
+            vision::Params params = base;
+            params.closing_radius_px = radius;
+            params.stem_method = method;
+            std::vector<eval::StemPoint> predictions;
+            auto detections = std::make_unique<vision::Detections>();
+            std::unique_ptr<vision::Workspace> workspace;
+            for (std::size_t i = 0; i < frames.size(); ++i) {
+                const auto& f = frames[i];
+                const cv::Size size = base.segmentation == vision::Segmentation::mask ? f.mask.size() : f.bgr.size();
+                if (!workspace || workspace->frame_size() != size)
+                    workspace = std::make_unique<vision::Workspace>(size, params);
+                vision::detect({.bgr = f.bgr, .nir = f.nir, .mask = f.mask}, params, *workspace, *detections);
+                if (detections->status != vision::DetectStatus::ok)
+                    return fail(jobs[i].image + ": " + std::string(vision::to_string(detections->status)));
+                for (const auto& p : detections->plants)
+                    predictions.push_back({jobs[i].image, p.stem.x, p.stem.y});
+            }
+            SweepRow row;
+            row.approach = std::string(method == vision::StemMethod::com ? "centre of mass" : "leaves") +
+                           ", m=" + std::to_string(radius);
+            row.radius_px = radius;
+            row.method = method;
+            row.result = eval::match_stems(*gt, predictions, args.tol_mm, base.gsd_mm_per_px);
+            rows.push_back(row);
+        }
+    }
+    if (args.json) {
+        std::cout << "{\"tol_mm\":" << number(args.tol_mm) << ",\"gsd_mm_per_px\":" << number(base.gsd_mm_per_px)
+                  << ",\"frames\":" << frames.size() << ",\"ground_truth\":" << gt->size() << ",\"rows\":[";
+        for (std::size_t i = 0; i < rows.size(); ++i) {
+            const auto& r = rows[i];
+            std::cout << (i ? "," : "") << "{\"method\":\"" << vision::to_string(r.method)
+                      << "\",\"closing_radius_px\":" << r.radius_px << ",\"recall\":" << number(r.result.recall)
+                      << ",\"precision\":" << number(r.result.precision) << ",\"f1\":" << number(r.result.f1)
+                      << ",\"mean_error_mm\":" << number(r.result.mean_error_mm) << "}";
+        }
+        std::cout << "]}\n";
+        return kOk;
+    }
+    std::printf("%zu frames, %zu ground-truth stems, tolerance %s mm at %s mm/px\n", frames.size(), gt->size(),
+                number(args.tol_mm).c_str(), number(base.gsd_mm_per_px).c_str());
+    std::printf("%-22s %8s %10s %8s %11s\n", "approach", "recall", "precision", "F1", "error (mm)");
+    for (const auto& r : rows)
+        std::printf("%-22s %7.1f%% %9.1f%% %7.1f%% %11.2f\n", r.approach.c_str(), 100 * r.result.recall,
+                    100 * r.result.precision, 100 * r.result.f1, r.result.mean_error_mm);
+    return kOk;
+}
+
+int run(const Args& args)
+{
+    switch (args.mode) {
+    case Mode::stems:
+        return run_stems(args);
+    case Mode::iou:
+        return run_iou(args);
+    case Mode::sweep:
+        return run_sweep(args);
+    }
+    return fail("internal error: unknown mode");
+}
+
+}  // namespace
+
+int main(int argc, char** argv)
+{
+    for (int i = 1; i < argc; ++i) {
+        const std::string_view a = argv[i];
+        if (a == "--")
+            break;
+        if (a == "--help" || a == "-h") {
+            std::cout << kUsage;
+            return kOk;
+        }
+    }
+    std::string error;
+    const auto args = parse_args(argc, argv, error);
+    if (!args || !check_mode(*args, error))
+        return fail(error + " (see stemd-eval --help)");
+    try {
+        return run(*args);
+    } catch (const std::exception& e) {  // e.g. cv::Exception, std::bad_alloc
+        return fail(e.what());
+    }
+}

@@ -1,0 +1,249 @@
+// stemd-synth: writes a recording directory of synthetic field frames with
+// ground truth, for stemd-detect, stemd-eval and the daemon's replay.
+//   DIR/frames.csv   t_ns,rgb,nir,mask   (see stemd/io/recording.hpp)
+//   DIR/stems.csv    image,x,y,kind,leaves   (image = the rgb path in frames.csv)
+//   DIR/rgb/NNNNNN.png, DIR/nir/NNNNNN.png, DIR/mask/NNNNNN.png
+#include <algorithm>
+#include <charconv>
+#include <iterator>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "stemd/io/csv.hpp"
+#include "stemd/io/recording.hpp"
+#include "stemd/synth/synth.hpp"
+
+namespace fs = std::filesystem;
+using namespace stemd;
+
+namespace {
+
+constexpr int kUsageError = 2;
+constexpr int kWriteError = 1;
+constexpr int kMaxFrames = 1000000;   // file names have six digits
+
+const char* const kUsage =
+    "usage: stemd-synth --out DIR [--preset early|late|dense] [--frames N] [--seed S]\n"
+    "                   [--fragment F] [--width W] [--height H] [--gsd-mm-per-px G] [--fps FPS]\n"
+    "  --out             recording directory to write (created if missing)\n"
+    "  --preset          early (small crops, tiny weeds), late (default: medium crops),\n"
+    "                    dense (many crops, weeds, grass, fragmented masks)\n"
+    "  --frames          number of frames, 1..1000000 (default 10)\n"
+    "  --seed            unsigned 64-bit seed (default 1); same seed, same bytes\n"
+    "  --fragment        mask fragmentation 0..1 (default: the preset's)\n"
+    "  --width/--height  image size in px, 16..32768 (default 1296 x 966)\n"
+    "  --gsd-mm-per-px   ground sampling distance, mm per px (default 0.33)\n"
+    "  --fps             frame rate for the t_ns column (default 10)\n";
+
+// Every option takes a value.
+constexpr std::string_view kOptions[] = {"--out",   "--preset", "--frames",         "--seed", "--fragment",
+                                         "--width", "--height", "--gsd-mm-per-px", "--fps"};
+
+struct Args {
+    fs::path out;
+    synth::Options options;
+    int frames = 10;
+    double fps = 10;
+};
+
+template <typename T>
+bool parse_number(std::string_view text, T& out)
+{
+    const char* end = text.data() + text.size();
+    const auto [ptr, ec] = std::from_chars(text.data(), end, out);
+    return ec == std::errc() && ptr == end;
+}
+
+// Each option's value check; false + error on a bad value.
+bool apply_option(Args& args, const std::string& name, const std::string& value, std::string& error)
+{
+    auto bad = [&](const char* what) {
+        error = name + " " + value + ": " + what;
+        return false;
+    };
+    synth::Options& o = args.options;
+    if (name == "--out") {
+        if (value.empty()) return bad("must not be empty");
+        args.out = value;
+    } else if (name == "--preset") {
+        const auto preset = synth::parse_preset(value);
+        if (!preset) return bad("expected early, late or dense");
+        o.preset = *preset;
+    } else if (name == "--frames") {
+        if (!parse_number(value, args.frames) || args.frames < 1 || args.frames > kMaxFrames)
+            return bad("expected an integer 1..1000000");
+    } else if (name == "--seed") {
+        if (!parse_number(value, o.seed)) return bad("expected an unsigned 64-bit integer");
+    } else if (name == "--fragment") {
+        if (!parse_number(value, o.fragmentation) || !(o.fragmentation >= 0 && o.fragmentation <= 1))
+            return bad("expected a number 0..1");
+    } else if (name == "--width" || name == "--height") {
+        int& px = name == "--width" ? o.width_px : o.height_px;
+        if (!parse_number(value, px) || px < 16 || px > 32768) return bad("expected an integer 16..32768");
+    } else if (name == "--gsd-mm-per-px") {
+        if (!parse_number(value, o.gsd_mm_per_px) || !(o.gsd_mm_per_px > 0 && o.gsd_mm_per_px <= 100))
+            return bad("expected a number in (0, 100]");
+    } else if (name == "--fps") {
+        if (!parse_number(value, args.fps) || !(args.fps > 0 && args.fps <= 1e6))
+            return bad("expected a number in (0, 1000000]");
+    } else {
+        error = "unknown option " + name;
+        return false;
+    }
+    return true;
+}
+
+std::optional<Args> parse_args(int argc, char** argv, std::string& error)
+{
+    Args args;
+    for (int i = 1; i < argc; ++i) {
+        const std::string name = argv[i];
+        if (name.rfind("--", 0) != 0) {
+            error = "unexpected argument " + name;
+            return std::nullopt;
+        }
+        if (std::find(std::begin(kOptions), std::end(kOptions), name) == std::end(kOptions)) {
+            error = "unknown option " + name;
+            return std::nullopt;
+        }
+        if (i + 1 >= argc) {
+            error = name + " needs a value";
+            return std::nullopt;
+        }
+        if (!apply_option(args, name, argv[++i], error))
+            return std::nullopt;
+    }
+    if (args.out.empty()) {
+        error = "--out DIR is required";
+        return std::nullopt;
+    }
+    return args;
+}
+
+bool make_dirs(const fs::path& dir, std::string& error)
+{
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) {
+        error = dir.string() + ": cannot create directory: " + ec.message();
+        return false;
+    }
+    return true;
+}
+
+bool write_png(const fs::path& path, const cv::Mat& image, std::string& error)
+{
+    bool ok = false;
+    try {
+        ok = cv::imwrite(path.string(), image);
+    } catch (const cv::Exception& e) {
+        error = path.string() + ": cannot write: " + e.what();
+        return false;
+    }
+    if (!ok)
+        error = path.string() + ": cannot write";
+    return ok;
+}
+
+bool write_text(const fs::path& path, const std::string& text, std::string& error)
+{
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out << text;
+    out.close();
+    if (!out) {
+        error = path.string() + ": cannot write";
+        return false;
+    }
+    return true;
+}
+
+std::string frame_name(int index)
+{
+    char name[32];
+    std::snprintf(name, sizeof name, "%06d.png", index);
+    return name;
+}
+
+std::string stem_row(const std::string& image, const synth::GroundTruthStem& stem)
+{
+    char xy[64];
+    std::snprintf(xy, sizeof xy, "%.2f,%.2f", stem.x_px, stem.y_px);
+    return io::csv_field(image) + "," + xy + "," + io::csv_field(stem.kind) + "," + std::to_string(stem.leaves) + "\n";
+}
+
+struct Totals {
+    int crops = 0;
+    int weeds = 0;
+};
+
+int run(const Args& args)
+{
+    std::string error;
+    for (const char* sub : {"rgb", "nir", "mask"}) {
+        if (!make_dirs(args.out / sub, error)) {
+            std::cerr << "stemd-synth: " << error << "\n";
+            return kWriteError;
+        }
+    }
+    std::string frames_csv = std::string(io::kFramesCsvHeader) + "\n";
+    std::string stems_csv = "image,x,y,kind,leaves\n";
+    Totals totals;
+    for (int i = 0; i < args.frames; ++i) {
+        const synth::Frame frame = synth::generate_frame(args.options, i);
+        const std::string name = frame_name(i);
+        const std::string rgb = "rgb/" + name, nir = "nir/" + name, mask = "mask/" + name;
+        if (!write_png(args.out / rgb, frame.bgr, error) || !write_png(args.out / nir, frame.nir, error) ||
+            !write_png(args.out / mask, frame.mask, error)) {
+            std::cerr << "stemd-synth: " << error << "\n";
+            return kWriteError;
+        }
+        const auto t_ns = std::llround(static_cast<double>(i) * 1e9 / args.fps);
+        frames_csv += std::to_string(t_ns) + "," + io::csv_field(rgb) + "," + io::csv_field(nir) + "," +
+                      io::csv_field(mask) + "\n";
+        for (const synth::GroundTruthStem& stem : frame.stems) {
+            stems_csv += stem_row(rgb, stem);
+            (stem.kind == "crop" ? totals.crops : totals.weeds) += 1;
+        }
+    }
+    if (!write_text(args.out / "frames.csv", frames_csv, error) ||
+        !write_text(args.out / "stems.csv", stems_csv, error)) {
+        std::cerr << "stemd-synth: " << error << "\n";
+        return kWriteError;
+    }
+    std::cout << "stemd-synth: wrote " << args.frames << " frames (" << synth::to_string(args.options.preset)
+              << ", seed " << args.options.seed << "): " << totals.crops << " crops, " << totals.weeds
+              << " weeds in " << args.out.string() << "\n";
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv)
+{
+    for (int i = 1; i < argc; ++i) {
+        const std::string_view a = argv[i];
+        if (a == "--help" || a == "-h") {
+            std::cout << kUsage;
+            return 0;
+        }
+    }
+    std::string error;
+    const auto args = parse_args(argc, argv, error);
+    if (!args) {
+        std::cerr << "stemd-synth: " << error << " (see --help)\n";
+        return kUsageError;
+    }
+    return run(*args);
+}

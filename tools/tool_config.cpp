@@ -1,0 +1,33 @@
+#include "tool_config.hpp"
+
+#include <charconv>
+#include <cmath>
+
+namespace stemd::tools {
+
+std::optional<config::ConfigError> build_config(const ConfigArgs& args, config::Config& out)
+{
+    if (!args.file.empty())
+        if (auto error = out.load_file(args.file))
+            return error;
+    for (const std::string& set : args.sets)
+        if (auto error = out.set_override(set))
+            return error;
+    return std::nullopt;
+}
+
+bool parse_number(const std::string& text, double& out)
+{
+    const char* end = text.data() + text.size();
+    const auto [ptr, ec] = std::from_chars(text.data(), end, out);
+    return ec == std::errc() && ptr == end && std::isfinite(out);
+}
+
+bool parse_int(const std::string& text, long& out)
+{
+    const char* end = text.data() + text.size();
+    const auto [ptr, ec] = std::from_chars(text.data(), end, out);
+    return ec == std::errc() && ptr == end;
+}
+
+}  // namespace stemd::tools
