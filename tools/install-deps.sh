@@ -7,6 +7,7 @@ packages=(
   g++ cmake ninja-build pkg-config
   libopencv-dev libspdlog-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  libgpiod-dev libcamera-dev  # APIs the VM driver probes (test/vm) build against
 )
 
 missing=()
@@ -21,6 +22,6 @@ fi
 sudo=()
 [ "$(id -u)" -eq 0 ] || sudo=(sudo)
 echo "install-deps: installing ${missing[*]}"
-export DEBIAN_FRONTEND=noninteractive
-"${sudo[@]}" apt-get update -q
-"${sudo[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"
+# env, not export: sudo would drop an exported DEBIAN_FRONTEND.
+"${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get update -q
+"${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends "${missing[@]}"

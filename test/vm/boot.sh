@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# CTest fixture "vm": boots the test VM once and runs every guest check
+# (test/vm/guest.sh), leaving per-check results in OUTDIR for test/vm/check.sh.
+#
+#   boot.sh CACHE_DIR OUTDIR KEY=VALUE...   (KEYs as guest.sh takes them)
+# Exit: 0 the VM ran the checks (their own outcomes are the per-check tests'),
+# 77 the VM cannot run here (reason on stdout and in OUTDIR/skip), else failed.
+set -euo pipefail
+here=$(cd "$(dirname "$0")" && pwd)
+tools=$here/../../tools/vm
+[ $# -ge 2 ] || { echo "usage: $0 CACHE_DIR OUTDIR KEY=VALUE..." >&2; exit 2; }
+cache=$1 out=$2
+shift 2
+
+# Never let a previous run's results answer for this one.
+rm -rf "$out"
+mkdir -p "$out"
+
+skip() {
+  echo "SKIP: $*" | tee "$out/skip"
+  exit 77
+}
+command -v qemu-system-x86_64 >/dev/null || skip "qemu-system-x86_64 is not installed (run tools/vm/prepare.sh $cache)"
+qemu-system-x86_64 --version >/dev/null 2>&1 || skip "qemu-system-x86_64 does not run"
+for f in stamp vmlinux initramfs.cpio; do
+  [ -s "$cache/$f" ] ||
+    skip "VM not prepared or preparation failed: no $f in $cache (run tools/vm/prepare.sh $cache)"
+done
+
+# The VM's own deadline stays under the CTest TIMEOUT so that a hang is
+# reported by run.sh (exit 125 with the console), not killed silently.
+STEMD_VM_TIMEOUT=${STEMD_VM_TIMEOUT:-150} STEMD_VM_QUIET=1 \
+  "$tools/run.sh" --cache "$cache" "$here/guest.sh" "$out" all "out=$out" "$@" && rc=0 || rc=$?
+if [ "$rc" -ne 0 ]; then
+  echo "VM run failed (run.sh exit $rc; 125 = the VM gave no result). Console:"
+  tail -n 40 "$out/console.log" 2>/dev/null || true
+  exit 1
+fi
+grep '^check ' "$out/console.log" || true

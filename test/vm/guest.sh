@@ -1,0 +1,148 @@
+#!/bin/busybox sh
+# Guest side of stemd's VM driver tests: runs inside the test VM (tools/vm/run.sh)
+# under busybox sh, sets up the real kernel drivers and runs the probes on them.
+#
+#   guest.sh all KEY=VALUE...        every check (one VM boot for all of them)
+#   guest.sh one CHECK KEY=VALUE...  one check (how `all` runs each, under a timeout)
+# KEYs: out (results dir, host path), can, v4l2, gpio, libcamera (host paths of
+# the probe binaries; empty = not built, the check is skipped).
+# For each CHECK it writes OUT/CHECK.log and OUT/CHECK.rc: 0 pass, 77 skipped
+# (the log's "SKIP:" line says why), anything else failed. test/vm/check.sh
+# turns those into CTest results. Exits 0 when every check has a result.
+# Host binaries (probes, can-utils, gpiod tools) run through `hostrun` (chroot
+# into the host root); busybox covers the rest.
+
+check_timeout=60
+
+mode=$1
+shift
+check=
+[ "$mode" = one ] && { check=$1; shift; }
+out=; can=; v4l2=; gpio=; libcamera=
+for kv in "$@"; do
+  case $kv in
+    out=*) out=${kv#out=} ;;
+    can=*) can=${kv#can=} ;;
+    v4l2=*) v4l2=${kv#v4l2=} ;;
+    gpio=*) gpio=${kv#gpio=} ;;
+    libcamera=*) libcamera=${kv#libcamera=} ;;
+  esac
+done
+[ -n "$out" ] || { echo "guest.sh: no out=DIR" >&2; exit 2; }
+
+# Checks print what they do; `die` ends one with a failure, `skip` with 77.
+die() { echo "FAILED: $*"; exit 1; }
+skip() { echo "SKIP: $*"; exit 77; }
+uptime_s() { cut -d' ' -f1 /proc/uptime; }
+
+# --- SocketCAN on vcan0 ------------------------------------------------------
+check_can() {
+  [ -n "$can" ] || skip "can probe not built"
+  modprobe can-raw && modprobe vcan || die "modprobe can-raw vcan"
+  ip link add dev vcan0 type vcan && ip link set vcan0 up || die "creating vcan0"
+
+  echo "== probe sends, candump receives"
+  frame=1A5#0102030405060708
+  hostrun candump -L -n 1 -T 5000 vcan0 > /tmp/candump.out 2>&1 &
+  dump=$!
+  # candump is ready once its socket is on vcan0's receive list; sending
+  # earlier would lose the frame.
+  n=0
+  until grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all; do
+    n=$((n + 1))
+    [ $n -le 100 ] || die "candump did not start listening on vcan0"
+    sleep 0.05
+  done
+  hostrun "$can" send vcan0 "$frame" || die "can probe send"
+  wait $dump || die "candump exited $? ($(cat /tmp/candump.out))"
+  echo "candump: $(cat /tmp/candump.out)"
+  grep -q " vcan0 $frame\$" /tmp/candump.out || die "candump did not see $frame"
+
+  echo "== cansend sends, probe receives and decodes"
+  hostrun "$can" receive vcan0 0C3#CAFE00F1 3000 -- cansend vcan0 0C3#CAFE00F1 || die "can probe receive"
+}
+
+# --- V4L2 on vivid -------------------------------------------------------------
+# Finds vivid's node by its name in sysfs (numbering depends on probe order).
+v4l_node() {
+  for d in /sys/class/video4linux/video*; do
+    [ "$(cat "$d/name")" = "$1" ] && { echo "/dev/${d##*/}"; return 0; }
+  done
+  return 1
+}
+
+check_v4l2() {
+  [ -n "$v4l2" ] || skip "v4l2 probe not built"
+  # One instance with a video capture (0x1) and a video output (0x100) node.
+  modprobe vivid n_devs=1 node_types=0x101 || die "modprobe vivid"
+  cap=$(v4l_node vivid-000-vid-cap) || die "no vivid capture node"
+  outn=$(v4l_node vivid-000-vid-out) || die "no vivid output node"
+  hostrun v4l2-ctl --list-devices
+  echo "== mmap streaming capture from $cap"
+  hostrun "$v4l2" capture "$cap" 10 || die "capture from $cap"
+  echo "== known image $outn -> $cap"
+  hostrun "$v4l2" loopback "$cap" "$outn" "$out" || die "loopback $outn -> $cap"
+}
+
+# --- GPIO on gpio-sim ----------------------------------------------------------
+check_gpio() {
+  [ -n "$gpio" ] || skip "gpio probe not built: libgpiod-dev (1.x) was missing when CMake configured"
+  modprobe gpio-sim || die "modprobe gpio-sim"
+  # configfs only once gpio-sim is loaded, or its directory is missing.
+  mount -t configfs none /sys/kernel/config || die "mount configfs"
+  c=/sys/kernel/config/gpio-sim/stemd
+  mkdir "$c" "$c/bank0" || die "gpio-sim configfs"
+  echo 4 > "$c/bank0/num_lines"
+  for l in 0:valve_out 1:endstop_in 2:spare_in; do
+    mkdir "$c/bank0/line${l%%:*}" && echo "${l#*:}" > "$c/bank0/line${l%%:*}/name"
+  done
+  echo 1 > "$c/live" || die "gpio-sim: going live"
+  chip=$(cat "$c/bank0/chip_name")
+  sim=/sys/devices/platform/$(cat "$c/dev_name")/$chip
+  echo "gpio-sim chip $chip, sysfs $sim"
+
+  echo "== edges on $chip line 1 from gpio-sim pulls"
+  # The probe appends "up" or "down" and waits for that edge before the next.
+  hostrun "$gpio" events "$chip" 1 3000 -- \
+    sh -c 'echo "pull-$2" > "$1"' sh "$sim/sim_gpio1/pull" || die "edge events"
+
+  echo "== output $chip line 0 read back in gpio-sim's sysfs"
+  for v in 1 0; do
+    hostrun "$gpio" output "$chip" 0 "$v" -- \
+      sh -c 'v=$(cat "$1"); echo "gpio-sim: $1 = $v"; [ "$v" = "$2" ]' sh "$sim/sim_gpio0/value" "$v" ||
+      die "output line 0 = $v"
+  done
+
+  echo "== gpiod tools see a pull (cross-check)"
+  echo pull-up > "$sim/sim_gpio2/pull"
+  [ "$(hostrun gpioget "$chip" 2)" = 1 ] || die "gpioget $chip 2 after pull-up"
+}
+
+# --- libcamera on vimc ---------------------------------------------------------
+check_libcamera() {
+  [ -n "$libcamera" ] || skip "libcamera probe not built: libcamera-dev was missing when CMake configured"
+  modprobe vimc || die "modprobe vimc"
+  # libcamera only takes devices udev has "initialized"; there is no udev
+  # here, so write that mark into the (tmpfs) udev database for every node.
+  for d in /sys/class/video4linux/* /sys/bus/media/devices/* /sys/class/v4l-subdev/*; do
+    [ -e "$d/dev" ] && echo "I:1" > "/host/run/udev/data/c$(cat "$d/dev")"
+  done
+  echo "== list cameras and grab a frame"
+  hostrun env LIBCAMERA_LOG_LEVELS='*:ERROR' "$libcamera" vimc || die "libcamera probe"
+}
+
+if [ "$mode" = one ]; then
+  "check_$check"
+  exit $?
+fi
+
+status=0
+for c in can v4l2 gpio libcamera; do
+  t0=$(uptime_s)
+  timeout -s KILL "$check_timeout" sh "$0" one "$c" "$@" > "/host$out/$c.log" 2>&1
+  rc=$?
+  [ $rc -ne 137 ] || echo "FAILED: timed out after ${check_timeout}s" >> "/host$out/$c.log"
+  echo "$rc" > "/host$out/$c.rc" || status=1
+  echo "check $c: rc=$rc (t=$t0..$(uptime_s) s)"
+done
+exit $status
