@@ -44,6 +44,12 @@ void ClosingScratch::reserve(int width_px, int height_px, int max_radius_px)
     slot_half_width_.reserve(slots);
 }
 
+std::size_t ClosingScratch::reserved_bytes() const
+{
+    return dilated_.reserved_bytes() + (ring_.capacity() + row_tmp_.capacity()) * sizeof(std::uint64_t) +
+           static_cast<std::size_t>(2 * std::max(kernel_radius_, kMaxClosingRadiusPx) + 1) * sizeof(bool);
+}
+
 namespace {
 
 enum class Op { dilate, erode };

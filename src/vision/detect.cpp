@@ -51,11 +51,12 @@ Workspace::Workspace(cv::Size frame_size, const Params& params)
     reserved_radius_px_ = std::clamp(params.closing_radius_px, 0, kMaxClosingRadiusPx);
     closing_.reserve(width, height, kMaxClosingRadiusPx);
     labels_.reserve(width, height);
-    components_.reserve(static_cast<std::size_t>(width / 2 + 1) * static_cast<std::size_t>(height));
+    // 8-connected components are at least one pixel apart in both directions.
+    components_.reserve(static_cast<std::size_t>((width + 1) / 2) * static_cast<std::size_t>((height + 1) / 2));
     // Room for ordinary plants; longer (comb-like) contours are truncated,
     // counted, and the plant falls back to its centre of mass.
     contour_.reserve(static_cast<std::size_t>(2 * (width + height)) * 8);
-    hull_.reserve(contour_.capacity());
+    hull_.reserve(contour_.capacity() + 2);  // the monotone chain holds one extra point while building
     hull_order_.reserve(contour_.capacity());
     defects_.reserve(kMaxLeaves * 4);
     // Set the kernel up once so the first frame allocates nothing either.
@@ -152,6 +153,14 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
         t.total_ns = t_leaves - t0;
         *times = t;
     }
+}
+
+std::size_t Workspace::reserved_bytes() const
+{
+    return index_.total() * index_.elemSize() + vegetation_.reserved_bytes() + closed_.reserved_bytes() +
+           closing_.reserved_bytes() + labels_.reserved_bytes() + components_.capacity() * sizeof(Component) +
+           contour_.capacity() * sizeof(cv::Point) + (hull_.capacity() + hull_order_.capacity()) * sizeof(int) +
+           defects_.capacity() * sizeof(Defect) + sizeof(NdviTable);
 }
 
 Detections detect(const FrameView& frame, const Params& params)

@@ -34,6 +34,7 @@ public:
     }
     void set(int x, int y) { row(y)[x >> 6] |= std::uint64_t{1} << (x & 63); }
     long count() const;
+    std::size_t reserved_bytes() const { return words_.capacity() * sizeof(std::uint64_t); }
 
     // Mask of the valid bits of the last word of a row (bits past the width stay zero).
     std::uint64_t last_word_mask() const { return last_word_mask_; }

@@ -17,6 +17,7 @@ namespace stemd::vision {
 class ClosingScratch {
 public:
     void reserve(int width_px, int height_px, int max_radius_px);
+    std::size_t reserved_bytes() const;
 
 private:
     friend void close_mask(const BitMask&, int, BitMask&, ClosingScratch&);

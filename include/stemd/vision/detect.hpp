@@ -30,6 +30,8 @@ class Workspace {
 public:
     Workspace(cv::Size frame_size, const Params& params);
     cv::Size frame_size() const { return frame_size_; }
+    // Heap memory held for frames of this size (worst-case bounds).
+    std::size_t reserved_bytes() const;
 
     // Intermediate results of the last detect(), for tools and overlays.
     const cv::Mat& index() const { return index_; }

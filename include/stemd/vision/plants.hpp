@@ -23,6 +23,10 @@ class LabelScratch {
 public:
     // Enough for any mask of this size: at most (w/2 + 1) runs per row.
     void reserve(int width_px, int height_px);
+    std::size_t reserved_bytes() const
+    {
+        return runs_.capacity() * sizeof(Run) + (parent_.capacity() + root_slot_.capacity()) * sizeof(int);
+    }
 
 private:
     friend void label_components(const BitMask&, LabelScratch&, std::vector<Component>&);
