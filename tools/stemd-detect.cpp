@@ -39,7 +39,8 @@ const char* const kUsage =
     "  --config    configuration file (see config/stemd.yaml)\n"
     "  --set       override one configuration key, e.g. --set closing.radius_px=6\n"
     "  --segment   shorthand for --set segment.method=...\n"
-    "  --csv       write image,plant,x,y,method,leaves,area_px ('-' = stdout)\n"
+    "  --csv       write image,plant,x,y,method,leaves,area_px,estimator,confidence\n"
+    "              ('-' = stdout); plants without a stem (grass) are not written\n"
     "  --mask-out  write each frame's vegetation mask (255 = vegetation) as PNG\n"
     "  --overlay   write overlays (contour, hull, cuts, leaves, stem, centre of mass)\n"
     "  --timing    per-frame stage times on stderr and medians at the end\n";
@@ -165,12 +166,12 @@ int main(int argc, char** argv)
     }
     std::ostream& report = args->csv_path == "-" ? std::cerr : std::cout;
     if (csv)
-        *csv << "image,plant,x,y,method,leaves,area_px\n";
+        *csv << "image,plant,x,y,method,leaves,area_px,estimator,confidence\n";
 
     std::unique_ptr<vision::Workspace> workspace;
     auto detections = std::make_unique<vision::Detections>();
     std::vector<double> stage_ms[6];
-    int skipped = 0, plants_total = 0;
+    int skipped = 0, plants_total = 0, stemless_total = 0;
     tools::LoadedFrame frame;
     for (const tools::FrameJob& job : jobs) {
         if (!tools::load_frame(job, params.segmentation, !args->overlay_dir.empty(), frame, error)) {
@@ -192,20 +193,26 @@ int main(int argc, char** argv)
             continue;
         }
         const auto& d = *detections;
-        int from_leaves = 0;
+        int from_leaves = 0, with_stem = 0;
         for (std::size_t i = 0; i < d.plants.size(); ++i) {
             const auto& p = d.plants[i];
+            if (!p.has_stem)
+                continue;  // grass or too unsure: no stem to report
+            ++with_stem;
             from_leaves += p.method == vision::StemMethod::leaves;
             if (csv) {
-                char xy[64];
+                char xy[64], confidence[16];
                 std::snprintf(xy, sizeof xy, "%.3f,%.3f", p.stem.x, p.stem.y);
+                std::snprintf(confidence, sizeof confidence, "%.3f", p.confidence);
                 *csv << io::csv_field(job.image) << ',' << i << ',' << xy << ',' << vision::to_string(p.method) << ','
-                     << p.leaves.size() << ',' << p.area_px << '\n';
+                     << p.leaves.size() << ',' << p.area_px << ',' << vision::to_string(p.estimator) << ','
+                     << confidence << '\n';
             }
         }
-        plants_total += static_cast<int>(d.plants.size());
-        report << job.image << ": " << d.plants.size() << " plants (" << from_leaves << " from leaves, "
-               << d.plants.size() - from_leaves << " centre of mass), threshold " << d.stats.threshold << "\n";
+        plants_total += with_stem;
+        stemless_total += d.stats.stemless;
+        report << job.image << ": " << with_stem << " stems (" << from_leaves << " from leaves, " << with_stem - from_leaves
+               << " centre of mass), " << d.stats.stemless << " stemless, threshold " << d.stats.threshold << "\n";
 
         const std::string out_name = fs::path(job.image).filename().replace_extension(".png").string();
         if (!args->mask_dir.empty()) {
@@ -246,7 +253,7 @@ int main(int argc, char** argv)
                      "total %.3f ms\n",
                      stage_ms[5].size(), median(stage_ms[0]), median(stage_ms[1]), median(stage_ms[2]),
                      median(stage_ms[3]), median(stage_ms[4]), median(stage_ms[5]));
-    report << jobs.size() - skipped << " frames, " << plants_total << " plants";
+    report << jobs.size() - skipped << " frames, " << plants_total << " stems, " << stemless_total << " stemless plants";
     if (skipped)
         report << ", " << skipped << " frames skipped";
     report << "\n";

@@ -58,11 +58,12 @@ const char* const kUsage =
     "  --gt-vegetation  ground-truth vegetation pixels: nonzero (default) or zero (CWFID\n"
     "                   masks, which mark soil 255)\n"
     "  prints each frame's IoU and the mean\n"
-    "Sweep (--sweep): runs the detector over RECORDING_DIR for each closing radius m, with\n"
-    "the centre-of-mass and the leaf method, and prints recall and precision like the\n"
-    "paper's tables 1-3. The ground sampling distance is the config's camera.gsd_mm_per_px.\n"
-    "  --config, --set  configuration as for stemd-detect (closing.radius_px and\n"
-    "                   stem.method are swept)\n"
+    "Sweep (--sweep): runs the detector over RECORDING_DIR for each closing radius m with\n"
+    "the centre of mass and the paper's method (its 10 px cut, exactly parallel pairs\n"
+    "skipped), plus the configured robust estimator at its own radius, and prints recall,\n"
+    "precision and F1 like the paper's tables 1-3. The ground sampling distance is the\n"
+    "config's camera.gsd_mm_per_px.\n"
+    "  --config, --set  configuration as for stemd-detect\n"
     "  --radii          comma-separated radii in px (default 1,6,10,20)\n"
     "All: --json prints one line of JSON instead of the text summary.\n"
     "Exit status: 0 done, 2 bad arguments or unreadable/malformed input.\n";
@@ -353,7 +354,7 @@ int run_iou(const Args& args)
 struct SweepRow {
     std::string approach;
     int radius_px = 0;
-    vision::StemMethod method = vision::StemMethod::leaves;
+    vision::StemEstimator estimator = vision::StemEstimator::robust;
     eval::MatchResult result;
 };
 
@@ -378,41 +379,61 @@ int run_sweep(const Args& args)
         if (!tools::load_frame(jobs[i], base.segmentation, false, frames[i], error))
             return fail(error);
 
+    // The paper's method with the paper's own cut (10 px) at every radius,
+    // the centre of mass at every radius, and the configured estimator as
+    // configured (its own radius) when it is neither.
+    struct Run {
+        vision::StemEstimator estimator;
+        int radius_px;
+    };
+    std::vector<Run> runs;
+    for (const auto estimator : {vision::StemEstimator::com, vision::StemEstimator::paper})
+        for (const int radius : args.radii)
+            runs.push_back({estimator, radius});
+    if (base.stem_estimator == vision::StemEstimator::robust)
+        runs.push_back({vision::StemEstimator::robust, base.closing_radius_px});
+
     std::vector<SweepRow> rows;
-    for (const vision::StemMethod method : {vision::StemMethod::com, vision::StemMethod::leaves}) {
-        for (const int radius : args.radii) {
-            vision::Params params = base;
-            params.closing_radius_px = radius;
-            params.stem_method = method;
-            std::vector<eval::StemPoint> predictions;
-            auto detections = std::make_unique<vision::Detections>();
-            std::unique_ptr<vision::Workspace> workspace;
-            for (std::size_t i = 0; i < frames.size(); ++i) {
-                const auto& f = frames[i];
-                const cv::Size size = base.segmentation == vision::Segmentation::mask ? f.mask.size() : f.bgr.size();
-                if (!workspace || workspace->frame_size() != size)
-                    workspace = std::make_unique<vision::Workspace>(size, params);
-                vision::detect({.bgr = f.bgr, .nir = f.nir, .mask = f.mask}, params, *workspace, *detections);
-                if (detections->status != vision::DetectStatus::ok)
-                    return fail(jobs[i].image + ": " + std::string(vision::to_string(detections->status)));
-                for (const auto& p : detections->plants)
-                    predictions.push_back({jobs[i].image, p.stem.x, p.stem.y});
-            }
-            SweepRow row;
-            row.approach = std::string(method == vision::StemMethod::com ? "centre of mass" : "leaves") +
-                           ", m=" + std::to_string(radius);
-            row.radius_px = radius;
-            row.method = method;
-            row.result = eval::match_stems(*gt, predictions, args.tol_mm, base.gsd_mm_per_px);
-            rows.push_back(row);
+    for (const Run& run : runs) {
+        vision::Params params = base;
+        params.closing_radius_px = run.radius_px;
+        params.stem_estimator = run.estimator;
+        if (run.estimator == vision::StemEstimator::paper) {
+            params.defect_depth_mm = 10 * base.gsd_mm_per_px;
+            params.defect_depth_rel = 0;
+            params.min_intersection_angle_deg = 0;
         }
+        std::vector<eval::StemPoint> predictions;
+        auto detections = std::make_unique<vision::Detections>();
+        std::unique_ptr<vision::Workspace> workspace;
+        for (std::size_t i = 0; i < frames.size(); ++i) {
+            const auto& f = frames[i];
+            const cv::Size size = base.segmentation == vision::Segmentation::mask ? f.mask.size() : f.bgr.size();
+            if (!workspace || workspace->frame_size() != size)
+                workspace = std::make_unique<vision::Workspace>(size, params);
+            vision::detect({.bgr = f.bgr, .nir = f.nir, .mask = f.mask}, params, *workspace, *detections);
+            if (detections->status != vision::DetectStatus::ok)
+                return fail(jobs[i].image + ": " + std::string(vision::to_string(detections->status)));
+            for (const auto& p : detections->plants)
+                if (p.has_stem)
+                    predictions.push_back({jobs[i].image, p.stem.x, p.stem.y});
+        }
+        SweepRow row;
+        const char* name = run.estimator == vision::StemEstimator::com     ? "centre of mass"
+                           : run.estimator == vision::StemEstimator::paper ? "paper"
+                                                                           : "robust";
+        row.approach = std::string(name) + ", m=" + std::to_string(run.radius_px);
+        row.radius_px = run.radius_px;
+        row.estimator = run.estimator;
+        row.result = eval::match_stems(*gt, predictions, args.tol_mm, base.gsd_mm_per_px);
+        rows.push_back(row);
     }
     if (args.json) {
         std::cout << "{\"tol_mm\":" << number(args.tol_mm) << ",\"gsd_mm_per_px\":" << number(base.gsd_mm_per_px)
                   << ",\"frames\":" << frames.size() << ",\"ground_truth\":" << gt->size() << ",\"rows\":[";
         for (std::size_t i = 0; i < rows.size(); ++i) {
             const auto& r = rows[i];
-            std::cout << (i ? "," : "") << "{\"method\":\"" << vision::to_string(r.method)
+            std::cout << (i ? "," : "") << "{\"method\":\"" << vision::to_string(r.estimator)
                       << "\",\"closing_radius_px\":" << r.radius_px << ",\"recall\":" << number(r.result.recall)
                       << ",\"precision\":" << number(r.result.precision) << ",\"f1\":" << number(r.result.f1)
                       << ",\"mean_error_mm\":" << number(r.result.mean_error_mm) << "}";

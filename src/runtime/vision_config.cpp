@@ -13,14 +13,18 @@ vision::Params vision_params(const Config& config)
         p.threshold = *v;
     if (const auto v = vision::parse_mask_vegetation(config.get_text("segment.mask_vegetation")))
         p.mask_vegetation = *v;
-    if (const auto v = vision::parse_stem_method(config.get_text("stem.method")))
-        p.stem_method = *v;
+    if (const auto v = vision::parse_stem_estimator(config.get_text("stem.method")))
+        p.stem_estimator = *v;
     p.closing_radius_px = static_cast<int>(config.get_int("closing.radius_px"));
     p.gsd_mm_per_px = config.get_real("camera.gsd_mm_per_px");
     p.min_plant_area_mm2 = config.get_real("plants.min_area_mm2");
     p.defect_depth_mm = config.get_real("leaves.defect_depth_mm");
     p.min_leaves = static_cast<int>(config.get_int("stem.min_leaves"));
     p.min_intersection_angle_deg = config.get_real("stem.min_angle_deg");
+    p.defect_depth_rel = config.get_real("leaves.defect_depth_rel");
+    p.min_confidence = config.get_real("stem.min_confidence");
+    p.grass_min_area_mm2 = config.get_real("stem.grass_min_area_mm2");
+    p.grass_max_width_mm = config.get_real("stem.grass_max_width_mm");
     return p;
 }
 

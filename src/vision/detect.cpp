@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <numbers>
 
 #include "stemd/vision/contour.hpp"
 #include "stemd/vision/stem.hpp"
@@ -36,6 +37,19 @@ DetectStatus check_frame(const FrameView& frame, const Params& params, cv::Size 
             return DetectStatus::bad_format;
     }
     return DetectStatus::ok;
+}
+
+// Length of a closed 8-connected contour: 1 per straight step, sqrt(2) per diagonal.
+double contour_length_px(const std::vector<cv::Point>& contour)
+{
+    if (contour.size() < 2)
+        return static_cast<double>(contour.size());
+    int straight = 0, diagonal = 0;
+    for (std::size_t i = 0; i < contour.size(); ++i) {
+        const cv::Point d = contour[(i + 1) % contour.size()] - contour[i];
+        (d.x != 0 && d.y != 0 ? diagonal : straight) += 1;
+    }
+    return straight + std::numbers::sqrt2 * diagonal;
 }
 
 }  // namespace
@@ -121,26 +135,49 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
                                 static_cast<float>(c.sum_y / static_cast<double>(c.area_px))};
         plant.first_pixel = c.first_pixel;
 
-        if (params.stem_method == StemMethod::leaves) {
+        const double radius_px = std::sqrt(static_cast<double>(c.area_px) / std::numbers::pi);
+        if (params.stem_estimator != StemEstimator::com) {
             if (!trace_outer_contour(ws.closed_, c.first_pixel, ws.contour_)) {
                 ++out.stats.contour_overflows;
                 plant.stem = plant.centre_of_mass;
                 plant.com_reason = ComReason::contour_overflow;
+                plant.confidence = 0;
+                plant.has_stem = false;
+                ++out.stats.stemless;
                 out.plants.push_back(plant);
                 continue;
             }
             convex_hull_indices(ws.contour_, ws.hull_, ws.hull_order_);
-            convexity_defects(ws.contour_, ws.hull_, min_depth_px, ws.defects_);
+            // The cut depth scales with the plant when asked: a fixed depth
+            // over-cuts large plants' wavy edges and under-cuts small ones.
+            const float depth_px =
+                std::max(min_depth_px, static_cast<float>(params.defect_depth_rel * radius_px));
+            convexity_defects(ws.contour_, ws.hull_, depth_px, ws.defects_);
             plant.defects = static_cast<int>(ws.defects_.size());
             out.stats.leaves_over_capacity += leaves_from_defects(ws.contour_, ws.defects_, plant.leaves);
+            plant.mean_width_mm =
+                static_cast<float>(2.0 * static_cast<double>(c.area_px) / std::max(contour_length_px(ws.contour_), 1.0) *
+                                   params.gsd_mm_per_px);
         }
         const StemEstimate stem = estimate_stem({plant.leaves.begin(), plant.leaves.size()}, plant.centre_of_mass,
-                                                plant.bbox, params);
+                                                plant.bbox, radius_px, params);
         plant.stem = stem.stem;
         plant.method = stem.method;
+        plant.estimator = stem.estimator;
+        plant.confidence = stem.confidence;
         plant.com_reason = stem.com_reason;
         if (stem.com_reason == ComReason::outside_box)
             ++out.stats.outside_box_fallbacks;
+        // Linear-leaved blobs (grass) have no stem to strike.
+        const bool grass = params.stem_estimator == StemEstimator::robust &&
+                           static_cast<double>(c.area_px) * pixel_area_mm2 >= params.grass_min_area_mm2 &&
+                           plant.mean_width_mm < params.grass_max_width_mm;
+        if (grass)
+            plant.confidence = 0;
+        if (grass || plant.confidence < params.min_confidence) {
+            plant.has_stem = false;
+            ++out.stats.stemless;
+        }
         out.plants.push_back(plant);
     }
     const std::int64_t t_leaves = now_ns();

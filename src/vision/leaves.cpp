@@ -21,19 +21,44 @@ void convex_hull_indices(std::span<const cv::Point> contour, std::vector<int>& h
     const int n = static_cast<int>(contour.size());
     if (n == 0)
         return;
-    for (int i = 0; i < n; ++i)
-        order.push_back(i);
-    std::sort(order.begin(), order.end(), [&](int a, int b) {
-        const cv::Point& p = contour[static_cast<std::size_t>(a)];
-        const cv::Point& q = contour[static_cast<std::size_t>(b)];
-        return p.x != q.x ? p.x < q.x : (p.y != q.y ? p.y < q.y : a < b);
-    });
     auto at = [&](int i) -> const cv::Point& { return contour[static_cast<std::size_t>(i)]; };
-    // Andrew's monotone chain; collinear and repeated points are dropped.
+    // The hull of pixel points is the hull of each column's top-most and
+    // bottom-most point; listing those column by column sorts them by
+    // (x, y) in O(n + width), with no comparison sort.
+    int x_min = at(0).x, x_max = at(0).x;
+    for (const cv::Point& p : contour) {
+        x_min = std::min(x_min, p.x);
+        x_max = std::max(x_max, p.x);
+    }
+    const int columns = x_max - x_min + 1;
+    order.assign(static_cast<std::size_t>(2 * columns), -1);  // [top, bottom] per column
+    for (int i = 0; i < n; ++i) {
+        const cv::Point& p = at(i);
+        int& top = order[static_cast<std::size_t>(2 * (p.x - x_min))];
+        int& bottom = order[static_cast<std::size_t>(2 * (p.x - x_min) + 1)];
+        if (top < 0 || p.y < at(top).y)
+            top = i;  // first occurrence wins among repeated points
+        if (bottom < 0 || p.y > at(bottom).y)
+            bottom = i;
+    }
+    // Compact to the sorted candidate list (a column's top and bottom may coincide).
+    std::size_t m = 0;
+    for (int c = 0; c < columns; ++c) {
+        const int top = order[static_cast<std::size_t>(2 * c)];
+        const int bottom = order[static_cast<std::size_t>(2 * c + 1)];
+        if (top < 0)
+            continue;
+        order[m++] = top;
+        if (at(bottom).y != at(top).y)
+            order[m++] = bottom;
+    }
+    order.resize(m);
+    const int k = static_cast<int>(m);
+    // Andrew's monotone chain; collinear points are dropped.
     for (int pass = 0; pass < 2; ++pass) {
         const std::size_t base = hull.size();
-        for (int k = 0; k < n; ++k) {
-            const int i = order[static_cast<std::size_t>(pass == 0 ? k : n - 1 - k)];
+        for (int j = 0; j < k; ++j) {
+            const int i = order[static_cast<std::size_t>(pass == 0 ? j : k - 1 - j)];
             while (hull.size() >= base + 2 && cross(at(hull[hull.size() - 2]), at(hull.back()), at(i)) <= 0)
                 hull.pop_back();
             hull.push_back(i);
@@ -42,9 +67,7 @@ void convex_hull_indices(std::span<const cv::Point> contour, std::vector<int>& h
     }
     // Contour order, one index per distinct hull vertex.
     std::sort(hull.begin(), hull.end());
-    hull.erase(std::unique(hull.begin(), hull.end(),
-                           [&](int a, int b) { return at(a) == at(b); }),
-               hull.end());
+    hull.erase(std::unique(hull.begin(), hull.end(), [&](int a, int b) { return at(a) == at(b); }), hull.end());
     if (hull.empty())
         hull.push_back(order.front());
 }

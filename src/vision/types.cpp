@@ -40,6 +40,16 @@ std::string_view to_string(StemMethod v)
     return "?";
 }
 
+std::string_view to_string(StemEstimator v)
+{
+    switch (v) {
+    case StemEstimator::robust: return "robust";
+    case StemEstimator::paper: return "paper";
+    case StemEstimator::com: return "com";
+    }
+    return "?";
+}
+
 std::string_view to_string(ComReason v)
 {
     switch (v) {
@@ -49,6 +59,7 @@ std::string_view to_string(ComReason v)
     case ComReason::no_intersections: return "no_intersections";
     case ComReason::outside_box: return "outside_box";
     case ComReason::contour_overflow: return "contour_overflow";
+    case ComReason::ill_conditioned: return "ill_conditioned";
     }
     return "?";
 }
@@ -89,10 +100,11 @@ std::optional<MaskVegetation> parse_mask_vegetation(std::string_view s)
     return std::nullopt;
 }
 
-std::optional<StemMethod> parse_stem_method(std::string_view s)
+std::optional<StemEstimator> parse_stem_estimator(std::string_view s)
 {
-    if (s == "leaves") return StemMethod::leaves;
-    if (s == "com") return StemMethod::com;
+    if (s == "robust") return StemEstimator::robust;
+    if (s == "paper") return StemEstimator::paper;
+    if (s == "com") return StemEstimator::com;
     return std::nullopt;
 }
 

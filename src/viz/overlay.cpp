@@ -55,6 +55,11 @@ void draw_overlay(cv::Mat& canvas, const vision::Detections& detections, const v
             diamond(canvas, leaf.centre, 5, kLeaf);
         }
         cv::drawMarker(canvas, px(plant.centre_of_mass), kCentreOfMass, cv::MARKER_SQUARE, 8, 2);
+        if (!plant.has_stem) {
+            // Stemless (grass, or too unsure): a grey cross, no stem.
+            cv::drawMarker(canvas, px(plant.centre_of_mass), cv::Scalar(160, 160, 160), cv::MARKER_TILTED_CROSS, 14, 2);
+            continue;
+        }
         const bool from_leaves = plant.method == vision::StemMethod::leaves;
         cv::circle(canvas, px(plant.stem), 6, from_leaves ? kStemLeaves : kStemCom, cv::FILLED, cv::LINE_AA);
         cv::circle(canvas, px(plant.stem), 7, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);

@@ -14,13 +14,16 @@ fail() { echo "FAIL: $*" >&2; exit 1; }
 # All outputs from one run.
 "$tools/stemd-detect" --config "$src/config/stemd.yaml" --csv "$tmp/pred.csv" --mask-out "$tmp/masks" \
   --overlay "$tmp/overlays" --timing "$tmp/rec" >"$tmp/out.txt" 2>"$tmp/err.txt" || fail "detect exited $?"
-[ "$(head -1 "$tmp/pred.csv")" = "image,plant,x,y,method,leaves,area_px" ] || fail "csv header: $(head -1 "$tmp/pred.csv")"
+# The required columns, then the estimator and its confidence.
+[ "$(head -1 "$tmp/pred.csv")" = "image,plant,x,y,method,leaves,area_px,estimator,confidence" ] \
+  || fail "csv header: $(head -1 "$tmp/pred.csv")"
 rows=$(($(wc -l <"$tmp/pred.csv") - 1))
-reported=$(sed -n 's/^3 frames, \([0-9]*\) plants$/\1/p' "$tmp/out.txt")
+reported=$(sed -n 's/^3 frames, \([0-9]*\) stems, [0-9]* stemless plants$/\1/p' "$tmp/out.txt")
 [ -n "$reported" ] && [ "$rows" -eq "$reported" ] || fail "csv has $rows rows, summary says '$reported'"
 [ "$rows" -gt 0 ] || fail "no plants found"
 # Image names as written in frames.csv; methods only leaves|com; x,y numbers.
-awk -F, 'NR > 1 && ($1 !~ /^rgb\/00000[0-2]\.png$/ || ($5 != "leaves" && $5 != "com") || $3 !~ /^[0-9.]+$/) \
+awk -F, 'NR > 1 && ($1 !~ /^rgb\/00000[0-2]\.png$/ || ($5 != "leaves" && $5 != "com") || $3 !~ /^[0-9.]+$/ ||
+  ($8 != "robust" && $8 != "paper" && $8 != "com") || $9 < 0 || $9 > 1) \
   { print "bad row " NR ": " $0; bad = 1 } END { exit bad }' "$tmp/pred.csv" || fail "malformed csv rows"
 for f in 000000 000001 000002; do
   [ -s "$tmp/masks/$f.png" ] || fail "no mask $f"

@@ -194,7 +194,7 @@ TEST(ConfigSchema, ProductKeysHaveTheirUnitsRangesAndChoices)
             if (spec->key == "segment.method") mapped = vision::to_string(p.segmentation);
             if (spec->key == "segment.threshold") mapped = vision::to_string(p.threshold);
             if (spec->key == "segment.mask_vegetation") mapped = vision::to_string(p.mask_vegetation);
-            if (spec->key == "stem.method") mapped = vision::to_string(p.stem_method);
+            if (spec->key == "stem.method") mapped = vision::to_string(p.stem_estimator);
             EXPECT_EQ(mapped, choice) << key;
         }
     }
@@ -214,7 +214,7 @@ TEST(ConfigSchema, MarkdownTableHasOneRowPerKey)
         EXPECT_EQ(rows[i + 2].rfind("| `" + std::string(schema()[i].key) + "` | ", 0), 0u) << rows[i + 2];
         EXPECT_EQ(std::count(rows[i + 2].begin(), rows[i + 2].end(), '|'), 7) << rows[i + 2];
     }
-    EXPECT_NE(table.find("| `closing.radius_px` | integer | px | `10` | [0, 50] | radius m of the elliptic"),
+    EXPECT_NE(table.find("| `closing.radius_px` | integer | px | `5` | [0, 50] | radius m of the elliptic"),
               std::string::npos);
     EXPECT_NE(table.find("| `segment.method` | choice |  | `exg` | `exg`, `ndvi`, `mask` | "), std::string::npos);
     EXPECT_NE(table.find("| `plants.min_area_mm2` | real | mm2 | `10` | [0, 100000] | "), std::string::npos);
@@ -252,7 +252,11 @@ TEST(Config, DefaultsAreTheVisionLibraryDefaults)
     EXPECT_EQ(p.defect_depth_mm, expected.defect_depth_mm);
     EXPECT_EQ(p.min_leaves, expected.min_leaves);
     EXPECT_EQ(p.min_intersection_angle_deg, expected.min_intersection_angle_deg);
-    EXPECT_EQ(p.stem_method, expected.stem_method);
+    EXPECT_EQ(p.stem_estimator, expected.stem_estimator);
+    EXPECT_EQ(p.defect_depth_rel, expected.defect_depth_rel);
+    EXPECT_EQ(p.min_confidence, expected.min_confidence);
+    EXPECT_EQ(p.grass_min_area_mm2, expected.grass_min_area_mm2);
+    EXPECT_EQ(p.grass_max_width_mm, expected.grass_max_width_mm);
 }
 
 TEST(Config, DocumentedDefaultFileLoadsAndEqualsTheDefaults)
@@ -318,7 +322,7 @@ TEST_F(ConfigFileTest, ReadsSectionsKeysCommentsAndBlankLines)
     EXPECT_EQ(config.get_int("stem.min_leaves"), 4);
     EXPECT_EQ(config.get_real("stem.min_angle_deg"), 0.0);
     // Keys the file leaves out keep their values.
-    EXPECT_EQ(config.get_text("stem.method"), "leaves");
+    EXPECT_EQ(config.get_text("stem.method"), "robust");
     EXPECT_EQ(config.origin_of("stem.method"), "default");
 }
 
@@ -356,7 +360,7 @@ TEST_F(ConfigFileTest, OutOfRangeNamesFileLineKeyRangeAndUnit)
     ASSERT_TRUE(error);
     EXPECT_EQ(error->to_string(),
               path.string() + ":3: key 'closing.radius_px': 6000 is out of range [0, 50] px");
-    EXPECT_EQ(config.get_int("closing.radius_px"), 10);
+    EXPECT_EQ(config.get_int("closing.radius_px"), 5);
 }
 
 TEST_F(ConfigFileTest, TabIndentation)
@@ -431,7 +435,7 @@ TEST_F(ConfigFileTest, OutOfRange)
 TEST_F(ConfigFileTest, ChoiceNotAllowedListsTheChoices)
 {
     expect_error("segment:\n  method: rgb\n", 2, "segment.method", "'rgb' is not one of exg, ndvi, mask");
-    expect_error("stem:\n  method: Leaves\n", 2, "stem.method", "'Leaves' is not one of leaves, com");
+    expect_error("stem:\n  method: Leaves\n", 2, "stem.method", "'Leaves' is not one of robust, paper, com");
 }
 
 TEST_F(ConfigFileTest, EmptyValues)
@@ -459,7 +463,7 @@ TEST_F(ConfigFileTest, AnErrorLeavesEarlierValuesUntouched)
     const auto error = config.load_file(write("closing:\n  radius_px: 6\nstem:\n  min_leaves: 99\n"));
     ASSERT_TRUE(error);
     EXPECT_EQ(error->line, 4);
-    EXPECT_EQ(config.get_int("closing.radius_px"), 10);
+    EXPECT_EQ(config.get_int("closing.radius_px"), 5);
     EXPECT_EQ(config.origin_of("closing.radius_px"), "default");
     EXPECT_EQ(config.get_int("stem.min_leaves"), 5);
     EXPECT_EQ(config.origin_of("stem.min_leaves"), "--set");
@@ -653,7 +657,7 @@ TEST(VisionConfig, EveryKeyMapsToItsParamsField)
     EXPECT_EQ(p.closing_radius_px, 4);
     EXPECT_EQ(p.min_plant_area_mm2, 25.0);
     EXPECT_EQ(p.defect_depth_mm, 2.5);
-    EXPECT_EQ(p.stem_method, vision::StemMethod::com);
+    EXPECT_EQ(p.stem_estimator, vision::StemEstimator::com);
     EXPECT_EQ(p.min_leaves, 5);
     EXPECT_EQ(p.min_intersection_angle_deg, 20.0);
 

@@ -98,7 +98,7 @@ TEST(Detect, ComMethodReportsTheCentreOfMass)
 {
     const cv::Mat mask = draw_plant({400, 300}, {200, 150}, {{0, 20, 60, 16}, {120, 20, 30, 10}, {240, 20, 40, 12}}, 4);
     Params params = mask_params();
-    params.stem_method = StemMethod::com;
+    params.stem_estimator = StemEstimator::com;
     const Detections d = detect({.mask = mask}, params);
     ASSERT_EQ(d.plants.size(), 1u);
     EXPECT_EQ(d.plants[0].method, StemMethod::com);
@@ -252,6 +252,7 @@ TEST(Detect, RandomMasksNeverThrowAndStemsStayInTheirBoxes)
     int outside_box = 0;
     for (std::uint64_t seed = 1; seed <= 150; ++seed) {
         params.closing_radius_px = static_cast<int>(seed % 12);
+        params.stem_estimator = seed % 2 ? StemEstimator::paper : StemEstimator::robust;
         const cv::Mat mask = stemd::test::random_blob_mask({257, 130}, seed, 30, (seed % 4) * 0.02);
         ASSERT_NO_THROW(detect({.mask = mask}, params, ws, d));
         ASSERT_EQ(d.status, DetectStatus::ok);
@@ -265,7 +266,7 @@ TEST(Detect, RandomMasksNeverThrowAndStemsStayInTheirBoxes)
         EXPECT_EQ(d.stats.outside_box_fallbacks, counted);
         outside_box += counted;
     }
-    // Random shapes do produce leaf estimates outside the plant: the fallback is exercised.
+    // Random shapes do produce paper estimates outside the plant: the fallback is exercised.
     EXPECT_GT(outside_box, 0);
 }
 

@@ -14,7 +14,7 @@ namespace stemd::vision {
 // order), each hull vertex once. Monotone chain; never throws, even for
 // contours that revisit points (1-pixel bridges) where OpenCV's
 // convexityDefects rejects the hull as "not monotonous".
-// `order` is scratch of at least contour.size() capacity.
+// `order` is scratch of at least 2 * (contour's x extent + 1) capacity.
 void convex_hull_indices(std::span<const cv::Point> contour, std::vector<int>& hull, std::vector<int>& order);
 
 struct Defect {

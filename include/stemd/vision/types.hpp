@@ -47,8 +47,14 @@ enum class Segmentation : std::uint8_t { exg, ndvi, mask };
 enum class ThresholdMethod : std::uint8_t { otsu, triangle, min_error };
 // Which pixel value of an external mask means vegetation.
 enum class MaskVegetation : std::uint8_t { nonzero, zero };
-// How stems are estimated: the paper's leaf method or the centre of mass.
+// What a stem point came from: the plant's leaves or its centre of mass.
 enum class StemMethod : std::uint8_t { leaves, com };
+// Which estimator is asked for:
+//  robust: weighted least-squares point nearest all leaf lines, outlier
+//          leaves down-weighted, kept where the leaves meet (the default);
+//  paper:  the mean of the pairwise intersections, as the paper words it;
+//  com:    the centre of mass.
+enum class StemEstimator : std::uint8_t { robust, paper, com };
 // Why a plant's stem is its centre of mass.
 enum class ComReason : std::uint8_t {
     none,             // the stem came from the leaves
@@ -57,17 +63,19 @@ enum class ComReason : std::uint8_t {
     no_intersections, // every pair of leaf directions was (nearly) parallel
     outside_box,      // the leaf estimate left the plant's bounding box
     contour_overflow, // the outer contour was longer than the workspace holds
+    ill_conditioned,  // the leaf lines do not pin a point down (robust estimator)
 };
 
 std::string_view to_string(Segmentation v);
 std::string_view to_string(ThresholdMethod v);
 std::string_view to_string(MaskVegetation v);
 std::string_view to_string(StemMethod v);
+std::string_view to_string(StemEstimator v);
 std::string_view to_string(ComReason v);
 std::optional<Segmentation> parse_segmentation(std::string_view s);
 std::optional<ThresholdMethod> parse_threshold_method(std::string_view s);
 std::optional<MaskVegetation> parse_mask_vegetation(std::string_view s);
-std::optional<StemMethod> parse_stem_method(std::string_view s);
+std::optional<StemEstimator> parse_stem_estimator(std::string_view s);
 
 // The pipeline's parameters, in the units their names carry. Ranges are
 // enforced by the config schema (runtime/config_schema), not here.
@@ -75,17 +83,25 @@ struct Params {
     Segmentation segmentation = Segmentation::exg;
     ThresholdMethod threshold = ThresholdMethod::otsu;
     MaskVegetation mask_vegetation = MaskVegetation::nonzero;
-    int closing_radius_px = 10;         // paper's m
+    int closing_radius_px = 5;          // paper's m
     double gsd_mm_per_px = 0.33;        // ground sampling distance
     double min_plant_area_mm2 = 10.0;   // smaller components are noise
-    double defect_depth_mm = 3.3;       // paper's defect threshold (10 px at 0.33 mm/px)
+    double defect_depth_mm = 1.0;       // the paper used 3.3 (10 px at 0.33 mm/px)
+    // Scale-aware cut: a defect must also be deeper than this fraction of
+    // the plant's equivalent radius sqrt(area / pi); 0 = the fixed depth only.
+    double defect_depth_rel = 0.15;
     int min_leaves = 3;                 // paper's N
-    // Pairs of leaf lines meeting at a smaller angle are skipped: a 1 px error
-    // in a root moves their intersection by about 1/sin(angle) px, so nearly
-    // opposite leaves would throw the mean far off (the paper skips only
-    // exactly parallel pairs).
-    double min_intersection_angle_deg = 10.0;
-    StemMethod stem_method = StemMethod::leaves;
+    // Paper estimator: pairs of leaf lines meeting at a smaller angle are
+    // skipped (0: only exactly parallel ones, as the paper words it). A 1 px
+    // error in a root moves an intersection by about 1/sin(angle) px.
+    double min_intersection_angle_deg = 0.0;
+    StemEstimator stem_estimator = StemEstimator::robust;
+    // Plants whose stem confidence is below this are reported without a stem.
+    double min_confidence = 0.05;
+    // Grass and other linear-leaved blobs: at least this large and thinner
+    // than this on average (2 * area / perimeter) have no stem to strike.
+    double grass_min_area_mm2 = 100.0;
+    double grass_max_width_mm = 3.0;
 };
 
 inline constexpr std::size_t kMaxLeaves = 16;
@@ -101,7 +117,10 @@ struct Leaf {
 
 struct Plant {
     cv::Point2f stem;            // sub-pixel, image coordinates (pixel centres at integers)
+    bool has_stem = true;        // false: stemless (grass) or below min_confidence
     StemMethod method = StemMethod::com;
+    StemEstimator estimator = StemEstimator::com;  // the estimator that produced `stem`
+    float confidence = 0;        // [0, 1]
     ComReason com_reason = ComReason::none;
     FixedVector<Leaf, kMaxLeaves> leaves;
     int defects = 0;             // convexity defects deeper than the threshold
@@ -109,6 +128,7 @@ struct Plant {
     cv::Rect bbox;               // inclusive of every plant pixel
     cv::Point2f centre_of_mass;
     cv::Point first_pixel;       // top-most, then left-most pixel: where its outer contour starts
+    float mean_width_mm = 0;     // 2 * area / perimeter of the outer contour
 };
 
 // Per-frame counters of the pipeline; the daemon sums them into its status.
@@ -121,6 +141,7 @@ struct DetectStats {
     int leaves_over_capacity = 0;   // leaves beyond kMaxLeaves, ignored
     int outside_box_fallbacks = 0;  // leaf estimates replaced by the centre of mass
     int contour_overflows = 0;      // contours longer than the workspace holds
+    int stemless = 0;               // plants reported without a stem (grass, low confidence)
 };
 
 enum class DetectStatus : std::uint8_t {

@@ -1,5 +1,6 @@
 // Overlays like the paper's figures 3 and 4: outer contour, convex hull,
-// cut points, leaf roots and centres, leaf directions, stem, centre of mass.
+// cut points, leaf roots and centres, leaf directions, stem, centre of mass;
+// stemless plants (grass) get a grey cross instead of a stem.
 // Drawing is kept out of the vision library; this only reads its results.
 #pragma once
 
