@@ -8,6 +8,7 @@ packages=(
   libopencv-dev libspdlog-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libgpiod-dev libcamera-dev  # APIs the VM driver probes (test/vm) build against
+  can-utils python3-canmatrix  # third-party readers of our candump logs and DBC (cross-check tests)
 )
 
 missing=()
