@@ -15,6 +15,9 @@ constexpr float kCentreOfMassConfidence = 0.2f;
 // The robust fit needs lines that cross at a real angle: for two equal
 // leaves, conditioning = tan^2(angle / 2), so 0.05 is about 25 degrees.
 constexpr double kMinConditioning = 0.05;
+// A leaf whose principal second moments differ by less than this has no
+// clear long axis (a round blade): its root -> centre direction is used.
+constexpr double kMinElongationForAxis = 1.5;
 
 bool inside(const cv::Rect& bbox, cv::Point2f p)
 {
@@ -70,7 +73,13 @@ std::optional<LineFit> fit_leaf_lines(std::span<const Leaf> leaves, double scale
         const double length = std::hypot(dx, dy);
         if (length < 1e-6 || n == static_cast<int>(kMaxLeaves))
             continue;
-        lines[n++] = {leaf.root.x, leaf.root.y, dx / length, dy / length, length};
+        // An elongated leaf is symmetric about its midrib, which points at
+        // the stem: its principal axis through its centroid depends on the
+        // leaf alone, while the root moves wherever a neighbour overlaps it.
+        if (leaf.elongation >= kMinElongationForAxis)
+            lines[n++] = {leaf.centre.x, leaf.centre.y, leaf.axis.x, leaf.axis.y, length};
+        else
+            lines[n++] = {leaf.root.x, leaf.root.y, dx / length, dy / length, length};
     }
     if (n < 2)
         return std::nullopt;

@@ -187,3 +187,30 @@ TEST(Stem, RobustEstimateAndItsConfidence)
     EXPECT_GT(e4.confidence, 0.0f);
     EXPECT_LT(e4.confidence, e3.confidence + 0.1f);
 }
+
+TEST(Stem, ElongatedLeavesUseTheirAxisNotTheirRoot)
+{
+    // Radial leaves whose roots were pushed sideways (a neighbour overlapped
+    // the cut): the principal axes through the centroids still meet at the stem.
+    const cv::Point2f stem(60, 60);
+    auto leaves = rosette(stem, {0, 120, 240}, 6, 40);
+    const float shift_px[] = {5.0f, -3.0f, 0.0f};  // unequal, so no symmetry hides the bias
+    for (std::size_t i = 0; i < leaves.size(); ++i) {
+        Leaf& l = leaves[i];
+        const cv::Point2f u = (l.centre - stem) * (1.0f / 40.0f);
+        l.axis = u;
+        l.elongation = 4;
+        l.root += cv::Point2f(-u.y, u.x) * shift_px[i];  // off the midrib
+    }
+    const auto fit = fit_leaf_lines(leaves, 2.0);
+    ASSERT_TRUE(fit.has_value());
+    EXPECT_LT(cv::norm(fit->point - stem), 1e-3);
+
+    // Round leaves (no clear axis) fall back to root -> centre, which the
+    // displaced roots now bend away from the stem.
+    for (Leaf& l : leaves)
+        l.elongation = 1.2f;
+    const auto round = fit_leaf_lines(leaves, 2.0);
+    ASSERT_TRUE(round.has_value());
+    EXPECT_GT(cv::norm(round->point - stem), 0.3);
+}

@@ -23,10 +23,13 @@ struct LineFit {
     int leaves_used = 0;      // leaves that kept at least half their weight
 };
 
-// The point nearest all leaf lines in the weighted least-squares sense,
-// each leaf weighted by its length (longer leaves give better-defined
-// directions), re-weighted with a Cauchy loss of scale `scale_px` so a leaf
-// whose line misses the others (a cut in the wrong place) loses its say.
+// The point nearest all leaf lines in the weighted least-squares sense.
+// A leaf's line runs along its principal axis through its centroid when the
+// leaf is elongated (its midrib points at the stem, whatever its neighbours
+// overlap), else from its root through its centre. Each leaf is weighted by
+// its length (longer leaves give better-defined directions) and re-weighted
+// with a Cauchy loss of scale `scale_px`, so a leaf whose line misses the
+// others (a cut in the wrong place) loses its say.
 // nullopt with fewer than two leaves with a direction.
 std::optional<LineFit> fit_leaf_lines(std::span<const Leaf> leaves, double scale_px);
 

@@ -113,6 +113,8 @@ struct Leaf {
     cv::Point2f cut_b;   // convexity defect ending the leaf
     cv::Point2f root;    // mean of the two cut points
     cv::Point2f centre;  // area centroid of the leaf polygon
+    cv::Point2f axis;    // unit principal axis of the leaf polygon (its long direction)
+    float elongation = 1;  // ratio of the principal second moments, >= 1
 };
 
 struct Plant {
