@@ -2,6 +2,7 @@
 // 1296x966 frames, one thread, with one cv::cvtColor BGR->GRAY pass over the
 // same frames as a yardstick of this machine's speed.
 //   stemd-bench [--json] [--preset early|late|dense] [--frames N] [--radius M] [benchmark flags]
+// (defaults: late, 8 frames, the pipeline's default closing radius)
 // Each repetition is one frame; medians and p90 are over repetitions.
 #include <algorithm>
 #include <chrono>
@@ -114,7 +115,7 @@ int main(int argc, char** argv)
 {
     bool json = false;
     std::string preset_name = "late";
-    int frame_count = 8, radius = 10, repetitions = 200;
+    int frame_count = 8, radius = vision::Params{}.closing_radius_px, repetitions = 200;
     std::vector<char*> rest{argv[0]};
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];

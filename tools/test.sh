@@ -34,4 +34,17 @@ if [ "${STEMD_TEST_SKIP_SANITIZE:-0}" != 1 ]; then
   ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
     ctest --test-dir build/asan --output-on-failure -j "$jobs" -LE vm  # VM tests ran in Release
 fi
+# --- TSan: the daemon's rings and threads ------------------------------------
+# Only the runtime and driver tests (ring stress, the three threads, the
+# allocation test), so the step stays short. tools/tsan.supp: third-party only.
+if [ "${STEMD_TEST_SKIP_SANITIZE:-0}" != 1 ]; then
+  step "TSan build (runtime, drivers)"
+  cmake -S . -B build/tsan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g" \
+    -DSTEMD_SANITIZE=thread -DSTEMD_BUILD_BENCH=OFF >/dev/null
+  cmake --build build/tsan -j "$jobs" --target stemd-runtime-tests stemd-drivers-tests
+  step "TSan tests"
+  TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$PWD/tools/tsan.supp" \
+    ctest --test-dir build/tsan --output-on-failure -j "$jobs" -L unit -R '^(SpscRing|Daemon|ReplayTest)'
+fi
+# --- end TSan --------------------------------------------------------------
 step "all tests passed"

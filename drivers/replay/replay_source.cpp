@@ -1,0 +1,333 @@
+#include "replay/replay_source.hpp"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <charconv>
+#include <cstring>
+#include <system_error>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "stemd/io/csv.hpp"
+
+namespace stemd::drivers {
+
+namespace {
+
+std::int64_t monotonic_ns()
+{
+    timespec ts{};
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+void sleep_until_ns(std::int64_t t_ns)
+{
+    const timespec ts{static_cast<time_t>(t_ns / 1'000'000'000), static_cast<long>(t_ns % 1'000'000'000)};
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+    }
+}
+
+// IGNORE_ORIENTATION: frames are stored as the camera delivered them; an
+// EXIF rotation must not turn them (nor change their size).
+constexpr int kColorFlags = cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION;
+constexpr int kGreyFlags = cv::IMREAD_GRAYSCALE | cv::IMREAD_IGNORE_ORIENTATION;
+
+// Copies `from` into `plane` without reallocating it; false if they differ.
+bool copy_into(const cv::Mat& from, cv::Mat& plane)
+{
+    if (from.size() != plane.size() || from.type() != plane.type())
+        return false;
+    from.copyTo(plane);
+    return true;
+}
+
+}  // namespace
+
+ReplaySource::ReplaySource(ReplayOptions options, std::shared_ptr<spdlog::logger> log)
+    : options_(std::move(options)), log_(std::move(log)), name_("replay:" + options_.dir.string())
+{
+}
+
+ReplaySource::~ReplaySource()
+{
+    stop();
+}
+
+bool ReplaySource::open()
+{
+    if (state_ != State::closed) {
+        log_->error("{}: open() in state {}", name_, static_cast<int>(state_));
+        return false;
+    }
+    if (!read_frames_csv() || (options_.preload && !preload_all())) {
+        state_ = State::failed;
+        return false;
+    }
+    const Entry& first = entries_.front();
+    const Entry& last = entries_.back();
+    const std::int64_t span_ns = last.t_ns - first.t_ns;
+    const std::int64_t n = static_cast<std::int64_t>(entries_.size());
+    // A looping pass lasts the recording plus one mean frame interval, so
+    // the first frame of the next pass keeps the recording's rhythm.
+    loop_period_ns_ = n > 1 ? span_ns + span_ns / (n - 1) : 100'000'000;
+    state_ = State::opened;
+    log_->info("{}: {} frames over {:.2f} s, pacing {}, {}{}", name_, entries_.size(), span_ns / 1e9,
+               options_.pacing == ReplayOptions::Pacing::recorded ? "recorded t_ns" : "fast",
+               options_.loop ? "looping" : "once", options_.preload ? ", preloaded" : "");
+    return true;
+}
+
+bool ReplaySource::read_frames_csv()
+{
+    const auto csv_path = options_.dir / "frames.csv";
+    std::string error;
+    const auto table = io::read_csv(csv_path, error);
+    if (!table) {
+        log_->error("{}: {}", name_, error);
+        return false;
+    }
+    // Columns by name: extra columns (odom_mm, ...) are tolerated.
+    const int t_col = table->column("t_ns");
+    const int rgb_col = table->column("rgb");
+    const int nir_col = table->column("nir");
+    const int mask_col = table->column("mask");
+    if (t_col < 0 || (rgb_col < 0 && mask_col < 0)) {
+        log_->error("{}:1: header needs t_ns and rgb (or mask) columns", csv_path.string());
+        return false;
+    }
+    auto resolve = [&](const std::vector<std::string>& fields, int col) {
+        if (col < 0 || fields[static_cast<std::size_t>(col)].empty())
+            return std::filesystem::path{};
+        return options_.dir / fields[static_cast<std::size_t>(col)];
+    };
+    entries_.reserve(table->rows.size());
+    for (const auto& row : table->rows) {
+        Entry entry;
+        const std::string& t = row.fields[static_cast<std::size_t>(t_col)];
+        const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), entry.t_ns);
+        if (ec != std::errc() || end != t.data() + t.size()) {
+            log_->error("{}:{}: t_ns '{}' is not an integer", csv_path.string(), row.line, t);
+            return false;
+        }
+        entry.rgb = resolve(row.fields, rgb_col);
+        entry.nir = resolve(row.fields, nir_col);
+        entry.mask = resolve(row.fields, mask_col);
+        if (entry.rgb.empty() && entry.mask.empty()) {
+            log_->error("{}:{}: a frame needs an rgb or a mask path", csv_path.string(), row.line);
+            return false;
+        }
+        entry.name = rgb_col >= 0 && !row.fields[static_cast<std::size_t>(rgb_col)].empty()
+            ? row.fields[static_cast<std::size_t>(rgb_col)]
+            : row.fields[static_cast<std::size_t>(mask_col)];
+        entries_.push_back(std::move(entry));
+    }
+    if (entries_.empty()) {
+        log_->error("{}: no frames", csv_path.string());
+        return false;
+    }
+    return true;
+}
+
+bool ReplaySource::preload_all()
+{
+    // Every plane a recording has is decoded, since which ones the pipeline
+    // uses is the frame's business; a corrupt one marks its frame.
+    for (Entry& entry : entries_) {
+        auto load = [&](const std::filesystem::path& path, int flags, cv::Mat& out) {
+            if (path.empty())
+                return true;
+            if (!read_file(path))
+                return false;
+            try {
+                out = cv::imdecode(file_buffer_, flags);
+            } catch (const cv::Exception& e) {
+                log_->warn("{}: cannot decode: {}", path.string(), e.what());
+                return false;
+            }
+            if (out.empty()) {
+                log_->warn("{}: cannot decode (corrupt or not an image); it will be skipped", path.string());
+                return false;
+            }
+            return true;
+        };
+        entry.preload_failed = !(load(entry.rgb, kColorFlags, entry.bgr_data) &&
+                                 load(entry.nir, kGreyFlags, entry.nir_data) &&
+                                 load(entry.mask, kGreyFlags, entry.mask_data));
+    }
+    return true;
+}
+
+bool ReplaySource::start()
+{
+    if (state_ != State::opened) {
+        log_->error("{}: start() before open()", name_);
+        return false;
+    }
+    index_ = 0;
+    loop_offset_ns_ = 0;
+    start_mono_ns_ = monotonic_ns();
+    state_ = State::streaming;
+    return true;
+}
+
+void ReplaySource::stop()
+{
+    if (state_ == State::streaming)
+        state_ = State::ended;
+}
+
+std::int64_t ReplaySource::due_ns(const Entry& entry) const
+{
+    return start_mono_ns_ + loop_offset_ns_ + (entry.t_ns - entries_.front().t_ns);
+}
+
+NextStatus ReplaySource::next(Frame& into, std::chrono::nanoseconds timeout)
+{
+    if (state_ == State::ended)
+        return NextStatus::end_of_stream;
+    if (state_ != State::streaming)
+        return NextStatus::failed;
+    if (index_ == entries_.size()) {
+        if (!options_.loop) {
+            state_ = State::ended;
+            log_->info("{}: end of recording", name_);
+            return NextStatus::end_of_stream;
+        }
+        index_ = 0;
+        loop_offset_ns_ += loop_period_ns_;
+        loops_.fetch_add(1, std::memory_order_relaxed);
+    }
+    const Entry& entry = entries_[index_];
+    if (options_.pacing == ReplayOptions::Pacing::recorded) {
+        const std::int64_t due = due_ns(entry);
+        const std::int64_t now = monotonic_ns();
+        if (due - now > timeout.count()) {
+            sleep_until_ns(now + timeout.count());
+            return NextStatus::timeout;
+        }
+        if (due > now)
+            sleep_until_ns(due);
+    }
+    ++index_;
+    if (!fill(entry, into))
+        return NextStatus::skipped;
+    into.t_capture_ns = monotonic_ns();
+    into.t_recorded_ns = entry.t_ns;
+    into.source_seq = delivered_.fetch_add(1, std::memory_order_relaxed);
+    into.name.assign(entry.name);
+    return NextStatus::frame;
+}
+
+bool ReplaySource::fill(const Entry& entry, Frame& into)
+{
+    struct Plane {
+        const std::filesystem::path& path;
+        const cv::Mat& preloaded;
+        int flags;
+        cv::Mat& plane;
+    };
+    const Plane planes[] = {{entry.rgb, entry.bgr_data, kColorFlags, into.bgr},
+                            {entry.nir, entry.nir_data, kGreyFlags, into.nir},
+                            {entry.mask, entry.mask_data, kGreyFlags, into.mask}};
+    if (options_.preload && entry.preload_failed) {
+        corrupt_.fetch_add(1, std::memory_order_relaxed);
+        return false;
+    }
+    for (const Plane& p : planes) {
+        if (p.plane.empty())
+            continue;  // the pipeline does not use this plane
+        if (p.path.empty()) {
+            log_->warn("{}: frame {} has no image for a plane the pipeline needs; skipped", name_, entry.name);
+            corrupt_.fetch_add(1, std::memory_order_relaxed);
+            return false;
+        }
+        if (options_.preload) {
+            if (!copy_into(p.preloaded, p.plane)) {
+                log_->warn("{}: {} is {}x{} type {}, the slots are {}x{} type {}; skipped", name_, p.path.string(),
+                           p.preloaded.cols, p.preloaded.rows, p.preloaded.type(), p.plane.cols, p.plane.rows,
+                           p.plane.type());
+                bad_size_.fetch_add(1, std::memory_order_relaxed);
+                return false;
+            }
+        } else if (!decode_into(p.path, p.flags, p.plane)) {
+            return false;
+        }
+    }
+    return true;
+}
+
+bool ReplaySource::read_file(const std::filesystem::path& path)
+{
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) {
+        log_->warn("{}: cannot open: {} (errno {})", path.string(), std::strerror(errno), errno);
+        return false;
+    }
+    struct stat st {};
+    bool ok = fstat(fd, &st) == 0;
+    if (ok) {
+        file_buffer_.resize(static_cast<std::size_t>(st.st_size));
+        std::size_t done = 0;
+        while (ok && done < file_buffer_.size()) {
+            const ssize_t n = ::read(fd, file_buffer_.data() + done, file_buffer_.size() - done);
+            if (n < 0 && errno == EINTR)
+                continue;
+            if (n <= 0) {
+                ok = false;
+                break;
+            }
+            done += static_cast<std::size_t>(n);
+        }
+    }
+    if (!ok)
+        log_->warn("{}: cannot read: {} (errno {})", path.string(), std::strerror(errno), errno);
+    ::close(fd);
+    return ok;
+}
+
+bool ReplaySource::decode_into(const std::filesystem::path& path, int imread_flags, cv::Mat& plane)
+{
+    if (!read_file(path)) {
+        corrupt_.fetch_add(1, std::memory_order_relaxed);
+        return false;
+    }
+    // Decoded into a fresh Mat, then copied into the slot. Decoding straight
+    // into the slot (imdecode's `dst`) cannot be told apart from a failure in
+    // OpenCV 4.6: with no decoder or a bad header it returns `dst` untouched,
+    // which would deliver the slot's previous pixels as a new frame.
+    cv::Mat decoded;
+    try {
+        decoded = cv::imdecode(file_buffer_, imread_flags);
+    } catch (const cv::Exception& e) {
+        log_->warn("{}: cannot decode: {}; skipped", path.string(), e.what());
+        corrupt_.fetch_add(1, std::memory_order_relaxed);
+        return false;
+    }
+    if (decoded.empty()) {
+        log_->warn("{}: cannot decode (corrupt or not an image); skipped", path.string());
+        corrupt_.fetch_add(1, std::memory_order_relaxed);
+        return false;
+    }
+    if (!copy_into(decoded, plane)) {
+        log_->warn("{}: is {}x{} type {}, the slots are {}x{} type {}; skipped", path.string(), decoded.cols,
+                   decoded.rows, decoded.type(), plane.cols, plane.rows, plane.type());
+        bad_size_.fetch_add(1, std::memory_order_relaxed);
+        return false;
+    }
+    return true;
+}
+
+SourceCounters ReplaySource::counters() const
+{
+    return {.delivered = delivered_.load(std::memory_order_relaxed),
+            .corrupt = corrupt_.load(std::memory_order_relaxed),
+            .bad_size = bad_size_.load(std::memory_order_relaxed),
+            .loops = loops_.load(std::memory_order_relaxed)};
+}
+
+}  // namespace stemd::drivers

@@ -1,0 +1,92 @@
+// Replay: a recording directory (frames.csv, see include/stemd/io/recording.hpp)
+// as a frame source, paced by its t_ns or as fast as the pipeline takes
+// frames, once or looping.
+//
+// State machine: closed -> opened (frames.csv read) -> streaming -> ended
+// (once, after the last frame) | failed. One thread drives it.
+//
+// Where it allocates: open() (frames.csv, and every decoded frame with
+// preload) and, without preload, each next(): OpenCV's PNG decoder (its
+// decoder object, libpng's state and the decoded image), and the file buffer
+// grows to the largest file. The decoded image is then copied into the
+// caller's slot (one memcpy; see decode_into for why not in place). With
+// preload, next() is only that copy and allocates nothing, which the
+// runtime's allocation test relies on.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+#include <spdlog/logger.h>
+
+#include "stemd/drivers/frame_source.hpp"
+
+namespace stemd::drivers {
+
+struct ReplayOptions {
+    std::filesystem::path dir;
+    enum class Pacing : std::uint8_t { recorded, fast } pacing = Pacing::recorded;
+    bool loop = false;
+    bool preload = false;   // decode every frame in open(); next() is then a copy
+};
+
+class ReplaySource final : public FrameSource {
+public:
+    ReplaySource(ReplayOptions options, std::shared_ptr<spdlog::logger> log);
+    ~ReplaySource() override;
+
+    std::string_view name() const override { return name_; }
+    bool open() override;
+    bool start() override;
+    NextStatus next(Frame& into, std::chrono::nanoseconds timeout) override;
+    void stop() override;
+    SourceCounters counters() const override;
+    bool realtime() const override { return options_.pacing == ReplayOptions::Pacing::recorded; }
+
+    std::size_t frame_count() const { return entries_.size(); }
+
+private:
+    enum class State : std::uint8_t { closed, opened, streaming, ended, failed };
+
+    struct Entry {
+        std::int64_t t_ns = 0;
+        std::string name;                         // as written in frames.csv
+        std::filesystem::path rgb, nir, mask;     // resolved; empty when not recorded
+        cv::Mat bgr_data, nir_data, mask_data;    // preload only
+        bool preload_failed = false;              // preload only: corrupt, skipped every pass
+    };
+
+    bool read_frames_csv();
+    bool preload_all();
+    // Decodes `path` and copies it into `plane`. False (logged, counted) if
+    // the file is unreadable, corrupt, or not the plane's size and type.
+    bool decode_into(const std::filesystem::path& path, int imread_flags, cv::Mat& plane);
+    bool read_file(const std::filesystem::path& path);
+    bool fill(const Entry& entry, Frame& into);
+    // Recorded pacing: when the entry at index_ is due, CLOCK_MONOTONIC ns.
+    std::int64_t due_ns(const Entry& entry) const;
+
+    const ReplayOptions options_;
+    const std::shared_ptr<spdlog::logger> log_;
+    const std::string name_;
+    State state_ = State::closed;
+    std::vector<Entry> entries_;
+    std::size_t index_ = 0;
+    std::vector<unsigned char> file_buffer_;   // reused; grows to the largest file
+    std::int64_t start_mono_ns_ = 0;           // recorded pacing: when the first frame was due
+    std::int64_t loop_offset_ns_ = 0;          // recorded pacing: shift of the current pass
+    std::int64_t loop_period_ns_ = 0;          // recorded pacing: one pass plus one frame interval
+
+    std::atomic<std::uint64_t> delivered_{0};
+    std::atomic<std::uint64_t> corrupt_{0};
+    std::atomic<std::uint64_t> bad_size_{0};
+    std::atomic<std::uint64_t> loops_{0};
+};
+
+}  // namespace stemd::drivers

@@ -1,0 +1,97 @@
+// The frame-source interface: every camera backend (drivers/v4l2,
+// drivers/libcamera, drivers/replay) fills caller-owned, preallocated frames.
+// It knows nothing of the runtime that calls it.
+//
+// Life cycle, driven by one thread (the capture thread):
+//   open() -> start() -> next()... -> stop()
+// next() writes pixels into the Frame it is given and never reallocates its
+// planes: a frame that does not fit them is counted and skipped.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <string_view>
+
+#include <opencv2/core/mat.hpp>
+
+namespace stemd::drivers {
+
+// A frame's name for logs and CSVs (replay: the rgb path as written in
+// frames.csv), inline so that naming a frame never touches the heap.
+class FrameName {
+public:
+    static constexpr std::size_t kCapacity = 255;
+    // Longer names are truncated; truncated() says so.
+    void assign(std::string_view name)
+    {
+        size_ = name.size() < kCapacity ? name.size() : kCapacity;
+        truncated_ = name.size() > kCapacity;
+        name.copy(chars_.data(), size_);
+    }
+    std::string_view view() const { return {chars_.data(), size_}; }
+    bool truncated() const { return truncated_; }
+
+private:
+    std::array<char, kCapacity> chars_{};
+    std::size_t size_ = 0;
+    bool truncated_ = false;
+};
+
+// One frame slot. The owner (the runtime's frame pool) allocates the planes
+// the segmentation needs once; an empty plane is one the source must not fill.
+struct Frame {
+    cv::Mat bgr;   // CV_8UC3
+    cv::Mat nir;   // CV_8UC1, same size (NDVI only)
+    cv::Mat mask;  // CV_8UC1, same size (external mask only)
+    std::int64_t t_capture_ns = 0;   // CLOCK_MONOTONIC when the source delivered the frame
+    std::int64_t t_recorded_ns = 0;  // the frame's own time: the camera's timestamp, or a recording's t_ns
+    std::uint64_t source_seq = 0;    // the source's frame counter (gaps = frames the source lost)
+    std::uint64_t seq = 0;           // set by the runtime: frames captured before this one
+    FrameName name;
+};
+
+enum class NextStatus : std::uint8_t {
+    frame,          // `into` holds a new frame
+    timeout,        // nothing within the timeout; call again
+    skipped,        // a corrupt or unfitting frame was counted and skipped; call again
+    end_of_stream,  // a finite source (replay once) has no more frames
+    failed,         // the source failed (already logged); stop using it
+};
+
+// Counters every source keeps as members; read from any thread.
+struct SourceCounters {
+    std::uint64_t delivered = 0;   // frames written into a caller's Frame
+    std::uint64_t corrupt = 0;     // unreadable or undecodable frames, skipped
+    std::uint64_t bad_size = 0;    // frames whose size or format does not fit the slot, skipped
+    std::uint64_t loops = 0;       // replay: times the recording started over
+};
+
+class FrameSource {
+public:
+    virtual ~FrameSource() = default;
+
+    // "replay:/path/to/recording", "v4l2:/dev/video0"... for logs.
+    virtual std::string_view name() const = 0;
+
+    // Opens the device or recording. Errors are logged where they occur,
+    // naming the device or file (and errno); false means the source is unusable.
+    virtual bool open() = 0;
+    virtual bool start() = 0;
+
+    // Waits at most `timeout` for the next frame and writes it into `into`
+    // (including t_capture_ns, CLOCK_MONOTONIC at delivery).
+    virtual NextStatus next(Frame& into, std::chrono::nanoseconds timeout) = 0;
+
+    virtual void stop() = 0;
+
+    virtual SourceCounters counters() const = 0;
+
+    // True: frames come on their own clock (a camera, paced replay) and a
+    // full ring must drop one. False: the source can wait (fast replay), so
+    // the capture thread applies back-pressure and drops nothing.
+    virtual bool realtime() const = 0;
+};
+
+}  // namespace stemd::drivers

@@ -1,0 +1,102 @@
+// The daemon's three threads and what connects them:
+//
+//   capture ──SpscRing<Frame*> (ring.capacity)──► processing ──SpscRing<FrameResult>──► actuator
+//      ▲                                              │        (ring.results_capacity)
+//      └──────────── SpscRing<Frame*> (free slots) ◄──┘
+//
+// Frame slots (FramePool, ring.capacity + 2 of them) circulate as pointers:
+// capture fills one from the source, processing runs vision::detect() on it
+// and returns it to the free ring. With capacity + 2 slots the capture thread
+// always finds a free one (at most `capacity` wait, one is processed, one is
+// being filled), so overflow happens only when pushing into a full ring:
+//   - drop_newest: the new frame is not pushed; its slot is reused (counted
+//     by the ring as dropped);
+//   - overwrite_oldest: the oldest waiting frame is taken back and its slot
+//     reused (counted as overwritten).
+// A source that can wait (fast replay) gets back-pressure instead: nothing
+// is dropped.
+//
+// Per frame, once running, no thread allocates, locks or does blocking I/O
+// (the replay source's PNG decoding and the optional CSV aside: see
+// drivers/replay/replay_source.hpp and detection_sink.hpp). Idle threads
+// poll their ring with a short spin then 100 us sleeps, which bounds the
+// added latency without a futex on the producer's side.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <thread>
+
+#include <spdlog/logger.h>
+
+#include "stemd/drivers/frame_source.hpp"
+#include "stemd/runtime/daemon_config.hpp"
+#include "stemd/runtime/detection_sink.hpp"
+#include "stemd/runtime/frame_pool.hpp"
+#include "stemd/runtime/spsc_ring.hpp"
+#include "stemd/runtime/status.hpp"
+#include "stemd/vision/detect.hpp"
+
+namespace stemd::runtime {
+
+class Daemon {
+public:
+    // Allocates everything the threads will use: slots, rings, workspace.
+    Daemon(const DaemonConfig& config, std::unique_ptr<drivers::FrameSource> source,
+           std::unique_ptr<DetectionSink> sink);
+    ~Daemon();   // stops and joins
+    Daemon(const Daemon&) = delete;
+    Daemon& operator=(const Daemon&) = delete;
+
+    // Opens and starts the source, then the threads with their real-time
+    // settings. False if the source cannot be opened (logged). Failures of
+    // the real-time settings and of mlockall are warned about once, and the
+    // daemon runs without them.
+    bool start();
+
+    // From any thread; the threads finish their current frame and exit.
+    void request_stop();
+    // A finite source ended and every frame it delivered went through the
+    // actuator; or the source failed. The caller then joins.
+    bool finished() const { return actuator_done_.load(std::memory_order_acquire); }
+    bool source_failed() const { return source_failed_.load(std::memory_order_acquire); }
+    // Joins the threads and closes the sink; false if the sink lost data.
+    bool join();
+
+    StatusSnapshot snapshot(bool whole_run);
+    const Counters& counters() const { return *counters_; }
+    std::size_t pool_bytes() const { return pool_.bytes(); }
+    std::size_t workspace_bytes() const { return workspace_->reserved_bytes(); }
+
+private:
+    void capture_loop();
+    void processing_loop();
+    void actuator_loop();
+    bool stopping() const { return stop_.load(std::memory_order_acquire); }
+
+    const DaemonConfig config_;
+    const std::shared_ptr<spdlog::logger> log_;
+    const std::shared_ptr<spdlog::logger> capture_log_;
+    const std::shared_ptr<spdlog::logger> processing_log_;
+    const std::unique_ptr<drivers::FrameSource> source_;
+    const std::unique_ptr<DetectionSink> sink_;
+    const std::unique_ptr<Counters> counters_;
+
+    FramePool pool_;
+    SpscRing<drivers::Frame*> free_slots_;   // processing -> capture
+    SpscRing<drivers::Frame*> frames_;       // capture -> processing
+    SpscRing<FrameResult> results_;          // processing -> actuator, built in place
+    const std::unique_ptr<vision::Workspace> workspace_;   // the processing thread's
+
+    std::atomic<bool> stop_{false};
+    std::atomic<bool> capture_done_{false};      // the source ended or failed: nothing more will be pushed
+    std::atomic<bool> processing_done_{false};
+    std::atomic<bool> actuator_done_{false};
+    std::atomic<bool> source_failed_{false};
+    std::atomic<bool> sink_ok_{true};
+    std::thread capture_, processing_, actuator_;
+    bool joined_ = false;
+};
+
+}  // namespace stemd::runtime

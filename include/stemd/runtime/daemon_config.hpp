@@ -1,0 +1,52 @@
+// The daemon's configuration: the source.*, ring.*, threads.*, status.*
+// and log.* keys (and the pipeline's keys) from config::Config, typed.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include <opencv2/core/types.hpp>
+
+#include "stemd/runtime/config.hpp"
+#include "stemd/vision/types.hpp"
+
+namespace stemd::runtime {
+
+enum class OverflowPolicy : std::uint8_t {
+    drop_newest,       // a full frame ring drops the frame just captured
+    overwrite_oldest,  // a full frame ring gives up its oldest frame for the new one
+};
+
+// Real-time settings of one thread; priority 0 and cpu -1 leave it alone.
+struct ThreadSettings {
+    int fifo_priority = 0;   // SCHED_FIFO 1..99
+    int cpu = -1;
+};
+
+struct DaemonConfig {
+    // source.*
+    std::string source_kind = "replay";
+    std::string replay_dir;          // empty: not set
+    bool replay_fast = false;        // source.replay_pacing: fast
+    bool replay_loop = true;
+    bool replay_preload = false;
+    cv::Size frame_size{1296, 966};
+    // ring.*
+    std::size_t ring_capacity = 4;
+    OverflowPolicy overflow = OverflowPolicy::drop_newest;
+    std::size_t results_capacity = 4;
+    // threads.*
+    ThreadSettings capture, processing, actuator;
+    bool mlockall = false;
+    // status.*, log.*
+    double status_interval_s = 5.0;
+    std::string log_level = "info";
+    // The pipeline's keys (camera.*, segment.*, closing.*, ...).
+    vision::Params vision;
+};
+
+// The schema has checked every value already, so this cannot fail.
+DaemonConfig daemon_config(const config::Config& config);
+
+}  // namespace stemd::runtime

@@ -1,0 +1,66 @@
+// What the actuator thread does with each frame's detections in this slice:
+// logs them (debug level: one line per frame) and, with --detections-csv,
+// writes the stemd-detect CSV (same rows: plants with a stem) with a leading
+// t_ns column, the frame's recorded time (a recording's t_ns). The CAN
+// actuation (tracker, scheduler) takes its place later.
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+#include <spdlog/logger.h>
+
+#include "stemd/drivers/frame_source.hpp"
+#include "stemd/vision/types.hpp"
+
+namespace stemd::runtime {
+
+// One processed frame, built in place in the result ring by the processing
+// thread (it is ~150 KiB: the Detections are fixed-capacity).
+struct FrameResult {
+    std::uint64_t seq = 0;             // the runtime's frame number
+    std::int64_t t_capture_ns = 0;     // CLOCK_MONOTONIC at capture
+    std::int64_t t_recorded_ns = 0;    // the frame's own time (recording t_ns)
+    std::int64_t t_result_ns = 0;      // CLOCK_MONOTONIC when detect() returned
+    std::int64_t pipeline_ns = 0;      // detect() wall time
+    drivers::FrameName name;
+    vision::Detections detections;
+};
+
+class DetectionSink {
+public:
+    explicit DetectionSink(std::shared_ptr<spdlog::logger> log);
+    ~DetectionSink();
+    DetectionSink(const DetectionSink&) = delete;
+    DetectionSink& operator=(const DetectionSink&) = delete;
+
+    // Opens the CSV and writes its header; false (logged with errno) if it
+    // cannot. Its buffer is allocated here, so consume() only copies into it.
+    bool open_csv(const std::filesystem::path& path);
+
+    // Per frame, on the actuator thread: no allocation. The CSV is buffered
+    // (1 MiB) and written when the buffer fills: file I/O on this thread is
+    // what --detections-csv asks for; without it, nothing is written.
+    // False if a CSV write failed (logged once).
+    bool consume(const FrameResult& result, std::int64_t latency_ns);
+
+    // Flushes and closes the CSV; false if anything was lost (logged).
+    bool close();
+
+    static constexpr const char* kCsvHeader = "t_ns,image,plant,x,y,method,leaves,area_px,estimator,confidence";
+
+private:
+    struct FileCloser {
+        void operator()(std::FILE* f) const { std::fclose(f); }
+    };
+
+    std::shared_ptr<spdlog::logger> log_;
+    std::filesystem::path csv_path_;
+    std::unique_ptr<char[]> csv_buffer_;             // declared first: outlives the FILE using it
+    std::unique_ptr<std::FILE, FileCloser> csv_;
+    bool csv_failed_ = false;
+};
+
+}  // namespace stemd::runtime

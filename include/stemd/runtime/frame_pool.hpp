@@ -1,0 +1,34 @@
+// The frame slots: every pixel buffer the daemon will ever use, allocated
+// once for the configured frame size. Slots travel between the threads as
+// pointers (SpscRing<drivers::Frame*>); nothing is copied or reallocated.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+
+#include <opencv2/core/types.hpp>
+
+#include "stemd/drivers/frame_source.hpp"
+#include "stemd/vision/types.hpp"
+
+namespace stemd::runtime {
+
+class FramePool {
+public:
+    // `count` slots of `size`, with the planes `segmentation` reads: bgr for
+    // exg and ndvi, nir for ndvi, mask for mask. Throws std::bad_alloc.
+    FramePool(cv::Size size, vision::Segmentation segmentation, std::size_t count);
+    FramePool(const FramePool&) = delete;
+    FramePool& operator=(const FramePool&) = delete;
+
+    std::size_t size() const { return count_; }
+    drivers::Frame& operator[](std::size_t i) { return slots_[i]; }
+    // Pixel memory held by the pool.
+    std::size_t bytes() const;
+
+private:
+    std::size_t count_;
+    std::unique_ptr<drivers::Frame[]> slots_;
+};
+
+}  // namespace stemd::runtime

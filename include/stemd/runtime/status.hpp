@@ -1,0 +1,96 @@
+// Status counters of the daemon: members written by the one thread that
+// owns them (relaxed atomics, so the status line can read them from
+// anywhere), and the status line itself.
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <string>
+
+namespace stemd::runtime {
+
+// Durations in fixed 50 us buckets up to 200 ms (and one overflow bucket),
+// so that recording one is a relaxed increment: no allocation, no lock.
+// One writer thread; any thread may read. Two sets of buckets: the interval
+// since the last take_interval() (the status line) and the whole run.
+class DurationHistogram {
+public:
+    static constexpr std::int64_t kBucketNs = 50'000;
+    static constexpr std::size_t kBuckets = 4000;   // 0 .. 200 ms
+
+    struct Summary {
+        std::uint64_t count = 0;
+        double p50_ms = 0;
+        double p99_ms = 0;
+        double max_ms = 0;
+        double mean_ms = 0;
+    };
+
+    void record(std::int64_t duration_ns);
+    // Reads and clears the interval buckets (the status thread only).
+    Summary take_interval();
+    Summary total() const;
+
+private:
+    struct Buckets {
+        std::array<std::atomic<std::uint64_t>, kBuckets + 1> counts{};
+        std::atomic<std::int64_t> max_ns{0};
+        std::atomic<std::int64_t> sum_ns{0};
+    };
+    static void add(Buckets& b, std::int64_t ns, std::size_t bucket);
+    static Summary summarise(const std::array<std::uint64_t, kBuckets + 1>& counts, std::int64_t max_ns,
+                             std::int64_t sum_ns);
+
+    Buckets interval_;
+    Buckets total_;
+};
+
+// Every counter of the daemon, grouped by the thread that writes it.
+struct Counters {
+    struct Capture {
+        std::atomic<std::uint64_t> frames{0};          // frames the source delivered
+        std::atomic<std::uint64_t> timeouts{0};        // next() returned nothing in its timeout
+        std::atomic<std::uint64_t> backpressure_waits{0};  // fast replay: ring full, waited (not a drop)
+        std::atomic<std::uint64_t> no_free_slot{0};    // never expected: the pool is sized so it cannot happen
+    } capture;
+    struct Processing {
+        std::atomic<std::uint64_t> frames{0};          // frames detect() ran on
+        std::atomic<std::uint64_t> failed{0};          // detect() status != ok (size, format, missing plane)
+        std::atomic<std::uint64_t> results_full{0};    // result ring full: result dropped
+        std::atomic<std::uint64_t> plants_over_capacity{0};
+        DurationHistogram pipeline;                    // detect() wall time
+    } processing;
+    struct Actuator {
+        std::atomic<std::uint64_t> frames{0};          // results handed to the sink
+        std::atomic<std::uint64_t> stems{0};           // plants with a stem (stemd-detect's rows)
+        std::atomic<std::uint64_t> sink_errors{0};     // e.g. the CSV could not be written
+        DurationHistogram latency;                     // t_capture_ns -> result received by the actuator
+    } actuator;
+};
+
+// The numbers one status line shows, read at one moment.
+struct StatusSnapshot {
+    std::int64_t t_ns = 0;   // CLOCK_MONOTONIC when taken
+    std::uint64_t frames_in = 0, frames_out = 0, stems_out = 0;
+    // Drops by cause.
+    std::uint64_t ring_full = 0;       // drop_newest: the new frame was dropped
+    std::uint64_t overwritten = 0;     // overwrite_oldest: an old waiting frame was replaced
+    std::uint64_t results_full = 0;    // result ring full
+    std::uint64_t corrupt = 0;         // unreadable or undecodable frames (source)
+    std::uint64_t bad_size = 0;        // frames not the slots' size (source)
+    std::uint64_t failed = 0;          // detect() refused the frame
+    DurationHistogram::Summary latency;    // interval, or whole run for the final line
+    DurationHistogram::Summary pipeline;
+};
+
+// "in 30.0 fps, out 30.0 fps | drops: ring_full 0, overwritten 0, results_full 0,
+//  corrupt 1, bad_size 0, failed 0 | latency p50 1.62 p99 2.31 ms | pipeline p50 1.35 p99 1.90 ms"
+std::string format_status(const StatusSnapshot& now, const StatusSnapshot& before);
+// The run's totals for the last line: frames, drops, whole-run percentiles.
+std::string format_summary(const StatusSnapshot& end, double run_s);
+
+// CLOCK_MONOTONIC in nanoseconds.
+std::int64_t monotonic_ns();
+
+}  // namespace stemd::runtime

@@ -1,0 +1,202 @@
+// stemd: the program the robot runs. Capture -> stem pipeline -> actuator
+// (in this slice a sink that logs detections and can write them as CSV).
+//   stemd [--config FILE] [--set KEY=VALUE]... [--check-config]
+//         [--replay DIR] [--once] [--detections-csv FILE]
+// Exit: 0 on SIGTERM/SIGINT or, with --once, after the last frame; 1 when the
+// source or an output fails; 2 on bad arguments or configuration.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <spdlog/spdlog.h>
+
+#include "replay/replay_source.hpp"
+#include "stemd/io/recording.hpp"
+#include "stemd/runtime/config.hpp"
+#include "stemd/runtime/daemon.hpp"
+#include "stemd/runtime/daemon_config.hpp"
+#include "stemd/runtime/detection_sink.hpp"
+#include "stemd/runtime/logging.hpp"
+#include "stemd/runtime/signals.hpp"
+#include "stemd/runtime/status.hpp"
+
+using namespace stemd;
+using namespace std::chrono_literals;
+
+namespace {
+
+constexpr int kUsageError = 2;
+
+const char* const kUsage =
+    "usage: stemd [--config FILE] [--set KEY=VALUE]... [--check-config]\n"
+    "             [--replay DIR] [--once] [--detections-csv FILE]\n"
+    "  --config          configuration file (see config/stemd.yaml)\n"
+    "  --set             override one configuration key, e.g. --set ring.capacity=8\n"
+    "  --check-config    validate the configuration and exit (0 ok, 2 error)\n"
+    "  --replay          replay a recording directory (overrides source.*)\n"
+    "  --once            play the recording once; exit 0 after its last frame\n"
+    "  --detections-csv  write the stemd-detect CSV with a leading t_ns column\n";
+
+struct Args {
+    std::string config_file;
+    std::vector<std::string> sets;
+    bool check_config = false;
+    std::string replay_dir;
+    bool once = false;
+    std::string detections_csv;
+};
+
+std::optional<Args> parse_args(int argc, char** argv, std::string& error)
+{
+    Args args;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        auto value = [&](std::string& out) {
+            if (i + 1 >= argc) {
+                error = a + " needs a value";
+                return false;
+            }
+            out = argv[++i];
+            return true;
+        };
+        std::string v;
+        if (a == "--config") {
+            if (!value(args.config_file)) return std::nullopt;
+        } else if (a == "--set") {
+            if (!value(v)) return std::nullopt;
+            args.sets.push_back(v);
+        } else if (a == "--check-config") {
+            args.check_config = true;
+        } else if (a == "--replay") {
+            if (!value(args.replay_dir)) return std::nullopt;
+        } else if (a == "--once") {
+            args.once = true;
+        } else if (a == "--detections-csv") {
+            if (!value(args.detections_csv)) return std::nullopt;
+        } else {
+            error = "unknown argument " + a;
+            return std::nullopt;
+        }
+    }
+    return args;
+}
+
+// Checks that need more than the schema: the replay directory, when set in
+// the configuration, must be a recording. The message names where it was set.
+std::optional<std::string> check_daemon_config(const runtime::DaemonConfig& d, const config::Config& config,
+                                               const Args& args)
+{
+    if (d.source_kind == "replay" && !d.replay_dir.empty() && !io::is_recording_dir(d.replay_dir)) {
+        const std::string where = args.replay_dir.empty() ? config.origin_of("source.replay_dir") : "--replay";
+        return where + ": key 'source.replay_dir': " + d.replay_dir + " is not a recording directory (no frames.csv)";
+    }
+    if (d.source_kind == "replay" && d.replay_dir.empty() && !args.check_config)
+        return std::string("no frame source: give --replay DIR or set source.replay_dir");
+    return std::nullopt;
+}
+
+}  // namespace
+
+int main(int argc, char** argv)
+{
+    for (int i = 1; i < argc; ++i) {
+        if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h") {
+            std::cout << kUsage;
+            return 0;
+        }
+    }
+    // Before any thread exists, so that every thread inherits the blocked
+    // mask and only the main loop below receives SIGTERM/SIGINT.
+    runtime::ShutdownSignals signals;
+
+    std::string error;
+    const auto args = parse_args(argc, argv, error);
+    if (!args) {
+        std::cerr << "stemd: " << error << "\n" << kUsage;
+        return kUsageError;
+    }
+    config::Config config;
+    std::optional<config::ConfigError> config_error;
+    if (!args->config_file.empty())
+        config_error = config.load_file(args->config_file);
+    for (std::size_t i = 0; !config_error && i < args->sets.size(); ++i)
+        config_error = config.set_override(args->sets[i]);
+    if (config_error) {
+        std::cerr << "stemd: " << config_error->to_string() << "\n";
+        return kUsageError;
+    }
+    runtime::DaemonConfig daemon_config = runtime::daemon_config(config);
+    if (!args->replay_dir.empty()) {
+        daemon_config.source_kind = "replay";
+        daemon_config.replay_dir = args->replay_dir;
+    }
+    if (args->once)
+        daemon_config.replay_loop = false;
+    if (const auto problem = check_daemon_config(daemon_config, config, *args)) {
+        std::cerr << "stemd: " << *problem << "\n";
+        return kUsageError;
+    }
+    if (args->check_config) {
+        std::cout << "stemd: configuration ok\n";
+        return 0;
+    }
+
+    runtime::set_log_level(daemon_config.log_level);
+    const auto log = runtime::make_logger("main");
+    const auto status_log = runtime::make_logger("status");
+
+    drivers::ReplayOptions replay;
+    replay.dir = daemon_config.replay_dir;
+    replay.pacing = daemon_config.replay_fast ? drivers::ReplayOptions::Pacing::fast
+                                              : drivers::ReplayOptions::Pacing::recorded;
+    replay.loop = daemon_config.replay_loop;
+    replay.preload = daemon_config.replay_preload;
+    auto source = std::make_unique<drivers::ReplaySource>(replay, runtime::make_logger("replay"));
+
+    auto sink = std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator"));
+    if (!args->detections_csv.empty() && !sink->open_csv(args->detections_csv))
+        return 1;
+
+    std::unique_ptr<runtime::Daemon> daemon;
+    try {
+        daemon = std::make_unique<runtime::Daemon>(daemon_config, std::move(source), std::move(sink));
+    } catch (const std::bad_alloc&) {
+        log->error("cannot allocate the frame slots and workspace for {}x{} frames", daemon_config.frame_size.width,
+                   daemon_config.frame_size.height);
+        return 1;
+    }
+    if (!daemon->start())
+        return 1;
+
+    const auto interval = std::chrono::nanoseconds(static_cast<std::int64_t>(daemon_config.status_interval_s * 1e9));
+    const std::int64_t t_start_ns = runtime::monotonic_ns();
+    runtime::StatusSnapshot last = daemon->snapshot(false);
+    last.t_ns = t_start_ns;
+    std::int64_t next_status_ns = t_start_ns + interval.count();
+    int exit_code = 0;
+    while (!daemon->finished()) {
+        if (const auto sig = signals.wait(100ms)) {
+            log->info("{}: stopping", *sig == SIGTERM ? "SIGTERM" : "SIGINT");
+            break;
+        }
+        if (runtime::monotonic_ns() >= next_status_ns) {
+            const runtime::StatusSnapshot now = daemon->snapshot(false);
+            status_log->info("{}", runtime::format_status(now, last));
+            last = now;
+            next_status_ns += interval.count();
+        }
+    }
+    daemon->request_stop();
+    if (!daemon->join())
+        exit_code = 1;
+    if (daemon->source_failed())
+        exit_code = 1;
+    const double run_s = static_cast<double>(runtime::monotonic_ns() - t_start_ns) / 1e9;
+    status_log->info("total: {}", runtime::format_summary(daemon->snapshot(true), run_s));
+    return exit_code;
+}

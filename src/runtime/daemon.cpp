@@ -1,0 +1,278 @@
+#include "stemd/runtime/daemon.hpp"
+
+#include <time.h>
+
+#include <chrono>
+#include <string>
+
+#include "stemd/runtime/logging.hpp"
+#include "stemd/runtime/thread_settings.hpp"
+
+namespace stemd::runtime {
+
+namespace {
+
+using namespace std::chrono_literals;
+
+// How long a source may block in next(): bounds how late a stop is noticed.
+constexpr auto kSourceTimeout = 100ms;
+
+// Waiting for the other side of a ring: a short spin for the frame that is
+// about to arrive, then 100 us sleeps. Sleeping keeps an idle thread off a
+// CPU the pipeline needs (2 cores) and bounds the added latency at ~0.1 ms.
+class Idle {
+public:
+    void wait()
+    {
+        if (++rounds_ < 64) {
+            std::this_thread::yield();
+            return;
+        }
+        const timespec ts{0, 100'000};
+        nanosleep(&ts, nullptr);
+    }
+    void reset() { rounds_ = 0; }
+
+private:
+    int rounds_ = 0;
+};
+
+void bump(std::atomic<std::uint64_t>& counter, std::uint64_t by = 1)
+{
+    // Each counter has one writer: a relaxed load-add-store is enough and
+    // cheaper than a locked read-modify-write.
+    counter.store(counter.load(std::memory_order_relaxed) + by, std::memory_order_relaxed);
+}
+
+}  // namespace
+
+Daemon::Daemon(const DaemonConfig& config, std::unique_ptr<drivers::FrameSource> source,
+               std::unique_ptr<DetectionSink> sink)
+    : config_(config),
+      log_(make_logger("main")),
+      capture_log_(make_logger("capture")),
+      processing_log_(make_logger("processing")),
+      source_(std::move(source)),
+      sink_(std::move(sink)),
+      counters_(std::make_unique<Counters>()),
+      pool_(config.frame_size, config.vision.segmentation, config.ring_capacity + 2),
+      free_slots_(config.ring_capacity + 2),
+      frames_(config.ring_capacity),
+      results_(config.results_capacity),
+      workspace_(std::make_unique<vision::Workspace>(config.frame_size, config.vision))
+{
+    for (std::size_t i = 0; i < pool_.size(); ++i)
+        free_slots_.try_push(&pool_[i]);
+}
+
+Daemon::~Daemon()
+{
+    request_stop();
+    join();
+}
+
+bool Daemon::start()
+{
+    if (!source_->open() || !source_->start()) {
+        log_->error("{}: cannot start the frame source", source_->name());
+        return false;
+    }
+    log_->info("{} frame slots of {}x{} ({:.1f} MiB), frame ring {} ({}), result ring {}, workspace {:.1f} MiB",
+               pool_.size(), config_.frame_size.width, config_.frame_size.height, pool_.bytes() / 1048576.0,
+               frames_.capacity(),
+               config_.overflow == OverflowPolicy::drop_newest ? "drop_newest" : "overwrite_oldest",
+               results_.capacity(), workspace_->reserved_bytes() / 1048576.0);
+
+    std::string failures;
+    auto note = [&failures](const std::string& f) {
+        if (!f.empty())
+            failures += (failures.empty() ? "" : "; ") + f;
+    };
+    // Before the threads, so that their stacks are locked too.
+    if (config_.mlockall)
+        note(lock_all_memory());
+    actuator_ = std::thread([this] { actuator_loop(); });
+    processing_ = std::thread([this] { processing_loop(); });
+    capture_ = std::thread([this] { capture_loop(); });
+    note(apply_thread_settings(actuator_, "stemd-actuator", config_.actuator));
+    note(apply_thread_settings(processing_, "stemd-process", config_.processing));
+    note(apply_thread_settings(capture_, "stemd-capture", config_.capture));
+    if (!failures.empty())
+        log_->warn("running without some real-time settings (needs CAP_SYS_NICE / CAP_IPC_LOCK): {}", failures);
+    return true;
+}
+
+void Daemon::request_stop()
+{
+    stop_.store(true, std::memory_order_release);
+}
+
+bool Daemon::join()
+{
+    if (joined_)
+        return sink_ok_.load();
+    for (std::thread* t : {&capture_, &processing_, &actuator_})
+        if (t->joinable())
+            t->join();
+    source_->stop();
+    joined_ = true;
+    if (!sink_->close())
+        sink_ok_.store(false);
+    return sink_ok_.load();
+}
+
+void Daemon::capture_loop()
+{
+    drivers::Frame* hand = nullptr;
+    Idle idle;
+    const bool can_wait = !source_->realtime();
+    std::uint64_t seq = 0;
+    while (!stopping()) {
+        if (hand == nullptr && !free_slots_.try_pop(hand)) {
+            // The pool is sized so that this cannot happen; count it if it does.
+            bump(counters_->capture.no_free_slot);
+            idle.wait();
+            continue;
+        }
+        const drivers::NextStatus status = source_->next(*hand, kSourceTimeout);
+        if (status == drivers::NextStatus::timeout) {
+            bump(counters_->capture.timeouts);
+            continue;
+        }
+        if (status == drivers::NextStatus::skipped)
+            continue;   // counted by the source
+        if (status == drivers::NextStatus::end_of_stream)
+            break;
+        if (status == drivers::NextStatus::failed) {
+            capture_log_->error("{}: failed; capture stops", source_->name());
+            source_failed_.store(true, std::memory_order_release);
+            break;
+        }
+        hand->seq = seq++;
+        bump(counters_->capture.frames);
+        if (can_wait) {
+            // Back-pressure: only this thread fills the ring, so once there
+            // is room the push cannot fail.
+            bool waited = false;
+            while (frames_.size() == frames_.capacity() && !stopping()) {
+                waited = true;
+                idle.wait();
+            }
+            idle.reset();
+            if (waited)
+                bump(counters_->capture.backpressure_waits);
+            if (stopping())
+                break;
+            frames_.try_push(hand);
+            hand = nullptr;
+        } else if (config_.overflow == OverflowPolicy::drop_newest) {
+            if (frames_.try_push(hand))   // a full ring counts the drop
+                hand = nullptr;
+        } else {
+            drivers::Frame* evicted = nullptr;
+            hand = frames_.try_push_overwrite(hand, evicted) ? evicted : nullptr;
+        }
+    }
+    capture_done_.store(true, std::memory_order_release);
+}
+
+void Daemon::processing_loop()
+{
+    Idle idle;
+    const bool can_wait = !source_->realtime();
+    vision::StageTimes times;
+    drivers::Frame* frame = nullptr;
+    while (!stopping()) {
+        if (!frames_.try_pop(frame)) {
+            // capture_done_ is set after its last push: seen set, an empty
+            // ring means everything has been taken.
+            if (capture_done_.load(std::memory_order_acquire) && !frames_.try_pop(frame))
+                break;
+            if (frame == nullptr) {
+                idle.wait();
+                continue;
+            }
+        }
+        idle.reset();
+        FrameResult* result = results_.claim();
+        // A source that can wait loses nothing downstream either: wait for
+        // the actuator rather than drop the result.
+        while (result == nullptr && can_wait && !stopping()) {
+            idle.wait();
+            result = results_.claim();
+        }
+        idle.reset();
+        if (result == nullptr) {
+            bump(counters_->processing.results_full);
+        } else {
+            vision::detect({.bgr = frame->bgr, .nir = frame->nir, .mask = frame->mask}, config_.vision, *workspace_,
+                           result->detections, &times);
+            result->seq = frame->seq;
+            result->t_capture_ns = frame->t_capture_ns;
+            result->t_recorded_ns = frame->t_recorded_ns;
+            result->t_result_ns = monotonic_ns();
+            result->pipeline_ns = times.total_ns;
+            result->name = frame->name;
+            bump(counters_->processing.frames);
+            counters_->processing.pipeline.record(times.total_ns);
+            if (result->detections.status == vision::DetectStatus::ok) {
+                bump(counters_->processing.plants_over_capacity,
+                     static_cast<std::uint64_t>(result->detections.stats.plants_over_capacity));
+                results_.publish();
+            } else {
+                bump(counters_->processing.failed);
+                if (processing_log_->should_log(spdlog::level::debug))
+                    processing_log_->debug("frame {} {}: {}", frame->seq, frame->name.view(),
+                                           vision::to_string(result->detections.status));
+            }
+        }
+        // The free ring holds every slot, so this push cannot fail.
+        free_slots_.try_push(frame);
+        frame = nullptr;
+    }
+    processing_done_.store(true, std::memory_order_release);
+}
+
+void Daemon::actuator_loop()
+{
+    Idle idle;
+    while (!stopping()) {
+        FrameResult* result = results_.front();
+        if (result == nullptr) {
+            if (processing_done_.load(std::memory_order_acquire) && results_.front() == nullptr)
+                break;
+            idle.wait();
+            continue;
+        }
+        idle.reset();
+        const std::int64_t latency_ns = monotonic_ns() - result->t_capture_ns;
+        counters_->actuator.latency.record(latency_ns);
+        if (!sink_->consume(*result, latency_ns))
+            bump(counters_->actuator.sink_errors);
+        bump(counters_->actuator.stems, result->detections.plants.size() - static_cast<std::size_t>(result->detections.stats.stemless));
+        bump(counters_->actuator.frames);
+        results_.pop();
+    }
+    actuator_done_.store(true, std::memory_order_release);
+}
+
+StatusSnapshot Daemon::snapshot(bool whole_run)
+{
+    const drivers::SourceCounters source = source_->counters();
+    StatusSnapshot s;
+    s.t_ns = monotonic_ns();
+    s.frames_in = counters_->capture.frames.load(std::memory_order_relaxed);
+    s.frames_out = counters_->actuator.frames.load(std::memory_order_relaxed);
+    s.stems_out = counters_->actuator.stems.load(std::memory_order_relaxed);
+    s.ring_full = frames_.dropped();
+    s.overwritten = frames_.overwritten();
+    s.results_full = counters_->processing.results_full.load(std::memory_order_relaxed);
+    s.corrupt = source.corrupt;
+    s.bad_size = source.bad_size;
+    s.failed = counters_->processing.failed.load(std::memory_order_relaxed);
+    s.latency = whole_run ? counters_->actuator.latency.total() : counters_->actuator.latency.take_interval();
+    s.pipeline = whole_run ? counters_->processing.pipeline.total() : counters_->processing.pipeline.take_interval();
+    return s;
+}
+
+}  // namespace stemd::runtime

@@ -1,0 +1,33 @@
+#include "stemd/runtime/frame_pool.hpp"
+
+#include <opencv2/core/mat.hpp>
+
+namespace stemd::runtime {
+
+FramePool::FramePool(cv::Size size, vision::Segmentation segmentation, std::size_t count)
+    : count_(count), slots_(std::make_unique<drivers::Frame[]>(count))
+{
+    using vision::Segmentation;
+    for (std::size_t i = 0; i < count; ++i) {
+        drivers::Frame& f = slots_[i];
+        // Zeroed, not just allocated, so that every page is touched now
+        // (and locked, with mlockall) rather than on the first frame.
+        if (segmentation != Segmentation::mask)
+            f.bgr = cv::Mat::zeros(size, CV_8UC3);
+        if (segmentation == Segmentation::ndvi)
+            f.nir = cv::Mat::zeros(size, CV_8UC1);
+        if (segmentation == Segmentation::mask)
+            f.mask = cv::Mat::zeros(size, CV_8UC1);
+    }
+}
+
+std::size_t FramePool::bytes() const
+{
+    std::size_t total = 0;
+    for (std::size_t i = 0; i < count_; ++i)
+        for (const cv::Mat* m : {&slots_[i].bgr, &slots_[i].nir, &slots_[i].mask})
+            total += m->total() * m->elemSize();
+    return total;
+}
+
+}  // namespace stemd::runtime

@@ -1,0 +1,69 @@
+#!/usr/bin/env bash
+# stemd end to end on a generated recording: --once, --detections-csv equal
+# to stemd-detect, an odom_mm column, a corrupt frame, --check-config.
+#   replay.sh STEMD TOOLS_DIR SOURCE_DIR
+set -euo pipefail
+stemd=$1
+tools=$2
+src=$3
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+"$tools/stemd-synth" --out "$tmp/rec" --preset late --frames 5 >/dev/null
+
+# Columns named in the daemon's header (t_ns dropped), taken by name from a CSV.
+columns() {  # FILE COLS
+  awk -F, -v want="$2" 'NR == 1 { n = split(want, w, ","); for (i = 1; i <= NF; i++) col[$i] = i;
+      for (j = 1; j <= n; j++) if (!(w[j] in col)) { print "missing column " w[j] > "/dev/stderr"; exit 1 } }
+    { line = ""; for (j = 1; j <= n; j++) line = line (j > 1 ? "," : "") $(col[w[j]]); print line }' "$1"
+}
+
+# --once: every frame, then exit 0; detections equal stemd-detect's.
+"$stemd" --config "$src/config/stemd.yaml" --replay "$tmp/rec" --once --detections-csv "$tmp/d.csv" \
+  2>"$tmp/err" || fail "--once exited $?: $(cat "$tmp/err")"
+"$tools/stemd-detect" --config "$src/config/stemd.yaml" --csv "$tmp/g.csv" "$tmp/rec" >/dev/null || fail "stemd-detect"
+header=$(head -1 "$tmp/d.csv")
+case $header in t_ns,image,plant,x,y,method,leaves,area_px*) ;; *) fail "header: $header" ;; esac
+cols=${header#t_ns,}
+columns "$tmp/d.csv" "$cols" >"$tmp/d.cols"
+columns "$tmp/g.csv" "$cols" >"$tmp/g.cols"
+diff "$tmp/d.cols" "$tmp/g.cols" >"$tmp/diff" || fail "detections differ from stemd-detect: $(head "$tmp/diff")"
+rows=$(($(wc -l <"$tmp/d.csv") - 1))
+[ "$rows" -gt 0 ] || fail "no detections"
+# t_ns is each frame's recorded t_ns (frames.csv).
+awk -F, 'NR == FNR { if (FNR > 1) t[$2] = $1; next } FNR > 1 && t[$2] != $1 { print; bad = 1 } END { exit bad }' \
+  "$tmp/rec/frames.csv" "$tmp/d.csv" || fail "t_ns column is not the recording's t_ns"
+grep -q "total: 5 frames in, 5 out" "$tmp/err" || fail "summary: $(grep total: "$tmp/err")"
+
+# An extra odom_mm column is tolerated; pacing fast and preload give the same rows.
+awk -F, -v OFS=, '{ print $0, (NR == 1 ? "odom_mm" : (NR - 2) * 25) }' "$tmp/rec/frames.csv" >"$tmp/f.csv"
+mv "$tmp/f.csv" "$tmp/rec/frames.csv"
+"$stemd" --replay "$tmp/rec" --once --set source.replay_pacing=fast --set source.replay_preload=true \
+  --detections-csv "$tmp/o.csv" 2>"$tmp/err" || fail "odom_mm recording exited $?: $(cat "$tmp/err")"
+cmp -s "$tmp/o.csv" "$tmp/d.csv" || fail "odom_mm/fast/preload run differs"
+
+# A corrupt frame: counted, skipped, the daemon goes on and exits 0.
+echo "not a png" >"$tmp/rec/rgb/000002.png"
+"$stemd" --replay "$tmp/rec" --once --set source.replay_pacing=fast --detections-csv "$tmp/c.csv" \
+  2>"$tmp/err" || fail "corrupt frame: exited $?: $(cat "$tmp/err")"
+grep -q "000002.png: cannot decode" "$tmp/err" || fail "no message naming the corrupt file: $(cat "$tmp/err")"
+grep -q "total: 4 frames in, 4 out.*corrupt 1" "$tmp/err" || fail "corrupt not counted: $(grep total: "$tmp/err")"
+! grep -q "000002.png" "$tmp/c.csv" || fail "the corrupt frame has rows"
+grep -q "000003.png" "$tmp/c.csv" || fail "the frame after the corrupt one is missing"
+
+# --check-config: 0 when valid, 2 with one file:line:key line when not.
+"$stemd" --check-config --config "$src/config/stemd.yaml" >/dev/null || fail "--check-config of the default config"
+printf 'ring:\n  capacity: 4\n  overflw: drop_newest\n' >"$tmp/bad.yaml"
+set +e
+"$stemd" --check-config --config "$tmp/bad.yaml" >/dev/null 2>"$tmp/e1"; rc=$?
+"$stemd" --check-config --set ring.capacity=0 >/dev/null 2>"$tmp/e2"; rc2=$?
+"$stemd" --replay "$tmp/nowhere" --once >/dev/null 2>"$tmp/e3"; rc3=$?
+set -e
+[ $rc -eq 2 ] || fail "bad key exited $rc"
+grep -q "^stemd: $tmp/bad.yaml:3: key 'ring.overflw': " "$tmp/e1" || fail "bad key message: $(cat "$tmp/e1")"
+[ "$(wc -l <"$tmp/e1")" -eq 1 ] || fail "bad key message is not one line"
+[ $rc2 -eq 2 ] && grep -q "key 'ring.capacity': 0 is out of range \[1, 64\] frames" "$tmp/e2" ||
+  fail "out of range: $rc2 $(cat "$tmp/e2")"
+[ $rc3 -eq 2 ] && grep -q "not a recording directory" "$tmp/e3" || fail "missing recording: $rc3 $(cat "$tmp/e3")"
+echo "daemon replay: ok ($rows detections)"

@@ -1,0 +1,132 @@
+// Real-time discipline of the running daemon: once it runs, the capture
+// (replay, preloaded), processing and actuator threads allocate nothing per
+// frame, CSV output included. Every operator new in this test binary is
+// counted (so this file replaces them for all runtime tests).
+//
+// The replay source is preloaded here: decoding PNGs allocates inside
+// OpenCV and libpng, which is the replay source's own I/O (see
+// drivers/replay/replay_source.hpp); a camera driver fills slots directly.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <fstream>
+#include <memory>
+#include <new>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "replay/replay_source.hpp"
+#include "runtime_test_util.hpp"
+#include "stemd/runtime/daemon.hpp"
+#include "stemd/runtime/logging.hpp"
+#include "stemd/synth/synth.hpp"
+
+namespace {
+std::atomic<long> g_allocations{0};
+}
+
+// new is malloc, so free is the matching release. GCC cannot see that through inlining.
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+
+void* operator new(std::size_t size)
+{
+    g_allocations.fetch_add(1, std::memory_order_relaxed);
+    if (void* p = std::malloc(size == 0 ? 1 : size))
+        return p;
+    throw std::bad_alloc();
+}
+void* operator new[](std::size_t size) { return operator new(size); }
+// nothrow (std::stable_sort's buffer) and over-aligned (the rings' cache-line
+// members) forms too, so that every allocation is counted and every release
+// matches its allocation under ASan.
+void* operator new(std::size_t size, const std::nothrow_t&) noexcept
+{
+    g_allocations.fetch_add(1, std::memory_order_relaxed);
+    return std::malloc(size == 0 ? 1 : size);
+}
+void* operator new[](std::size_t size, const std::nothrow_t& tag) noexcept { return operator new(size, tag); }
+void* operator new(std::size_t size, std::align_val_t align)
+{
+    g_allocations.fetch_add(1, std::memory_order_relaxed);
+    const auto a = static_cast<std::size_t>(align);
+    if (void* p = std::aligned_alloc(a, (size + a - 1) / a * a))
+        return p;
+    throw std::bad_alloc();
+}
+void* operator new[](std::size_t size, std::align_val_t align) { return operator new(size, align); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p, const std::nothrow_t&) noexcept { std::free(p); }
+void operator delete[](void* p, const std::nothrow_t&) noexcept { std::free(p); }
+void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+
+using namespace stemd;
+
+namespace {
+
+// A recording of `frames` synthetic late-stage frames, with an odom_mm column.
+std::filesystem::path write_recording(int frames, cv::Size size)
+{
+    const auto dir = test::scratch_dir("alloc");
+    std::filesystem::create_directories(dir / "rgb");
+    std::ofstream csv(dir / "frames.csv");
+    csv << "t_ns,rgb,nir,mask,odom_mm\n";
+    synth::Options options;
+    options.width_px = size.width;
+    options.height_px = size.height;
+    for (int i = 0; i < frames; ++i) {
+        const auto frame = synth::generate_frame(options, i);
+        const std::string name = "rgb/" + std::to_string(i) + ".png";
+        cv::imwrite((dir / name).string(), frame.bgr);
+        csv << i * 33'333'333LL << "," << name << ",,," << i * 10 << "\n";
+    }
+    return dir;
+}
+
+}  // namespace
+
+TEST(DaemonRealTime, RunningDaemonAllocatesNothingPerFrame)
+{
+    const cv::Size size(1296, 966);
+    const auto dir = write_recording(3, size);
+    runtime::DaemonConfig config;
+    config.frame_size = size;
+    config.replay_fast = true;
+    drivers::ReplayOptions replay{.dir = dir, .pacing = drivers::ReplayOptions::Pacing::fast, .loop = true,
+                                  .preload = true};
+    auto sink = std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator"));
+    ASSERT_TRUE(sink->open_csv(dir / "detections.csv"));
+    runtime::Daemon daemon(config, std::make_unique<drivers::ReplaySource>(replay, runtime::make_logger("replay")),
+                           std::move(sink));
+    ASSERT_TRUE(daemon.start());
+    const auto& out = daemon.counters().actuator.frames;
+    // Warm-up: first-use allocations (thread-local state in OpenCV, stdio).
+    ASSERT_TRUE(test::wait_for([&] { return out.load() >= 10; }, std::chrono::seconds(60)));
+    const long before = g_allocations.load();
+    const std::uint64_t out_before = out.load();
+    constexpr std::uint64_t kFrames = 60;
+    ASSERT_TRUE(test::wait_for([&] { return out.load() >= out_before + kFrames; }, std::chrono::seconds(120)));
+    const long after = g_allocations.load();
+    const std::uint64_t out_after = out.load();
+    daemon.request_stop();
+    EXPECT_TRUE(daemon.join());
+    EXPECT_EQ(after - before, 0) << "heap allocations over " << out_after - out_before << " frames";
+    EXPECT_GT(daemon.counters().actuator.stems.load(), 0u) << "the frames had plants";
+    EXPECT_EQ(daemon.counters().processing.failed.load(), 0u);
+    std::filesystem::remove_all(dir);
+}
+
+TEST(DaemonRealTime, TheCounterSeesAllocations)
+{
+    // Guards the test above: if operator new were not replaced it would pass vacuously.
+    const long before = g_allocations.load();
+    auto p = std::make_unique<int>(3);
+    EXPECT_EQ(g_allocations.load() - before, 1);
+    EXPECT_EQ(*p, 3);
+}

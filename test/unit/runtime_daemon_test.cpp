@@ -1,0 +1,128 @@
+// The daemon's threads with a scripted source: overflow policies and their
+// counters, back-pressure, end of stream, and a prompt stop.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <memory>
+
+#include "runtime_test_util.hpp"
+#include "stemd/runtime/daemon.hpp"
+#include "stemd/runtime/logging.hpp"
+
+using namespace stemd;
+using namespace std::chrono_literals;
+
+namespace {
+
+// Delivers `frames` frames as fast as asked (or endlessly with frames < 0),
+// without touching the pixels; each frame's name is its number.
+class ScriptedSource final : public drivers::FrameSource {
+public:
+    ScriptedSource(long frames, bool realtime) : frames_(frames), realtime_(realtime) {}
+    std::string_view name() const override { return "scripted"; }
+    bool open() override { return true; }
+    bool start() override { return true; }
+    drivers::NextStatus next(drivers::Frame& into, std::chrono::nanoseconds) override
+    {
+        if (frames_ >= 0 && next_ >= frames_)
+            return drivers::NextStatus::end_of_stream;
+        into.t_capture_ns = runtime::monotonic_ns();
+        into.t_recorded_ns = next_;
+        into.source_seq = static_cast<std::uint64_t>(next_);
+        ++next_;
+        delivered_.fetch_add(1);
+        return drivers::NextStatus::frame;
+    }
+    void stop() override {}
+    drivers::SourceCounters counters() const override { return {.delivered = delivered_.load()}; }
+    bool realtime() const override { return realtime_; }
+
+private:
+    const long frames_;
+    const bool realtime_;
+    long next_ = 0;
+    std::atomic<std::uint64_t> delivered_{0};
+};
+
+runtime::DaemonConfig config_for(runtime::OverflowPolicy policy)
+{
+    runtime::DaemonConfig config;
+    // Full-size frames: detect() takes a millisecond or more, the scripted
+    // source microseconds, so a realtime source overflows the ring.
+    config.frame_size = {1296, 966};
+    config.ring_capacity = 2;
+    config.results_capacity = 2;
+    config.overflow = policy;
+    return config;
+}
+
+struct DaemonRun {
+    std::unique_ptr<runtime::Daemon> daemon;
+    runtime::StatusSnapshot end;
+};
+
+DaemonRun run_to_end(const runtime::DaemonConfig& config, long frames, bool realtime)
+{
+    DaemonRun run;
+    run.daemon = std::make_unique<runtime::Daemon>(config, std::make_unique<ScriptedSource>(frames, realtime),
+                                                   std::make_unique<runtime::DetectionSink>(
+                                                       runtime::make_logger("actuator")));
+    EXPECT_TRUE(run.daemon->start());
+    EXPECT_TRUE(test::wait_for([&] { return run.daemon->finished(); }, 120s));
+    EXPECT_TRUE(run.daemon->join());
+    run.end = run.daemon->snapshot(true);
+    return run;
+}
+
+}  // namespace
+
+TEST(Daemon, DropNewestCountsEveryFrameItDoesNotProcess)
+{
+    constexpr long kFrames = 300;
+    const DaemonRun run = run_to_end(config_for(runtime::OverflowPolicy::drop_newest), kFrames, true);
+    EXPECT_EQ(run.end.frames_in, static_cast<std::uint64_t>(kFrames));
+    EXPECT_GT(run.end.ring_full, 0u) << "the ring never overflowed: the test proves nothing";
+    EXPECT_EQ(run.end.overwritten, 0u);
+    EXPECT_EQ(run.end.frames_out + run.end.ring_full + run.end.results_full + run.end.failed,
+              static_cast<std::uint64_t>(kFrames));
+    EXPECT_EQ(run.daemon->counters().capture.no_free_slot.load(), 0u);
+}
+
+TEST(Daemon, OverwriteOldestCountsEveryFrameItDoesNotProcess)
+{
+    constexpr long kFrames = 300;
+    const DaemonRun run = run_to_end(config_for(runtime::OverflowPolicy::overwrite_oldest), kFrames, true);
+    EXPECT_EQ(run.end.frames_in, static_cast<std::uint64_t>(kFrames));
+    EXPECT_GT(run.end.overwritten, 0u) << "the ring never overflowed: the test proves nothing";
+    EXPECT_EQ(run.end.ring_full, 0u);
+    EXPECT_EQ(run.end.frames_out + run.end.overwritten + run.end.results_full + run.end.failed,
+              static_cast<std::uint64_t>(kFrames));
+    EXPECT_EQ(run.daemon->counters().capture.no_free_slot.load(), 0u);
+}
+
+TEST(Daemon, SourceThatCanWaitGetsBackPressureAndLosesNothing)
+{
+    constexpr long kFrames = 60;
+    const DaemonRun run = run_to_end(config_for(runtime::OverflowPolicy::drop_newest), kFrames, false);
+    EXPECT_EQ(run.end.frames_in, static_cast<std::uint64_t>(kFrames));
+    EXPECT_EQ(run.end.frames_out, static_cast<std::uint64_t>(kFrames));
+    EXPECT_EQ(run.end.ring_full + run.end.overwritten + run.end.results_full + run.end.failed, 0u);
+    EXPECT_GT(run.daemon->counters().capture.backpressure_waits.load(), 0u);
+    EXPECT_EQ(run.end.latency.count, static_cast<std::uint64_t>(kFrames));
+    EXPECT_GT(run.end.pipeline.p50_ms, 0.0);
+}
+
+TEST(Daemon, StopsPromptlyWhileFramesKeepComing)
+{
+    runtime::Daemon daemon(config_for(runtime::OverflowPolicy::drop_newest),
+                           std::make_unique<ScriptedSource>(-1, true),
+                           std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator")));
+    ASSERT_TRUE(daemon.start());
+    ASSERT_TRUE(test::wait_for([&] { return daemon.counters().actuator.frames.load() >= 5; }, 60s));
+    const auto t0 = std::chrono::steady_clock::now();
+    daemon.request_stop();
+    EXPECT_TRUE(daemon.join());
+    EXPECT_LT(std::chrono::steady_clock::now() - t0, 1s);
+    EXPECT_FALSE(daemon.finished() && daemon.source_failed());
+}
