@@ -16,9 +16,11 @@
 #include <spdlog/spdlog.h>
 
 #include "replay/replay_source.hpp"
+#include "v4l2/v4l2_source.hpp"
 #include "stemd/io/recording.hpp"
 #include "stemd/runtime/config.hpp"
 #include "stemd/runtime/daemon.hpp"
+#include "stemd/runtime/sd_notify.hpp"
 #include "stemd/runtime/daemon_config.hpp"
 #include "stemd/runtime/detection_sink.hpp"
 #include "stemd/runtime/logging.hpp"
@@ -150,13 +152,26 @@ int main(int argc, char** argv)
     const auto log = runtime::make_logger("main");
     const auto status_log = runtime::make_logger("status");
 
-    drivers::ReplayOptions replay;
-    replay.dir = daemon_config.replay_dir;
-    replay.pacing = daemon_config.replay_fast ? drivers::ReplayOptions::Pacing::fast
-                                              : drivers::ReplayOptions::Pacing::recorded;
-    replay.loop = daemon_config.replay_loop;
-    replay.preload = daemon_config.replay_preload;
-    auto source = std::make_unique<drivers::ReplaySource>(replay, runtime::make_logger("replay"));
+    std::unique_ptr<drivers::FrameSource> source;
+    if (daemon_config.source_kind == "v4l2") {
+        drivers::V4l2Options v4l2;
+        v4l2.device = daemon_config.v4l2_device;
+        // The schema allows only the formats the source knows.
+        v4l2.pixel_format =
+            drivers::parse_v4l2_pixel_format(daemon_config.v4l2_pixel_format).value_or(drivers::V4l2PixelFormat::yuyv);
+        v4l2.buffers = daemon_config.v4l2_buffers;
+        v4l2.size = daemon_config.frame_size;
+        v4l2.fps = daemon_config.fps;
+        source = std::make_unique<drivers::V4l2Source>(std::move(v4l2), runtime::make_logger("v4l2"));
+    } else {
+        drivers::ReplayOptions replay;
+        replay.dir = daemon_config.replay_dir;
+        replay.pacing = daemon_config.replay_fast ? drivers::ReplayOptions::Pacing::fast
+                                                  : drivers::ReplayOptions::Pacing::recorded;
+        replay.loop = daemon_config.replay_loop;
+        replay.preload = daemon_config.replay_preload;
+        source = std::make_unique<drivers::ReplaySource>(replay, runtime::make_logger("replay"));
+    }
 
     auto sink = std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator"));
     if (!args->detections_csv.empty() && !sink->open_csv(args->detections_csv))
@@ -179,18 +194,54 @@ int main(int argc, char** argv)
     last.t_ns = t_start_ns;
     std::int64_t next_status_ns = t_start_ns + interval.count();
     int exit_code = 0;
+    // systemd (Type=notify): READY=1 once the source delivers, WATCHDOG=1
+    // only while all three threads make progress, STATUS= the status line.
+    runtime::SystemdNotifier systemd;
+    if (!systemd.error().empty())
+        log->warn("systemd notification disabled: {}", systemd.error());
+    const std::int64_t watchdog_ns =
+        std::chrono::duration_cast<std::chrono::nanoseconds>(systemd.watchdog_interval()).count();
+    std::int64_t next_watchdog_ns = t_start_ns;
+    bool ready = false;
+    const char* stalled_reported = nullptr;
+    auto notify = [&](const std::string& state) {
+        if (systemd.enabled() && !systemd.notify(state))
+            log->warn("systemd notify '{}' failed: {}", state.substr(0, state.find('=')), systemd.error());
+    };
     while (!daemon->finished()) {
         if (const auto sig = signals.wait(100ms)) {
             log->info("{}: stopping", *sig == SIGTERM ? "SIGTERM" : "SIGINT");
             break;
         }
-        if (runtime::monotonic_ns() >= next_status_ns) {
+        const std::int64_t now_ns = runtime::monotonic_ns();
+        if (!ready && daemon->snapshot(false).frames_in > 0) {
+            ready = true;
+            notify("READY=1");
+        }
+        if (watchdog_ns > 0 && now_ns >= next_watchdog_ns) {
+            // A thread silent for half the watchdog interval is stuck: stop
+            // petting and let systemd restart us.
+            const char* stalled = daemon->stalled_thread(now_ns, watchdog_ns / 2);
+            if (stalled == nullptr) {
+                notify("WATCHDOG=1");
+                stalled_reported = nullptr;
+            } else if (stalled != stalled_reported) {
+                log->error("{} thread has made no progress for {} ms: withholding the watchdog", stalled,
+                           watchdog_ns / 2 / 1'000'000);
+                stalled_reported = stalled;
+            }
+            next_watchdog_ns = now_ns + watchdog_ns / 4;
+        }
+        if (now_ns >= next_status_ns) {
             const runtime::StatusSnapshot now = daemon->snapshot(false);
-            status_log->info("{}", runtime::format_status(now, last));
+            const std::string line = runtime::format_status(now, last);
+            status_log->info("{}", line);
+            notify("STATUS=" + line);
             last = now;
             next_status_ns += interval.count();
         }
     }
+    notify("STOPPING=1");
     daemon->request_stop();
     if (!daemon->join())
         exit_code = 1;

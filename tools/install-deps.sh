@@ -9,6 +9,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libgpiod-dev libcamera-dev  # APIs the VM driver probes (test/vm) build against
   can-utils python3-canmatrix  # third-party readers of our candump logs and DBC (cross-check tests)
+  systemd python3  # systemd-analyze verify of the unit; a stand-in notify socket in a daemon test
 )
 
 missing=()

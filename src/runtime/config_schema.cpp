@@ -59,8 +59,8 @@ constexpr std::array kSchema{
             "robust estimator: mean width (2 area / perimeter) below which a large plant is grass; 0 disables"},
 
     // The daemon (stemd): frame source, rings, threads, status, logging.
-    KeySpec{"source.kind", choice, "", 0, 0, "replay", "replay",
-            "where frames come from (v4l2 and libcamera come later); --replay DIR picks replay"},
+    KeySpec{"source.kind", choice, "", 0, 0, "replay", "replay|v4l2",
+            "where frames come from: a recording, or a V4L2 camera (libcamera comes later); --replay DIR picks replay"},
     KeySpec{"source.replay_dir", text, "", 0, 0, "none", "",
             "recording directory (frames.csv) to replay; none: not set (--replay DIR sets it)"},
     KeySpec{"source.replay_pacing", choice, "", 0, 0, "recorded", "recorded|fast",
@@ -73,6 +73,14 @@ constexpr std::array kSchema{
             "frame width; the frame slots are allocated for it, other sizes are skipped and counted"},
     KeySpec{"source.height_px", integer, "px", 16, 8192, "966", "",
             "frame height; the frame slots are allocated for it, other sizes are skipped and counted"},
+    KeySpec{"source.v4l2_device", text, "", 0, 0, "/dev/video0", "",
+            "v4l2: the video capture device node (mmap streaming, source.width_px x source.height_px)"},
+    KeySpec{"source.v4l2_pixel_format", choice, "", 0, 0, "yuyv", "yuyv|bgr24|grey",
+            "v4l2: pixel format asked of the camera, converted to BGR (grey: B = G = R)"},
+    KeySpec{"source.v4l2_buffers", integer, "count", 2, 32, "4", "",
+            "v4l2: mmap buffers asked of the driver"},
+    KeySpec{"source.fps", real, "fps", 1, 240, "30", "",
+            "v4l2: frame rate asked of the camera (VIDIOC_S_PARM); a camera that cannot set one keeps its own"},
 
     KeySpec{"ring.capacity", integer, "frames", 1, 64, "4", "",
             "captured frames waiting for the processing thread (slots: capacity + 2)"},

@@ -91,6 +91,9 @@ bool Daemon::start()
     // Before the threads, so that their stacks are locked too.
     if (config_.mlockall)
         note(lock_all_memory());
+    // Stamped now, so a thread not yet scheduled does not look stuck.
+    for (auto& stamp : alive_ns_)
+        stamp.store(monotonic_ns(), std::memory_order_relaxed);
     actuator_ = std::thread([this] { actuator_loop(); });
     processing_ = std::thread([this] { processing_loop(); });
     capture_ = std::thread([this] { capture_loop(); });
@@ -121,6 +124,24 @@ bool Daemon::join()
     return sink_ok_.load();
 }
 
+void Daemon::beat(Thread thread)
+{
+    alive_ns_[thread].store(monotonic_ns(), std::memory_order_relaxed);
+}
+
+const char* Daemon::stalled_thread(std::int64_t now_ns, std::int64_t max_age_ns) const
+{
+    static constexpr const char* kNames[kThreads] = {"capture", "processing", "actuator"};
+    // A thread that finished its work (end of a finite source) is not stuck.
+    const bool done[kThreads] = {capture_done_.load(std::memory_order_acquire),
+                                 processing_done_.load(std::memory_order_acquire),
+                                 actuator_done_.load(std::memory_order_acquire)};
+    for (int t = 0; t < kThreads; ++t)
+        if (!done[t] && now_ns - alive_ns_[t].load(std::memory_order_relaxed) > max_age_ns)
+            return kNames[t];
+    return nullptr;
+}
+
 void Daemon::capture_loop()
 {
     drivers::Frame* hand = nullptr;
@@ -128,6 +149,7 @@ void Daemon::capture_loop()
     const bool can_wait = !source_->realtime();
     std::uint64_t seq = 0;
     while (!stopping()) {
+        beat(kCapture);
         if (hand == nullptr && !free_slots_.try_pop(hand)) {
             // The pool is sized so that this cannot happen; count it if it does.
             bump(counters_->capture.no_free_slot);
@@ -155,6 +177,7 @@ void Daemon::capture_loop()
             // is room the push cannot fail.
             bool waited = false;
             while (frames_.size() == frames_.capacity() && !stopping()) {
+                beat(kCapture);
                 waited = true;
                 idle.wait();
             }
@@ -183,6 +206,7 @@ void Daemon::processing_loop()
     vision::StageTimes times;
     drivers::Frame* frame = nullptr;
     while (!stopping()) {
+        beat(kProcessing);
         if (!frames_.try_pop(frame)) {
             // capture_done_ is set after its last push: seen set, an empty
             // ring means everything has been taken.
@@ -198,6 +222,7 @@ void Daemon::processing_loop()
         // A source that can wait loses nothing downstream either: wait for
         // the actuator rather than drop the result.
         while (result == nullptr && can_wait && !stopping()) {
+            beat(kProcessing);
             idle.wait();
             result = results_.claim();
         }
@@ -237,6 +262,7 @@ void Daemon::actuator_loop()
 {
     Idle idle;
     while (!stopping()) {
+        beat(kActuator);
         FrameResult* result = results_.front();
         if (result == nullptr) {
             if (processing_done_.load(std::memory_order_acquire) && results_.front() == nullptr)

@@ -14,6 +14,10 @@ DaemonConfig daemon_config(const config::Config& config)
     d.replay_fast = config.get_text("source.replay_pacing") == "fast";
     d.replay_loop = config.get_bool("source.replay_loop");
     d.replay_preload = config.get_bool("source.replay_preload");
+    d.v4l2_device = config.get_text("source.v4l2_device");
+    d.v4l2_pixel_format = config.get_text("source.v4l2_pixel_format");
+    d.v4l2_buffers = static_cast<unsigned>(config.get_int("source.v4l2_buffers"));
+    d.fps = config.get_real("source.fps");
     d.frame_size = {static_cast<int>(config.get_int("source.width_px")),
                     static_cast<int>(config.get_int("source.height_px"))};
     d.ring_capacity = static_cast<std::size_t>(config.get_int("ring.capacity"));

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <memory>
+#include <thread>
 
 #include "runtime_test_util.hpp"
 #include "stemd/runtime/daemon.hpp"
@@ -125,4 +126,70 @@ TEST(Daemon, StopsPromptlyWhileFramesKeepComing)
     EXPECT_TRUE(daemon.join());
     EXPECT_LT(std::chrono::steady_clock::now() - t0, 1s);
     EXPECT_FALSE(daemon.finished() && daemon.source_failed());
+}
+
+namespace {
+
+// A source that hangs in next() (ignoring its timeout) until released: a
+// stuck driver.
+class HangingSource final : public drivers::FrameSource {
+public:
+    std::string_view name() const override { return "hanging"; }
+    bool open() override { return true; }
+    bool start() override { return true; }
+    drivers::NextStatus next(drivers::Frame& into, std::chrono::nanoseconds) override
+    {
+        if (hang_.load()) {
+            entered_.store(true);
+            while (hang_.load())
+                std::this_thread::yield();
+        }
+        into.t_capture_ns = runtime::monotonic_ns();
+        return drivers::NextStatus::end_of_stream;
+    }
+    void stop() override {}
+    drivers::SourceCounters counters() const override { return {}; }
+    bool realtime() const override { return true; }
+    void release() { hang_.store(false); }
+    bool entered() const { return entered_.load(); }
+
+private:
+    std::atomic<bool> hang_{true};
+    std::atomic<bool> entered_{false};
+};
+
+}  // namespace
+
+TEST(Daemon, AStuckThreadIsReportedForTheWatchdog)
+{
+    auto source = std::make_unique<HangingSource>();
+    HangingSource* hanging = source.get();
+    runtime::Daemon daemon(config_for(runtime::OverflowPolicy::drop_newest), std::move(source),
+                           std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator")));
+    ASSERT_TRUE(daemon.start());
+    ASSERT_TRUE(test::wait_for([&] { return hanging->entered(); }, 10s));
+    constexpr std::int64_t kMaxAgeNs = 200'000'000;
+    // The other two threads keep stamping while they idle; capture does not.
+    const char* stalled = nullptr;
+    EXPECT_TRUE(test::wait_for(
+        [&] { return (stalled = daemon.stalled_thread(runtime::monotonic_ns(), kMaxAgeNs)) != nullptr; }, 10s));
+    ASSERT_NE(stalled, nullptr);
+    EXPECT_STREQ(stalled, "capture");
+    hanging->release();
+    ASSERT_TRUE(test::wait_for([&] { return daemon.finished(); }, 10s));
+    // Finished threads are not stuck.
+    EXPECT_EQ(daemon.stalled_thread(runtime::monotonic_ns() + 10 * kMaxAgeNs, kMaxAgeNs), nullptr);
+    EXPECT_TRUE(daemon.join());
+}
+
+TEST(Daemon, NoThreadIsStalledWhileFramesFlow)
+{
+    runtime::Daemon daemon(config_for(runtime::OverflowPolicy::drop_newest),
+                           std::make_unique<ScriptedSource>(-1, true),
+                           std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator")));
+    ASSERT_TRUE(daemon.start());
+    ASSERT_TRUE(test::wait_for([&] { return daemon.snapshot(false).frames_out >= 5; }, 60s));
+    EXPECT_EQ(daemon.stalled_thread(runtime::monotonic_ns(), 1'000'000'000), nullptr);
+    daemon.request_stop();
+    EXPECT_TRUE(daemon.join());
 }

@@ -131,13 +131,85 @@ check_libcamera() {
   hostrun env LIBCAMERA_LOG_LEVELS='*:ERROR' "$libcamera" vimc || die "libcamera probe"
 }
 
+# --- v4l2_source: the project's V4L2 source (drivers/v4l2) on vivid loopback ---
+# KEY v4l2_source: host path of stemd-vm-v4l2-source-check.
+v4l2_source=
+for kv in "$@"; do
+  case $kv in v4l2_source=*) v4l2_source=${kv#v4l2_source=} ;; esac
+done
+check_v4l2_source() {
+  [ -n "$v4l2_source" ] || skip "v4l2_source check not built"
+  # Same vivid instance as check_v4l2 (a no-op if that check loaded it).
+  modprobe vivid n_devs=1 node_types=0x101 || die "modprobe vivid"
+  cap=$(v4l_node vivid-000-vid-cap) || die "no vivid capture node"
+  outn=$(v4l_node vivid-000-vid-out) || die "no vivid output node"
+  for f in yuyv bgr24; do
+    echo "== V4l2Source, $f plant scene $outn -> $cap"
+    hostrun "$v4l2_source" loop "$cap" "$outn" "$f" "$out" || die "V4l2Source $f loopback"
+  done
+}
+extra_checks="$extra_checks v4l2_source"
+# --- end v4l2_source ---
+
+# --- socketcan: the project's SocketCAN driver (drivers/socketcan) on vcan0 ---
+# KEY socketcan: host path of stemd-vm-socketcan-check. Each step has its own
+# timeout (socketcan_timeout), well inside check_timeout.
+socketcan=
+for kv in "$@"; do
+  case $kv in socketcan=*) socketcan=${kv#socketcan=} ;; esac
+done
+socketcan_timeout=20
+check_socketcan() {
+  [ -n "$socketcan" ] || skip "socketcan check not built"
+  sc() { timeout -s KILL "$socketcan_timeout" hostrun "$socketcan" "$@"; }
+  # Precomputed with the actuation encoder (E2E CRC + counter): a change in
+  # the encoder or the driver shows up as a mismatch.
+  target=301#3223D254400DFFBA    # TARGET id 1234, tool 2, lane 5, fire 200000 mm, -321 mm, weed; counter 3
+  odometry=300#3D0706120F0024FA  # ODOMETRY 987654 mm, -1500 mm/s; counter 7
+  modprobe can-raw && modprobe vcan || die "modprobe can-raw vcan"
+  # check_can may have created vcan0 already.
+  ip link show vcan0 > /dev/null 2>&1 || ip link add dev vcan0 type vcan || die "creating vcan0"
+  ip link set vcan0 up || die "vcan0 up"
+
+  echo "== the actuation encoder gives the precomputed frames"
+  sc frames > /tmp/sc_frames.out 2>&1 || die "socketcan-check frames ($(cat /tmp/sc_frames.out))"
+  cat /tmp/sc_frames.out
+  grep -qx "target $target" /tmp/sc_frames.out || die "TARGET encodes differently from $target"
+  grep -qx "odometry $odometry" /tmp/sc_frames.out || die "ODOMETRY encodes differently from $odometry"
+
+  echo "== SocketCanBus sends an E2E TARGET, candump receives"
+  hostrun candump -L -n 1 -T 5000 vcan0 > /tmp/sc_candump.out 2>&1 &
+  dump=$!
+  n=0
+  until grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all; do
+    n=$((n + 1))
+    [ $n -le 100 ] || die "candump did not start listening on vcan0"
+    sleep 0.05
+  done
+  sc send vcan0 || die "SocketCanBus send"
+  wait $dump || die "candump exited $? ($(cat /tmp/sc_candump.out))"
+  echo "candump: $(cat /tmp/sc_candump.out)"
+  [ "$(wc -l < /tmp/sc_candump.out)" -eq 1 ] || die "candump saw more than one frame"
+  grep -q " vcan0 $target\$" /tmp/sc_candump.out || die "candump did not see exactly $target"
+
+  echo "== cansend sends a foreign frame and ODOMETRY; SocketCanBus filters, receives, E2E-checks, decodes"
+  sc receive vcan0 3000 -- sh -c 'cansend vcan0 123#00 && cansend vcan0 "$1"' sh "$odometry" ||
+    die "SocketCanBus receive"
+
+  echo "== vcan0 down while sending (errors, no crash), then up (sending resumes)"
+  sc downup vcan0 -- sh -c 'ip link set "$1" "$2"' sh vcan0 || die "SocketCanBus down/up"
+  ip link set vcan0 up
+}
+extra_checks="$extra_checks socketcan"
+# --- end socketcan ---
+
 if [ "$mode" = one ]; then
   "check_$check"
   exit $?
 fi
 
 status=0
-for c in can v4l2 gpio libcamera; do
+for c in can v4l2 gpio libcamera $extra_checks; do
   t0=$(uptime_s)
   timeout -s KILL "$check_timeout" sh "$0" one "$c" "$@" > "/host$out/$c.log" 2>&1
   rc=$?

@@ -65,6 +65,11 @@ public:
     bool join();
 
     StatusSnapshot snapshot(bool whole_run);
+
+    // Liveness for the systemd watchdog: each thread stamps CLOCK_MONOTONIC
+    // on every pass of its loop, idle waits included. The first thread whose
+    // stamp is older than max_age_ns (a stuck thread), or nullptr.
+    const char* stalled_thread(std::int64_t now_ns, std::int64_t max_age_ns) const;
     const Counters& counters() const { return *counters_; }
     std::size_t pool_bytes() const { return pool_.bytes(); }
     std::size_t workspace_bytes() const { return workspace_->reserved_bytes(); }
@@ -74,6 +79,8 @@ private:
     void processing_loop();
     void actuator_loop();
     bool stopping() const { return stop_.load(std::memory_order_acquire); }
+    enum Thread { kCapture, kProcessing, kActuator, kThreads };
+    void beat(Thread thread);
 
     const DaemonConfig config_;
     const std::shared_ptr<spdlog::logger> log_;
@@ -95,6 +102,7 @@ private:
     std::atomic<bool> actuator_done_{false};
     std::atomic<bool> source_failed_{false};
     std::atomic<bool> sink_ok_{true};
+    std::atomic<std::int64_t> alive_ns_[kThreads] = {};
     std::thread capture_, processing_, actuator_;
     bool joined_ = false;
 };

@@ -31,6 +31,10 @@ struct DaemonConfig {
     bool replay_fast = false;        // source.replay_pacing: fast
     bool replay_loop = true;
     bool replay_preload = false;
+    std::string v4l2_device = "/dev/video0";
+    std::string v4l2_pixel_format = "yuyv";   // yuyv | bgr24 | grey
+    unsigned v4l2_buffers = 4;
+    double fps = 30;
     cv::Size frame_size{1296, 966};
     // ring.*
     std::size_t ring_capacity = 4;

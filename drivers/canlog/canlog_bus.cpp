@@ -1,0 +1,129 @@
+#include "canlog/canlog_bus.hpp"
+
+#include <time.h>
+
+#include <array>
+#include <cerrno>
+#include <cstring>
+
+#include "stemd/actuation/candump_format.hpp"
+
+namespace stemd::drivers {
+
+namespace {
+
+std::uint64_t clock_us(clockid_t clock)
+{
+    timespec ts{};
+    clock_gettime(clock, &ts);
+    return static_cast<std::uint64_t>(ts.tv_sec) * 1'000'000 + static_cast<std::uint64_t>(ts.tv_nsec) / 1000;
+}
+
+}  // namespace
+
+CanLogBus::CanLogBus(CanLogOptions options, std::shared_ptr<spdlog::logger> log)
+    : options_(std::move(options)), log_(std::move(log)), name_("canlog:" + options_.path.string())
+{
+}
+
+CanLogBus::~CanLogBus()
+{
+    if (file_)
+        flush();
+}
+
+bool CanLogBus::open()
+{
+    if (file_)
+        return true;
+    if (!actuation::valid_interface_name(options_.interface)) {
+        log_->error("{}: interface name '{}' cannot be written in a candump line (1..15 characters, no "
+                    "whitespace, '(', ')' or '#')",
+                    name_, options_.interface);
+        return false;
+    }
+    std::FILE* f = std::fopen(options_.path.c_str(), options_.append ? "ae" : "we");
+    if (f == nullptr) {
+        const int e = errno;
+        log_->error("{}: cannot open {}: {} (errno {})", name_, options_.path.string(), std::strerror(e), e);
+        return false;
+    }
+    file_.reset(f);
+    unflushed_ = 0;
+    log_->info("{}: logging frames as {} ({} timestamps)", name_, options_.interface,
+               options_.clock == CanLogOptions::Clock::realtime ? "CLOCK_REALTIME" : "CLOCK_MONOTONIC");
+    return true;
+}
+
+SendResult CanLogBus::send(const actuation::CanFrame& frame, std::int64_t deadline_ns)
+{
+    if (can_monotonic_ns() >= deadline_ns) {
+        deadline_misses_.fetch_add(1, std::memory_order_relaxed);
+        return SendResult::deadline_passed;
+    }
+    if (!file_) {
+        errors_.fetch_add(1, std::memory_order_relaxed);
+        return SendResult::error;
+    }
+    std::array<char, actuation::kCandumpLineMax + 1> line{};
+    const std::uint64_t t_us =
+        clock_us(options_.clock == CanLogOptions::Clock::realtime ? CLOCK_REALTIME : CLOCK_MONOTONIC);
+    const std::size_t n = actuation::format_candump_line(std::span<char>(line.data(), actuation::kCandumpLineMax),
+                                                         t_us, options_.interface, frame);
+    if (n == 0) {
+        errors_.fetch_add(1, std::memory_order_relaxed);
+        log_->error("{}: frame id 0x{:X} dlc {} cannot be written as a candump line", name_, frame.id, frame.dlc);
+        return SendResult::error;
+    }
+    line[n] = '\n';
+    if (std::fwrite(line.data(), 1, n + 1, file_.get()) != n + 1) {
+        const int e = errno;
+        errors_.fetch_add(1, std::memory_order_relaxed);
+        log_->error("{}: write failed: {} (errno {})", name_, std::strerror(e), e);
+        std::clearerr(file_.get());
+        return SendResult::error;
+    }
+    sent_.fetch_add(1, std::memory_order_relaxed);
+    if (++unflushed_ >= options_.flush_every)
+        flush();
+    return SendResult::sent;
+}
+
+bool CanLogBus::flush()
+{
+    if (!file_)
+        return false;
+    unflushed_ = 0;
+    if (std::fflush(file_.get()) != 0) {
+        const int e = errno;
+        errors_.fetch_add(1, std::memory_order_relaxed);
+        log_->error("{}: flush failed: {} (errno {})", name_, std::strerror(e), e);
+        std::clearerr(file_.get());
+        return false;
+    }
+    return true;
+}
+
+bool CanLogBus::receive(actuation::CanFrame& /*out*/, std::int64_t timeout_ns)
+{
+    if (timeout_ns > 0) {
+        const std::int64_t end = can_monotonic_ns() + timeout_ns;
+        const timespec ts{static_cast<time_t>(end / 1'000'000'000), static_cast<long>(end % 1'000'000'000)};
+        while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+        }
+    }
+    return false;
+}
+
+CanBusCounters CanLogBus::counters() const
+{
+    return {.sent = sent_.load(std::memory_order_relaxed),
+            .tx_queue_full_retries = 0,
+            .deadline_misses = deadline_misses_.load(std::memory_order_relaxed),
+            .errors = errors_.load(std::memory_order_relaxed),
+            .bus_off = 0,
+            .error_passive = 0,
+            .rx = 0};
+}
+
+}  // namespace stemd::drivers

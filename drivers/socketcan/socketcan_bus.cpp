@@ -1,0 +1,349 @@
+#include "socketcan/socketcan_bus.hpp"
+
+#include <linux/can.h>
+#include <linux/can/error.h>
+#include <linux/can/raw.h>
+#include <net/if.h>
+#include <poll.h>
+#include <sys/ioctl.h>
+#include <sys/socket.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+
+#include <spdlog/fmt/fmt.h>
+
+namespace stemd::drivers {
+
+namespace {
+
+timespec to_timespec(std::int64_t ns)
+{
+    if (ns < 0)
+        ns = 0;
+    return {static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
+}
+
+void sleep_for_ns(std::int64_t ns)
+{
+    if (ns <= 0)
+        return;
+    const timespec ts = to_timespec(ns);
+    nanosleep(&ts, nullptr);
+}
+
+// Waits for `events` on fd for at most ns; the ppoll result.
+int wait_fd(int fd, short events, std::int64_t ns)
+{
+    pollfd pfd{fd, events, 0};
+    const timespec ts = to_timespec(ns);
+    return ::ppoll(&pfd, 1, &ts, nullptr);
+}
+
+bool is_down_errno(int e) { return e == ENETDOWN || e == ENODEV || e == ENXIO; }
+
+// ENOBUFS (the interface's tx queue is full) does not wake POLLOUT: the
+// socket's own buffer is not the one that is full. Retry after this pause.
+constexpr std::int64_t kEnobufsPauseNs = 100'000;
+
+}  // namespace
+
+std::string_view to_string(SocketCanState s)
+{
+    switch (s) {
+    case SocketCanState::closed: return "closed";
+    case SocketCanState::up: return "up";
+    case SocketCanState::error_passive: return "error_passive";
+    case SocketCanState::bus_off: return "bus_off";
+    case SocketCanState::down: return "down";
+    }
+    return "?";
+}
+
+CanErrorInfo decode_error_frame(std::uint32_t can_id, const std::uint8_t (&data)[8])
+{
+    CanErrorInfo info;
+    if ((can_id & CAN_ERR_FLAG) == 0)
+        return info;
+    info.bus_off = (can_id & CAN_ERR_BUSOFF) != 0;
+    const bool crtl = (can_id & CAN_ERR_CRTL) != 0;
+    info.error_passive = crtl && (data[1] & (CAN_ERR_CRTL_RX_PASSIVE | CAN_ERR_CRTL_TX_PASSIVE)) != 0;
+    info.recovered = (can_id & CAN_ERR_RESTARTED) != 0 || (crtl && (data[1] & CAN_ERR_CRTL_ACTIVE) != 0);
+    info.tx_timeout = (can_id & CAN_ERR_TX_TIMEOUT) != 0;
+    return info;
+}
+
+void SocketCanBus::Fd::reset(int fd)
+{
+    if (fd_ >= 0)
+        ::close(fd_);
+    fd_ = fd;
+}
+
+SocketCanBus::SocketCanBus(SocketCanOptions options, std::shared_ptr<spdlog::logger> log)
+    : options_(std::move(options)), log_(std::move(log)), name_("socketcan:" + options_.interface)
+{
+}
+
+SocketCanBus::~SocketCanBus() = default;
+
+void SocketCanBus::fail(const char* what, int err)
+{
+    std::string message = fmt::format("{} on {}: {} (errno {})", what, options_.interface, std::strerror(err), err);
+    // Repeated reopen attempts fail the same way: log a failure once, until it changes.
+    if (message != last_error_)
+        log_->error("{}: {}", name_, message);
+    last_error_ = std::move(message);
+}
+
+bool SocketCanBus::try_open()
+{
+    const std::string& ifname = options_.interface;
+    if (ifname.empty() || ifname.size() >= IFNAMSIZ) {
+        fail("interface name must be 1..15 characters", EINVAL);
+        return false;
+    }
+    Fd sock(::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW));
+    if (!sock.valid()) {
+        fail("socket(PF_CAN, SOCK_RAW, CAN_RAW)", errno);
+        return false;
+    }
+    ifreq ifr{};
+    std::memcpy(ifr.ifr_name, ifname.c_str(), ifname.size() + 1);
+    if (::ioctl(sock.get(), SIOCGIFINDEX, &ifr) < 0) {
+        fail("SIOCGIFINDEX (no such interface?)", errno);
+        return false;
+    }
+    const int ifindex = ifr.ifr_ifindex;
+    if (::ioctl(sock.get(), SIOCGIFFLAGS, &ifr) < 0) {
+        fail("SIOCGIFFLAGS", errno);
+        return false;
+    }
+    if ((ifr.ifr_flags & IFF_UP) == 0) {
+        fail("interface is not up", ENETDOWN);
+        return false;
+    }
+    const can_err_mask_t err_mask = CAN_ERR_MASK;
+    if (::setsockopt(sock.get(), SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &err_mask, sizeof err_mask) < 0) {
+        fail("setsockopt(CAN_RAW_ERR_FILTER)", errno);
+        return false;
+    }
+    if (!options_.rx_ids.empty()) {
+        std::vector<can_filter> filters;
+        filters.reserve(options_.rx_ids.size());
+        for (const std::uint32_t id : options_.rx_ids)
+            filters.push_back({id & CAN_SFF_MASK, CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG});
+        if (::setsockopt(sock.get(), SOL_CAN_RAW, CAN_RAW_FILTER, filters.data(),
+                         static_cast<socklen_t>(filters.size() * sizeof(can_filter))) < 0) {
+            fail("setsockopt(CAN_RAW_FILTER)", errno);
+            return false;
+        }
+    }
+    sockaddr_can addr{};
+    addr.can_family = AF_CAN;
+    addr.can_ifindex = ifindex;
+    if (::bind(sock.get(), reinterpret_cast<const sockaddr*>(&addr), sizeof addr) < 0) {
+        fail("bind", errno);
+        return false;
+    }
+    fd_.reset(sock.release());
+    return true;
+}
+
+bool SocketCanBus::open()
+{
+    if (fd_.valid())
+        return true;
+    next_open_ns_ = 0;
+    return ensure_open(can_monotonic_ns());
+}
+
+bool SocketCanBus::ensure_open(std::int64_t now_ns)
+{
+    if (fd_.valid())
+        return true;
+    if (now_ns < next_open_ns_)
+        return false;
+    if (try_open()) {
+        if (was_up_) {
+            reopens_.fetch_add(1, std::memory_order_relaxed);
+            log_->info("{}: interface is up again; sending resumes", name_);
+        } else {
+            log_->info("{}: open{}", name_,
+                       options_.rx_ids.empty() ? std::string(", receiving every frame")
+                                               : fmt::format(", receiving {} identifiers", options_.rx_ids.size()));
+        }
+        was_up_ = true;
+        backoff_ns_ = 0;
+        last_error_.clear();
+        set_state(SocketCanState::up);
+        return true;
+    }
+    backoff_ns_ = backoff_ns_ == 0 ? options_.reopen_min_ns : std::min(backoff_ns_ * 2, options_.reopen_max_ns);
+    next_open_ns_ = now_ns + backoff_ns_;
+    set_state(SocketCanState::down);
+    return false;
+}
+
+void SocketCanBus::go_down(const char* what, int err)
+{
+    fd_.reset();
+    fail(what, err);
+    log_->warn("{}: interface down; reopening with backoff ({} ms .. {} ms)", name_, options_.reopen_min_ns / 1'000'000,
+               options_.reopen_max_ns / 1'000'000);
+    backoff_ns_ = options_.reopen_min_ns;
+    next_open_ns_ = can_monotonic_ns() + backoff_ns_;
+    set_state(SocketCanState::down);
+}
+
+SendResult SocketCanBus::send(const actuation::CanFrame& frame, std::int64_t deadline_ns)
+{
+    const std::uint32_t max_id = frame.extended ? actuation::kMaxExtendedId : actuation::kMaxStandardId;
+    if (frame.dlc > CAN_MAX_DLEN || frame.id > max_id) {
+        errors_.fetch_add(1, std::memory_order_relaxed);
+        log_->error("{}: invalid frame (id 0x{:X}, dlc {}) not sent", name_, frame.id, frame.dlc);
+        return SendResult::error;
+    }
+    can_frame cf{};
+    cf.can_id = frame.id | (frame.extended ? CAN_EFF_FLAG : 0U);
+    cf.len = frame.dlc;
+    std::memcpy(cf.data, frame.data.data(), frame.dlc);
+
+    for (;;) {
+        const std::int64_t now = can_monotonic_ns();
+        if (now >= deadline_ns) {
+            deadline_misses_.fetch_add(1, std::memory_order_relaxed);
+            log_->debug("{}: deadline passed, frame 0x{:03X} not sent", name_, frame.id);
+            return SendResult::deadline_passed;
+        }
+        if (!ensure_open(now)) {
+            errors_.fetch_add(1, std::memory_order_relaxed);
+            return SendResult::error;
+        }
+        const ssize_t n = ::write(fd_.get(), &cf, sizeof cf);
+        if (n == static_cast<ssize_t>(sizeof cf)) {
+            sent_.fetch_add(1, std::memory_order_relaxed);
+            return SendResult::sent;
+        }
+        if (n >= 0) {
+            errors_.fetch_add(1, std::memory_order_relaxed);
+            fail("short write", EIO);
+            return SendResult::error;
+        }
+        const int e = errno;
+        if (e == EINTR)
+            continue;
+        if (e == ENOBUFS || e == EAGAIN) {
+            retries_.fetch_add(1, std::memory_order_relaxed);
+            const std::int64_t left = deadline_ns - can_monotonic_ns();
+            if (e == ENOBUFS)
+                sleep_for_ns(std::min(left, kEnobufsPauseNs));
+            else if (left > 0 && wait_fd(fd_.get(), POLLOUT, left) < 0 && errno != EINTR) {
+                errors_.fetch_add(1, std::memory_order_relaxed);
+                fail("poll(POLLOUT)", errno);
+                return SendResult::error;
+            }
+            continue;  // the deadline is checked before the next write
+        }
+        errors_.fetch_add(1, std::memory_order_relaxed);
+        if (is_down_errno(e))
+            go_down("write", e);
+        else
+            fail("write", e);
+        return SendResult::error;
+    }
+}
+
+bool SocketCanBus::receive(actuation::CanFrame& out, std::int64_t timeout_ns)
+{
+    const std::int64_t end = can_monotonic_ns() + std::max<std::int64_t>(timeout_ns, 0);
+    for (;;) {
+        const std::int64_t now = can_monotonic_ns();
+        if (!ensure_open(now)) {
+            if (now >= end)
+                return false;
+            sleep_for_ns(std::min(end, next_open_ns_) - now);
+            continue;
+        }
+        const int ready = wait_fd(fd_.get(), POLLIN, end - now);
+        if (ready < 0) {
+            if (errno == EINTR)
+                continue;
+            errors_.fetch_add(1, std::memory_order_relaxed);
+            fail("poll(POLLIN)", errno);
+            return false;
+        }
+        if (ready == 0)
+            return false;
+        can_frame cf{};
+        const ssize_t n = ::read(fd_.get(), &cf, sizeof cf);
+        if (n < 0) {
+            const int e = errno;
+            if (e == EINTR || e == EAGAIN)
+                continue;
+            errors_.fetch_add(1, std::memory_order_relaxed);
+            if (!is_down_errno(e)) {
+                fail("read", e);
+                return false;
+            }
+            go_down("read", e);
+            continue;
+        }
+        if (n != static_cast<ssize_t>(sizeof cf))
+            continue;  // not a classic CAN frame (CAN FD is not enabled)
+        if ((cf.can_id & CAN_ERR_FLAG) != 0) {
+            std::uint8_t data[8]{};
+            std::memcpy(data, cf.data, sizeof data);
+            handle_error_frame(cf.can_id, data);
+            continue;
+        }
+        if ((cf.can_id & CAN_RTR_FLAG) != 0 || cf.len > CAN_MAX_DLEN)
+            continue;
+        out.extended = (cf.can_id & CAN_EFF_FLAG) != 0;
+        out.id = cf.can_id & (out.extended ? CAN_EFF_MASK : CAN_SFF_MASK);
+        out.dlc = cf.len;
+        out.data.fill(0);
+        std::memcpy(out.data.data(), cf.data, cf.len);
+        rx_.fetch_add(1, std::memory_order_relaxed);
+        return true;
+    }
+}
+
+void SocketCanBus::handle_error_frame(std::uint32_t can_id, const std::uint8_t (&data)[8])
+{
+    const CanErrorInfo info = decode_error_frame(can_id, data);
+    if (info.bus_off) {
+        bus_off_.fetch_add(1, std::memory_order_relaxed);
+        log_->error("{}: controller is bus-off (error frame 0x{:X})", name_, can_id);
+        set_state(SocketCanState::bus_off);
+    }
+    if (info.error_passive) {
+        error_passive_.fetch_add(1, std::memory_order_relaxed);
+        log_->warn("{}: controller is error-passive (ctrl 0x{:02X})", name_, data[1]);
+        if (state() != SocketCanState::bus_off)
+            set_state(SocketCanState::error_passive);
+    }
+    if (info.recovered && !info.bus_off) {
+        if (state() != SocketCanState::up)
+            log_->info("{}: controller is error-active again; sending resumes", name_);
+        set_state(SocketCanState::up);
+    }
+    if (info.tx_timeout)
+        log_->warn("{}: transmit timeout reported by the controller", name_);
+}
+
+CanBusCounters SocketCanBus::counters() const
+{
+    return {.sent = sent_.load(std::memory_order_relaxed),
+            .tx_queue_full_retries = retries_.load(std::memory_order_relaxed),
+            .deadline_misses = deadline_misses_.load(std::memory_order_relaxed),
+            .errors = errors_.load(std::memory_order_relaxed),
+            .bus_off = bus_off_.load(std::memory_order_relaxed),
+            .error_passive = error_passive_.load(std::memory_order_relaxed),
+            .rx = rx_.load(std::memory_order_relaxed)};
+}
+
+}  // namespace stemd::drivers

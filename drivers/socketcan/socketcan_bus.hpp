@@ -1,0 +1,131 @@
+// SocketCAN: a raw CAN socket (PF_CAN, SOCK_RAW, CAN_RAW) bound to one
+// interface by name, non-blocking.
+//
+// State machine (one thread drives it; counters() from any thread):
+//
+//   closed --open ok--> up <--> error_passive
+//     ^                  |  \-> bus_off --(controller restarted / error active)--> up
+//     |                  |
+//     |   ENETDOWN/ENODEV on write or read, or the socket reports an error
+//     |                  v
+//     +--- reopen ---- down  (the fd is closed; reopened with exponential backoff,
+//                             reopen_min..reopen_max, once the interface exists and is UP)
+//
+// - open() may fail (no CAN support, no such interface): the bus is then
+//   `down`, the error is logged naming the interface and errno, and send() /
+//   receive() keep retrying the open on the backoff schedule. Nothing throws.
+// - send() retries a full transmit queue (ENOBUFS, EAGAIN) by polling for
+//   POLLOUT until the deadline, and never writes after it (deadline miss).
+//   While `down` (before the next reopen attempt is due) it fails at once.
+// - Error frames are enabled (CAN_RAW_ERR_FILTER = CAN_ERR_MASK) and decoded
+//   in receive(): CAN_ERR_BUSOFF and error-passive (CAN_ERR_CRTL) are counted
+//   and logged; CAN_ERR_RESTARTED or "error active again" returns to `up`.
+//   Sending is attempted in every state but `down` (the kernel decides), so it
+//   resumes by itself when the controller comes back.
+// - Transitions are logged once each (not once per failed frame).
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <spdlog/logger.h>
+
+#include "stemd/drivers/can_bus.hpp"
+
+namespace stemd::drivers {
+
+struct SocketCanOptions {
+    std::string interface = "can0";
+    // Receive filter: the 11-bit identifiers receive() delivers. Empty = every
+    // data frame. (Error frames are always received and handled internally.)
+    std::vector<std::uint32_t> rx_ids;
+    std::int64_t reopen_min_ns = 10'000'000;     // first retry after going down: 10 ms
+    std::int64_t reopen_max_ns = 1'000'000'000;  // backoff doubles up to 1 s
+};
+
+enum class SocketCanState : std::uint8_t { closed, up, error_passive, bus_off, down };
+std::string_view to_string(SocketCanState s);
+
+// What one error frame says (CAN_ERR_FLAG set in can_id); exposed for tests.
+struct CanErrorInfo {
+    bool bus_off = false;        // CAN_ERR_BUSOFF
+    bool error_passive = false;  // CAN_ERR_CRTL with RX or TX passive
+    bool recovered = false;      // CAN_ERR_RESTARTED, or CAN_ERR_CRTL "active" again
+    bool tx_timeout = false;     // CAN_ERR_TX_TIMEOUT
+};
+CanErrorInfo decode_error_frame(std::uint32_t can_id, const std::uint8_t (&data)[8]);
+
+class SocketCanBus final : public CanBus {
+public:
+    SocketCanBus(SocketCanOptions options, std::shared_ptr<spdlog::logger> log);
+    ~SocketCanBus() override;
+    SocketCanBus(const SocketCanBus&) = delete;
+    SocketCanBus& operator=(const SocketCanBus&) = delete;
+
+    // Opens the socket now; false (logged) leaves the bus `down`, retried later.
+    bool open();
+
+    std::string_view name() const override { return name_; }
+    SendResult send(const actuation::CanFrame& frame, std::int64_t deadline_ns) override;
+    bool receive(actuation::CanFrame& out, std::int64_t timeout_ns) override;
+    CanBusCounters counters() const override;
+
+    SocketCanState state() const { return state_.load(std::memory_order_relaxed); }
+    std::uint64_t reopens() const { return reopens_.load(std::memory_order_relaxed); }
+    // The last open/IO failure, "<what> on <interface>: <strerror> (errno N)"; "" if none.
+    const std::string& last_error() const { return last_error_; }
+
+private:
+    class Fd {
+    public:
+        Fd() = default;
+        explicit Fd(int fd) : fd_(fd) {}
+        Fd(const Fd&) = delete;
+        Fd& operator=(const Fd&) = delete;
+        ~Fd() { reset(); }
+        void reset(int fd = -1);
+        int release()
+        {
+            const int fd = fd_;
+            fd_ = -1;
+            return fd;
+        }
+        int get() const { return fd_; }
+        bool valid() const { return fd_ >= 0; }
+
+    private:
+        int fd_ = -1;
+    };
+
+    bool try_open();
+    // Opens when down and the next attempt is due; true if there is a socket.
+    bool ensure_open(std::int64_t now_ns);
+    void go_down(const char* what, int err);
+    void fail(const char* what, int err);  // sets last_error_ and logs it
+    void handle_error_frame(std::uint32_t can_id, const std::uint8_t (&data)[8]);
+    void set_state(SocketCanState s) { state_.store(s, std::memory_order_relaxed); }
+
+    const SocketCanOptions options_;
+    const std::shared_ptr<spdlog::logger> log_;
+    const std::string name_;
+    Fd fd_;
+    std::atomic<SocketCanState> state_{SocketCanState::closed};
+    std::int64_t backoff_ns_ = 0;
+    std::int64_t next_open_ns_ = 0;
+    bool was_up_ = false;  // for the "up again" log line
+    std::string last_error_;
+
+    std::atomic<std::uint64_t> sent_{0};
+    std::atomic<std::uint64_t> retries_{0};
+    std::atomic<std::uint64_t> deadline_misses_{0};
+    std::atomic<std::uint64_t> errors_{0};
+    std::atomic<std::uint64_t> bus_off_{0};
+    std::atomic<std::uint64_t> error_passive_{0};
+    std::atomic<std::uint64_t> rx_{0};
+    std::atomic<std::uint64_t> reopens_{0};
+};
+
+}  // namespace stemd::drivers

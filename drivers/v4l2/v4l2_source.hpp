@@ -1,0 +1,194 @@
+// V4L2: a video capture device (/dev/videoN) as a frame source, with mmap
+// streaming, a non-blocking fd and poll().
+//
+// State machine (one thread drives it):
+//   closed -> opening -> streaming
+//   streaming -> failed (an ioctl, poll or mmap error; logged with the device
+//   and errno) -> backoff -> opening -> streaming | failed ...
+// In backoff, next() waits (at most its timeout) until the reopen is due and
+// returns `timeout`; reopen delays double from backoff_initial up to
+// backoff_max and start over after a successful reopen. The first open()
+// does not retry: a device that cannot be opened or configured at start is a
+// configuration error, reported once and returned as false.
+//
+// Pixel formats (the slot is always BGR, CV_8UC3, the configured size):
+//   yuyv  -> cv::cvtColor(COLOR_YUV2BGR_YUYV) straight into the slot;
+//   bgr24 -> copied into the slot;
+//   grey  -> expanded into the slot with B = G = R (a monochrome camera; ExG
+//            sees no vegetation in it). Using a GREY camera as the NIR plane
+//            of an RGB+NIR pair needs pairing by timestamp (not written yet).
+// Conversions write into the slot's own buffer and never reallocate it.
+//
+// Times: t_capture_ns = t_recorded_ns = the buffer's timestamp when the
+// driver marks it V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC (capped at the dequeue
+// time), else CLOCK_MONOTONIC at dequeue. source_seq = the driver's sequence number.
+//
+// Skipped frames: V4L2_BUF_FLAG_ERROR or bytesused != sizeimage -> corrupt;
+// a slot of another size -> bad_size. Both are counted and the buffer is
+// queued again.
+//
+// Where it allocates: open() and every reopen (the buffer table, names).
+// next() allocates nothing.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+#include <spdlog/logger.h>
+
+#include "stemd/drivers/frame_source.hpp"
+
+struct v4l2_buffer;
+
+namespace stemd::drivers {
+
+enum class V4l2PixelFormat : std::uint8_t { yuyv, bgr24, grey };
+
+// "yuyv", "bgr24", "grey" (the config's choices); nullopt otherwise.
+std::optional<V4l2PixelFormat> parse_v4l2_pixel_format(std::string_view text);
+std::string_view to_string(V4l2PixelFormat format);
+std::uint32_t v4l2_fourcc_of(V4l2PixelFormat format);
+// Bytes per pixel of the packed format (2, 3, 1).
+int bytes_per_pixel(V4l2PixelFormat format);
+
+enum class ConvertStatus : std::uint8_t { ok, bad_size, corrupt };
+
+// Converts one frame of `format` (size `size`, rows `bytesperline` apart,
+// `bytesused` bytes) into `bgr`, which must already be CV_8UC3 of `size`
+// (else bad_size, untouched). Too few bytes for the image: corrupt. Writes
+// into bgr's buffer; never reallocates it.
+ConvertStatus convert_to_bgr(const std::uint8_t* data, std::size_t bytesused, std::size_t bytesperline,
+                             cv::Size size, V4l2PixelFormat format, cv::Mat& bgr);
+
+// The capture time of a dequeued buffer: its timestamp (ns) when the driver
+// stamps with CLOCK_MONOTONIC (but never after `now_ns`: some drivers stamp
+// a nominal frame time that can lie just after the dequeue), else `now_ns`.
+std::int64_t v4l2_capture_time_ns(const v4l2_buffer& buf, std::int64_t now_ns);
+
+// Reopen delays: initial, doubled per failed attempt, capped. Times are
+// CLOCK_MONOTONIC ns passed in by the caller (tests inject their own).
+class ReopenBackoff {
+public:
+    ReopenBackoff(std::chrono::nanoseconds initial, std::chrono::nanoseconds max);
+    // An attempt (or the stream) failed at now_ns: the next attempt is due
+    // after the current delay, which then doubles (capped).
+    void failed(std::int64_t now_ns);
+    // A reopen worked: the delay starts over at `initial`.
+    void succeeded();
+    bool due(std::int64_t now_ns) const { return now_ns >= next_attempt_ns_; }
+    std::int64_t next_attempt_ns() const { return next_attempt_ns_; }
+    // The delay the next failed() will apply.
+    std::chrono::nanoseconds delay() const { return delay_; }
+    unsigned consecutive_failures() const { return failures_; }
+
+private:
+    std::chrono::nanoseconds initial_, max_, delay_;
+    std::int64_t next_attempt_ns_ = 0;
+    unsigned failures_ = 0;
+};
+
+struct V4l2Options {
+    std::string device = "/dev/video0";
+    V4l2PixelFormat pixel_format = V4l2PixelFormat::yuyv;
+    unsigned buffers = 4;                 // asked of VIDIOC_REQBUFS; the driver may grant more or fewer (>= 2)
+    cv::Size size{640, 480};              // asked of VIDIOC_S_FMT; the driver must take it exactly
+    double fps = 30;                      // VIDIOC_S_PARM when the device supports it; 0: leave it
+    std::chrono::nanoseconds backoff_initial = std::chrono::milliseconds(100);
+    std::chrono::nanoseconds backoff_max = std::chrono::seconds(5);
+    // CLOCK_MONOTONIC ns; empty: the real clock. Tests inject their own.
+    std::function<std::int64_t()> clock;
+};
+
+// V4L2-specific counters (SourceCounters has the common ones).
+struct V4l2Counters {
+    std::uint64_t frames = 0;     // frames delivered
+    std::uint64_t timeouts = 0;   // next() calls that saw no frame within their timeout
+    std::uint64_t errors = 0;     // failures (open, ioctl, poll, mmap), each logged
+    std::uint64_t reopens = 0;    // successful reopens after a failure
+    std::uint64_t corrupt = 0;    // V4L2_BUF_FLAG_ERROR or wrong bytesused, skipped
+    std::uint64_t bad_size = 0;   // slot of another size or type, skipped
+};
+
+class V4l2Source final : public FrameSource {
+public:
+    enum class State : std::uint8_t { closed, opening, streaming, failed, backoff };
+
+    V4l2Source(V4l2Options options, std::shared_ptr<spdlog::logger> log);
+    ~V4l2Source() override;
+    V4l2Source(const V4l2Source&) = delete;
+    V4l2Source& operator=(const V4l2Source&) = delete;
+
+    std::string_view name() const override { return name_; }
+    bool open() override;
+    bool start() override;
+    NextStatus next(Frame& into, std::chrono::nanoseconds timeout) override;
+    void stop() override;
+    SourceCounters counters() const override;
+    bool realtime() const override { return true; }
+
+    V4l2Counters v4l2_counters() const;
+    State state() const { return state_; }
+    // What the driver granted (valid while streaming).
+    std::size_t buffer_count() const { return buffers_.size(); }
+    double granted_fps() const { return granted_fps_; }
+
+private:
+    class MappedBuffer {
+    public:
+        MappedBuffer(void* data, std::size_t length) : data_(data), length_(length) {}
+        MappedBuffer(MappedBuffer&& other) noexcept;
+        MappedBuffer& operator=(MappedBuffer&&) = delete;
+        MappedBuffer(const MappedBuffer&) = delete;
+        MappedBuffer& operator=(const MappedBuffer&) = delete;
+        ~MappedBuffer();
+        const std::uint8_t* bytes() const { return static_cast<const std::uint8_t*>(data_); }
+        std::size_t length() const { return length_; }
+
+    private:
+        void* data_;
+        std::size_t length_;
+    };
+
+    std::int64_t now_ns() const;
+    // Opens and configures the device, maps its buffers (state opening).
+    bool open_device();
+    // Queues every buffer and starts streaming.
+    bool start_streaming();
+    // Unmaps, closes; back to `closed`.
+    void close_device();
+    // Logs "<device>: <what>: <strerror> (errno N)", counts an error.
+    void log_errno(const char* what, int err);
+    // A streaming error: close, schedule the reopen (failed -> backoff).
+    NextStatus fail_and_backoff(const char* what, int err);
+    bool requeue(unsigned index);
+    bool ioctl_retry(unsigned long request, void* arg) const;
+
+    const V4l2Options options_;
+    const std::shared_ptr<spdlog::logger> log_;
+    const std::string name_;
+    State state_ = State::closed;
+    int fd_ = -1;
+    std::vector<MappedBuffer> buffers_;
+    std::size_t bytesperline_ = 0;
+    std::size_t sizeimage_ = 0;
+    double granted_fps_ = 0;
+    ReopenBackoff backoff_;
+
+    std::atomic<std::uint64_t> frames_{0};
+    std::atomic<std::uint64_t> timeouts_{0};
+    std::atomic<std::uint64_t> errors_{0};
+    std::atomic<std::uint64_t> reopens_{0};
+    std::atomic<std::uint64_t> corrupt_{0};
+    std::atomic<std::uint64_t> bad_size_{0};
+};
+
+}  // namespace stemd::drivers

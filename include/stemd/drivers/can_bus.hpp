@@ -1,0 +1,79 @@
+// The CAN bus interface: every CAN backend (drivers/socketcan, drivers/canlog)
+// sends and receives actuation::CanFrame values. It knows nothing of the
+// messages' meaning (include/stemd/actuation/messages.hpp) nor of the
+// scheduler that calls it.
+//
+// Time: deadlines and timeouts are CLOCK_MONOTONIC nanoseconds
+// (can_monotonic_ns()). A frame is never handed to the bus after its
+// deadline: send() checks the clock before every attempt and, once the
+// deadline has passed, gives up and counts a deadline miss.
+//
+// Threading: one thread drives a bus (send() and receive() from the same
+// thread, or from two threads only if the backend says so); counters() may be
+// read from any thread.
+#pragma once
+
+#include <time.h>
+
+#include <cstdint>
+#include <string_view>
+
+#include "stemd/actuation/can_frame.hpp"
+
+namespace stemd::drivers {
+
+enum class SendResult : std::uint8_t {
+    sent,             // the kernel (or the log) took the whole frame
+    deadline_passed,  // not sent: the deadline passed before it could be (counted in deadline_misses)
+    error,            // not sent: the bus is down, the frame is invalid, a write failed (counted in errors)
+};
+
+constexpr std::string_view to_string(SendResult r)
+{
+    switch (r) {
+    case SendResult::sent: return "sent";
+    case SendResult::deadline_passed: return "deadline_passed";
+    case SendResult::error: return "error";
+    }
+    return "?";
+}
+
+// Counters every bus keeps as members; read from any thread.
+struct CanBusCounters {
+    std::uint64_t sent = 0;                   // frames the bus took
+    std::uint64_t tx_queue_full_retries = 0;  // send attempts that found the transmit queue full and retried
+    std::uint64_t deadline_misses = 0;        // frames given up at their deadline (never sent)
+    std::uint64_t errors = 0;                 // failed sends and receive errors (bus down, write errors...)
+    std::uint64_t bus_off = 0;                // bus-off events reported by the controller
+    std::uint64_t error_passive = 0;          // error-passive events reported by the controller
+    std::uint64_t rx = 0;                     // data frames delivered by receive()
+};
+
+// CLOCK_MONOTONIC in nanoseconds: the clock of every deadline and timeout.
+inline std::int64_t can_monotonic_ns()
+{
+    timespec ts{};
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+class CanBus {
+public:
+    virtual ~CanBus() = default;
+
+    // "socketcan:can0", "canlog:/var/log/stemd/can.log"... for logs.
+    virtual std::string_view name() const = 0;
+
+    // Sends one frame unless deadline_ns (CLOCK_MONOTONIC) passes first.
+    // Never blocks past the deadline.
+    virtual SendResult send(const actuation::CanFrame& frame, std::int64_t deadline_ns) = 0;
+
+    // Waits at most timeout_ns for the next data frame that passes the bus's
+    // receive filter and writes it into `out`. False on timeout (or when the
+    // bus cannot receive), leaving `out` as it was.
+    virtual bool receive(actuation::CanFrame& out, std::int64_t timeout_ns) = 0;
+
+    virtual CanBusCounters counters() const = 0;
+};
+
+}  // namespace stemd::drivers

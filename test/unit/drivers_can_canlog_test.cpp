@@ -1,0 +1,209 @@
+// The canlog CAN bus: lines written for sent frames read back exactly with the
+// actuation candump parser; timestamps; flushing; deadlines; receive timeout.
+#include <gtest/gtest.h>
+
+#include <time.h>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <spdlog/sinks/null_sink.h>
+#include <spdlog/spdlog.h>
+
+#include "canlog/canlog_bus.hpp"
+#include "stemd/actuation/candump_format.hpp"
+#include "stemd/actuation/messages.hpp"
+
+namespace fs = std::filesystem;
+using namespace stemd;
+using namespace stemd::drivers;
+
+namespace {
+
+std::shared_ptr<spdlog::logger> quiet_logger()
+{
+    return std::make_shared<spdlog::logger>("canlog-test", std::make_shared<spdlog::sinks::null_sink_mt>());
+}
+
+constexpr std::int64_t kSecond = 1'000'000'000;
+
+std::uint64_t now_us(clockid_t clock)
+{
+    timespec ts{};
+    clock_gettime(clock, &ts);
+    return static_cast<std::uint64_t>(ts.tv_sec) * 1'000'000 + static_cast<std::uint64_t>(ts.tv_nsec) / 1000;
+}
+
+std::vector<std::string> read_lines(const fs::path& path)
+{
+    std::ifstream in(path);
+    std::vector<std::string> lines;
+    for (std::string line; std::getline(in, line);)
+        lines.push_back(line);
+    return lines;
+}
+
+// A mix of stemd messages (E2E-protected) and foreign frames: 29-bit, short, empty.
+std::vector<actuation::CanFrame> sample_frames()
+{
+    const actuation::CanIds ids;
+    std::vector<actuation::CanFrame> frames;
+    actuation::CanFrame f;
+    actuation::TargetCommand target{.target_id = 4095, .tool_id = 3, .lane = 7, .fire_odom_mm = 123456,
+                                    .lateral_mm = -2047, .plant_class = actuation::PlantClass::Weed};
+    EXPECT_TRUE(actuation::encode(target, 5, ids, f));
+    frames.push_back(f);
+    EXPECT_TRUE(actuation::encode(actuation::Odometry{.odom_mm = 0xFFFFFFFF, .speed_mm_per_s = -32767}, 14, ids, f));
+    frames.push_back(f);
+    frames.push_back({.id = 0x1ABCDEF0, .extended = true, .dlc = 3, .data = {0xDE, 0xAD, 0x01}});
+    frames.push_back({.id = 0x7FF, .extended = false, .dlc = 0, .data = {}});
+    frames.push_back({.id = 0x000, .extended = false, .dlc = 8, .data = {0, 1, 2, 3, 4, 5, 6, 0xFF}});
+    return frames;
+}
+
+CanLogOptions to(const fs::path& path, const char* interface = "can0", std::uint32_t flush_every = 64,
+                 CanLogOptions::Clock clock = CanLogOptions::Clock::realtime)
+{
+    CanLogOptions o;
+    o.path = path;
+    o.interface = interface;
+    o.flush_every = flush_every;
+    o.clock = clock;
+    return o;
+}
+
+class CanLogTest : public ::testing::Test {
+protected:
+    void SetUp() override
+    {
+        dir_ = fs::temp_directory_path() / ("stemd-canlog-" + std::to_string(std::random_device{}()));
+        fs::create_directories(dir_);
+    }
+    void TearDown() override { fs::remove_all(dir_); }
+    fs::path dir_;
+};
+
+}  // namespace
+
+TEST_F(CanLogTest, SentFramesReadBackExactlyWithTheCandumpParser)
+{
+    const auto path = dir_ / "can.log";
+    const auto frames = sample_frames();
+    const std::uint64_t t0 = now_us(CLOCK_REALTIME);
+    {
+        CanLogBus bus(to(path, "vcan7"), quiet_logger());
+        ASSERT_TRUE(bus.open());
+        EXPECT_EQ(bus.name(), "canlog:" + path.string());
+        for (const auto& f : frames)
+            EXPECT_EQ(bus.send(f, can_monotonic_ns() + kSecond), SendResult::sent);
+        EXPECT_EQ(bus.counters().sent, frames.size());
+        EXPECT_EQ(bus.counters().errors, 0U);
+    }  // destroyed: flushed
+    const std::uint64_t t1 = now_us(CLOCK_REALTIME);
+    const auto lines = read_lines(path);
+    ASSERT_EQ(lines.size(), frames.size());
+    std::uint64_t last_t = 0;
+    for (std::size_t i = 0; i < lines.size(); ++i) {
+        SCOPED_TRACE(lines[i]);
+        actuation::CandumpRecord rec;
+        std::string error;
+        ASSERT_TRUE(actuation::parse_candump_line(lines[i], rec, error)) << error;
+        EXPECT_EQ(rec.frame, frames[i]);
+        EXPECT_EQ(rec.interface, "vcan7");
+        // CLOCK_REALTIME by default, as candump writes.
+        EXPECT_GE(rec.time_us, t0);
+        EXPECT_LE(rec.time_us, t1);
+        EXPECT_GE(rec.time_us, last_t);
+        last_t = rec.time_us;
+        // And byte for byte what the formatter writes for that time.
+        EXPECT_EQ(lines[i], actuation::format_candump_line(rec.time_us, "vcan7", frames[i]));
+    }
+}
+
+TEST_F(CanLogTest, DefaultInterfaceIsCan0AndMonotonicClockIsAvailable)
+{
+    const auto path = dir_ / "mono.log";
+    const std::uint64_t t0 = now_us(CLOCK_MONOTONIC);
+    {
+        CanLogBus bus(to(path, "can0", 64, CanLogOptions::Clock::monotonic), quiet_logger());
+        ASSERT_TRUE(bus.open());
+        ASSERT_EQ(bus.send(sample_frames()[0], can_monotonic_ns() + kSecond), SendResult::sent);
+    }
+    const std::uint64_t t1 = now_us(CLOCK_MONOTONIC);
+    const auto lines = read_lines(path);
+    ASSERT_EQ(lines.size(), 1U);
+    actuation::CandumpRecord rec;
+    std::string error;
+    ASSERT_TRUE(actuation::parse_candump_line(lines[0], rec, error)) << error;
+    EXPECT_EQ(rec.interface, "can0");
+    EXPECT_GE(rec.time_us, t0);
+    EXPECT_LE(rec.time_us, t1);
+}
+
+TEST_F(CanLogTest, DeadlineAlreadyPassedIsNotWrittenAndCounted)
+{
+    const auto path = dir_ / "late.log";
+    {
+        CanLogBus bus(to(path, "can0", 1), quiet_logger());
+        ASSERT_TRUE(bus.open());
+        EXPECT_EQ(bus.send(sample_frames()[0], can_monotonic_ns() - 1), SendResult::deadline_passed);
+        EXPECT_EQ(bus.send(sample_frames()[0], can_monotonic_ns()), SendResult::deadline_passed);
+        const auto c = bus.counters();
+        EXPECT_EQ(c.deadline_misses, 2U);
+        EXPECT_EQ(c.sent, 0U);
+        EXPECT_EQ(c.errors, 0U);
+    }
+    EXPECT_TRUE(read_lines(path).empty());
+}
+
+TEST_F(CanLogTest, FlushesEveryNLines)
+{
+    const auto path = dir_ / "flush.log";
+    CanLogBus bus(to(path, "can0", 3), quiet_logger());
+    ASSERT_TRUE(bus.open());
+    const auto f = sample_frames()[0];
+    for (int i = 0; i < 2; ++i)
+        ASSERT_EQ(bus.send(f, can_monotonic_ns() + kSecond), SendResult::sent);
+    EXPECT_EQ(read_lines(path).size(), 0U);  // still in the stdio buffer
+    ASSERT_EQ(bus.send(f, can_monotonic_ns() + kSecond), SendResult::sent);
+    EXPECT_EQ(read_lines(path).size(), 3U);
+    ASSERT_EQ(bus.send(f, can_monotonic_ns() + kSecond), SendResult::sent);
+    EXPECT_TRUE(bus.flush());
+    EXPECT_EQ(read_lines(path).size(), 4U);
+}
+
+TEST_F(CanLogTest, ReceiveWaitsOutItsTimeoutAndReturnsFalse)
+{
+    CanLogBus bus(to(dir_ / "rx.log"), quiet_logger());
+    ASSERT_TRUE(bus.open());
+    actuation::CanFrame f{.id = 0x123, .extended = false, .dlc = 1, .data = {0x42}};
+    const auto before = f;
+    const std::int64_t t0 = can_monotonic_ns();
+    EXPECT_FALSE(bus.receive(f, 20'000'000));
+    EXPECT_GE(can_monotonic_ns() - t0, 20'000'000);
+    EXPECT_EQ(f, before);
+    EXPECT_EQ(bus.counters().rx, 0U);
+}
+
+TEST_F(CanLogTest, OpenFailuresAndInvalidFramesAreErrorsNotCrashes)
+{
+    CanLogBus no_dir(to(dir_ / "missing" / "can.log"), quiet_logger());
+    EXPECT_FALSE(no_dir.open());
+    EXPECT_EQ(no_dir.send(sample_frames()[0], can_monotonic_ns() + kSecond), SendResult::error);
+    EXPECT_EQ(no_dir.counters().errors, 1U);
+
+    CanLogBus bad_name(to(dir_ / "x.log", "can 0"), quiet_logger());
+    EXPECT_FALSE(bad_name.open());
+
+    CanLogBus bus(to(dir_ / "y.log"), quiet_logger());
+    ASSERT_TRUE(bus.open());
+    EXPECT_EQ(bus.send({.id = 0x800, .extended = false, .dlc = 8, .data = {}}, can_monotonic_ns() + kSecond),
+              SendResult::error);
+    EXPECT_EQ(bus.send({.id = 0x100, .extended = false, .dlc = 9, .data = {}}, can_monotonic_ns() + kSecond),
+              SendResult::error);
+    EXPECT_EQ(bus.counters().errors, 2U);
+    EXPECT_EQ(bus.counters().sent, 0U);
+}

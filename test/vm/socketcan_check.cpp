@@ -1,0 +1,270 @@
+// The project's SocketCAN driver (drivers/socketcan, stemd_drivers) on the
+// real vcan driver in the VM: unlike can_probe.cpp this goes through
+// SocketCanBus and the actuation encoder/decoder, so the check fails when the
+// project's code is broken.
+//
+//   stemd-vm-socketcan-check frames
+//       prints "target ID#DATA" and "odometry ID#DATA": the fixed messages
+//       below, E2E-protected by the actuation encoder (guest.sh compares them
+//       with its precomputed copies).
+//   stemd-vm-socketcan-check send IFACE
+//       sends the TARGET frame through SocketCanBus (guest.sh checks candump saw it).
+//   stemd-vm-socketcan-check receive IFACE TIMEOUT_MS -- TRIGGER...
+//       SocketCanBus with a receive filter on the ODOMETRY id; runs TRIGGER
+//       (cansend), receives, and checks the E2E status and decoded values.
+//   stemd-vm-socketcan-check downup IFACE -- TRIGGER...
+//       sends, runs "TRIGGER down", checks sends fail with errors reported (no
+//       crash, not sent), runs "TRIGGER up", checks sending resumes (the driver
+//       reopens) and a second bus receives the frame sent after the resume.
+#include <time.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include <spdlog/sinks/stdout_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include "probe_util.hpp"
+#include "socketcan/socketcan_bus.hpp"
+#include "stemd/actuation/e2e.hpp"
+#include "stemd/actuation/messages.hpp"
+
+namespace {
+
+using namespace stemd;
+using drivers::SendResult;
+using drivers::SocketCanBus;
+using drivers::SocketCanOptions;
+using stemd::vmprobe::fail;
+using stemd::vmprobe::info;
+
+constexpr std::int64_t kMs = 1'000'000;
+
+const actuation::CanIds kIds;  // base 0x300
+const actuation::TargetCommand kTarget{.target_id = 1234, .tool_id = 2, .lane = 5, .fire_odom_mm = 200000,
+                                       .lateral_mm = -321, .plant_class = actuation::PlantClass::Weed};
+constexpr std::uint8_t kTargetCounter = 3;
+const actuation::Odometry kOdometry{.odom_mm = 987654, .speed_mm_per_s = -1500};
+constexpr std::uint8_t kOdometryCounter = 7;
+
+std::string text(const actuation::CanFrame& f)
+{
+    char buf[8];
+    std::string s;
+    std::snprintf(buf, sizeof buf, "%03X#", f.id);
+    s = buf;
+    for (std::size_t i = 0; i < f.dlc; ++i) {
+        std::snprintf(buf, sizeof buf, "%02X", f.data[i]);
+        s += buf;
+    }
+    return s;
+}
+
+actuation::CanFrame target_frame(std::uint8_t counter, const actuation::TargetCommand& msg = kTarget)
+{
+    actuation::CanFrame f;
+    const auto r = actuation::encode(msg, counter, kIds, f);
+    if (!r)
+        fail("encode TARGET: " + std::string(actuation::to_string(r.error)));
+    return f;
+}
+
+actuation::CanFrame odometry_frame()
+{
+    actuation::CanFrame f;
+    const auto r = actuation::encode(kOdometry, kOdometryCounter, kIds, f);
+    if (!r)
+        fail("encode ODOMETRY: " + std::string(actuation::to_string(r.error)));
+    return f;
+}
+
+std::shared_ptr<spdlog::logger> logger()
+{
+    auto log = std::make_shared<spdlog::logger>("socketcan", std::make_shared<spdlog::sinks::stdout_sink_st>());
+    log->set_pattern("  [%l] %v");
+    return log;
+}
+
+SocketCanOptions options(const std::string& iface, std::vector<std::uint32_t> rx_ids = {})
+{
+    SocketCanOptions o;
+    o.interface = iface;
+    o.rx_ids = std::move(rx_ids);
+    o.reopen_min_ns = 10 * kMs;
+    o.reopen_max_ns = 100 * kMs;
+    return o;
+}
+
+void open_or_fail(SocketCanBus& bus)
+{
+    if (!bus.open())
+        fail("cannot open " + std::string(bus.name()) + ": " + bus.last_error());
+}
+
+void counters(const SocketCanBus& bus)
+{
+    const auto c = bus.counters();
+    std::printf("%.*s: state %.*s, sent %llu, retries %llu, deadline misses %llu, errors %llu, rx %llu, reopens %llu\n",
+                static_cast<int>(bus.name().size()), bus.name().data(),
+                static_cast<int>(to_string(bus.state()).size()), to_string(bus.state()).data(),
+                static_cast<unsigned long long>(c.sent), static_cast<unsigned long long>(c.tx_queue_full_retries),
+                static_cast<unsigned long long>(c.deadline_misses), static_cast<unsigned long long>(c.errors),
+                static_cast<unsigned long long>(c.rx), static_cast<unsigned long long>(bus.reopens()));
+    std::fflush(stdout);
+}
+
+void sleep_ms(int ms)
+{
+    const timespec ts{0, ms * kMs};
+    nanosleep(&ts, nullptr);
+}
+
+void send(const std::string& iface)
+{
+    SocketCanBus bus(options(iface), logger());
+    open_or_fail(bus);
+    const auto frame = target_frame(kTargetCounter);
+    const auto r = bus.send(frame, drivers::can_monotonic_ns() + 1000 * kMs);
+    if (r != SendResult::sent)
+        fail("send " + text(frame) + " on " + iface + ": " + std::string(to_string(r)) + " " + bus.last_error());
+    info("sent TARGET " + text(frame) + " on " + iface);
+    counters(bus);
+    if (bus.counters().sent != 1)
+        fail("sent counter is not 1");
+}
+
+void receive(const std::string& iface, int timeout_ms, const std::vector<std::string>& trigger)
+{
+    const std::uint16_t id = kIds.id(actuation::MessageKind::Odometry);
+    SocketCanBus bus(options(iface, {id}), logger());
+    open_or_fail(bus);
+    info("listening on " + iface + " for ODOMETRY (id " + std::to_string(id) + ")");
+    if (!trigger.empty()) {
+        const int status = stemd::vmprobe::run_command(trigger);
+        if (status != 0)
+            fail("trigger " + trigger[0] + " exited " + std::to_string(status));
+    }
+    actuation::CanFrame frame;
+    if (!bus.receive(frame, timeout_ms * kMs))
+        fail("no ODOMETRY frame on " + iface + " within " + std::to_string(timeout_ms) + " ms");
+    info("received " + text(frame));
+    if (frame.id != id)
+        fail("the receive filter let through " + text(frame));
+    actuation::E2eChecker checker(id);
+    const auto status = checker.check(std::span<const std::uint8_t, 8>(frame.data));
+    info("E2E: " + std::string(actuation::to_string(status)));
+    if (!actuation::e2e_accepted(status))
+        fail("E2E check rejected " + text(frame));
+    actuation::Odometry odo;
+    const auto r = actuation::decode(frame, kIds, odo);
+    if (!r)
+        fail("decode ODOMETRY: " + std::string(actuation::to_string(r.error)));
+    info("ODOMETRY odom_mm " + std::to_string(odo.odom_mm) + ", speed_mm_per_s " + std::to_string(odo.speed_mm_per_s));
+    if (!(odo == kOdometry))
+        fail("decoded values differ from the ones sent");
+    if (actuation::e2e_counter_of(std::span<const std::uint8_t, 8>(frame.data)) != kOdometryCounter)
+        fail("alive counter differs");
+    counters(bus);
+}
+
+void run_trigger(std::vector<std::string> trigger, const char* arg)
+{
+    trigger.emplace_back(arg);
+    const int status = stemd::vmprobe::run_command(trigger);
+    if (status != 0)
+        fail("trigger '" + trigger[0] + " ... " + arg + "' exited " + std::to_string(status));
+}
+
+void downup(const std::string& iface, const std::vector<std::string>& trigger)
+{
+    if (trigger.empty())
+        fail("downup needs a TRIGGER (it appends down / up)");
+    SocketCanBus bus(options(iface), logger());
+    open_or_fail(bus);
+    std::uint8_t counter = 0;
+    for (int i = 0; i < 3; ++i) {
+        const auto r = bus.send(target_frame(counter++), drivers::can_monotonic_ns() + 100 * kMs);
+        if (r != SendResult::sent)
+            fail("before down: send " + std::string(to_string(r)));
+    }
+    info("== 3 frames sent; taking " + iface + " down");
+    run_trigger(trigger, "down");
+    int errors = 0;
+    for (int i = 0; i < 20; ++i) {
+        const auto r = bus.send(target_frame(counter), drivers::can_monotonic_ns() + 50 * kMs);
+        if (r == SendResult::sent)
+            fail("a frame was sent while " + iface + " is down");
+        errors += r == SendResult::error;
+        sleep_ms(5);
+    }
+    counters(bus);
+    info("while down: " + std::to_string(errors) + " of 20 sends reported an error; last error: " + bus.last_error());
+    if (errors == 0 || bus.counters().errors == 0)
+        fail("no error reported while " + iface + " was down");
+    if (bus.state() != drivers::SocketCanState::down)
+        fail("state is " + std::string(to_string(bus.state())) + ", not down");
+    if (bus.last_error().find(iface) == std::string::npos)
+        fail("the error does not name " + iface);
+
+    info("== bringing " + iface + " up");
+    run_trigger(trigger, "up");
+    const std::uint16_t target_id = kIds.id(actuation::MessageKind::Target);
+    SocketCanBus rx(options(iface, {target_id}), logger());
+    open_or_fail(rx);
+    actuation::TargetCommand resumed_msg = kTarget;
+    resumed_msg.target_id = 4000;
+    const auto resumed = target_frame(counter, resumed_msg);
+    const std::int64_t t0 = drivers::can_monotonic_ns();
+    SendResult r = SendResult::error;
+    while (drivers::can_monotonic_ns() - t0 < 3000 * kMs) {
+        r = bus.send(resumed, drivers::can_monotonic_ns() + 50 * kMs);
+        if (r == SendResult::sent)
+            break;
+        sleep_ms(5);
+    }
+    if (r != SendResult::sent)
+        fail("sending did not resume within 3 s after " + iface + " came up: " + bus.last_error());
+    info("sending resumed " + std::to_string((drivers::can_monotonic_ns() - t0) / kMs) + " ms after up: " +
+         text(resumed));
+    counters(bus);
+    if (bus.reopens() < 1)
+        fail("the driver did not reopen its socket");
+    if (bus.state() != drivers::SocketCanState::up)
+        fail("state is " + std::string(to_string(bus.state())) + " after resuming");
+    actuation::CanFrame got;
+    if (!rx.receive(got, 1000 * kMs))
+        fail("a second bus on " + iface + " did not receive the frame sent after the resume");
+    info("second bus received " + text(got));
+    if (!(got == resumed))
+        fail("received " + text(got) + ", sent " + text(resumed));
+}
+
+}  // namespace
+
+int main(int argc, char** argv)
+{
+    const std::string mode = argc > 1 ? argv[1] : "";
+    const bool ok = mode == "frames" || (argc >= 3 && (mode == "send" || mode == "downup")) ||
+                    (argc >= 4 && mode == "receive");
+    if (!ok) {
+        std::fprintf(stderr,
+                     "usage: %s frames | send IFACE | receive IFACE TIMEOUT_MS -- TRIGGER... | downup IFACE -- "
+                     "TRIGGER...\n",
+                     argv[0]);
+        return 2;
+    }
+    return stemd::vmprobe::run_probe("socketcan-check", [&] {
+        if (mode == "frames") {
+            info("target " + text(target_frame(kTargetCounter)));
+            info("odometry " + text(odometry_frame()));
+        } else if (mode == "send") {
+            send(argv[2]);
+        } else if (mode == "receive") {
+            receive(argv[2], std::atoi(argv[3]), stemd::vmprobe::command_after_dashes(argc, argv));
+        } else {
+            downup(argv[2], stemd::vmprobe::command_after_dashes(argc, argv));
+        }
+    });
+}
