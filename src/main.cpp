@@ -17,6 +17,11 @@
 
 #include "replay/replay_source.hpp"
 #include "v4l2/v4l2_source.hpp"
+// --- libcamera source (built only with libcamera; STEMD_HAVE_LIBCAMERA from stemd_drivers)
+#if STEMD_HAVE_LIBCAMERA
+#include "libcamera/libcamera_source.hpp"
+#endif
+// --- end libcamera source
 #include "stemd/io/recording.hpp"
 #include "stemd/runtime/config.hpp"
 #include "stemd/runtime/daemon.hpp"
@@ -99,6 +104,11 @@ std::optional<std::string> check_daemon_config(const runtime::DaemonConfig& d, c
     }
     if (d.source_kind == "replay" && d.replay_dir.empty() && !args.check_config)
         return std::string("no frame source: give --replay DIR or set source.replay_dir");
+    // --- libcamera source
+    if (d.source_kind == "libcamera" && !STEMD_HAVE_LIBCAMERA)
+        return config.origin_of("source.kind") +
+               ": key 'source.kind': libcamera: this stemd was built without libcamera (install libcamera-dev and rebuild)";
+    // --- end libcamera source
     return std::nullopt;
 }
 
@@ -163,6 +173,14 @@ int main(int argc, char** argv)
         v4l2.size = daemon_config.frame_size;
         v4l2.fps = daemon_config.fps;
         source = std::make_unique<drivers::V4l2Source>(std::move(v4l2), runtime::make_logger("v4l2"));
+#if STEMD_HAVE_LIBCAMERA
+    } else if (daemon_config.source_kind == "libcamera") {  // --- libcamera source
+        drivers::LibcameraOptions libcamera;
+        libcamera.camera = daemon_config.libcamera_camera;
+        libcamera.size = daemon_config.frame_size;
+        libcamera.fps = daemon_config.fps;
+        source = std::make_unique<drivers::LibcameraSource>(std::move(libcamera), runtime::make_logger("libcamera"));
+#endif
     } else {
         drivers::ReplayOptions replay;
         replay.dir = daemon_config.replay_dir;

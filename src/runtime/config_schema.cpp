@@ -26,6 +26,26 @@ using enum ValueType;
 constexpr std::array kSchema{
     KeySpec{"camera.gsd_mm_per_px", real, "mm/px", 0.01, 10, "0.33", "",
             "ground sampling distance: millimetres of ground per image pixel"},
+    // --- camera geometry (issue 5): machine frame x forward, y left, mm ---
+    KeySpec{"camera.model", choice, "", 0, 0, "nadir", "nadir|calibrated",
+            "nadir: straight down at camera.gsd_mm_per_px; calibrated: OpenCV calibration file plus the pose below"},
+    KeySpec{"camera.forward", choice, "", 0, 0, "up", "up|down|left|right",
+            "which image direction points in the direction of travel (up: plants move down the image)"},
+    KeySpec{"camera.calibration_file", text, "", 0, 0, "none", "",
+            "calibrated: OpenCV calibration YAML (camera_matrix, distortion_coefficients, image_width, image_height); none: not set"},
+    KeySpec{"camera.height_mm", real, "mm", 10, 5000, "500", "",
+            "calibrated: height of the optical centre above the ground"},
+    KeySpec{"camera.roll_deg", real, "deg", -45, 45, "0", "",
+            "calibrated: tilt about machine x; > 0 tilts the optical axis to the left"},
+    KeySpec{"camera.pitch_deg", real, "deg", -45, 45, "0", "",
+            "calibrated: tilt about machine y; > 0 tilts the optical axis forward"},
+    KeySpec{"camera.yaw_deg", real, "deg", -180, 180, "0", "",
+            "calibrated: turn about the vertical; > 0 counter-clockwise seen from above"},
+    KeySpec{"camera.x_mm", real, "mm", -5000, 5000, "0", "",
+            "machine-frame x (forward) of the principal point's ground position (where the optical axis meets the ground)"},
+    KeySpec{"camera.y_mm", real, "mm", -5000, 5000, "0", "",
+            "machine-frame y (left) of the principal point's ground position"},
+    // --- end camera geometry ---
 
     KeySpec{"segment.method", choice, "", 0, 0, "exg", "exg|ndvi|mask",
             "vegetation index: Excess Green (RGB), NDVI (RGB+NIR) or an external mask"},
@@ -59,8 +79,8 @@ constexpr std::array kSchema{
             "robust estimator: mean width (2 area / perimeter) below which a large plant is grass; 0 disables"},
 
     // The daemon (stemd): frame source, rings, threads, status, logging.
-    KeySpec{"source.kind", choice, "", 0, 0, "replay", "replay|v4l2",
-            "where frames come from: a recording, or a V4L2 camera (libcamera comes later); --replay DIR picks replay"},
+    KeySpec{"source.kind", choice, "", 0, 0, "replay", "replay|v4l2|libcamera",
+            "where frames come from: a recording, a V4L2 camera, or a libcamera camera; --replay DIR picks replay"},
     KeySpec{"source.replay_dir", text, "", 0, 0, "none", "",
             "recording directory (frames.csv) to replay; none: not set (--replay DIR sets it)"},
     KeySpec{"source.replay_pacing", choice, "", 0, 0, "recorded", "recorded|fast",
@@ -81,6 +101,10 @@ constexpr std::array kSchema{
             "v4l2: mmap buffers asked of the driver"},
     KeySpec{"source.fps", real, "fps", 1, 240, "30", "",
             "v4l2: frame rate asked of the camera (VIDIOC_S_PARM); a camera that cannot set one keeps its own"},
+    // --- libcamera source (drivers/libcamera) ---
+    KeySpec{"source.libcamera_camera", text, "", 0, 0, "0", "",
+            "libcamera: the camera, by index in libcamera's list, by id, or by a part of the id matching one camera"},
+    // --- end libcamera source
 
     KeySpec{"ring.capacity", integer, "frames", 1, 64, "4", "",
             "captured frames waiting for the processing thread (slots: capacity + 2)"},

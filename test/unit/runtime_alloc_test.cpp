@@ -8,6 +8,8 @@
 // drivers/replay/replay_source.hpp); a camera driver fills slots directly.
 #include <gtest/gtest.h>
 
+#include "counting_new.hpp"
+
 #include <atomic>
 #include <cstdlib>
 #include <fstream>
@@ -22,49 +24,6 @@
 #include "stemd/runtime/logging.hpp"
 #include "stemd/synth/synth.hpp"
 
-namespace {
-std::atomic<long> g_allocations{0};
-}
-
-// new is malloc, so free is the matching release. GCC cannot see that through inlining.
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-
-void* operator new(std::size_t size)
-{
-    g_allocations.fetch_add(1, std::memory_order_relaxed);
-    if (void* p = std::malloc(size == 0 ? 1 : size))
-        return p;
-    throw std::bad_alloc();
-}
-void* operator new[](std::size_t size) { return operator new(size); }
-// nothrow (std::stable_sort's buffer) and over-aligned (the rings' cache-line
-// members) forms too, so that every allocation is counted and every release
-// matches its allocation under ASan.
-void* operator new(std::size_t size, const std::nothrow_t&) noexcept
-{
-    g_allocations.fetch_add(1, std::memory_order_relaxed);
-    return std::malloc(size == 0 ? 1 : size);
-}
-void* operator new[](std::size_t size, const std::nothrow_t& tag) noexcept { return operator new(size, tag); }
-void* operator new(std::size_t size, std::align_val_t align)
-{
-    g_allocations.fetch_add(1, std::memory_order_relaxed);
-    const auto a = static_cast<std::size_t>(align);
-    if (void* p = std::aligned_alloc(a, (size + a - 1) / a * a))
-        return p;
-    throw std::bad_alloc();
-}
-void* operator new[](std::size_t size, std::align_val_t align) { return operator new(size, align); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete[](void* p, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
 using namespace stemd;
 
@@ -108,11 +67,11 @@ TEST(DaemonRealTime, RunningDaemonAllocatesNothingPerFrame)
     const auto& out = daemon.counters().actuator.frames;
     // Warm-up: first-use allocations (thread-local state in OpenCV, stdio).
     ASSERT_TRUE(test::wait_for([&] { return out.load() >= 10; }, std::chrono::seconds(60)));
-    const long before = g_allocations.load();
+    const long before = stemd::test::allocations();
     const std::uint64_t out_before = out.load();
     constexpr std::uint64_t kFrames = 60;
     ASSERT_TRUE(test::wait_for([&] { return out.load() >= out_before + kFrames; }, std::chrono::seconds(120)));
-    const long after = g_allocations.load();
+    const long after = stemd::test::allocations();
     const std::uint64_t out_after = out.load();
     daemon.request_stop();
     EXPECT_TRUE(daemon.join());
@@ -125,8 +84,8 @@ TEST(DaemonRealTime, RunningDaemonAllocatesNothingPerFrame)
 TEST(DaemonRealTime, TheCounterSeesAllocations)
 {
     // Guards the test above: if operator new were not replaced it would pass vacuously.
-    const long before = g_allocations.load();
+    const long before = stemd::test::allocations();
     auto p = std::make_unique<int>(3);
-    EXPECT_EQ(g_allocations.load() - before, 1);
+    EXPECT_EQ(stemd::test::allocations() - before, 1);
     EXPECT_EQ(*p, 3);
 }

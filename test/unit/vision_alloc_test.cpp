@@ -2,6 +2,8 @@
 // the heap. Every operator new in this test binary is counted.
 #include <gtest/gtest.h>
 
+#include "counting_new.hpp"
+
 #include <atomic>
 #include <cstdlib>
 #include <memory>
@@ -12,26 +14,6 @@
 #include "stemd/vision/detect.hpp"
 #include "vision_test_util.hpp"
 
-namespace {
-std::atomic<long> g_allocations{0};
-}
-
-// This file replaces the global allocation functions: new is malloc, so
-// free is the matching release. GCC cannot see that through inlining.
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-
-void* operator new(std::size_t size)
-{
-    g_allocations.fetch_add(1, std::memory_order_relaxed);
-    if (void* p = std::malloc(size == 0 ? 1 : size))
-        return p;
-    throw std::bad_alloc();
-}
-void* operator new[](std::size_t size) { return operator new(size); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
 
 using namespace stemd::vision;
 
@@ -60,9 +42,9 @@ TEST(RealTime, DetectAllocatesNothingOnceTheWorkspaceExists)
             params.threshold = t;
             StageTimes times;
             const FrameView frame{bgr, nir, plants};
-            const long before = g_allocations.load();
+            const long before = stemd::test::allocations();
             detect(frame, params, *ws, *out, &times);
-            const long after = g_allocations.load();
+            const long after = stemd::test::allocations();
             ASSERT_EQ(out->status, DetectStatus::ok);
             EXPECT_GT(out->plants.size(), 10u);
             EXPECT_EQ(after - before, 0) << "heap allocations in detect(): " << to_string(seg) << " " << to_string(t);
@@ -73,8 +55,8 @@ TEST(RealTime, DetectAllocatesNothingOnceTheWorkspaceExists)
 TEST(RealTime, TheCounterSeesAllocations)
 {
     // Guards the test above: if operator new were not replaced it would pass vacuously.
-    const long before = g_allocations.load();
+    const long before = stemd::test::allocations();
     auto p = std::make_unique<int>(3);
-    EXPECT_EQ(g_allocations.load() - before, 1);
+    EXPECT_EQ(stemd::test::allocations() - before, 1);
     EXPECT_EQ(*p, 3);
 }

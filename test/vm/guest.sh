@@ -203,6 +203,93 @@ check_socketcan() {
 extra_checks="$extra_checks socketcan"
 # --- end socketcan ---
 
+# --- libcamera_source: the project's libcamera source (drivers/libcamera) on vimc ---
+# KEY libcamera_source: host path of stemd-vm-libcamera-source-check.
+libcamera_source=
+for kv in "$@"; do
+  case $kv in libcamera_source=*) libcamera_source=${kv#libcamera_source=} ;; esac
+done
+check_libcamera_source() {
+  [ -n "$libcamera_source" ] || skip "libcamera_source check not built: libcamera-dev was missing when CMake configured"
+  # As check_libcamera (a no-op if that check did it): vimc, and the udev
+  # "initialized" mark libcamera needs for every node.
+  modprobe vimc || die "modprobe vimc"
+  for d in /sys/class/video4linux/* /sys/bus/media/devices/* /sys/class/v4l-subdev/*; do
+    [ -e "$d/dev" ] && echo "I:1" > "/host/run/udev/data/c$(cat "$d/dev")"
+  done
+  echo "== LibcameraSource on vimc: colour bars, timestamps, counters, reopen by id"
+  hostrun env LIBCAMERA_LOG_LEVELS='*:ERROR' "$libcamera_source" capture vimc "$out" || die "LibcameraSource on vimc"
+}
+extra_checks="$extra_checks libcamera_source"
+# --- end libcamera_source ---
+
+# --- gpiod: the project's GPIO lines (drivers/gpiod) on gpio-sim ---
+# KEY gpiod: host path of stemd-vm-gpiod-check. Its own gpio-sim chip
+# (configfs "stemd_gpiod": 0 cam_trigger, 1 enable, 2 enc_a, 3 enc_b), so it
+# does not depend on check_gpio. The check runs each pull or toggle itself,
+# one edge at a time (libgpiod 1.6 reads an edge's level late: see
+# tools/vm/README.md). Each step has its own timeout (gpiod_timeout).
+gpiod=
+for kv in "$@"; do
+  case $kv in gpiod=*) gpiod=${kv#gpiod=} ;; esac
+done
+gpiod_timeout=20
+check_gpiod() {
+  [ -n "$gpiod" ] || skip "gpiod check not built: libgpiod-dev (1.x) was missing when CMake configured"
+  gc() { timeout -s KILL "$gpiod_timeout" hostrun "$gpiod" "$@"; }
+  modprobe gpio-sim || die "modprobe gpio-sim"
+  # configfs only once gpio-sim is loaded; check_gpio may have mounted it.
+  grep -q ' /sys/kernel/config configfs ' /proc/mounts ||
+    mount -t configfs none /sys/kernel/config || die "mount configfs"
+  c=/sys/kernel/config/gpio-sim/stemd_gpiod
+  mkdir "$c" "$c/bank0" || die "gpio-sim configfs"
+  echo 4 > "$c/bank0/num_lines"
+  # A fixed label: the chip may come back under another number (see "lost").
+  echo stemd-gpiod > "$c/bank0/label"
+  for l in 0:cam_trigger 1:enable 2:enc_a 3:enc_b; do
+    mkdir "$c/bank0/line${l%%:*}" && echo "${l#*:}" > "$c/bank0/line${l%%:*}/name"
+  done
+  echo 1 > "$c/live" || die "gpio-sim: going live"
+  chip=$(cat "$c/bank0/chip_name")
+  sim=/sys/devices/platform/$(cat "$c/dev_name")/$chip
+  echo "gpio-sim chip $chip, sysfs $sim"
+
+  for al in 0 1; do
+    echo "== GpiodLines enable input (active_low=$al) follows gpio-sim pulls on $chip line 1"
+    echo pull-down > "$sim/sim_gpio1/pull"
+    gc enable chip="$chip" enable=1 active_low=$al -- \
+      sh -c 'echo "pull-$2" > "$1"' sh "$sim/sim_gpio1/pull" || die "enable input, active_low=$al"
+  done
+  echo pull-down > "$sim/sim_gpio1/pull"
+
+  for al in 0 1; do
+    echo "== GpiodLines trigger output (active_low=$al) on $chip line 0 read back in gpio-sim's sysfs"
+    gc trigger chip="$chip" enable=1 trigger=0 active_low=$al -- \
+      sh -c 'v=$(cat "$1"); echo "gpio-sim: $1 = $v (want $2)"; [ "$v" = "$2" ]' sh "$sim/sim_gpio0/value" ||
+      die "trigger output, active_low=$al"
+  done
+
+  echo "== GpiodLines quadrature encoder on $chip lines 2 (A), 3 (B): 13 edges forward, 5 back"
+  echo pull-down > "$sim/sim_gpio2/pull"
+  echo pull-down > "$sim/sim_gpio3/pull"
+  gc encoder chip="$chip" enable=1 a=2 b=3 n=13 m=5 -- \
+    sh -c 'l=2; [ "$2" = b ] && l=3; echo "pull-$3" > "$1/sim_gpio$l/pull"' sh "$sim" || die "quadrature encoder"
+
+  echo "== GpiodLines loses the chip labelled stemd-gpiod (gpio-sim goes away), enable drops, reopens when it is back"
+  # By label: gpio-sim comes back as another gpiochipN.
+  # The chroot sees configfs only if it is mounted inside /host/sys too.
+  grep -q ' /host/sys/kernel/config configfs ' /proc/mounts ||
+    mount -t configfs none /host/sys/kernel/config || die "mount configfs in /host/sys"
+  gc lost chip=stemd-gpiod enable=1 -- sh -c '
+    case $2 in
+      up) echo pull-up > "/sys/devices/platform/$(cat "$1/dev_name")/$(cat "$1/bank0/chip_name")/sim_gpio1/pull" ;;
+      unplug) echo 0 > "$1/live" ;;
+      plug) echo 1 > "$1/live" && echo "gpio-sim back as $(cat "$1/bank0/chip_name")" ;;
+    esac' sh "$c" || die "lost chip"
+}
+extra_checks="$extra_checks gpiod"
+# --- end gpiod ---
+
 if [ "$mode" = one ]; then
   "check_$check"
   exit $?

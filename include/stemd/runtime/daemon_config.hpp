@@ -34,6 +34,7 @@ struct DaemonConfig {
     std::string v4l2_device = "/dev/video0";
     std::string v4l2_pixel_format = "yuyv";   // yuyv | bgr24 | grey
     unsigned v4l2_buffers = 4;
+    std::string libcamera_camera = "0";       // libcamera: index, id, or unique part of the id
     double fps = 30;
     cv::Size frame_size{1296, 966};
     // ring.*

@@ -1,0 +1,328 @@
+#include "stemd/geometry/camera_model.hpp"
+
+#include <cmath>
+#include <exception>
+
+#include <opencv2/core/persistence.hpp>
+
+namespace stemd::geometry {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDegToRad = kPi / 180.0;
+
+// Undistortion: OpenCV's fixed-point iteration, run until the pixel it
+// reprojects to is this close to the one asked for.
+constexpr int kMaxUndistortIterations = 100;
+constexpr double kUndistortTolerancePx = 1e-6;
+constexpr double kUndistortFailPx = 1e-3;
+
+void set_error(std::string* error, std::string text)
+{
+    if (error)
+        *error = std::move(text);
+}
+
+cv::Matx33d rot_x(double a)
+{
+    const double c = std::cos(a), s = std::sin(a);
+    return {1, 0, 0, 0, c, -s, 0, s, c};
+}
+cv::Matx33d rot_y(double a)
+{
+    const double c = std::cos(a), s = std::sin(a);
+    return {c, 0, s, 0, 1, 0, -s, 0, c};
+}
+cv::Matx33d rot_z(double a)
+{
+    const double c = std::cos(a), s = std::sin(a);
+    return {c, -s, 0, s, c, 0, 0, 0, 1};
+}
+
+// Camera axes (columns: image right, image down, optical axis) in the
+// machine frame for a camera looking straight down.
+cv::Matx33d forward_rotation(Forward forward)
+{
+    switch (forward) {
+    case Forward::up: return {0, -1, 0, -1, 0, 0, 0, 0, -1};    // right = -y, down = -x
+    case Forward::down: return {0, 1, 0, 1, 0, 0, 0, 0, -1};    // right = +y, down = +x
+    case Forward::right: return {1, 0, 0, 0, -1, 0, 0, 0, -1};  // right = +x, down = -y
+    case Forward::left: return {-1, 0, 0, 0, 1, 0, 0, 0, -1};   // right = -x, down = +y
+    }
+    return cv::Matx33d::eye();
+}
+
+bool finite(double v) { return std::isfinite(v); }
+
+// OpenCV's messages span lines; errors here are one line.
+std::string one_line(std::string_view text)
+{
+    std::string out;
+    for (const char c : text) {
+        const bool space = c == '\n' || c == '\r' || c == '\t';
+        if (space && (out.empty() || out.back() == ' '))
+            continue;
+        out += space ? ' ' : c;
+    }
+    while (!out.empty() && out.back() == ' ')
+        out.pop_back();
+    return out;
+}
+
+}  // namespace
+
+std::string_view to_string(Forward v)
+{
+    switch (v) {
+    case Forward::up: return "up";
+    case Forward::down: return "down";
+    case Forward::left: return "left";
+    case Forward::right: return "right";
+    }
+    return "?";
+}
+
+std::string_view to_string(ModelKind v)
+{
+    switch (v) {
+    case ModelKind::nadir: return "nadir";
+    case ModelKind::calibrated: return "calibrated";
+    }
+    return "?";
+}
+
+std::optional<Forward> parse_forward(std::string_view s)
+{
+    for (const Forward v : {Forward::up, Forward::down, Forward::left, Forward::right})
+        if (to_string(v) == s)
+            return v;
+    return std::nullopt;
+}
+
+std::optional<ModelKind> parse_model_kind(std::string_view s)
+{
+    for (const ModelKind v : {ModelKind::nadir, ModelKind::calibrated})
+        if (to_string(v) == s)
+            return v;
+    return std::nullopt;
+}
+
+cv::Point2d image_centre(cv::Size image_size)
+{
+    return {(image_size.width - 1) / 2.0, (image_size.height - 1) / 2.0};
+}
+
+cv::Matx33d camera_to_machine_rotation(Forward forward, const Pose& pose)
+{
+    return rot_z(pose.yaw_deg * kDegToRad) * rot_y(-pose.pitch_deg * kDegToRad) *
+           rot_x(pose.roll_deg * kDegToRad) * forward_rotation(forward);
+}
+
+std::optional<CameraModel> CameraModel::nadir(const NadirParams& p, std::string* error)
+{
+    if (!(p.gsd_mm_per_px > 0) || !finite(p.gsd_mm_per_px)) {
+        set_error(error, "nadir camera: gsd_mm_per_px must be positive");
+        return std::nullopt;
+    }
+    if (!finite(p.principal_px.x) || !finite(p.principal_px.y) || !finite(p.mount.x_mm) ||
+        !finite(p.mount.y_mm)) {
+        set_error(error, "nadir camera: principal point and position must be finite");
+        return std::nullopt;
+    }
+    CameraModel m;
+    m.kind_ = ModelKind::nadir;
+    m.mount_ = p.mount;
+    m.gsd_mm_per_px_ = p.gsd_mm_per_px;
+    m.principal_px_ = p.principal_px;
+    m.r_mc_ = forward_rotation(p.mount.forward);
+    m.centre_mm_ = {p.mount.x_mm, p.mount.y_mm, 0};
+    return m;
+}
+
+std::optional<CameraModel> CameraModel::calibrated(const Intrinsics& k, const Pose& pose, const Mount& mount,
+                                                   std::string* error)
+{
+    if (!(k.fx > 0) || !(k.fy > 0) || !finite(k.fx) || !finite(k.fy) || !finite(k.cx) || !finite(k.cy)) {
+        set_error(error, "calibrated camera: focal lengths must be positive and finite");
+        return std::nullopt;
+    }
+    for (const double d : k.dist) {
+        if (!finite(d)) {
+            set_error(error, "calibrated camera: distortion coefficients must be finite");
+            return std::nullopt;
+        }
+    }
+    if (!(pose.height_mm > 0) || !finite(pose.height_mm)) {
+        set_error(error, "calibrated camera: height_mm must be positive");
+        return std::nullopt;
+    }
+    CameraModel m;
+    m.kind_ = ModelKind::calibrated;
+    m.mount_ = mount;
+    m.intrinsics_ = k;
+    m.r_mc_ = camera_to_machine_rotation(mount.forward, pose);
+    // The optical axis must go down to meet the ground in front of the camera.
+    const cv::Vec3d axis = m.r_mc_ * cv::Vec3d(0, 0, 1);
+    if (!(axis[2] < -1e-6)) {
+        set_error(error, "calibrated camera: the optical axis does not meet the ground (check roll and pitch)");
+        return std::nullopt;
+    }
+    // The principal point's ground position is (x_mm, y_mm): step back up
+    // the optical axis to the optical centre.
+    const double t = pose.height_mm / -axis[2];
+    m.centre_mm_ = {mount.x_mm - t * axis[0], mount.y_mm - t * axis[1], pose.height_mm};
+    return m;
+}
+
+cv::Point2d CameraModel::distort_normalised(cv::Point2d xy) const noexcept
+{
+    const auto& d = intrinsics_.dist;
+    const double x = xy.x, y = xy.y;
+    const double r2 = x * x + y * y, r4 = r2 * r2, r6 = r4 * r2;
+    const double radial = (1 + d[0] * r2 + d[1] * r4 + d[4] * r6) / (1 + d[5] * r2 + d[6] * r4 + d[7] * r6);
+    const double xd = x * radial + 2 * d[2] * x * y + d[3] * (r2 + 2 * x * x) + d[8] * r2 + d[9] * r4;
+    const double yd = y * radial + d[2] * (r2 + 2 * y * y) + 2 * d[3] * x * y + d[10] * r2 + d[11] * r4;
+    return {intrinsics_.fx * xd + intrinsics_.cx, intrinsics_.fy * yd + intrinsics_.cy};
+}
+
+std::optional<cv::Point2d> CameraModel::undistort_normalised(cv::Point2d px) const noexcept
+{
+    const auto& d = intrinsics_.dist;
+    const double x0 = (px.x - intrinsics_.cx) / intrinsics_.fx;
+    const double y0 = (px.y - intrinsics_.cy) / intrinsics_.fy;
+    double x = x0, y = y0;
+    double error_px = 0;
+    for (int i = 0; i < kMaxUndistortIterations; ++i) {
+        // As cv::undistortPoints: x = (x0 - tangential/prism(x)) / radial(x).
+        const double r2 = x * x + y * y;
+        const double icdist =
+            (1 + ((d[7] * r2 + d[6]) * r2 + d[5]) * r2) / (1 + ((d[4] * r2 + d[1]) * r2 + d[0]) * r2);
+        if (!(icdist > 0))
+            return std::nullopt;
+        const double dx = 2 * d[2] * x * y + d[3] * (r2 + 2 * x * x) + d[8] * r2 + d[9] * r2 * r2;
+        const double dy = d[2] * (r2 + 2 * y * y) + 2 * d[3] * x * y + d[10] * r2 + d[11] * r2 * r2;
+        x = (x0 - dx) * icdist;
+        y = (y0 - dy) * icdist;
+        const cv::Point2d back = distort_normalised({x, y});
+        error_px = std::hypot(back.x - px.x, back.y - px.y);
+        if (!(error_px <= kUndistortTolerancePx))
+            continue;
+        return cv::Point2d(x, y);
+    }
+    if (error_px <= kUndistortFailPx && finite(x) && finite(y))
+        return cv::Point2d(x, y);
+    return std::nullopt;
+}
+
+std::optional<GroundPoint> CameraModel::pixel_to_ground(cv::Point2d px) const noexcept
+{
+    if (!finite(px.x) || !finite(px.y))
+        return std::nullopt;
+    GroundPoint g;
+    if (kind_ == ModelKind::nadir) {
+        // Camera frame offset on the ground (x right, y down), then machine axes.
+        const cv::Vec3d cam((px.x - principal_px_.x) * gsd_mm_per_px_, (px.y - principal_px_.y) * gsd_mm_per_px_, 0);
+        const cv::Vec3d m = r_mc_ * cam;
+        g.forward_mm = m[0];
+        g.lateral_mm = m[1];
+    } else {
+        const std::optional<cv::Point2d> n = undistort_normalised(px);
+        if (!n)
+            return std::nullopt;
+        const cv::Vec3d ray = r_mc_ * cv::Vec3d(n->x, n->y, 1);
+        if (!(ray[2] < -1e-9))
+            return std::nullopt;  // at or above the horizon
+        const double t = centre_mm_[2] / -ray[2];
+        g.forward_mm = centre_mm_[0] + t * ray[0] - mount_.x_mm;
+        g.lateral_mm = centre_mm_[1] + t * ray[1] - mount_.y_mm;
+    }
+    // -0.0 from the rotation reads badly in logs and tests.
+    g.forward_mm += 0.0;
+    g.lateral_mm += 0.0;
+    g.x_mm = mount_.x_mm + g.forward_mm;
+    g.y_mm = mount_.y_mm + g.lateral_mm;
+    return g;
+}
+
+std::optional<cv::Point2d> CameraModel::ground_to_pixel(double x_mm, double y_mm) const noexcept
+{
+    if (!finite(x_mm) || !finite(y_mm))
+        return std::nullopt;
+    if (kind_ == ModelKind::nadir) {
+        const cv::Vec3d cam = r_mc_.t() * cv::Vec3d(x_mm - mount_.x_mm, y_mm - mount_.y_mm, 0);
+        return cv::Point2d(principal_px_.x + cam[0] / gsd_mm_per_px_, principal_px_.y + cam[1] / gsd_mm_per_px_);
+    }
+    const cv::Vec3d p = r_mc_.t() * (cv::Vec3d(x_mm, y_mm, 0) - centre_mm_);
+    if (!(p[2] > 1e-9))
+        return std::nullopt;
+    return distort_normalised({p[0] / p[2], p[1] / p[2]});
+}
+
+std::optional<Intrinsics> read_calibration(const std::string& path, std::string* error)
+{
+    const auto fail = [&](const std::string& what) -> std::optional<Intrinsics> {
+        set_error(error, path + ": " + what);
+        return std::nullopt;
+    };
+    try {
+        cv::FileStorage fs;
+        if (!fs.open(path, cv::FileStorage::READ) || !fs.isOpened())
+            return fail("cannot open or parse the calibration file");
+        Intrinsics k;
+        const auto read_int = [&](const char* name, int& out) -> bool {
+            const cv::FileNode node = fs[name];
+            if (node.empty() || !node.isInt())
+                return false;
+            out = static_cast<int>(node);
+            return true;
+        };
+        if (!read_int("image_width", k.image_size.width))
+            return fail("missing or non-integer node 'image_width'");
+        if (!read_int("image_height", k.image_size.height))
+            return fail("missing or non-integer node 'image_height'");
+        if (k.image_size.width <= 0 || k.image_size.height <= 0)
+            return fail("image_width and image_height must be positive");
+
+        const cv::FileNode cm_node = fs["camera_matrix"];
+        if (cm_node.empty())
+            return fail("missing node 'camera_matrix'");
+        cv::Mat cm;
+        cm_node >> cm;
+        if (cm.rows != 3 || cm.cols != 3 || cm.channels() != 1)
+            return fail("node 'camera_matrix' is not a 3x3 matrix");
+        cm.convertTo(cm, CV_64F);
+        k.fx = cm.at<double>(0, 0);
+        k.fy = cm.at<double>(1, 1);
+        k.cx = cm.at<double>(0, 2);
+        k.cy = cm.at<double>(1, 2);
+        if (!(k.fx > 0) || !(k.fy > 0))
+            return fail("node 'camera_matrix' has a non-positive focal length");
+
+        const cv::FileNode dist_node = fs["distortion_coefficients"];
+        if (dist_node.empty())
+            return fail("missing node 'distortion_coefficients'");
+        cv::Mat dist;
+        dist_node >> dist;
+        const int n = dist.empty() || dist.channels() != 1 || (dist.rows != 1 && dist.cols != 1)
+            ? -1
+            : static_cast<int>(dist.total());
+        if (n == 14)
+            return fail("node 'distortion_coefficients': the tilted-sensor model (14 values) is not supported");
+        if (n != 4 && n != 5 && n != 8 && n != 12)
+            return fail("node 'distortion_coefficients' must hold 4, 5, 8 or 12 values");
+        dist.convertTo(dist, CV_64F);
+        for (int i = 0; i < n; ++i)
+            k.dist[static_cast<std::size_t>(i)] = dist.at<double>(i);
+        for (const double v : k.dist)
+            if (!finite(v))
+                return fail("node 'distortion_coefficients' has a non-finite value");
+        return k;
+    } catch (const std::exception& e) {
+        return fail("cannot read: " + one_line(e.what()));
+    } catch (...) {
+        return fail("cannot read: unknown error");
+    }
+}
+
+}  // namespace stemd::geometry

@@ -1,0 +1,90 @@
+// GpiodLines where the host has no such GPIO chip (build and CI machines): a
+// clear error naming the chip and errno, the lines `down`, enable off
+// (fail-safe), the trigger refused and counted; the thread retries without
+// crashing and stops cleanly. The real lines: test/vm/gpiod_check.cpp.
+#include <gtest/gtest.h>
+
+#ifdef STEMD_HAVE_LIBGPIOD
+
+#include <sstream>
+#include <thread>
+
+#include <spdlog/sinks/ostream_sink.h>
+#include <spdlog/spdlog.h>
+
+#include "gpiod/gpiod_lines.hpp"
+
+using namespace stemd::drivers;
+
+namespace {
+
+struct CapturedLog {
+    std::ostringstream out;
+    std::shared_ptr<spdlog::logger> logger =
+        std::make_shared<spdlog::logger>("gpiod-test", std::make_shared<spdlog::sinks::ostream_sink_mt>(out));
+};
+
+GpiodOptions missing_chip()
+{
+    GpiodOptions o;
+    o.chip = "stemd-no-such-gpiochip";
+    o.enable_line = 3;
+    o.trigger_line = 0;
+    o.reopen_min_ns = 1'000'000;
+    o.reopen_max_ns = 4'000'000;
+    return o;
+}
+
+}  // namespace
+
+TEST(GpiodLines, MissingChipIsAClearError)
+{
+    CapturedLog log;
+    GpiodLines lines(missing_chip(), log.logger);
+    EXPECT_EQ(lines.name(), "gpiod:stemd-no-such-gpiochip");
+    EXPECT_FALSE(lines.open());
+    EXPECT_EQ(lines.state(), GpiodState::down);
+    const std::string err = lines.last_error();
+    EXPECT_NE(err.find("stemd-no-such-gpiochip"), std::string::npos) << err;
+    EXPECT_NE(err.find("gpiod_chip_open_lookup"), std::string::npos) << err;
+    EXPECT_NE(err.find("errno"), std::string::npos) << err;
+    EXPECT_NE(log.out.str().find("stemd-no-such-gpiochip"), std::string::npos) << log.out.str();
+    EXPECT_FALSE(lines.enabled());
+    EXPECT_FALSE(lines.set_trigger(true));
+    EXPECT_FALSE(lines.pulse(10));
+    EXPECT_GE(lines.counters().errors, 2U);
+    EXPECT_EQ(lines.counters().trigger_pulses, 0U);
+}
+
+TEST(GpiodLines, RetriesInTheBackgroundAndStops)
+{
+    CapturedLog log;
+    GpiodLines lines(missing_chip(), log.logger);
+    lines.start();
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    EXPECT_FALSE(lines.wait_change(false, 5'000'000));  // stays disabled
+    EXPECT_EQ(lines.state(), GpiodState::down);
+    EXPECT_GE(lines.counters().errors, 3U);  // several reopen attempts...
+    lines.stop();                            // (the log is read once the thread is gone)
+    std::size_t logged = 0;
+    for (std::size_t pos = 0; (pos = log.out.str().find("gpiod_chip_open_lookup", pos)) != std::string::npos; ++pos)
+        ++logged;
+    EXPECT_EQ(logged, 1U);  // ...logged once
+}
+
+TEST(GpiodLines, EncoderOptionsAreChecked)
+{
+    CapturedLog log;
+    GpiodOptions o = missing_chip();
+    o.encoder = EncoderMode::quadrature;
+    o.encoder_a_line = 1;  // no B
+    GpiodLines lines(o, log.logger);
+    EXPECT_FALSE(lines.open());
+    EXPECT_NE(lines.last_error().find("encoder_b_line"), std::string::npos) << lines.last_error();
+}
+
+#else
+
+TEST(GpiodLines, NotBuilt) { GTEST_SKIP() << "libgpiod 1.x was missing when CMake configured"; }
+
+#endif
