@@ -15,14 +15,6 @@
 
 #include <spdlog/spdlog.h>
 
-#include "replay/replay_source.hpp"
-#include "v4l2/v4l2_source.hpp"
-// --- libcamera source (built only with libcamera; STEMD_HAVE_LIBCAMERA from stemd_drivers)
-#if STEMD_HAVE_LIBCAMERA
-#include "libcamera/libcamera_source.hpp"
-#endif
-// --- end libcamera source
-#include "stemd/io/recording.hpp"
 #include "stemd/runtime/config.hpp"
 #include "stemd/runtime/daemon.hpp"
 #include "stemd/runtime/sd_notify.hpp"
@@ -30,6 +22,7 @@
 #include "stemd/runtime/detection_sink.hpp"
 #include "stemd/runtime/logging.hpp"
 #include "stemd/runtime/signals.hpp"
+#include "stemd/runtime/source_factory.hpp"
 #include "stemd/runtime/status.hpp"
 
 using namespace stemd;
@@ -93,25 +86,6 @@ std::optional<Args> parse_args(int argc, char** argv, std::string& error)
     return args;
 }
 
-// Checks that need more than the schema: the replay directory, when set in
-// the configuration, must be a recording. The message names where it was set.
-std::optional<std::string> check_daemon_config(const runtime::DaemonConfig& d, const config::Config& config,
-                                               const Args& args)
-{
-    if (d.source_kind == "replay" && !d.replay_dir.empty() && !io::is_recording_dir(d.replay_dir)) {
-        const std::string where = args.replay_dir.empty() ? config.origin_of("source.replay_dir") : "--replay";
-        return where + ": key 'source.replay_dir': " + d.replay_dir + " is not a recording directory (no frames.csv)";
-    }
-    if (d.source_kind == "replay" && d.replay_dir.empty() && !args.check_config)
-        return std::string("no frame source: give --replay DIR or set source.replay_dir");
-    // --- libcamera source
-    if (d.source_kind == "libcamera" && !STEMD_HAVE_LIBCAMERA)
-        return config.origin_of("source.kind") +
-               ": key 'source.kind': libcamera: this stemd was built without libcamera (install libcamera-dev and rebuild)";
-    // --- end libcamera source
-    return std::nullopt;
-}
-
 }  // namespace
 
 int main(int argc, char** argv)
@@ -149,7 +123,8 @@ int main(int argc, char** argv)
     }
     if (args->once)
         daemon_config.replay_loop = false;
-    if (const auto problem = check_daemon_config(daemon_config, config, *args)) {
+    if (const auto problem =
+            runtime::check_source_config(daemon_config, config, !args->replay_dir.empty(), args->check_config)) {
         std::cerr << "stemd: " << *problem << "\n";
         return kUsageError;
     }
@@ -162,34 +137,7 @@ int main(int argc, char** argv)
     const auto log = runtime::make_logger("main");
     const auto status_log = runtime::make_logger("status");
 
-    std::unique_ptr<drivers::FrameSource> source;
-    if (daemon_config.source_kind == "v4l2") {
-        drivers::V4l2Options v4l2;
-        v4l2.device = daemon_config.v4l2_device;
-        // The schema allows only the formats the source knows.
-        v4l2.pixel_format =
-            drivers::parse_v4l2_pixel_format(daemon_config.v4l2_pixel_format).value_or(drivers::V4l2PixelFormat::yuyv);
-        v4l2.buffers = daemon_config.v4l2_buffers;
-        v4l2.size = daemon_config.frame_size;
-        v4l2.fps = daemon_config.fps;
-        source = std::make_unique<drivers::V4l2Source>(std::move(v4l2), runtime::make_logger("v4l2"));
-#if STEMD_HAVE_LIBCAMERA
-    } else if (daemon_config.source_kind == "libcamera") {  // --- libcamera source
-        drivers::LibcameraOptions libcamera;
-        libcamera.camera = daemon_config.libcamera_camera;
-        libcamera.size = daemon_config.frame_size;
-        libcamera.fps = daemon_config.fps;
-        source = std::make_unique<drivers::LibcameraSource>(std::move(libcamera), runtime::make_logger("libcamera"));
-#endif
-    } else {
-        drivers::ReplayOptions replay;
-        replay.dir = daemon_config.replay_dir;
-        replay.pacing = daemon_config.replay_fast ? drivers::ReplayOptions::Pacing::fast
-                                                  : drivers::ReplayOptions::Pacing::recorded;
-        replay.loop = daemon_config.replay_loop;
-        replay.preload = daemon_config.replay_preload;
-        source = std::make_unique<drivers::ReplaySource>(replay, runtime::make_logger("replay"));
-    }
+    std::unique_ptr<drivers::FrameSource> source = runtime::make_frame_source(daemon_config);
 
     auto sink = std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator"));
     if (!args->detections_csv.empty() && !sink->open_csv(args->detections_csv))

@@ -1,0 +1,28 @@
+// The configured frame source (source.kind: v4l2, libcamera or replay) built
+// from a DaemonConfig: one place for the daemon (src/main.cpp) and the tools
+// that open the same sources (tools/stemd-record.cpp).
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "stemd/drivers/frame_source.hpp"
+#include "stemd/runtime/config.hpp"
+#include "stemd/runtime/daemon_config.hpp"
+
+namespace stemd::runtime {
+
+// Checks the schema cannot make about the source: a configured replay
+// directory must be a recording, replay needs a directory (unless
+// `check_only`), libcamera needs a build with libcamera. The message names
+// where the value came from: `replay_from_cli` means --replay, else the
+// configuration's origin (file:line). nullopt when the source can be built.
+std::optional<std::string> check_source_config(const DaemonConfig& d, const config::Config& config,
+                                               bool replay_from_cli, bool check_only = false);
+
+// The source config.source_kind names, not yet opened. Loggers are named
+// after the backend ("v4l2", "libcamera", "replay").
+std::unique_ptr<drivers::FrameSource> make_frame_source(const DaemonConfig& config);
+
+}  // namespace stemd::runtime

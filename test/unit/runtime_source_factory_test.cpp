@@ -1,0 +1,64 @@
+// runtime::check_source_config and make_frame_source: the source the daemon
+// and stemd-record build from the configuration.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "runtime_test_util.hpp"
+#include "stemd/runtime/config.hpp"
+#include "stemd/runtime/daemon_config.hpp"
+#include "stemd/runtime/source_factory.hpp"
+
+namespace {
+
+using namespace stemd;
+
+TEST(SourceFactory, ReplayNeedsARecordingDirectory)
+{
+    config::Config config;
+    ASSERT_FALSE(config.load_text("source:\n  kind: replay\n  replay_dir: /nonexistent/rec\n", "test.yaml"));
+    const runtime::DaemonConfig d = runtime::daemon_config(config);
+    const auto problem = runtime::check_source_config(d, config, false);
+    ASSERT_TRUE(problem);
+    EXPECT_NE(problem->find("test.yaml:3: key 'source.replay_dir'"), std::string::npos) << *problem;
+    EXPECT_NE(problem->find("not a recording directory"), std::string::npos) << *problem;
+
+    const auto from_cli = runtime::check_source_config(d, config, true);
+    ASSERT_TRUE(from_cli);
+    EXPECT_EQ(from_cli->rfind("--replay: ", 0), 0u) << *from_cli;
+}
+
+TEST(SourceFactory, ReplayWithoutDirectoryIsAnErrorUnlessOnlyChecking)
+{
+    config::Config config;
+    const runtime::DaemonConfig d = runtime::daemon_config(config);
+    ASSERT_EQ(d.source_kind, "replay");
+    const auto problem = runtime::check_source_config(d, config, false);
+    ASSERT_TRUE(problem);
+    EXPECT_NE(problem->find("no frame source"), std::string::npos);
+    EXPECT_FALSE(runtime::check_source_config(d, config, false, /*check_only=*/true));
+}
+
+TEST(SourceFactory, BuildsTheConfiguredSource)
+{
+    const auto dir = test::scratch_dir("source_factory");
+    std::ofstream(dir / "frames.csv") << "t_ns,rgb,nir,mask\n";
+    config::Config config;
+    runtime::DaemonConfig d = runtime::daemon_config(config);
+    d.replay_dir = dir.string();
+    EXPECT_FALSE(runtime::check_source_config(d, config, true));
+    auto replay = runtime::make_frame_source(d);
+    ASSERT_TRUE(replay);
+    EXPECT_EQ(replay->name().rfind("replay:", 0), 0u) << replay->name();
+
+    ASSERT_FALSE(config.set_override("source.kind=v4l2"));
+    ASSERT_FALSE(config.set_override("source.v4l2_device=/dev/video7"));
+    d = runtime::daemon_config(config);
+    EXPECT_FALSE(runtime::check_source_config(d, config, false));
+    auto v4l2 = runtime::make_frame_source(d);
+    ASSERT_TRUE(v4l2);
+    EXPECT_NE(v4l2->name().find("/dev/video7"), std::string::npos) << v4l2->name();
+    std::filesystem::remove_all(dir);
+}
+
+}  // namespace

@@ -1,0 +1,416 @@
+// stemd-record: writes what the configured frame source (source.kind: v4l2,
+// libcamera or replay) delivers into a recording directory (frames.csv +
+// rgb/NNNNNN.png, see include/stemd/io/recording.hpp), so that field runs
+// can be replayed by the daemon and the tools.
+//   stemd-record [--config FILE] [--set KEY=VALUE]... --out DIR
+//                [--frames N] [--seconds S] [--replay DIR] [--slots N]
+//
+// Threads: the main thread captures (source->next into preallocated slots
+// from a FramePool) and hands full slots to a writer thread through an
+// SpscRing; the writer encodes the PNGs, appends the frames.csv row (flushed
+// per row) and gives the slot back through a second ring. The capture loop
+// never waits for the disk: with a camera (a realtime source) a frame that
+// finds no free slot is dropped and counted; a source that can wait (fast
+// replay) waits instead and loses nothing.
+//
+// t_ns is the frame's t_capture_ns (CLOCK_MONOTONIC). A replay source plays
+// its recording once. nir/ and mask/ are written when the source fills those
+// planes (replay of a recording that has them, with segment.method ndvi/mask).
+//
+// Exit: 0 after N frames, S seconds, SIGINT/SIGTERM or the end of a replayed
+// recording; 1 when the source or the disk fails; 2 on bad arguments or
+// configuration, or when DIR exists and is not empty.
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <cinttypes>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+#include <spdlog/spdlog.h>
+
+#include "stemd/drivers/frame_source.hpp"
+#include "stemd/runtime/config.hpp"
+#include "stemd/runtime/daemon_config.hpp"
+#include "stemd/runtime/frame_pool.hpp"
+#include "stemd/runtime/logging.hpp"
+#include "stemd/runtime/signals.hpp"
+#include "stemd/runtime/source_factory.hpp"
+#include "stemd/runtime/spsc_ring.hpp"
+#include "stemd/runtime/status.hpp"
+#include "stemd/io/recording.hpp"
+#include "tool_config.hpp"
+
+using namespace stemd;
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr int kUsageError = 2;
+constexpr long kDefaultSlots = 8;
+
+const char* const kUsage =
+    "usage: stemd-record [--config FILE] [--set KEY=VALUE]... --out DIR\n"
+    "                    [--frames N] [--seconds S] [--replay DIR] [--slots N]\n"
+    "  --config   configuration file (see config/stemd.yaml); source.* picks the camera\n"
+    "  --set      override one configuration key, e.g. --set source.kind=v4l2\n"
+    "  --out      the recording directory to create (must not exist or be empty)\n"
+    "  --frames   stop after N frames recorded\n"
+    "  --seconds  stop after S seconds\n"
+    "  --replay   record a recording directory (overrides source.*; played once)\n"
+    "  --slots    frames buffered between capture and the PNG writer (default 8)\n"
+    "Stops on SIGINT/SIGTERM too; frames the writer cannot keep up with are dropped and counted.\n";
+
+struct Args {
+    tools::ConfigArgs config;
+    std::string out;
+    long frames = 0;      // 0: no limit
+    double seconds = 0;   // 0: no limit
+    std::string replay_dir;
+    long slots = kDefaultSlots;
+};
+
+std::optional<Args> parse_args(int argc, char** argv, std::string& error)
+{
+    Args args;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        auto value = [&](std::string& out) {
+            if (i + 1 >= argc) {
+                error = a + " needs a value";
+                return false;
+            }
+            out = argv[++i];
+            return true;
+        };
+        std::string v;
+        if (a == "--config") {
+            if (!value(args.config.file)) return std::nullopt;
+        } else if (a == "--set") {
+            if (!value(v)) return std::nullopt;
+            args.config.sets.push_back(v);
+        } else if (a == "--out") {
+            if (!value(args.out)) return std::nullopt;
+        } else if (a == "--frames") {
+            if (!value(v)) return std::nullopt;
+            if (!tools::parse_int(v, args.frames) || args.frames < 1) {
+                error = "--frames: '" + v + "' is not a positive integer";
+                return std::nullopt;
+            }
+        } else if (a == "--seconds") {
+            if (!value(v)) return std::nullopt;
+            if (!tools::parse_number(v, args.seconds) || args.seconds <= 0) {
+                error = "--seconds: '" + v + "' is not a positive number";
+                return std::nullopt;
+            }
+        } else if (a == "--replay") {
+            if (!value(args.replay_dir)) return std::nullopt;
+        } else if (a == "--slots") {
+            if (!value(v)) return std::nullopt;
+            if (!tools::parse_int(v, args.slots) || args.slots < 2 || args.slots > 1024) {
+                error = "--slots: '" + v + "' is not an integer in [2, 1024]";
+                return std::nullopt;
+            }
+        } else {
+            error = "unknown argument " + a;
+            return std::nullopt;
+        }
+    }
+    if (args.out.empty()) {
+        error = "--out DIR is required";
+        return std::nullopt;
+    }
+    return args;
+}
+
+// Creates `dir` (and rgb/, nir/, mask/ as needed); refuses a non-empty one.
+bool prepare_out_dir(const fs::path& dir, bool nir, bool mask, std::string& error)
+{
+    std::error_code ec;
+    if (fs::exists(dir, ec)) {
+        if (!fs::is_directory(dir, ec)) {
+            error = dir.string() + " exists and is not a directory: refusing to overwrite it";
+            return false;
+        }
+        if (!fs::is_empty(dir, ec) || ec) {
+            error = dir.string() + " exists and is not empty: refusing to overwrite a recording";
+            return false;
+        }
+    }
+    for (const char* sub : {"rgb", "nir", "mask"}) {
+        if ((std::string(sub) == "nir" && !nir) || (std::string(sub) == "mask" && !mask))
+            continue;
+        fs::create_directories(dir / sub, ec);
+        if (ec) {
+            error = (dir / sub).string() + ": cannot create: " + ec.message();
+            return false;
+        }
+    }
+    return true;
+}
+
+// The writer thread's side: PNGs and frames.csv rows, one frame at a time.
+class RecordingWriter {
+public:
+    RecordingWriter(fs::path dir, std::shared_ptr<spdlog::logger> log) : dir_(std::move(dir)), log_(std::move(log)) {}
+    ~RecordingWriter()
+    {
+        if (csv_ != nullptr)
+            std::fclose(csv_);
+    }
+
+    bool open()
+    {
+        const fs::path path = dir_ / "frames.csv";
+        csv_ = std::fopen(path.c_str(), "w");
+        if (csv_ == nullptr) {
+            log_->error("{}: cannot create: {}", path.string(), std::strerror(errno));
+            return false;
+        }
+        return row_done(std::fprintf(csv_, "%s\n", io::kFramesCsvHeader) > 0);
+    }
+
+    // PNGs first, then the row: a row always names files that exist.
+    bool write(const drivers::Frame& frame)
+    {
+        char rgb[32] = "", nir[32] = "", mask[32] = "";
+        std::snprintf(rgb, sizeof rgb, "rgb/%06" PRIu64 ".png", written_);
+        if (!write_png(rgb, frame.bgr))
+            return false;
+        if (!frame.nir.empty()) {
+            std::snprintf(nir, sizeof nir, "nir/%06" PRIu64 ".png", written_);
+            if (!write_png(nir, frame.nir))
+                return false;
+        }
+        if (!frame.mask.empty()) {
+            std::snprintf(mask, sizeof mask, "mask/%06" PRIu64 ".png", written_);
+            if (!write_png(mask, frame.mask))
+                return false;
+        }
+        if (!row_done(std::fprintf(csv_, "%" PRId64 ",%s,%s,%s\n", frame.t_capture_ns, rgb, nir, mask) > 0))
+            return false;
+        ++written_;
+        return true;
+    }
+
+    bool close()
+    {
+        if (csv_ == nullptr)
+            return true;
+        const bool ok = std::fclose(csv_) == 0;
+        csv_ = nullptr;
+        if (!ok)
+            log_->error("{}: cannot close: {}", (dir_ / "frames.csv").string(), std::strerror(errno));
+        return ok;
+    }
+
+    std::uint64_t written() const { return written_; }
+
+private:
+    bool write_png(const char* relative, const cv::Mat& image)
+    {
+        const fs::path path = dir_ / relative;
+        // Level 1: lossless like every level, and fast enough to keep up with a camera.
+        static const std::vector<int> kParams{cv::IMWRITE_PNG_COMPRESSION, 1};
+        bool ok = false;
+        try {
+            ok = cv::imwrite(path.string(), image, kParams);
+        } catch (const cv::Exception& e) {
+            log_->error("{}: cannot write: {}", path.string(), e.what());
+            return false;
+        }
+        if (!ok)
+            log_->error("{}: cannot write", path.string());
+        return ok;
+    }
+
+    // Every row is flushed: frames.csv is complete up to the last frame
+    // written, whatever stops the recorder.
+    bool row_done(bool printed)
+    {
+        if (!printed || std::fflush(csv_) != 0) {
+            log_->error("{}: cannot write: {}", (dir_ / "frames.csv").string(), std::strerror(errno));
+            return false;
+        }
+        return true;
+    }
+
+    const fs::path dir_;
+    const std::shared_ptr<spdlog::logger> log_;
+    std::FILE* csv_ = nullptr;
+    std::uint64_t written_ = 0;
+};
+
+}  // namespace
+
+int main(int argc, char** argv)
+{
+    for (int i = 1; i < argc; ++i) {
+        if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h") {
+            std::cout << kUsage;
+            return 0;
+        }
+    }
+    // Before the writer thread exists, so that only the capture loop sees SIGTERM/SIGINT.
+    runtime::ShutdownSignals signals;
+
+    std::string error;
+    const auto args = parse_args(argc, argv, error);
+    if (!args) {
+        std::cerr << "stemd-record: " << error << "\n" << kUsage;
+        return kUsageError;
+    }
+    config::Config config;
+    if (const auto config_error = tools::build_config(args->config, config)) {
+        std::cerr << "stemd-record: " << config_error->to_string() << "\n";
+        return kUsageError;
+    }
+    runtime::DaemonConfig daemon_config = runtime::daemon_config(config);
+    if (!args->replay_dir.empty()) {
+        daemon_config.source_kind = "replay";
+        daemon_config.replay_dir = args->replay_dir;
+    }
+    daemon_config.replay_loop = false;   // a recording is recorded once
+    if (const auto problem = runtime::check_source_config(daemon_config, config, !args->replay_dir.empty())) {
+        std::cerr << "stemd-record: " << *problem << "\n";
+        return kUsageError;
+    }
+    // Cameras deliver bgr only; a replay fills the planes the segmentation reads.
+    const vision::Segmentation planes =
+        daemon_config.source_kind == "replay" ? daemon_config.vision.segmentation : vision::Segmentation::exg;
+    const fs::path out = args->out;
+    if (!prepare_out_dir(out, planes == vision::Segmentation::ndvi, planes == vision::Segmentation::mask, error)) {
+        std::cerr << "stemd-record: " << error << "\n";
+        return kUsageError;
+    }
+
+    runtime::set_log_level(daemon_config.log_level);
+    const auto log = runtime::make_logger("record");
+
+    const auto slot_count = static_cast<std::size_t>(args->slots);
+    std::unique_ptr<runtime::FramePool> pool;
+    try {
+        pool = std::make_unique<runtime::FramePool>(daemon_config.frame_size, planes, slot_count);
+    } catch (const std::bad_alloc&) {
+        log->error("cannot allocate {} frame slots of {}x{}", slot_count, daemon_config.frame_size.width,
+                   daemon_config.frame_size.height);
+        return 1;
+    }
+    // Both rings hold every slot, so a push never fails: free slots go
+    // writer -> capture, full ones capture -> writer.
+    runtime::SpscRing<drivers::Frame*> free_slots(slot_count);
+    runtime::SpscRing<drivers::Frame*> full_slots(slot_count);
+    for (std::size_t i = 1; i < slot_count; ++i)
+        free_slots.try_push(&(*pool)[i]);
+    drivers::Frame* hand = &(*pool)[0];
+
+    RecordingWriter writer(out, log);
+    if (!writer.open())
+        return 1;
+
+    const std::unique_ptr<drivers::FrameSource> source = runtime::make_frame_source(daemon_config);
+    if (!source->open() || !source->start())
+        return 1;
+    const bool can_wait = !source->realtime();
+    log->info("recording {} into {}", source->name(), out.string());
+
+    std::atomic<bool> capture_done{false};
+    std::atomic<bool> writer_failed{false};
+    std::thread writer_thread([&] {
+        drivers::Frame* frame = nullptr;
+        for (;;) {
+            if (!full_slots.try_pop(frame)) {
+                // capture_done is set after the last push: seen set, an empty
+                // ring means every frame has been taken.
+                if (capture_done.load(std::memory_order_acquire) && !full_slots.try_pop(frame))
+                    break;
+                if (frame == nullptr) {
+                    std::this_thread::sleep_for(1ms);
+                    continue;
+                }
+            }
+            const bool ok = writer.write(*frame);
+            free_slots.try_push(frame);
+            frame = nullptr;
+            if (!ok) {
+                writer_failed.store(true, std::memory_order_release);
+                break;
+            }
+        }
+    });
+
+    const std::int64_t t_start_ns = runtime::monotonic_ns();
+    const std::int64_t t_end_ns =
+        args->seconds > 0 ? t_start_ns + static_cast<std::int64_t>(args->seconds * 1e9) : INT64_MAX;
+    bool stop_signalled = false;
+    auto stop_requested = [&] {
+        if (!stop_signalled) {
+            if (const auto sig = signals.wait(0ms)) {
+                log->info("{}: stopping", *sig == SIGTERM ? "SIGTERM" : "SIGINT");
+                stop_signalled = true;
+            }
+        }
+        return stop_signalled || writer_failed.load(std::memory_order_acquire);
+    };
+    std::uint64_t queued = 0;
+    std::uint64_t writer_behind = 0;   // frames dropped: no free slot
+    int exit_code = 0;
+    while (!stop_requested()) {
+        if (args->frames > 0 && queued >= static_cast<std::uint64_t>(args->frames))
+            break;
+        const std::int64_t now_ns = runtime::monotonic_ns();
+        if (now_ns >= t_end_ns)
+            break;
+        const auto timeout = std::chrono::nanoseconds(std::min<std::int64_t>(t_end_ns - now_ns, 100'000'000));
+        const drivers::NextStatus status = source->next(*hand, timeout);
+        if (status == drivers::NextStatus::timeout || status == drivers::NextStatus::skipped)
+            continue;
+        if (status == drivers::NextStatus::end_of_stream)
+            break;
+        if (status == drivers::NextStatus::failed) {
+            log->error("{}: failed; recording stops", source->name());
+            exit_code = 1;
+            break;
+        }
+        drivers::Frame* next = nullptr;
+        if (!free_slots.try_pop(next)) {
+            if (!can_wait) {
+                ++writer_behind;   // `hand` is reused for the next frame
+                continue;
+            }
+            while (!free_slots.try_pop(next) && !stop_requested())
+                std::this_thread::sleep_for(1ms);
+            if (next == nullptr)
+                break;
+        }
+        full_slots.try_push(hand);
+        hand = next;
+        ++queued;
+    }
+    capture_done.store(true, std::memory_order_release);
+    writer_thread.join();
+    source->stop();
+    if (!writer.close() || writer_failed.load(std::memory_order_acquire))
+        exit_code = 1;
+
+    const double run_s = static_cast<double>(runtime::monotonic_ns() - t_start_ns) / 1e9;
+    const drivers::SourceCounters c = source->counters();
+    if (writer_behind > 0)
+        log->warn("{} frames dropped: the PNG writer could not keep up (try --slots or a faster disk)", writer_behind);
+    std::fprintf(stderr,
+                 "stemd-record: total: %" PRIu64 " frames written to %s in %.1f s | drops: writer_behind %" PRIu64
+                 ", corrupt %" PRIu64 ", bad_size %" PRIu64 "\n",
+                 writer.written(), out.c_str(), run_s, writer_behind, c.corrupt, c.bad_size);
+    return exit_code;
+}
