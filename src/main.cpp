@@ -15,6 +15,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "stemd/runtime/command_line.hpp"
 #include "stemd/runtime/config.hpp"
 #include "stemd/runtime/daemon.hpp"
 #include "stemd/runtime/sd_notify.hpp"
@@ -43,8 +44,7 @@ const char* const kUsage =
     "  --detections-csv  write the stemd-detect CSV with a leading t_ns column\n";
 
 struct Args {
-    std::string config_file;
-    std::vector<std::string> sets;
+    config::ConfigArgs config;
     bool check_config = false;
     std::string replay_dir;
     bool once = false;
@@ -54,22 +54,21 @@ struct Args {
 std::optional<Args> parse_args(int argc, char** argv, std::string& error)
 {
     Args args;
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
+    config::ArgReader in(argc, argv);
+    while (in.next()) {
+        const std::string a = in.arg();
         auto value = [&](std::string& out) {
-            if (i + 1 >= argc) {
-                error = a + " needs a value";
-                return false;
-            }
-            out = argv[++i];
-            return true;
+            if (in.value(out))
+                return true;
+            error = in.error();
+            return false;
         };
         std::string v;
-        if (a == "--config") {
-            if (!value(args.config_file)) return std::nullopt;
-        } else if (a == "--set") {
-            if (!value(v)) return std::nullopt;
-            args.sets.push_back(v);
+        if (in.config_option(args.config)) {
+            if (in.failed()) {
+                error = in.error();
+                return std::nullopt;
+            }
         } else if (a == "--check-config") {
             args.check_config = true;
         } else if (a == "--replay") {
@@ -90,11 +89,9 @@ std::optional<Args> parse_args(int argc, char** argv, std::string& error)
 
 int main(int argc, char** argv)
 {
-    for (int i = 1; i < argc; ++i) {
-        if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h") {
-            std::cout << kUsage;
-            return 0;
-        }
+    if (config::wants_help(argc, argv)) {
+        std::cout << kUsage;
+        return 0;
     }
     // Before any thread exists, so that every thread inherits the blocked
     // mask and only the main loop below receives SIGTERM/SIGINT.
@@ -107,12 +104,7 @@ int main(int argc, char** argv)
         return kUsageError;
     }
     config::Config config;
-    std::optional<config::ConfigError> config_error;
-    if (!args->config_file.empty())
-        config_error = config.load_file(args->config_file);
-    for (std::size_t i = 0; !config_error && i < args->sets.size(); ++i)
-        config_error = config.set_override(args->sets[i]);
-    if (config_error) {
+    if (const auto config_error = config::build_config(args->config, config)) {
         std::cerr << "stemd: " << config_error->to_string() << "\n";
         return kUsageError;
     }

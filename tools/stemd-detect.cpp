@@ -21,6 +21,7 @@
 #include "stemd/runtime/vision_config.hpp"
 #include "stemd/vision/detect.hpp"
 #include "stemd/viz/overlay.hpp"
+#include "stemd/runtime/command_line.hpp"
 #include "tool_config.hpp"
 #include "tool_frames.hpp"
 
@@ -46,7 +47,7 @@ const char* const kUsage =
     "  --timing    per-frame stage times on stderr and medians at the end\n";
 
 struct Args {
-    tools::ConfigArgs config;
+    config::ConfigArgs config;
     std::string csv_path;
     std::string mask_dir;
     std::string overlay_dir;
@@ -57,22 +58,21 @@ struct Args {
 std::optional<Args> parse_args(int argc, char** argv, std::string& error)
 {
     Args args;
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
+    config::ArgReader in(argc, argv);
+    while (in.next()) {
+        const std::string a = in.arg();
         auto value = [&](std::string& out) {
-            if (i + 1 >= argc) {
-                error = a + " needs a value";
-                return false;
-            }
-            out = argv[++i];
-            return true;
+            if (in.value(out))
+                return true;
+            error = in.error();
+            return false;
         };
         std::string v;
-        if (a == "--config") {
-            if (!value(args.config.file)) return std::nullopt;
-        } else if (a == "--set") {
-            if (!value(v)) return std::nullopt;
-            args.config.sets.push_back(v);
+        if (in.config_option(args.config)) {
+            if (in.failed()) {
+                error = in.error();
+                return std::nullopt;
+            }
         } else if (a == "--segment") {
             if (!value(v)) return std::nullopt;
             args.config.sets.push_back("segment.method=" + v);
@@ -121,11 +121,9 @@ bool ensure_dir(const std::string& dir, std::string& error)
 
 int main(int argc, char** argv)
 {
-    for (int i = 1; i < argc; ++i) {
-        if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h") {
-            std::cout << kUsage;
-            return 0;
-        }
+    if (config::wants_help(argc, argv)) {
+        std::cout << kUsage;
+        return 0;
     }
     std::string error;
     const auto args = parse_args(argc, argv, error);
@@ -134,7 +132,7 @@ int main(int argc, char** argv)
         return kUsageError;
     }
     config::Config config;
-    if (const auto config_error = tools::build_config(args->config, config)) {
+    if (const auto config_error = config::build_config(args->config, config)) {
         std::cerr << "stemd-detect: " << config_error->to_string() << "\n";
         return kUsageError;
     }

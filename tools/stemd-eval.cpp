@@ -27,6 +27,7 @@
 #include "stemd/runtime/config.hpp"
 #include "stemd/runtime/vision_config.hpp"
 #include "stemd/vision/detect.hpp"
+#include "stemd/runtime/command_line.hpp"
 #include "tool_config.hpp"
 #include "tool_frames.hpp"
 
@@ -79,7 +80,7 @@ struct Args {
     double gsd_mm_per_px = 0.33;
     Vegetation gt_vegetation = Vegetation::nonzero;
     bool json = false;
-    tools::ConfigArgs config;
+    config::ConfigArgs config;
     std::vector<int> radii{1, 6, 10, 20};
 };
 
@@ -361,7 +362,7 @@ struct SweepRow {
 int run_sweep(const Args& args)
 {
     config::Config config;
-    if (const auto config_error = tools::build_config(args.config, config))
+    if (const auto config_error = config::build_config(args.config, config))
         return fail(config_error->to_string());
     const vision::Params base = config::vision_params(config);
     std::string error;

@@ -49,6 +49,7 @@
 #include "stemd/runtime/spsc_ring.hpp"
 #include "stemd/runtime/status.hpp"
 #include "stemd/io/recording.hpp"
+#include "stemd/runtime/command_line.hpp"
 #include "tool_config.hpp"
 
 using namespace stemd;
@@ -73,7 +74,7 @@ const char* const kUsage =
     "Stops on SIGINT/SIGTERM too; frames the writer cannot keep up with are dropped and counted.\n";
 
 struct Args {
-    tools::ConfigArgs config;
+    config::ConfigArgs config;
     std::string out;
     long frames = 0;      // 0: no limit
     double seconds = 0;   // 0: no limit
@@ -84,22 +85,21 @@ struct Args {
 std::optional<Args> parse_args(int argc, char** argv, std::string& error)
 {
     Args args;
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
+    config::ArgReader in(argc, argv);
+    while (in.next()) {
+        const std::string a = in.arg();
         auto value = [&](std::string& out) {
-            if (i + 1 >= argc) {
-                error = a + " needs a value";
-                return false;
-            }
-            out = argv[++i];
-            return true;
+            if (in.value(out))
+                return true;
+            error = in.error();
+            return false;
         };
         std::string v;
-        if (a == "--config") {
-            if (!value(args.config.file)) return std::nullopt;
-        } else if (a == "--set") {
-            if (!value(v)) return std::nullopt;
-            args.config.sets.push_back(v);
+        if (in.config_option(args.config)) {
+            if (in.failed()) {
+                error = in.error();
+                return std::nullopt;
+            }
         } else if (a == "--out") {
             if (!value(args.out)) return std::nullopt;
         } else if (a == "--frames") {
@@ -256,11 +256,9 @@ private:
 
 int main(int argc, char** argv)
 {
-    for (int i = 1; i < argc; ++i) {
-        if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h") {
-            std::cout << kUsage;
-            return 0;
-        }
+    if (config::wants_help(argc, argv)) {
+        std::cout << kUsage;
+        return 0;
     }
     // Before the writer thread exists, so that only the capture loop sees SIGTERM/SIGINT.
     runtime::ShutdownSignals signals;
@@ -272,7 +270,7 @@ int main(int argc, char** argv)
         return kUsageError;
     }
     config::Config config;
-    if (const auto config_error = tools::build_config(args->config, config)) {
+    if (const auto config_error = config::build_config(args->config, config)) {
         std::cerr << "stemd-record: " << config_error->to_string() << "\n";
         return kUsageError;
     }

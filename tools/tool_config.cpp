@@ -5,17 +5,6 @@
 
 namespace stemd::tools {
 
-std::optional<config::ConfigError> build_config(const ConfigArgs& args, config::Config& out)
-{
-    if (!args.file.empty())
-        if (auto error = out.load_file(args.file))
-            return error;
-    for (const std::string& set : args.sets)
-        if (auto error = out.set_override(set))
-            return error;
-    return std::nullopt;
-}
-
 bool parse_number(const std::string& text, double& out)
 {
     const char* end = text.data() + text.size();
