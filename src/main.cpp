@@ -1,7 +1,10 @@
 // stemd: the program the robot runs. Capture -> stem pipeline -> actuator
-// (in this slice a sink that logs detections and can write them as CSV).
+// (field coordinates, one target per plant, deadline-checked TARGET
+// commands on the CAN bus or into a candump log; optional detections CSV
+// and plant map).
 //   stemd [--config FILE] [--set KEY=VALUE]... [--check-config]
 //         [--replay DIR] [--once] [--detections-csv FILE]
+//         [--can-log FILE] [--map FILE]
 // Exit: 0 on SIGTERM/SIGINT or, with --once, after the last frame; 1 when the
 // source or an output fails; 2 on bad arguments or configuration.
 #include <chrono>
@@ -15,6 +18,9 @@
 
 #include <spdlog/spdlog.h>
 
+#include "stemd/runtime/actuation_config.hpp"
+#include "stemd/runtime/actuation_factory.hpp"
+#include "stemd/runtime/camera_config.hpp"
 #include "stemd/runtime/command_line.hpp"
 #include "stemd/runtime/config.hpp"
 #include "stemd/runtime/daemon.hpp"
@@ -36,12 +42,15 @@ constexpr int kUsageError = 2;
 const char* const kUsage =
     "usage: stemd [--config FILE] [--set KEY=VALUE]... [--check-config]\n"
     "             [--replay DIR] [--once] [--detections-csv FILE]\n"
+    "             [--can-log FILE] [--map FILE]\n"
     "  --config          configuration file (see config/stemd.yaml)\n"
     "  --set             override one configuration key, e.g. --set ring.capacity=8\n"
     "  --check-config    validate the configuration and exit (0 ok, 2 error)\n"
     "  --replay          replay a recording directory (overrides source.*)\n"
     "  --once            play the recording once; exit 0 after its last frame\n"
-    "  --detections-csv  write the stemd-detect CSV with a leading t_ns column\n";
+    "  --detections-csv  write the stemd-detect CSV with a leading t_ns column\n"
+    "  --can-log         write the CAN frames to FILE (candump -L format) instead of a bus\n"
+    "  --map             write the plant map (JSON lines) to FILE\n";
 
 struct Args {
     config::ConfigArgs config;
@@ -49,6 +58,8 @@ struct Args {
     std::string replay_dir;
     bool once = false;
     std::string detections_csv;
+    std::string can_log;
+    std::string map;
 };
 
 std::optional<Args> parse_args(int argc, char** argv, std::string& error)
@@ -77,6 +88,10 @@ std::optional<Args> parse_args(int argc, char** argv, std::string& error)
             args.once = true;
         } else if (a == "--detections-csv") {
             if (!value(args.detections_csv)) return std::nullopt;
+        } else if (a == "--can-log") {
+            if (!value(args.can_log)) return std::nullopt;
+        } else if (a == "--map") {
+            if (!value(args.map)) return std::nullopt;
         } else {
             error = "unknown argument " + a;
             return std::nullopt;
@@ -115,6 +130,21 @@ int main(int argc, char** argv)
     }
     if (args->once)
         daemon_config.replay_loop = false;
+    // Recordings may carry class maps (the scheduler's policy reads them).
+    daemon_config.class_maps = daemon_config.source_kind == "replay";
+    runtime::ActuationConfig actuation_config = runtime::actuation_config(config);
+    if (!args->can_log.empty()) {
+        actuation_config.can_interface.clear();
+        actuation_config.can_log_file = args->can_log;
+    }
+    if (!args->map.empty())
+        actuation_config.map_file = args->map;
+    std::string camera_error;
+    const auto camera = runtime::camera_model(config, daemon_config.frame_size, camera_error);
+    if (!camera) {
+        std::cerr << "stemd: " << camera_error << "\n";
+        return kUsageError;
+    }
     if (const auto problem =
             runtime::check_source_config(daemon_config, config, !args->replay_dir.empty(), args->check_config)) {
         std::cerr << "stemd: " << *problem << "\n";
@@ -134,10 +164,18 @@ int main(int argc, char** argv)
     auto sink = std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator"));
     if (!args->detections_csv.empty() && !sink->open_csv(args->detections_csv))
         return 1;
+    std::string actuation_error;
+    std::unique_ptr<runtime::ActuationStage> actuation =
+        runtime::make_actuation(actuation_config, *camera, daemon_config.frame_size, actuation_error);
+    if (!actuation) {
+        log->error("actuation: {}", actuation_error);
+        return 1;
+    }
 
     std::unique_ptr<runtime::Daemon> daemon;
     try {
-        daemon = std::make_unique<runtime::Daemon>(daemon_config, std::move(source), std::move(sink));
+        daemon = std::make_unique<runtime::Daemon>(daemon_config, std::move(source), std::move(sink),
+                                                   std::move(actuation));
     } catch (const std::bad_alloc&) {
         log->error("cannot allocate the frame slots and workspace for {}x{} frames", daemon_config.frame_size.width,
                    daemon_config.frame_size.height);

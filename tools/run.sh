@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # The daemon's run command: installs what it needs, builds Release, generates
-# a synthetic field recording (once), and runs stemd on it once, with its
-# status lines on the terminal, then summarises the detections.
+# a synthetic moving field strip (once), and runs stemd on it the way the
+# robot would, with no camera and no CAN bus: replayed at its own pace (30 fps,
+# 5 km/h), TARGET commands written as a candump log, every plant in the map.
+# Then it shows the commands and scores them against the field's truth.
 #   tools/run.sh [OUT_DIR]        (default: out/run)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -13,17 +15,21 @@ cmake --build build/release -j "$(nproc)" --target stemd stemd-synth stemd-eval
 bin=build/release
 
 mkdir -p "$out"
-if [ ! -f "$out/recording/frames.csv" ]; then
-  echo "== generating 30 late-stage frames (1296x966, 10 fps, seed 1) in $out/recording"
-  "$bin/tools/stemd-synth" --out "$out/recording" --preset late --frames 30 --seed 1
+if [ ! -f "$out/strip/plants.csv" ]; then
+  echo "== generating a 3 m late-stage field strip (5 km/h, 30 fps, seed 1) in $out/strip"
+  "$bin/tools/stemd-synth" --strip --out "$out/strip" --preset late --seed 1 --length-mm 3000
 fi
-echo "== stemd --replay $out/recording --once (paced by the recording's t_ns; status every second)"
+echo "== stemd --replay $out/strip --once --can-log $out/can.log --map $out/map.jsonl"
 "$bin/src/runtime/stemd" --config config/stemd.yaml --set status.interval_s=1 \
-  --replay "$out/recording" --once --detections-csv "$out/detections.csv"
-echo "== summary"
-frames=$(($(wc -l <"$out/recording/frames.csv") - 1))
-rows=$(($(wc -l <"$out/detections.csv") - 1))
-echo "$frames frames replayed, $rows stems detected -> $out/detections.csv"
-# The detections file is stemd-detect's CSV with a leading t_ns column.
+  --replay "$out/strip" --once --detections-csv "$out/detections.csv" \
+  --can-log "$out/can.log" --map "$out/map.jsonl"
+echo "== the first TARGET commands (candump -L; id 0x301 = TARGET, 0x303 = HEARTBEAT; see config/stemd.dbc)"
+grep ' can0 301#' "$out/can.log" | head -5
+echo "   ... $(grep -c ' can0 301#' "$out/can.log") TARGET frames in $out/can.log"
+echo "== the plant map ($out/map.jsonl), first lines"
+head -3 "$out/map.jsonl"
+echo "== commands against the truth (policy: weeds only, from the class map)"
+"$bin/tools/stemd-eval" --targets "$out/strip/plants.csv" "$out/can.log" --config config/stemd.yaml --treat weeds
+echo "== per-frame stem detections against the truth"
 cut -d, -f2- "$out/detections.csv" >"$out/detections-no-t.csv"
-"$bin/tools/stemd-eval" "$out/recording/stems.csv" "$out/detections-no-t.csv"
+"$bin/tools/stemd-eval" "$out/strip/stems.csv" "$out/detections-no-t.csv"

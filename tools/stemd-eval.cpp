@@ -3,9 +3,13 @@
 //   stemd-eval --iou PRED_MASK_DIR RECORDING_DIR [--gt-vegetation nonzero|zero] [--json]
 //   stemd-eval --sweep GT.csv RECORDING_DIR [--config FILE] [--set KEY=VALUE]... [--radii 1,6,10,20]
 //              [--tol-mm MM] [--json]
+//   stemd-eval --targets PLANTS.csv CAN_LOG [--config FILE] [--set KEY=VALUE]... [--tol-mm MM]
+//              [--treat all|weeds] [--min-radius-mm MM] [--require-exact] [--json]
 // Adding a mode: a Mode value, its row in kModes, its checks in check_mode()
 // and a run_<mode>(const Args&) function that returns the exit code.
 #include <algorithm>
+#include <array>
+#include <limits>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -23,6 +27,8 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "stemd/eval/eval.hpp"
+#include "stemd/eval/targets.hpp"
+#include "stemd/runtime/actuation_config.hpp"
 #include "stemd/io/recording.hpp"
 #include "stemd/runtime/config.hpp"
 #include "stemd/runtime/vision_config.hpp"
@@ -66,10 +72,22 @@ const char* const kUsage =
     "config's camera.gsd_mm_per_px.\n"
     "  --config, --set  configuration as for stemd-detect\n"
     "  --radii          comma-separated radii in px (default 1,6,10,20)\n"
+    "Targets (--targets): scores the TARGET commands of a candump -L log (stemd --can-log)\n"
+    "against the field truth of a moving recording (stemd-synth --strip writes plants.csv:\n"
+    "id,s_mm,y_mm,kind). A command is for the plant whose fire position it matches:\n"
+    "fire_odom_mm = s_mm + the tool's offset_mm (modulo 2^18), lateral_mm = y_mm; matched\n"
+    "one-to-one, closest first, within --tol-mm. Prints commands per plant, misses,\n"
+    "duplicates, extra commands and the position error p50/p95/max.\n"
+    "  --config, --set  the configuration stemd ran with (tools, can.base_id)\n"
+    "  --treat          which plants should have a command: all (default) or weeds\n"
+    "  --min-radius-mm  leave out plants smaller than this (plants.csv radius_mm): below the\n"
+    "                   detector's working size, commands for them count neither way\n"
+    "  --require-exact  exit 1 unless every plant has exactly one command and there are no\n"
+    "                   extra commands\n"
     "All: --json prints one line of JSON instead of the text summary.\n"
-    "Exit status: 0 done, 2 bad arguments or unreadable/malformed input.\n";
+    "Exit status: 0 done, 1 --require-exact failed, 2 bad arguments or unreadable/malformed input.\n";
 
-enum class Mode { stems, iou, sweep };
+enum class Mode { stems, iou, sweep, targets };
 enum class Vegetation { nonzero, zero };
 
 struct Args {
@@ -82,6 +100,9 @@ struct Args {
     bool json = false;
     config::ConfigArgs config;
     std::vector<int> radii{1, 6, 10, 20};
+    bool treat_weeds_only = false;
+    bool require_exact = false;
+    double min_radius_mm = 0;
 };
 
 struct ModeSpec {
@@ -95,6 +116,8 @@ const ModeSpec kModes[] = {
     {Mode::stems, nullptr, "GT.csv PRED.csv", {"--tol-mm", "--gsd-mm-per-px", "--json"}},
     {Mode::iou, "--iou", "PRED_MASK_DIR RECORDING_DIR", {"--gt-vegetation", "--json"}},
     {Mode::sweep, "--sweep", "GT.csv RECORDING_DIR", {"--tol-mm", "--json", "--config", "--set", "--radii"}},
+    {Mode::targets, "--targets", "PLANTS.csv CAN_LOG",
+     {"--tol-mm", "--json", "--config", "--set", "--treat", "--min-radius-mm", "--require-exact"}},
 };
 
 const ModeSpec& spec(Mode mode)
@@ -144,7 +167,7 @@ std::optional<Args> parse_args(int argc, char** argv, std::string& error)
         args.options.insert(a);
         const char* value = nullptr;
         if (a == "--tol-mm" || a == "--gsd-mm-per-px" || a == "--gt-vegetation" || a == "--config" || a == "--set" ||
-            a == "--radii") {
+            a == "--radii" || a == "--treat" || a == "--min-radius-mm") {
             if (i + 1 >= argc) {
                 error = a + " needs a value";
                 return std::nullopt;
@@ -155,6 +178,22 @@ std::optional<Args> parse_args(int argc, char** argv, std::string& error)
             args.mode = Mode::iou;
         } else if (a == "--sweep") {
             args.mode = Mode::sweep;
+        } else if (a == "--targets") {
+            args.mode = Mode::targets;
+        } else if (a == "--min-radius-mm") {
+            if (!parse_positive(value, args.min_radius_mm)) {
+                error = a + ": '" + value + "' is not a number > 0";
+                return std::nullopt;
+            }
+        } else if (a == "--require-exact") {
+            args.require_exact = true;
+        } else if (a == "--treat") {
+            const std::string v = value;
+            if (v != "all" && v != "weeds") {
+                error = "--treat: '" + v + "' is neither all nor weeds";
+                return std::nullopt;
+            }
+            args.treat_weeds_only = v == "weeds";
         } else if (a == "--config") {
             args.config.file = value;
         } else if (a == "--set") {
@@ -451,6 +490,77 @@ int run_sweep(const Args& args)
     return kOk;
 }
 
+// --- targets -----------------------------------------------------------------
+
+int run_targets(const Args& args)
+{
+    config::Config config;
+    if (const auto config_error = config::build_config(args.config, config))
+        return fail(config_error->to_string());
+    const runtime::ActuationConfig actuation = runtime::actuation_config(config);
+    std::array<double, 16> offsets;
+    offsets.fill(std::numeric_limits<double>::quiet_NaN());
+    for (const auto& tool : actuation.tools)
+        offsets[tool.id & 15U] = tool.offset_mm;
+    const auto ids = stemd::actuation::CanIds::make(actuation.can_base_id);
+    if (!ids)
+        return fail("can.base_id " + std::to_string(actuation.can_base_id) + " is too large");
+    std::string error;
+    auto plants = eval::read_truth_plants(args.positional[0], error);
+    if (!plants)
+        return fail(error);
+    // Plants too small for the detector take no part: neither their commands
+    // nor their absence count. A crop under --treat weeds does take part: a
+    // command for it is an extra (a crop must never be struck).
+    std::vector<eval::TruthPlant> too_small;
+    for (const auto& p : *plants)
+        if (p.radius_mm < args.min_radius_mm)
+            too_small.push_back(p);
+    std::erase_if(*plants, [&](const eval::TruthPlant& p) {
+        return (args.treat_weeds_only && p.kind != "weed") || p.radius_mm < args.min_radius_mm;
+    });
+    const auto log = eval::read_target_log(args.positional[1], *ids, error);
+    if (!log)
+        return fail(error);
+    std::vector<stemd::actuation::TargetCommand> commands;
+    for (const auto& c : log->targets) {
+        const std::array<stemd::actuation::TargetCommand, 1> one{c};
+        if (eval::score_targets(too_small, one, offsets, args.tol_mm).matched == 0)
+            commands.push_back(c);
+    }
+    const eval::TargetScore s = eval::score_targets(*plants, commands, offsets, args.tol_mm);
+    const double per_plant = s.plants > 0 ? static_cast<double>(s.matched + s.duplicates) / static_cast<double>(s.plants) : 0;
+    if (args.json) {
+        std::cout << "{\"plants\":" << s.plants << ",\"commands\":" << s.commands << ",\"matched\":" << s.matched
+                  << ",\"missed\":" << s.missed << ",\"duplicates\":" << s.duplicates << ",\"extra\":" << s.extra
+                  << ",\"bad_targets\":" << log->bad_targets << ",\"commands_per_plant\":" << number(per_plant)
+                  << ",\"error_p50_mm\":" << number(s.error_p50_mm) << ",\"error_p95_mm\":" << number(s.error_p95_mm)
+                  << ",\"error_max_mm\":" << number(s.error_max_mm) << ",\"along_p50_mm\":" << number(s.along_p50_mm)
+                  << ",\"lateral_p50_mm\":" << number(s.lateral_p50_mm) << ",\"tol_mm\":" << number(args.tol_mm)
+                  << ",\"exact\":" << (s.exact() ? "true" : "false") << "}\n";
+    } else {
+        std::cout << "plants to treat  " << s.plants << (args.treat_weeds_only ? " (weeds)" : "") << "\n"
+                  << "TARGET commands  " << s.commands << " counted of " << log->targets.size() << " in the log ("
+                  << log->targets.size() - s.commands << " for plants under --min-radius-mm, " << log->bad_targets
+                  << " undecodable, " << log->other_frames << " other frames)\n"
+                  << "matched          " << s.matched << " plants within " << number(args.tol_mm) << " mm\n"
+                  << "missed           " << s.missed << " plants without a command\n"
+                  << "duplicates       " << s.duplicates << " second commands for a plant\n"
+                  << "extra            " << s.extra << " commands near no plant"
+                  << (s.unknown_tool ? " (" + std::to_string(s.unknown_tool) + " for unknown tools)" : "") << "\n"
+                  << "commands/plant   " << fixed(per_plant, 3) << "\n"
+                  << "position error   p50 " << fixed(s.error_p50_mm, 2) << " p95 " << fixed(s.error_p95_mm, 2)
+                  << " max " << fixed(s.error_max_mm, 2) << " mm (along p50 " << fixed(s.along_p50_mm, 2)
+                  << ", lateral p50 " << fixed(s.lateral_p50_mm, 2) << ")\n";
+    }
+    if (args.require_exact && !s.exact()) {
+        std::cerr << "stemd-eval: not exactly one command per plant (missed " << s.missed << ", duplicates "
+                  << s.duplicates << ", extra " << s.extra << ")\n";
+        return 1;
+    }
+    return kOk;
+}
+
 int run(const Args& args)
 {
     switch (args.mode) {
@@ -460,6 +570,8 @@ int run(const Args& args)
         return run_iou(args);
     case Mode::sweep:
         return run_sweep(args);
+    case Mode::targets:
+        return run_targets(args);
     }
     return fail("internal error: unknown mode");
 }

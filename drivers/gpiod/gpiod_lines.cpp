@@ -73,6 +73,7 @@ GpiodLines::GpiodLines(GpiodOptions options, std::shared_ptr<spdlog::logger> log
     : options_(std::move(options)),
       log_(std::move(log)),
       name_("gpiod:" + options_.chip),
+      backoff_(options_.reopen_min_ns, options_.reopen_max_ns),
       debouncer_(options_.enable_debounce_ns)
 {
 }
@@ -191,10 +192,10 @@ bool GpiodLines::open()
         if (ok) {
             set_state(GpiodState::up);
             was_up_ = true;
-            backoff_ns_ = 0;
+            backoff_.on_success();
         } else {
-            backoff_ns_ = options_.reopen_min_ns;
-            next_open_ns_ = gpio_monotonic_ns() + backoff_ns_;
+            backoff_.reset();  // an explicit open(): the schedule starts at reopen_min
+            backoff_.on_failure(gpio_monotonic_ns());
             set_state(GpiodState::down);
         }
     }
@@ -217,8 +218,7 @@ void GpiodLines::go_down(const char* what, int line, int err)
     fail(what, line, err);
     log_->warn("{}: lines lost, enable forced off; reopening with backoff ({} ms .. {} ms)", name_,
                options_.reopen_min_ns / 1'000'000, options_.reopen_max_ns / 1'000'000);
-    backoff_ns_ = options_.reopen_min_ns;
-    next_open_ns_ = gpio_monotonic_ns() + backoff_ns_;
+    backoff_.on_failure(gpio_monotonic_ns());  // it was up: the delay is back at reopen_min
     set_state(GpiodState::down);
 }
 
@@ -372,18 +372,17 @@ void GpiodLines::run()
 {
     for (;;) {
         std::int64_t now = gpio_monotonic_ns();
-        if (state() != GpiodState::up && now >= next_open_ns_) {
+        if (state() != GpiodState::up && backoff_.due(now)) {
             bool ok = false;
             {
                 const std::lock_guard lock(io_mutex_);
                 ok = try_open();
                 if (ok) {
                     set_state(GpiodState::up);
-                    backoff_ns_ = 0;
+                    backoff_.on_success();
                     next_health_ns_ = 0;
                 } else {
-                    backoff_ns_ = std::min(std::max(backoff_ns_ * 2, options_.reopen_min_ns), options_.reopen_max_ns);
-                    next_open_ns_ = now + backoff_ns_;
+                    backoff_.on_failure(now);
                     set_state(GpiodState::down);
                 }
             }
@@ -423,7 +422,7 @@ void GpiodLines::run()
             if (debounce >= 0)
                 deadline = std::min(deadline, debounce);
         } else {
-            deadline = next_open_ns_;
+            deadline = std::max<std::int64_t>(backoff_.next_attempt_ns(), 0);
         }
         timespec ts{};
         const timespec* timeout = nullptr;

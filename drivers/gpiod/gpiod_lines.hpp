@@ -17,6 +17,7 @@
 //   closed --open ok--> up --(poll error, read error, health read fails)--> down
 //     |                 ^                                            |
 //     +--open fails--> down --reopen (backoff reopen_min..max, doubling)--+
+//   (the schedule is a ReopenBackoff, include/stemd/drivers/reopen_backoff.hpp)
 //
 // While not `up`, enabled() is false (fail-safe) and set_trigger() fails.
 // Errors are logged once per distinct message, naming chip, line and errno.
@@ -34,6 +35,7 @@
 #include <spdlog/logger.h>
 
 #include "stemd/drivers/gpio_lines.hpp"
+#include "stemd/drivers/reopen_backoff.hpp"
 
 struct gpiod_chip;
 struct gpiod_line;
@@ -107,8 +109,7 @@ private:
     std::mutex io_mutex_;  // chip_ lifetime and the trigger line (not the enable path)
     std::unique_ptr<Chip> chip_;
     std::atomic<GpiodState> state_{GpiodState::closed};
-    std::int64_t backoff_ns_ = 0;
-    std::int64_t next_open_ns_ = 0;
+    ReopenBackoff backoff_;  // when the next open is due (reopen_min..reopen_max); io_mutex_ held
     std::int64_t next_health_ns_ = 0;
     bool was_up_ = false;
 

@@ -1,5 +1,6 @@
 #include "libcamera/libcamera_source.hpp"
 
+#include <dirent.h>
 #include <poll.h>
 #include <sys/eventfd.h>
 #include <sys/mman.h>
@@ -12,7 +13,9 @@
 #include <array>
 #include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
+#include <string_view>
 #include <utility>
 
 #include <opencv2/imgproc.hpp>
@@ -30,16 +33,6 @@ std::int64_t monotonic_now_ns()
     return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
-const char* state_name(LibcameraSource::State s)
-{
-    switch (s) {
-    case LibcameraSource::State::closed: return "closed";
-    case LibcameraSource::State::opened: return "opened";
-    case LibcameraSource::State::streaming: return "streaming";
-    case LibcameraSource::State::failed: return "failed";
-    }
-    return "?";
-}
 
 // libcamera returns -errno.
 std::string errno_text(int r)
@@ -63,7 +56,74 @@ std::string list_ids(const std::vector<std::string>& ids)
     return out;
 }
 
+void sleep_for_ns(std::int64_t ns)
+{
+    if (ns <= 0)
+        return;
+    timespec ts{static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
+    while (clock_nanosleep(CLOCK_MONOTONIC, 0, &ts, &ts) == EINTR) {
+    }
+}
+
+// True if a V4L2 or media-controller node this process has open (libcamera's
+// own fds) was unregistered: the kernel then reports POLLHUP on it (v4l2_poll,
+// media_poll), which a live node never does. libcamera 0.0.3 cannot stop a
+// camera whose nodes are gone (stopping fails, requests stay queued and
+// PipelineHandler::stop() aborts on an assertion), so the caller skips
+// Camera::stop() and release() then.
+constexpr std::int64_t kDrainNs = 1'000'000'000;
+
+bool media_nodes_unregistered()
+{
+    DIR* dir = ::opendir("/proc/self/fd");
+    if (dir == nullptr)
+        return false;
+    bool gone = false;
+    while (const dirent* e = ::readdir(dir)) {
+        if (e->d_name[0] == '.')
+            continue;
+        char target[256];
+        const std::string link = std::string("/proc/self/fd/") + e->d_name;
+        const ssize_t n = ::readlink(link.c_str(), target, sizeof target - 1);
+        if (n <= 0)
+            continue;
+        const std::string_view t(target, static_cast<std::size_t>(n));
+        if (!t.starts_with("/dev/video") && !t.starts_with("/dev/media") && !t.starts_with("/dev/v4l-subdev"))
+            continue;
+        pollfd pfd{std::atoi(e->d_name), POLLIN, 0};
+        if (::poll(&pfd, 1, 0) > 0 && (pfd.revents & POLLHUP) != 0) {
+            gone = true;
+            break;
+        }
+    }
+    ::closedir(dir);
+    return gone;
+}
+
 }  // namespace
+
+std::string_view to_string(LibcameraSource::State s)
+{
+    switch (s) {
+    case LibcameraSource::State::closed: return "closed";
+    case LibcameraSource::State::opened: return "opened";
+    case LibcameraSource::State::streaming: return "streaming";
+    case LibcameraSource::State::failed: return "failed";
+    case LibcameraSource::State::backoff: return "backoff";
+    }
+    return "?";
+}
+
+std::string_view to_string(StreamLoss loss)
+{
+    switch (loss) {
+    case StreamLoss::none: return "none";
+    case StreamLoss::no_first_frame: return "no first frame after the start";
+    case StreamLoss::stalled: return "no frame any more";
+    case StreamLoss::failed_requests: return "requests keep completing with errors";
+    }
+    return "?";
+}
 
 PlaneStatus copy_plane_to_bgr(const std::uint8_t* data, std::size_t bytesused, std::size_t stride, cv::Size size,
                               LibcameraByteOrder order, cv::Mat& bgr)
@@ -171,9 +231,16 @@ struct LibcameraSource::Impl {
     // locks, no allocation, no logging here.
     void completed(libcamera::Request* request)
     {
+        in_camera.fetch_sub(1, std::memory_order_acq_rel);
         if (!ring->try_push(request->cookie()))
             ring_full.fetch_add(1, std::memory_order_relaxed);
         wake();
+    }
+    // The manager's thread: some camera went away (needs udev hotplug).
+    void removed(std::shared_ptr<libcamera::Camera> gone)
+    {
+        if (gone.get() == watched.load(std::memory_order_acquire))
+            unplugged();
     }
     void unplugged()
     {
@@ -196,7 +263,8 @@ struct LibcameraSource::Impl {
     std::shared_ptr<libcamera::Camera> camera;
     bool acquired = false;
     bool started = false;
-    bool connected = false;  // our slots are connected to the camera's signals
+    bool connected = false;  // our slots are connected to the camera's and manager's signals
+    std::atomic<const libcamera::Camera*> watched{nullptr};  // for cameraRemoved
     std::unique_ptr<libcamera::CameraConfiguration> config;
     libcamera::Stream* stream = nullptr;
     std::size_t stride = 0;
@@ -207,12 +275,17 @@ struct LibcameraSource::Impl {
     int event_fd = -1;
     std::atomic<bool> disconnected{false};
     std::atomic<std::uint64_t> ring_full{0};
+    std::atomic<int> in_camera{0};  // requests queued and not completed yet
 };
 
 // --- LibcameraSource -------------------------------------------------------------
 
 LibcameraSource::LibcameraSource(LibcameraOptions options, std::shared_ptr<spdlog::logger> log)
-    : options_(std::move(options)), log_(std::move(log)), name_("libcamera:" + options_.camera)
+    : options_(std::move(options)),
+      log_(std::move(log)),
+      name_("libcamera:" + options_.camera),
+      backoff_(options_.reopen_min, options_.reopen_max),
+      watchdog_(options_.first_frame_timeout.count(), options_.stall_timeout.count(), options_.max_failed_requests)
 {
 }
 
@@ -229,10 +302,10 @@ std::size_t LibcameraSource::buffer_count() const
 bool LibcameraSource::open()
 {
     if (state_ != State::closed) {
-        log_->error("{}: open() in state {}", name_, state_name(state_));
+        log_->error("{}: open() in state {}", name_, to_string(state_));
         return false;
     }
-    if (!open_camera()) {
+    if (!open_camera(options_.camera)) {
         close_camera();
         state_ = State::failed;
         return false;
@@ -244,15 +317,20 @@ bool LibcameraSource::open()
     return true;
 }
 
-bool LibcameraSource::open_camera()
+bool LibcameraSource::error(const std::string& what)
+{
+    errors_.fetch_add(1, std::memory_order_relaxed);
+    if (reopening_)
+        attempt_error_ = what;
+    else
+        log_->error("{}: {}", name_, what);
+    return false;
+}
+
+bool LibcameraSource::open_camera(const std::string& selector)
 {
     impl_ = std::make_unique<Impl>();
     Impl& m = *impl_;
-    const auto error = [this](const std::string& what) {
-        errors_.fetch_add(1, std::memory_order_relaxed);
-        log_->error("{}: {}", name_, what);
-        return false;
-    };
 
     {
         auto manager = std::make_unique<libcamera::CameraManager>();
@@ -266,7 +344,7 @@ bool LibcameraSource::open_camera()
     for (const auto& c : cameras)
         ids.push_back(c->id());
     std::string why;
-    const auto index = select_camera(ids, options_.camera, why);
+    const auto index = select_camera(ids, selector, why);
     if (!index)
         return error("source.libcamera_camera: " + why);
     m.camera = cameras[*index];
@@ -333,6 +411,8 @@ bool LibcameraSource::open_camera()
         return error("eventfd: " + errno_text(errno));
     m.camera->requestCompleted.connect(&m, &Impl::completed);
     m.camera->disconnected.connect(&m, &Impl::unplugged);
+    m.manager->cameraRemoved.connect(&m, &Impl::removed);
+    m.watched.store(m.camera.get(), std::memory_order_release);
     m.connected = true;
     return true;
 }
@@ -340,9 +420,19 @@ bool LibcameraSource::open_camera()
 bool LibcameraSource::start()
 {
     if (state_ != State::opened) {
-        log_->error("{}: start() in state {} (open() first)", name_, state_name(state_));
+        log_->error("{}: start() in state {} (open() first)", name_, to_string(state_));
         return false;
     }
+    if (!start_camera()) {
+        close_camera();
+        state_ = State::failed;
+        return false;
+    }
+    return true;
+}
+
+bool LibcameraSource::start_camera()
+{
     Impl& m = *impl_;
     libcamera::ControlList controls(libcamera::controls::controls);
     const bool set_rate =
@@ -354,26 +444,20 @@ bool LibcameraSource::start()
         controls.set(libcamera::controls::FrameDurationLimits, libcamera::Span<const std::int64_t, 2>(limits));
     }
     int r = m.camera->start(set_rate ? &controls : nullptr);
-    if (r < 0) {
-        errors_.fetch_add(1, std::memory_order_relaxed);
-        log_->error("{}: Camera::start: {}", name_, errno_text(r));
-        close_camera();
-        state_ = State::failed;
-        return false;
-    }
+    if (r < 0)
+        return error("Camera::start: " + errno_text(r));
     m.started = true;
-    if (!set_rate && options_.fps > 0)
+    if (!set_rate && options_.fps > 0 && !reopening_)
         log_->info("{}: the camera does not set a frame rate (no FrameDurationLimits); using its own", name_);
     for (auto& request : m.requests) {
+        m.in_camera.fetch_add(1, std::memory_order_acq_rel);
         if ((r = m.camera->queueRequest(request.get())) < 0) {
-            errors_.fetch_add(1, std::memory_order_relaxed);
-            log_->error("{}: Camera::queueRequest: {}", name_, errno_text(r));
-            close_camera();
-            state_ = State::failed;
-            return false;
+            m.in_camera.fetch_sub(1, std::memory_order_acq_rel);
+            return error("Camera::queueRequest: " + errno_text(r));
         }
     }
     state_ = State::streaming;
+    watchdog_.started(monotonic_now_ns());
     return true;
 }
 
@@ -382,12 +466,38 @@ void LibcameraSource::close_camera()
     if (!impl_)
         return;
     Impl& m = *impl_;
+    // A camera whose device nodes are gone (see media_nodes_unregistered())
+    // can be stopped only once every request is back: the kernel's queue
+    // release normally returns them all (as errors) soon after the unplug.
+    if (m.started && m.in_camera.load(std::memory_order_acquire) > 0 && media_nodes_unregistered()) {
+        const std::int64_t give_up = monotonic_now_ns() + kDrainNs;
+        while (m.in_camera.load(std::memory_order_acquire) > 0 && monotonic_now_ns() < give_up) {
+            pollfd pfd{m.event_fd, POLLIN, 0};
+            if (::poll(&pfd, 1, 10) > 0) {
+                std::uint64_t count = 0;
+                [[maybe_unused]] const ssize_t n = ::read(m.event_fd, &count, sizeof count);
+            }
+        }
+        if (const int stuck = m.in_camera.load(std::memory_order_acquire); stuck > 0) {
+            // libcamera 0.0.3 aborts in Camera::stop() (requests still
+            // queued) and terminates when a running camera is destroyed:
+            // neither is survivable. Leave the camera as it is for good.
+            log_->error("{}: the camera's device nodes are gone with {} requests stuck in the driver; libcamera "
+                        "0.0.3 cannot release it: the source stops (restart the process to recover)",
+                        name_, stuck);
+            [[maybe_unused]] Impl* leaked = impl_.release();
+            wedged_ = true;
+            return;
+        }
+    }
     if (m.started)
         m.camera->stop();  // completes (cancels) every queued request first
     m.started = false;
     if (m.connected) {
         m.camera->requestCompleted.disconnect(&m, &Impl::completed);
         m.camera->disconnected.disconnect(&m, &Impl::unplugged);
+        m.manager->cameraRemoved.disconnect(&m, &Impl::removed);
+        m.watched.store(nullptr, std::memory_order_release);
     }
     m.requests.clear();
     m.planes.clear();      // unmaps
@@ -406,16 +516,65 @@ void LibcameraSource::stop()
     state_ = State::closed;
 }
 
-NextStatus LibcameraSource::fail(const std::string& what)
+NextStatus LibcameraSource::lose(const std::string& why)
 {
     errors_.fetch_add(1, std::memory_order_relaxed);
-    log_->error("{}: {}; the source stops", name_, what);
-    state_ = State::failed;
-    return NextStatus::failed;
+    lost_.fetch_add(1, std::memory_order_relaxed);
+    close_camera();
+    if (wedged_) {
+        state_ = State::failed;
+        return NextStatus::failed;
+    }
+    const std::int64_t now = monotonic_now_ns();
+    backoff_.reset();
+    backoff_.on_failure(now);
+    log_->warn("{}: camera '{}' lost ({}); released, looking for it again in {} ms (backoff up to {} ms)", name_,
+               camera_id_, why, backoff_.wait_ns(now) / 1'000'000, backoff_.max_ns() / 1'000'000);
+    logged_attempt_error_.clear();
+    state_ = State::backoff;
+    return NextStatus::timeout;
+}
+
+NextStatus LibcameraSource::try_reopen(std::chrono::nanoseconds timeout)
+{
+    const std::int64_t now = monotonic_now_ns();
+    if (!backoff_.due(now)) {
+        sleep_for_ns(std::min<std::int64_t>(backoff_.wait_ns(now), timeout.count()));
+        if (!backoff_.due(monotonic_now_ns())) {
+            timeouts_.fetch_add(1, std::memory_order_relaxed);
+            return NextStatus::timeout;
+        }
+    }
+    reopening_ = true;
+    attempt_error_.clear();
+    const bool ok = open_camera(camera_id_.empty() ? options_.camera : camera_id_) && start_camera();
+    reopening_ = false;
+    if (!ok) {
+        close_camera();
+        backoff_.on_failure(monotonic_now_ns());
+        // Attempts fail the same way while the camera is away: log the reason when it changes.
+        if (attempt_error_ != logged_attempt_error_) {
+            log_->warn("{}: camera '{}' not back: {}; retrying with backoff", name_, camera_id_, attempt_error_);
+            logged_attempt_error_ = attempt_error_;
+        }
+        state_ = State::backoff;
+        timeouts_.fetch_add(1, std::memory_order_relaxed);
+        return NextStatus::timeout;
+    }
+    backoff_.on_success();
+    reopens_.fetch_add(1, std::memory_order_relaxed);
+    log_->info("{}: camera '{}' is back; streaming again (reopen {})", name_, camera_id_,
+               reopens_.load(std::memory_order_relaxed));
+    return NextStatus::timeout;
 }
 
 NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
 {
+    if (state_ == State::backoff) {
+        const NextStatus reopened = try_reopen(timeout);
+        if (state_ != State::streaming)
+            return reopened;
+    }
     if (state_ != State::streaming)
         return NextStatus::failed;
     Impl& m = *impl_;
@@ -423,8 +582,11 @@ NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
     std::uint64_t index = 0;
     while (!m.ring->try_pop(index)) {
         if (m.disconnected.load(std::memory_order_acquire))
-            return fail("the camera was disconnected");
-        const std::int64_t left = deadline - monotonic_now_ns();
+            return lose("the camera was disconnected");
+        const std::int64_t now = monotonic_now_ns();
+        if (const StreamLoss loss = watchdog_.check(now); loss != StreamLoss::none)
+            return lose(fmt::format("{} within {} ms", to_string(loss), watchdog_.limit_ns() / 1'000'000));
+        const std::int64_t left = deadline - now;
         if (left <= 0) {
             timeouts_.fetch_add(1, std::memory_order_relaxed);
             return NextStatus::timeout;
@@ -432,7 +594,7 @@ NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
         pollfd pfd{m.event_fd, POLLIN, 0};
         const int r = ::poll(&pfd, 1, static_cast<int>((left + 999'999) / 1'000'000));
         if (r < 0 && errno != EINTR)
-            return fail("poll on the completion eventfd: " + errno_text(errno));
+            return lose("poll on the completion eventfd: " + errno_text(errno));
         if (r > 0) {
             std::uint64_t count = 0;
             [[maybe_unused]] const ssize_t n = ::read(m.event_fd, &count, sizeof count);  // EAGAIN: already drained
@@ -440,7 +602,7 @@ NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
     }
     const std::int64_t dequeued_ns = monotonic_now_ns();
     if (index >= m.requests.size())
-        return fail(fmt::format("completed request has an unknown index {}", index));
+        return lose(fmt::format("completed request has an unknown index {}", index));
     libcamera::Request* request = m.requests[index].get();
     libcamera::FrameBuffer* buffer = request->findBuffer(m.stream);
 
@@ -451,11 +613,13 @@ NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
     if (request->status() != libcamera::Request::RequestComplete || meta == nullptr ||
         meta->status != libcamera::FrameMetadata::FrameSuccess) {
         corrupt_.fetch_add(1, std::memory_order_relaxed);
+        watchdog_.failed_request();
         log_->warn("{}: request {} {} (frame status {}); skipped", name_, index,
                    request->status() == libcamera::Request::RequestCancelled ? "cancelled" : "not complete",
                    meta ? static_cast<int>(meta->status) : -1);
         deliver = false;
     } else {
+        watchdog_.frame(dequeued_ns);  // the camera delivers, whether or not the slot fits
         const PlaneStatus copied =
             copy_plane_to_bgr(m.planes[index].bytes(), std::min(bytesused, m.planes[index].length()), m.stride,
                               options_.size, order_, into.bgr);
@@ -475,8 +639,13 @@ NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
     const std::uint64_t sequence = meta ? meta->sequence : 0;
 
     request->reuse(libcamera::Request::ReuseBuffers);
-    if (const int r = m.camera->queueRequest(request); r < 0)
-        return fail("Camera::queueRequest: " + errno_text(r));
+    m.in_camera.fetch_add(1, std::memory_order_acq_rel);
+    if (const int r = m.camera->queueRequest(request); r < 0) {
+        m.in_camera.fetch_sub(1, std::memory_order_acq_rel);
+        return lose("Camera::queueRequest: " + errno_text(r));
+    }
+    if (watchdog_.failed_in_row() > 0 && watchdog_.check(dequeued_ns) == StreamLoss::failed_requests)
+        return lose(fmt::format("{} requests in a row completed with an error", watchdog_.failed_in_row()));
     if (!deliver)
         return NextStatus::skipped;
 
@@ -505,7 +674,9 @@ LibcameraCounters LibcameraSource::libcamera_counters() const
             .errors = errors_.load(std::memory_order_relaxed),
             .corrupt = corrupt_.load(std::memory_order_relaxed),
             .bad_size = bad_size_.load(std::memory_order_relaxed),
-            .unstamped = unstamped_.load(std::memory_order_relaxed)};
+            .unstamped = unstamped_.load(std::memory_order_relaxed),
+            .lost = lost_.load(std::memory_order_relaxed),
+            .reopens = reopens_.load(std::memory_order_relaxed)};
 }
 
 }  // namespace stemd::drivers

@@ -8,11 +8,13 @@
 #include <cerrno>
 #include <charconv>
 #include <cstring>
+#include <limits>
 #include <system_error>
 
 #include <opencv2/imgcodecs.hpp>
 
 #include "stemd/io/csv.hpp"
+#include "stemd/io/recording.hpp"
 
 namespace stemd::drivers {
 
@@ -96,6 +98,8 @@ bool ReplaySource::read_frames_csv()
     const int rgb_col = table->column("rgb");
     const int nir_col = table->column("nir");
     const int mask_col = table->column("mask");
+    const int odom_col = table->column(io::kFramesCsvOdomColumn);
+    const int class_col = table->column(io::kFramesCsvClassColumn);
     if (t_col < 0 || (rgb_col < 0 && mask_col < 0)) {
         log_->error("{}:1: header needs t_ns and rgb (or mask) columns", csv_path.string());
         return false;
@@ -117,6 +121,15 @@ bool ReplaySource::read_frames_csv()
         entry.rgb = resolve(row.fields, rgb_col);
         entry.nir = resolve(row.fields, nir_col);
         entry.mask = resolve(row.fields, mask_col);
+        entry.plant_class = resolve(row.fields, class_col);
+        entry.odom_mm = std::numeric_limits<double>::quiet_NaN();
+        if (odom_col >= 0) {
+            const std::string& odom = row.fields[static_cast<std::size_t>(odom_col)];
+            if (!odom.empty() && !io::parse_odom_mm(odom, entry.odom_mm)) {
+                log_->error("{}:{}: odom_mm '{}' is not a finite number", csv_path.string(), row.line, odom);
+                return false;
+            }
+        }
         if (entry.rgb.empty() && entry.mask.empty()) {
             log_->error("{}:{}: a frame needs an rgb or a mask path", csv_path.string(), row.line);
             return false;
@@ -157,7 +170,8 @@ bool ReplaySource::preload_all()
         };
         entry.preload_failed = !(load(entry.rgb, kColorFlags, entry.bgr_data) &&
                                  load(entry.nir, kGreyFlags, entry.nir_data) &&
-                                 load(entry.mask, kGreyFlags, entry.mask_data));
+                                 load(entry.mask, kGreyFlags, entry.mask_data) &&
+                                 load(entry.plant_class, kGreyFlags, entry.class_data));
     }
     return true;
 }
@@ -216,6 +230,7 @@ NextStatus ReplaySource::next(Frame& into, std::chrono::nanoseconds timeout)
     ++index_;
     if (!fill(entry, into))
         return NextStatus::skipped;
+    into.odom_mm = entry.odom_mm;
     into.t_capture_ns = monotonic_ns();
     into.t_recorded_ns = entry.t_ns;
     into.source_seq = delivered_.fetch_add(1, std::memory_order_relaxed);
@@ -234,10 +249,22 @@ bool ReplaySource::fill(const Entry& entry, Frame& into)
     const Plane planes[] = {{entry.rgb, entry.bgr_data, kColorFlags, into.bgr},
                             {entry.nir, entry.nir_data, kGreyFlags, into.nir},
                             {entry.mask, entry.mask_data, kGreyFlags, into.mask}};
+    into.has_class_map = false;
     if (options_.preload && entry.preload_failed) {
         corrupt_.fetch_add(1, std::memory_order_relaxed);
         return false;
     }
+    auto fill_plane = [&](const Plane& p) {
+        if (!options_.preload)
+            return decode_into(p.path, p.flags, p.plane);
+        if (copy_into(p.preloaded, p.plane))
+            return true;
+        log_->warn("{}: {} is {}x{} type {}, the slots are {}x{} type {}; skipped", name_, p.path.string(),
+                   p.preloaded.cols, p.preloaded.rows, p.preloaded.type(), p.plane.cols, p.plane.rows,
+                   p.plane.type());
+        bad_size_.fetch_add(1, std::memory_order_relaxed);
+        return false;
+    };
     for (const Plane& p : planes) {
         if (p.plane.empty())
             continue;  // the pipeline does not use this plane
@@ -246,17 +273,15 @@ bool ReplaySource::fill(const Entry& entry, Frame& into)
             corrupt_.fetch_add(1, std::memory_order_relaxed);
             return false;
         }
-        if (options_.preload) {
-            if (!copy_into(p.preloaded, p.plane)) {
-                log_->warn("{}: {} is {}x{} type {}, the slots are {}x{} type {}; skipped", name_, p.path.string(),
-                           p.preloaded.cols, p.preloaded.rows, p.preloaded.type(), p.plane.cols, p.plane.rows,
-                           p.plane.type());
-                bad_size_.fetch_add(1, std::memory_order_relaxed);
-                return false;
-            }
-        } else if (!decode_into(p.path, p.flags, p.plane)) {
+        if (!fill_plane(p))
             return false;
-        }
+    }
+    // The class map is optional: filled when both the slot and the frame
+    // have one, and then checked like the other planes.
+    if (!into.plant_class.empty() && !entry.plant_class.empty()) {
+        if (!fill_plane({entry.plant_class, entry.class_data, kGreyFlags, into.plant_class}))
+            return false;
+        into.has_class_map = true;
     }
     return true;
 }

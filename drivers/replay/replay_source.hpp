@@ -1,6 +1,11 @@
 // Replay: a recording directory (frames.csv, see include/stemd/io/recording.hpp)
 // as a frame source, paced by its t_ns or as fast as the pipeline takes
-// frames, once or looping.
+// frames, once or looping. The optional odom_mm column sets Frame::odom_mm
+// (NaN when a frame has none); the optional class column (a per-pixel class
+// PNG) fills Frame::plant_class when the slot has that plane, like the
+// other planes (a corrupt or wrong-size one skips the frame), and sets
+// has_class_map (false when the slot has no such plane or the frame no
+// class PNG).
 //
 // State machine: closed -> opened (frames.csv read) -> streaming -> ended
 // (once, after the last frame) | failed. One thread drives it.
@@ -57,8 +62,9 @@ private:
     struct Entry {
         std::int64_t t_ns = 0;
         std::string name;                         // as written in frames.csv
-        std::filesystem::path rgb, nir, mask;     // resolved; empty when not recorded
-        cv::Mat bgr_data, nir_data, mask_data;    // preload only
+        std::filesystem::path rgb, nir, mask, plant_class;   // resolved; empty when not recorded
+        double odom_mm = 0;                       // NaN when not recorded
+        cv::Mat bgr_data, nir_data, mask_data, class_data;   // preload only
         bool preload_failed = false;              // preload only: corrupt, skipped every pass
     };
 

@@ -84,7 +84,10 @@ void SocketCanBus::Fd::reset(int fd)
 }
 
 SocketCanBus::SocketCanBus(SocketCanOptions options, std::shared_ptr<spdlog::logger> log)
-    : options_(std::move(options)), log_(std::move(log)), name_("socketcan:" + options_.interface)
+    : options_(std::move(options)),
+      log_(std::move(log)),
+      name_("socketcan:" + options_.interface),
+      backoff_(options_.reopen_min_ns, options_.reopen_max_ns)
 {
 }
 
@@ -157,7 +160,7 @@ bool SocketCanBus::open()
 {
     if (fd_.valid())
         return true;
-    next_open_ns_ = 0;
+    backoff_.retry_now();
     return ensure_open(can_monotonic_ns());
 }
 
@@ -165,7 +168,7 @@ bool SocketCanBus::ensure_open(std::int64_t now_ns)
 {
     if (fd_.valid())
         return true;
-    if (now_ns < next_open_ns_)
+    if (!backoff_.due(now_ns))
         return false;
     if (try_open()) {
         if (was_up_) {
@@ -177,13 +180,12 @@ bool SocketCanBus::ensure_open(std::int64_t now_ns)
                                                : fmt::format(", receiving {} identifiers", options_.rx_ids.size()));
         }
         was_up_ = true;
-        backoff_ns_ = 0;
+        backoff_.on_success();
         last_error_.clear();
         set_state(SocketCanState::up);
         return true;
     }
-    backoff_ns_ = backoff_ns_ == 0 ? options_.reopen_min_ns : std::min(backoff_ns_ * 2, options_.reopen_max_ns);
-    next_open_ns_ = now_ns + backoff_ns_;
+    backoff_.on_failure(now_ns);
     set_state(SocketCanState::down);
     return false;
 }
@@ -194,8 +196,7 @@ void SocketCanBus::go_down(const char* what, int err)
     fail(what, err);
     log_->warn("{}: interface down; reopening with backoff ({} ms .. {} ms)", name_, options_.reopen_min_ns / 1'000'000,
                options_.reopen_max_ns / 1'000'000);
-    backoff_ns_ = options_.reopen_min_ns;
-    next_open_ns_ = can_monotonic_ns() + backoff_ns_;
+    backoff_.on_failure(can_monotonic_ns());  // it was up: the delay is back at reopen_min
     set_state(SocketCanState::down);
 }
 
@@ -265,7 +266,7 @@ bool SocketCanBus::receive(actuation::CanFrame& out, std::int64_t timeout_ns)
         if (!ensure_open(now)) {
             if (now >= end)
                 return false;
-            sleep_for_ns(std::min(end, next_open_ns_) - now);
+            sleep_for_ns(std::min(end - now, backoff_.wait_ns(now)));
             continue;
         }
         const int ready = wait_fd(fd_.get(), POLLIN, end - now);

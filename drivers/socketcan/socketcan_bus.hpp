@@ -9,7 +9,8 @@
 //     |   ENETDOWN/ENODEV on write or read, or the socket reports an error
 //     |                  v
 //     +--- reopen ---- down  (the fd is closed; reopened with exponential backoff,
-//                             reopen_min..reopen_max, once the interface exists and is UP)
+//                             reopen_min..reopen_max (ReopenBackoff), once the
+//                             interface exists and is UP)
 //
 // - open() may fail (no CAN support, no such interface): the bus is then
 //   `down`, the error is logged naming the interface and errno, and send() /
@@ -34,6 +35,7 @@
 #include <spdlog/logger.h>
 
 #include "stemd/drivers/can_bus.hpp"
+#include "stemd/drivers/reopen_backoff.hpp"
 
 namespace stemd::drivers {
 
@@ -113,8 +115,7 @@ private:
     const std::string name_;
     Fd fd_;
     std::atomic<SocketCanState> state_{SocketCanState::closed};
-    std::int64_t backoff_ns_ = 0;
-    std::int64_t next_open_ns_ = 0;
+    ReopenBackoff backoff_;  // when the next open is due (reopen_min..reopen_max)
     bool was_up_ = false;  // for the "up again" log line
     std::string last_error_;
 

@@ -131,26 +131,6 @@ std::int64_t v4l2_capture_time_ns(const v4l2_buffer& buf, std::int64_t now_ns)
     return std::min(stamped, now_ns);
 }
 
-// --- ReopenBackoff ---------------------------------------------------------------
-
-ReopenBackoff::ReopenBackoff(std::chrono::nanoseconds initial, std::chrono::nanoseconds max)
-    : initial_(initial), max_(std::max(initial, max)), delay_(initial)
-{
-}
-
-void ReopenBackoff::failed(std::int64_t now_ns)
-{
-    next_attempt_ns_ = now_ns + delay_.count();
-    delay_ = std::min(delay_ * 2, max_);
-    ++failures_;
-}
-
-void ReopenBackoff::succeeded()
-{
-    delay_ = initial_;
-    failures_ = 0;
-}
-
 // --- V4l2Source ------------------------------------------------------------------
 
 V4l2Source::MappedBuffer::MappedBuffer(MappedBuffer&& other) noexcept
@@ -376,7 +356,7 @@ NextStatus V4l2Source::fail_and_backoff(const char* what, int err)
     log_errno(what, err);
     close_device();
     state_ = State::failed;
-    backoff_.failed(now_ns());
+    backoff_.on_failure(now_ns());
     log_->warn("{}: reopening in {} ms", name_, (backoff_.next_attempt_ns() - now_ns()) / 1'000'000);
     state_ = State::backoff;
     return NextStatus::timeout;
@@ -387,7 +367,7 @@ NextStatus V4l2Source::next(Frame& into, std::chrono::nanoseconds timeout)
     if (state_ == State::backoff) {
         const std::int64_t now = now_ns();
         if (!backoff_.due(now)) {
-            const std::int64_t wait = std::min<std::int64_t>(backoff_.next_attempt_ns() - now, timeout.count());
+            const std::int64_t wait = std::min<std::int64_t>(backoff_.wait_ns(now), timeout.count());
             sleep_for_ns(wait);
             if (!backoff_.due(now_ns())) {
                 timeouts_.fetch_add(1, std::memory_order_relaxed);
@@ -397,13 +377,13 @@ NextStatus V4l2Source::next(Frame& into, std::chrono::nanoseconds timeout)
         if (!open_device() || !start_streaming()) {
             close_device();
             state_ = State::failed;
-            backoff_.failed(now_ns());
+            backoff_.on_failure(now_ns());
             log_->warn("{}: reopen failed; next attempt in {} ms", name_,
                        (backoff_.next_attempt_ns() - now_ns()) / 1'000'000);
             state_ = State::backoff;
             return NextStatus::timeout;
         }
-        backoff_.succeeded();
+        backoff_.on_success();
         reopens_.fetch_add(1, std::memory_order_relaxed);
         log_->info("{}: reopened, streaming again", name_);
     }

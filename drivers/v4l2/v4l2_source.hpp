@@ -7,7 +7,8 @@
 //   and errno) -> backoff -> opening -> streaming | failed ...
 // In backoff, next() waits (at most its timeout) until the reopen is due and
 // returns `timeout`; reopen delays double from backoff_initial up to
-// backoff_max and start over after a successful reopen. The first open()
+// backoff_max and start over after a successful reopen (ReopenBackoff,
+// include/stemd/drivers/reopen_backoff.hpp). The first open()
 // does not retry: a device that cannot be opened or configured at start is a
 // configuration error, reported once and returned as false.
 //
@@ -15,8 +16,8 @@
 //   yuyv  -> cv::cvtColor(COLOR_YUV2BGR_YUYV) straight into the slot;
 //   bgr24 -> copied into the slot;
 //   grey  -> expanded into the slot with B = G = R (a monochrome camera; ExG
-//            sees no vegetation in it). Using a GREY camera as the NIR plane
-//            of an RGB+NIR pair needs pairing by timestamp (not written yet).
+//            sees no vegetation in it). A GREY camera as the NIR plane of
+//            an RGB+NIR pair: PairedNirSource (v4l2/paired_nir_source.hpp).
 // Conversions write into the slot's own buffer and never reallocate it.
 //
 // Times: t_capture_ns = t_recorded_ns = the buffer's timestamp when the
@@ -46,6 +47,7 @@
 #include <spdlog/logger.h>
 
 #include "stemd/drivers/frame_source.hpp"
+#include "stemd/drivers/reopen_backoff.hpp"
 
 struct v4l2_buffer;
 
@@ -73,28 +75,6 @@ ConvertStatus convert_to_bgr(const std::uint8_t* data, std::size_t bytesused, st
 // stamps with CLOCK_MONOTONIC (but never after `now_ns`: some drivers stamp
 // a nominal frame time that can lie just after the dequeue), else `now_ns`.
 std::int64_t v4l2_capture_time_ns(const v4l2_buffer& buf, std::int64_t now_ns);
-
-// Reopen delays: initial, doubled per failed attempt, capped. Times are
-// CLOCK_MONOTONIC ns passed in by the caller (tests inject their own).
-class ReopenBackoff {
-public:
-    ReopenBackoff(std::chrono::nanoseconds initial, std::chrono::nanoseconds max);
-    // An attempt (or the stream) failed at now_ns: the next attempt is due
-    // after the current delay, which then doubles (capped).
-    void failed(std::int64_t now_ns);
-    // A reopen worked: the delay starts over at `initial`.
-    void succeeded();
-    bool due(std::int64_t now_ns) const { return now_ns >= next_attempt_ns_; }
-    std::int64_t next_attempt_ns() const { return next_attempt_ns_; }
-    // The delay the next failed() will apply.
-    std::chrono::nanoseconds delay() const { return delay_; }
-    unsigned consecutive_failures() const { return failures_; }
-
-private:
-    std::chrono::nanoseconds initial_, max_, delay_;
-    std::int64_t next_attempt_ns_ = 0;
-    unsigned failures_ = 0;
-};
 
 struct V4l2Options {
     std::string device = "/dev/video0";

@@ -31,7 +31,8 @@ Tracker::Tracker(const TrackerParams& params)
       tracks_(std::make_unique<Track[]>(params_.capacity)),
       candidates_(std::make_unique<Candidate[]>(params_.capacity * params_.max_detections)),
       det_track_(std::make_unique<std::uint32_t[]>(params_.max_detections)),
-      out_(std::make_unique<Target[]>(params_.capacity))
+      out_(std::make_unique<Target[]>(params_.capacity)),
+      retired_(std::make_unique<RetiredTrack[]>(params_.capacity))
 {
 }
 
@@ -40,10 +41,15 @@ void Tracker::reset() noexcept
     for (std::size_t i = 0; i < params_.capacity; ++i)
         tracks_[i] = Track{};
     active_ = 0;
+    n_out_ = 0;
+    n_retired_ = 0;
 }
 
-void Tracker::add_sighting(Track& t, const TrackDetection& d) noexcept
+void Tracker::add_sighting(Track& t, const TrackDetection& d, std::uint64_t seq) noexcept
 {
+    if (t.sightings == 0)
+        t.first_seq = seq;
+    t.last_seq = seq;
     const double c = std::isfinite(d.confidence) ? static_cast<double>(d.confidence) : 0.0;
     const double w = std::max(c, kMinWeight);
     t.w_sum += w;
@@ -79,6 +85,8 @@ void Tracker::emit(Track& t, const TrackFrame& frame, bool by_exit) noexcept
     o.confidence = t.sightings > 0 ? static_cast<float>(t.conf_sum / t.sightings) : 0.0f;
     o.by_exit = by_exit;
     o.t_emit_ns = frame.t_capture_ns;
+    o.first_seq = t.first_seq;
+    t.target_id = o.target_id;
     t.emitted = true;
     ++counters_.confirmed;
     if (by_exit)
@@ -91,6 +99,20 @@ void Tracker::retire(std::size_t i) noexcept
     ++counters_.retired;
     if (!t.emitted)
         ++counters_.retired_unconfirmed;
+    // At most `capacity` tracks retire per update() or drain().
+    RetiredTrack& r = retired_[n_retired_++];
+    r.emitted = t.emitted;
+    r.target_id = t.target_id;
+    r.s_mm = t.s_mm;
+    r.y_mm = t.y_mm;
+    r.plant_class = t.weed_w > t.crop_w   ? PlantClass::Weed
+                    : t.crop_w > t.weed_w ? PlantClass::Crop
+                                          : PlantClass::Unknown;
+    r.sightings = t.sightings;
+    r.leaves = t.leaves;
+    r.confidence = t.sightings > 0 ? static_cast<float>(t.conf_sum / t.sightings) : 0.0f;
+    r.first_seq = t.first_seq;
+    r.last_seq = t.last_seq;
     t = Track{};
     --active_;
 }
@@ -99,6 +121,7 @@ std::span<const Target> Tracker::update(const TrackFrame& frame) noexcept
 {
     ++counters_.frames;
     n_out_ = 0;
+    n_retired_ = 0;
     const std::size_t cap = params_.capacity;
 
     std::size_t n_det = frame.detections.size();
@@ -158,7 +181,7 @@ std::span<const Target> Tracker::update(const TrackFrame& frame) noexcept
             continue;
         }
         if (det_track_[d] != kNone) {
-            add_sighting(tracks_[det_track_[d]], det);
+            add_sighting(tracks_[det_track_[d]], det, frame.seq);
             continue;
         }
         // 3. A new track.
@@ -171,7 +194,7 @@ std::span<const Target> Tracker::update(const TrackFrame& frame) noexcept
         Track& t = tracks_[free_hint];
         t = Track{};
         t.active = true;
-        add_sighting(t, det);
+        add_sighting(t, det, frame.seq);
         ++active_;
         ++counters_.tracks_created;
     }
@@ -199,6 +222,16 @@ std::span<const Target> Tracker::update(const TrackFrame& frame) noexcept
             retire(i);
     }
     return {out_.get(), n_out_};
+}
+
+std::span<const RetiredTrack> Tracker::drain() noexcept
+{
+    n_out_ = 0;
+    n_retired_ = 0;
+    for (std::size_t i = 0; i < params_.capacity; ++i)
+        if (tracks_[i].active)
+            retire(i);
+    return retired();
 }
 
 }  // namespace stemd::actuation

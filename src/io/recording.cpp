@@ -1,6 +1,8 @@
 #include "stemd/io/recording.hpp"
 
+#include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <system_error>
 
 #include <opencv2/core.hpp>
@@ -16,16 +18,41 @@ bool is_recording_dir(const std::filesystem::path& path)
     return std::filesystem::is_directory(path, ec) && std::filesystem::is_regular_file(path / "frames.csv", ec);
 }
 
+bool parse_odom_mm(std::string_view text, double& out)
+{
+    double value = 0;
+    const char* end = text.data() + text.size();
+    const auto [ptr, ec] = std::from_chars(text.data(), end, value);
+    if (text.empty() || ec != std::errc() || ptr != end || !std::isfinite(value))
+        return false;
+    out = value;
+    return true;
+}
+
 std::optional<Recording> read_recording(const std::filesystem::path& dir, std::string& error)
 {
     const auto csv_path = dir / "frames.csv";
     auto table = read_csv(csv_path, error);
     if (!table)
         return std::nullopt;
-    const std::vector<std::string> expected{"t_ns", "rgb", "nir", "mask"};
-    if (table->header != expected) {
-        error = csv_path.string() + ":1: header must be exactly '" + kFramesCsvHeader + "'";
+    const std::vector<std::string> fixed{"t_ns", "rgb", "nir", "mask"};
+    if (table->header.size() < fixed.size() || !std::equal(fixed.begin(), fixed.end(), table->header.begin())) {
+        error = csv_path.string() + ":1: header must start with '" + kFramesCsvHeader + "'";
         return std::nullopt;
+    }
+    int odom_col = -1, class_col = -1;
+    for (std::size_t i = fixed.size(); i < table->header.size(); ++i) {
+        const std::string& name = table->header[i];
+        int* col = name == kFramesCsvOdomColumn ? &odom_col : name == kFramesCsvClassColumn ? &class_col : nullptr;
+        if (col == nullptr) {
+            error = csv_path.string() + ":1: unknown column '" + name + "'";
+            return std::nullopt;
+        }
+        if (*col >= 0) {
+            error = csv_path.string() + ":1: column '" + name + "' appears twice";
+            return std::nullopt;
+        }
+        *col = static_cast<int>(i);
     }
     Recording rec;
     rec.dir = dir;
@@ -45,6 +72,18 @@ std::optional<Recording> read_recording(const std::filesystem::path& dir, std::s
             error = where + "a frame needs an rgb or a mask path";
             return std::nullopt;
         }
+        if (odom_col >= 0) {
+            const std::string& odom = row.fields[static_cast<std::size_t>(odom_col)];
+            double value = 0;
+            if (!odom.empty() && !parse_odom_mm(odom, value)) {
+                error = where + "odom_mm '" + odom + "' is not a finite number";
+                return std::nullopt;
+            }
+            if (!odom.empty())
+                frame.odom_mm = value;
+        }
+        if (class_col >= 0)
+            frame.plant_class = row.fields[static_cast<std::size_t>(class_col)];
         rec.frames.push_back(std::move(frame));
     }
     return rec;

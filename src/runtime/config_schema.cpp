@@ -51,6 +51,8 @@ constexpr std::array kSchema{
             "vegetation index: Excess Green (RGB), NDVI (RGB+NIR) or an external mask"},
     KeySpec{"segment.threshold", choice, "", 0, 0, "otsu", "otsu|triangle|min_error",
             "automatic threshold on the vegetation index"},
+    KeySpec{"segment.min_class_separation", real, "index", 0, 255, "12", "",
+            "automatic thresholds: if the two classes' mean 8-bit index differs by less (ExG: 1 = 4 of 2G-R-B), the frame has no vegetation; 0 disables"},
     KeySpec{"segment.mask_vegetation", choice, "", 0, 0, "nonzero", "nonzero|zero",
             "which pixel value of an external mask is vegetation"},
 
@@ -99,6 +101,10 @@ constexpr std::array kSchema{
             "v4l2: pixel format asked of the camera, converted to BGR (grey: B = G = R)"},
     KeySpec{"source.v4l2_buffers", integer, "count", 2, 32, "4", "",
             "v4l2: mmap buffers asked of the driver"},
+    KeySpec{"source.nir_device", text, "", 0, 0, "none", "",
+            "v4l2: a second, monochrome camera for NIR (segment.method ndvi), paired to each RGB frame by capture time; none: no NIR camera"},
+    KeySpec{"source.nir_tolerance_ms", real, "ms", 0.1, 100, "8", "",
+            "v4l2 with source.nir_device: largest capture-time difference of an RGB/NIR pair; unpaired frames are dropped and counted (keep it under half the frame period)"},
     KeySpec{"source.fps", real, "fps", 1, 240, "30", "",
             "v4l2: frame rate asked of the camera (VIDIOC_S_PARM); a camera that cannot set one keeps its own"},
     // --- libcamera source (drivers/libcamera) ---
@@ -133,6 +139,93 @@ constexpr std::array kSchema{
 
     KeySpec{"log.level", choice, "", 0, 0, "info", "trace|debug|info|warn|error",
             "log level of every logger (debug: one line per frame's detections)"},
+
+    // --- actuation: one target per plant, deadline scheduling, odometry, CAN, GPIO ---
+    KeySpec{"tracker.association_radius_mm", real, "mm", 0.5, 500, "10", "",
+            "detections of one plant in overlapping frames closer than this (in the field) are the same plant"},
+    KeySpec{"tracker.confirm_frames", integer, "count", 1, 100, "3", "",
+            "a plant seen in this many frames becomes a target (one command), fewer sightings only when it leaves the view"},
+    KeySpec{"tracker.exit_margin_mm", real, "mm", 0, 1000, "60", "",
+            "a plant this close to the view's trailing edge is sent now; at least the travel between two frames (46 mm at 5 km/h, 30 fps)"},
+    KeySpec{"tracker.max_missed_frames", integer, "count", 1, 100, "3", "",
+            "a plant in view but not detected in this many frames in a row is forgotten"},
+    KeySpec{"tracker.capacity", integer, "tracks", 1, 4096, "256", "",
+            "plants tracked at once; beyond this new detections are dropped (counted)"},
+
+    KeySpec{"scheduler.policy", choice, "", 0, 0, "auto", "auto|weeds_only|all",
+            "which plants are treated: weeds_only, all, or auto (weeds_only when the frames carry a class map, all without)"},
+    KeySpec{"scheduler.lead_ms", real, "ms", 0, 1000, "20", "",
+            "a command must reach the tool controller at least this long before the plant is under the tool"},
+    KeySpec{"scheduler.send_budget_ms", real, "ms", 0, 100, "2", "",
+            "worst-case time to put a command on the bus; plants arriving sooner than lead + budget are missed (counted)"},
+    KeySpec{"scheduler.standing_speed_mm_per_s", real, "mm/s", 0, 1000, "1", "",
+            "at or below this speed the machine is standing: commands have no deadline pressure"},
+
+    KeySpec{"odometry.source", choice, "", 0, 0, "auto", "auto|recording|constant|can|encoder",
+            "distance travelled from: the recording's odom_mm, a constant speed, CAN ODOMETRY frames, a wheel encoder; auto: recording if the frames carry it, else constant"},
+    KeySpec{"odometry.speed_mm_per_s", real, "mm/s", 0, 10000, "1388.9", "",
+            "constant: the machine's speed (1388.9 mm/s = 5 km/h)"},
+    KeySpec{"odometry.encoder_mm_per_tick", real, "mm", 0.0001, 1000, "0.1", "",
+            "encoder: ground travel per encoder count (wheel circumference / counts per turn)"},
+    KeySpec{"odometry.max_extrapolation_ms", real, "ms", 1, 10000, "100", "",
+            "the odometer is extrapolated at the last speed for at most this long after its last sample"},
+    KeySpec{"odometry.timeout_ms", real, "ms", 10, 60000, "500", "",
+            "can, encoder: no fresh sample for this long means no odometry (nothing is actuated)"},
+
+    KeySpec{"can.interface", text, "", 0, 0, "none", "",
+            "SocketCAN interface of the tool controllers (e.g. can0); none: no bus, commands are written to can.log_file"},
+    KeySpec{"can.base_id", integer, "id", 0, 2044, "768", "",
+            "first of the four 11-bit CAN ids (base .. base+3) of the stemd messages; 768 = 0x300"},
+    KeySpec{"can.log_file", text, "", 0, 0, "-", "",
+            "candump -L log of the commands when can.interface is none (and for --can-log FILE); -: standard output"},
+    KeySpec{"can.log_clock", choice, "", 0, 0, "realtime", "realtime|monotonic",
+            "timestamps of the log lines: wall clock (realtime, as candump) or CLOCK_MONOTONIC"},
+    KeySpec{"can.heartbeat_ms", real, "ms", 10, 10000, "100", "",
+            "period of the HEARTBEAT message the tool controllers watch"},
+
+    KeySpec{"gpio.chip", text, "", 0, 0, "none", "",
+            "GPIO chip of the lines below (e.g. gpiochip0 or /dev/gpiochip0); none: no GPIO, the enable input counts as active (warned)"},
+    KeySpec{"gpio.enable_line", integer, "line", -1, 1023, "-1", "",
+            "line offset of the enable input (operator switch: treat only while active); -1: none, always enabled"},
+    KeySpec{"gpio.enable_active", choice, "", 0, 0, "high", "high|low",
+            "level at which the enable input is active"},
+    KeySpec{"gpio.enable_debounce_ms", real, "ms", 0, 1000, "20", "",
+            "the enable input must hold a new level this long before it counts"},
+    KeySpec{"gpio.trigger_line", integer, "line", -1, 1023, "-1", "",
+            "line offset of the camera trigger output, pulsed once per frame; -1: none"},
+    KeySpec{"gpio.trigger_active", choice, "", 0, 0, "high", "high|low",
+            "level of the trigger pulse"},
+    KeySpec{"gpio.trigger_pulse_us", integer, "us", 1, 100000, "100", "",
+            "length of the trigger pulse"},
+    KeySpec{"gpio.encoder", choice, "", 0, 0, "none", "none|quadrature|single",
+            "wheel encoder on gpio.encoder_a_line/b_line: quadrature (A and B, direction-aware), single (A only, forward), none"},
+    KeySpec{"gpio.encoder_a_line", integer, "line", -1, 1023, "-1", "",
+            "line offset of the encoder's A channel; -1: none"},
+    KeySpec{"gpio.encoder_b_line", integer, "line", -1, 1023, "-1", "",
+            "line offset of the encoder's B channel (quadrature only); -1: none"},
+
+    KeySpec{"map.file", text, "", 0, 0, "none", "",
+            "plant map written as JSON lines, one per target; none: no map (--map FILE sets it)"},
+};
+
+// List sections and their item keys ("section[].key"), each list's keys
+// together, in the order config files list them.
+constexpr std::array kLists{
+    ListSpec{"tools", 16, "id", "y_min_mm", "y_max_mm",
+             "the tools behind the camera (stamps, sprayers, lasers), one item each; a file's list replaces the default one"},
+};
+
+constexpr std::array kItemSchema{
+    KeySpec{"tools[].id", integer, "id", 0, 15, "0", "",
+            "TARGET tool_id the tool controller answers to; unique in the list"},
+    KeySpec{"tools[].offset_mm", real, "mm", -5000, 5000, "600", "",
+            "forward distance behind the camera's principal point: a plant at s_mm is under the tool at odom_mm = s_mm + offset_mm"},
+    KeySpec{"tools[].y_min_mm", real, "mm", -2047, 2047, "-220", "",
+            "right edge of the tool's lateral span, machine y (left > 0)"},
+    KeySpec{"tools[].y_max_mm", real, "mm", -2047, 2047, "220", "",
+            "left edge of the tool's lateral span, machine y (left > 0); greater than y_min_mm"},
+    KeySpec{"tools[].lanes", integer, "count", 1, 16, "1", "",
+            "nozzles side by side across the span, each a lane of equal width; 1 for a stamp"},
 };
 
 }  // namespace
@@ -158,6 +251,56 @@ const KeySpec* find_key(std::string_view key)
 {
     for (const KeySpec& spec : kSchema)
         if (spec.key == key)
+            return &spec;
+    return nullptr;
+}
+
+std::span<const ListSpec> list_schema()
+{
+    return kLists;
+}
+
+const ListSpec* find_list(std::string_view section)
+{
+    for (const ListSpec& list : kLists)
+        if (list.section == section)
+            return &list;
+    return nullptr;
+}
+
+std::span<const KeySpec> list_item_schema()
+{
+    return kItemSchema;
+}
+
+std::string_view item_list_of(const KeySpec& spec)
+{
+    const std::size_t bracket = spec.key.find("[].");
+    return bracket == std::string_view::npos ? std::string_view{} : spec.key.substr(0, bracket);
+}
+
+std::string_view item_leaf_of(const KeySpec& spec)
+{
+    const std::size_t bracket = spec.key.find("[].");
+    return bracket == std::string_view::npos ? spec.key : spec.key.substr(bracket + 3);
+}
+
+std::span<const KeySpec> item_keys(std::string_view section)
+{
+    const std::span<const KeySpec> all = kItemSchema;
+    std::size_t first = 0;
+    while (first < all.size() && item_list_of(all[first]) != section)
+        ++first;
+    std::size_t last = first;
+    while (last < all.size() && item_list_of(all[last]) == section)
+        ++last;
+    return all.subspan(first, last - first);
+}
+
+const KeySpec* find_item_key(std::string_view section, std::string_view item_key)
+{
+    for (const KeySpec& spec : item_keys(section))
+        if (item_leaf_of(spec) == item_key)
             return &spec;
     return nullptr;
 }
@@ -208,7 +351,7 @@ std::string schema_markdown()
     std::string out =
         "| key | type | unit | default | range / choices | meaning |\n"
         "|---|---|---|---|---|---|\n";
-    for (const KeySpec& spec : kSchema) {
+    const auto row = [&out](const KeySpec& spec) {
         std::string range;
         if (spec.type == integer || spec.type == real)
             range = cat("[", format_number(spec.min), ", ", format_number(spec.max), "]");
@@ -229,7 +372,11 @@ std::string schema_markdown()
         out += " | ";
         out += spec.help;
         out += " |\n";
-    }
+    };
+    for (const KeySpec& spec : kSchema)
+        row(spec);
+    for (const KeySpec& spec : kItemSchema)
+        row(spec);
     return out;
 }
 

@@ -2,7 +2,9 @@
 
 #include <time.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <string>
 
 #include "stemd/runtime/logging.hpp"
@@ -37,6 +39,31 @@ private:
     int rounds_ = 0;
 };
 
+// The class of each plant with a stem: the majority of crop and weed pixels
+// of the class map in a 9x9 window around the stem (the stem itself may lie
+// on soil between leaves); unknown (0) when there are none.
+void classify_plants(const cv::Mat& class_map, const vision::Detections& detections,
+                     std::array<std::uint8_t, vision::kMaxPlants>& out)
+{
+    constexpr int kHalf = 4;
+    for (std::size_t i = 0; i < detections.plants.size(); ++i) {
+        const vision::Plant& p = detections.plants[i];
+        out[i] = 0;
+        if (!p.has_stem)
+            continue;
+        const int cx = static_cast<int>(std::lround(p.stem.x)), cy = static_cast<int>(std::lround(p.stem.y));
+        int crop = 0, weed = 0;
+        for (int y = std::max(cy - kHalf, 0); y <= std::min(cy + kHalf, class_map.rows - 1); ++y) {
+            const std::uint8_t* row = class_map.ptr<std::uint8_t>(y);
+            for (int x = std::max(cx - kHalf, 0); x <= std::min(cx + kHalf, class_map.cols - 1); ++x) {
+                crop += row[x] == 1;
+                weed += row[x] == 2;
+            }
+        }
+        out[i] = weed > crop ? 2 : crop > weed ? 1 : 0;
+    }
+}
+
 void bump(std::atomic<std::uint64_t>& counter, std::uint64_t by = 1)
 {
     // Each counter has one writer: a relaxed load-add-store is enough and
@@ -47,7 +74,7 @@ void bump(std::atomic<std::uint64_t>& counter, std::uint64_t by = 1)
 }  // namespace
 
 Daemon::Daemon(const DaemonConfig& config, std::unique_ptr<drivers::FrameSource> source,
-               std::unique_ptr<DetectionSink> sink)
+               std::unique_ptr<DetectionSink> sink, std::unique_ptr<ActuationStage> actuation)
     : config_(config),
       log_(make_logger("main")),
       capture_log_(make_logger("capture")),
@@ -55,7 +82,8 @@ Daemon::Daemon(const DaemonConfig& config, std::unique_ptr<drivers::FrameSource>
       source_(std::move(source)),
       sink_(std::move(sink)),
       counters_(std::make_unique<Counters>()),
-      pool_(config.frame_size, config.vision.segmentation, config.ring_capacity + 2),
+      actuation_(std::move(actuation)),
+      pool_(config.frame_size, config.vision.segmentation, config.ring_capacity + 2, config.class_maps),
       free_slots_(config.ring_capacity + 2),
       frames_(config.ring_capacity),
       results_(config.results_capacity),
@@ -238,9 +266,15 @@ void Daemon::processing_loop()
             result->t_result_ns = monotonic_ns();
             result->pipeline_ns = times.total_ns;
             result->name = frame->name;
+            result->odom_mm = frame->odom_mm;
+            result->has_class_map = frame->has_class_map && !frame->plant_class.empty();
+            if (result->has_class_map)
+                classify_plants(frame->plant_class, result->detections, result->plant_class);
             bump(counters_->processing.frames);
             counters_->processing.pipeline.record(times.total_ns);
             if (result->detections.status == vision::DetectStatus::ok) {
+                if (result->detections.stats.no_vegetation)
+                    bump(counters_->processing.no_vegetation);
                 bump(counters_->processing.plants_over_capacity,
                      static_cast<std::uint64_t>(result->detections.stats.plants_over_capacity));
                 results_.publish();
@@ -261,8 +295,17 @@ void Daemon::processing_loop()
 void Daemon::actuator_loop()
 {
     Idle idle;
+    std::int64_t next_poll_ns = 0;
     while (!stopping()) {
         beat(kActuator);
+        if (actuation_) {
+            // Received frames, encoder samples, the heartbeat: every ms is enough.
+            const std::int64_t now_ns = monotonic_ns();
+            if (now_ns >= next_poll_ns) {
+                actuation_->poll(now_ns);
+                next_poll_ns = now_ns + 1'000'000;
+            }
+        }
         FrameResult* result = results_.front();
         if (result == nullptr) {
             if (processing_done_.load(std::memory_order_acquire) && results_.front() == nullptr)
@@ -275,10 +318,14 @@ void Daemon::actuator_loop()
         counters_->actuator.latency.record(latency_ns);
         if (!sink_->consume(*result, latency_ns))
             bump(counters_->actuator.sink_errors);
+        if (actuation_)
+            actuation_->on_frame(*result, monotonic_ns());
         bump(counters_->actuator.stems, result->detections.plants.size() - static_cast<std::size_t>(result->detections.stats.stemless));
         bump(counters_->actuator.frames);
         results_.pop();
     }
+    if (actuation_ && !actuation_->finish())
+        sink_ok_.store(false);
     actuator_done_.store(true, std::memory_order_release);
 }
 
@@ -296,6 +343,18 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
     s.corrupt = source.corrupt;
     s.bad_size = source.bad_size;
     s.failed = counters_->processing.failed.load(std::memory_order_relaxed);
+    s.no_vegetation = counters_->processing.no_vegetation.load(std::memory_order_relaxed);
+    if (actuation_) {
+        const ActuationCounters& a = actuation_->counters();
+        const auto get = [](const std::atomic<std::uint64_t>& c) { return c.load(std::memory_order_relaxed); };
+        s.actuation = true;
+        s.targets = get(a.targets);
+        s.sent = get(a.sent);
+        s.deadline_misses = get(a.deadline_misses) + get(a.bus_deadline);
+        s.not_treated = get(a.policy) + get(a.no_tool) + get(a.disabled);
+        s.no_odometry = get(a.no_odometry);
+        s.bus_errors = get(a.bus_errors);
+    }
     s.latency = whole_run ? counters_->actuator.latency.total() : counters_->actuator.latency.take_interval();
     s.pipeline = whole_run ? counters_->processing.pipeline.total() : counters_->processing.pipeline.take_interval();
     return s;

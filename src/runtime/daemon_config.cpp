@@ -17,6 +17,10 @@ DaemonConfig daemon_config(const config::Config& config)
     d.v4l2_device = config.get_text("source.v4l2_device");
     d.v4l2_pixel_format = config.get_text("source.v4l2_pixel_format");
     d.v4l2_buffers = static_cast<unsigned>(config.get_int("source.v4l2_buffers"));
+    d.nir_device = config.get_text("source.nir_device");
+    if (d.nir_device == "none")
+        d.nir_device.clear();
+    d.nir_tolerance_ms = config.get_real("source.nir_tolerance_ms");
     d.libcamera_camera = config.get_text("source.libcamera_camera");
     d.fps = config.get_real("source.fps");
     d.frame_size = {static_cast<int>(config.get_int("source.width_px")),

@@ -4,7 +4,7 @@
 
 namespace stemd::runtime {
 
-FramePool::FramePool(cv::Size size, vision::Segmentation segmentation, std::size_t count)
+FramePool::FramePool(cv::Size size, vision::Segmentation segmentation, std::size_t count, bool class_maps)
     : count_(count), slots_(std::make_unique<drivers::Frame[]>(count))
 {
     using vision::Segmentation;
@@ -18,6 +18,8 @@ FramePool::FramePool(cv::Size size, vision::Segmentation segmentation, std::size
             f.nir = cv::Mat::zeros(size, CV_8UC1);
         if (segmentation == Segmentation::mask)
             f.mask = cv::Mat::zeros(size, CV_8UC1);
+        if (class_maps)
+            f.plant_class = cv::Mat::zeros(size, CV_8UC1);
     }
 }
 
@@ -25,7 +27,7 @@ std::size_t FramePool::bytes() const
 {
     std::size_t total = 0;
     for (std::size_t i = 0; i < count_; ++i)
-        for (const cv::Mat* m : {&slots_[i].bgr, &slots_[i].nir, &slots_[i].mask})
+        for (const cv::Mat* m : {&slots_[i].bgr, &slots_[i].nir, &slots_[i].mask, &slots_[i].plant_class})
             total += m->total() * m->elemSize();
     return total;
 }

@@ -1,8 +1,11 @@
 #include "stemd/runtime/source_factory.hpp"
 
+#include <chrono>
+#include <cmath>
 #include <utility>
 
 #include "replay/replay_source.hpp"
+#include "v4l2/paired_nir_source.hpp"
 #include "v4l2/v4l2_source.hpp"
 // --- libcamera source (built only with libcamera; STEMD_HAVE_LIBCAMERA from stemd_drivers)
 #if STEMD_HAVE_LIBCAMERA
@@ -28,6 +31,23 @@ std::optional<std::string> check_source_config(const DaemonConfig& d, const conf
         return config.origin_of("source.kind") +
                ": key 'source.kind': libcamera: this stemd was built without libcamera (install libcamera-dev and rebuild)";
     // --- end libcamera source
+    // NIR: a second V4L2 camera, or none (then NDVI needs a recording with nir).
+    const bool ndvi = d.vision.segmentation == vision::Segmentation::ndvi;
+    if (d.source_kind == "v4l2" && ndvi && d.nir_device.empty())
+        return config.origin_of("segment.method") +
+               ": key 'segment.method': ndvi with source.kind v4l2 needs a NIR camera (source.nir_device)";
+    if (d.source_kind == "v4l2" && !d.nir_device.empty()) {
+        if (d.nir_device == d.v4l2_device)
+            return config.origin_of("source.nir_device") + ": key 'source.nir_device': " + d.nir_device +
+                   " is also source.v4l2_device; the NIR camera must be a second device";
+        if (d.nir_tolerance_ms >= 500.0 / d.fps)
+            return config.origin_of("source.nir_tolerance_ms") + ": key 'source.nir_tolerance_ms': " +
+                   config::format_number(d.nir_tolerance_ms) + " ms is not under half the frame period (" +
+                   config::format_number(500.0 / d.fps) + " ms at source.fps " + config::format_number(d.fps) + ")";
+    }
+    if (d.source_kind != "v4l2" && !d.nir_device.empty())
+        return config.origin_of("source.nir_device") +
+               ": key 'source.nir_device': a NIR camera needs source.kind v4l2";
     return std::nullopt;
 }
 
@@ -42,6 +62,15 @@ std::unique_ptr<drivers::FrameSource> make_frame_source(const DaemonConfig& conf
         v4l2.buffers = config.v4l2_buffers;
         v4l2.size = config.frame_size;
         v4l2.fps = config.fps;
+        if (!config.nir_device.empty()) {
+            // Paired by capture time; the NIR device's format and size are forced (GREY, same size).
+            drivers::PairedNirOptions paired;
+            paired.rgb = v4l2;
+            paired.nir = v4l2;
+            paired.nir.device = config.nir_device;
+            paired.tolerance = std::chrono::microseconds(std::llround(config.nir_tolerance_ms * 1000));
+            return std::make_unique<drivers::PairedNirSource>(std::move(paired), make_logger("v4l2"));
+        }
         return std::make_unique<drivers::V4l2Source>(std::move(v4l2), make_logger("v4l2"));
     }
 #if STEMD_HAVE_LIBCAMERA

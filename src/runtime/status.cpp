@@ -92,6 +92,22 @@ std::string drops(const StatusSnapshot& now, const StatusSnapshot& before)
     return buf;
 }
 
+std::string actuation(const StatusSnapshot& now, const StatusSnapshot& before)
+{
+    if (!now.actuation)
+        return "";
+    char buf[200];
+    std::snprintf(buf, sizeof buf,
+                  " | targets %llu, sent %llu, deadline_misses %llu, not_treated %llu, no_odometry %llu, bus_errors %llu",
+                  static_cast<unsigned long long>(now.targets - before.targets),
+                  static_cast<unsigned long long>(now.sent - before.sent),
+                  static_cast<unsigned long long>(now.deadline_misses - before.deadline_misses),
+                  static_cast<unsigned long long>(now.not_treated - before.not_treated),
+                  static_cast<unsigned long long>(now.no_odometry - before.no_odometry),
+                  static_cast<unsigned long long>(now.bus_errors - before.bus_errors));
+    return buf;
+}
+
 std::string durations(const StatusSnapshot& s)
 {
     char buf[200];
@@ -106,19 +122,22 @@ std::string format_status(const StatusSnapshot& now, const StatusSnapshot& befor
 {
     const double dt_s = std::max(1e-9, static_cast<double>(now.t_ns - before.t_ns) / 1e9);
     char buf[96];
-    std::snprintf(buf, sizeof buf, "in %.1f fps, out %.1f fps | ", static_cast<double>(now.frames_in - before.frames_in) / dt_s,
-                  static_cast<double>(now.frames_out - before.frames_out) / dt_s);
-    return buf + drops(now, before) + " | " + durations(now);
+    std::snprintf(buf, sizeof buf, "in %.1f fps, out %.1f fps, bare soil %llu | ",
+                  static_cast<double>(now.frames_in - before.frames_in) / dt_s,
+                  static_cast<double>(now.frames_out - before.frames_out) / dt_s,
+                  static_cast<unsigned long long>(now.no_vegetation - before.no_vegetation));
+    return buf + drops(now, before) + actuation(now, before) + " | " + durations(now);
 }
 
 std::string format_summary(const StatusSnapshot& end, double run_s)
 {
-    char buf[160];
-    std::snprintf(buf, sizeof buf, "%llu frames in, %llu out, %llu stems in %.2f s (%.1f fps out) | ",
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "%llu frames in, %llu out, %llu stems in %.2f s (%.1f fps out), %llu bare soil | ",
                   static_cast<unsigned long long>(end.frames_in), static_cast<unsigned long long>(end.frames_out),
                   static_cast<unsigned long long>(end.stems_out), run_s,
-                  run_s > 0 ? static_cast<double>(end.frames_out) / run_s : 0.0);
-    return buf + drops(end, StatusSnapshot{}) + " | " + durations(end);
+                  run_s > 0 ? static_cast<double>(end.frames_out) / run_s : 0.0,
+                  static_cast<unsigned long long>(end.no_vegetation));
+    return buf + drops(end, StatusSnapshot{}) + actuation(end, StatusSnapshot{}) + " | " + durations(end);
 }
 
 }  // namespace stemd::runtime

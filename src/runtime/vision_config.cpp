@@ -15,6 +15,7 @@ vision::Params vision_params(const Config& config)
         p.mask_vegetation = *v;
     if (const auto v = vision::parse_stem_estimator(config.get_text("stem.method")))
         p.stem_estimator = *v;
+    p.min_class_separation = config.get_real("segment.min_class_separation");
     p.closing_radius_px = static_cast<int>(config.get_int("closing.radius_px"));
     p.gsd_mm_per_px = config.get_real("camera.gsd_mm_per_px");
     p.min_plant_area_mm2 = config.get_real("plants.min_area_mm2");

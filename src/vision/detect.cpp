@@ -101,7 +101,12 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
         t_index = now_ns();
         compute_histogram(ws.index_, ws.histogram_);
         out.stats.threshold = auto_threshold(ws.histogram_, params.threshold);
-        threshold_to_bits(ws.index_, out.stats.threshold, ws.vegetation_);
+        const double separation = class_separation(ws.histogram_, out.stats.threshold);
+        out.stats.class_separation = static_cast<float>(separation);
+        out.stats.no_vegetation = separation < params.min_class_separation;
+        // No second class: an empty mask (index > 255 never holds), so the
+        // rest of the pipeline runs as usual and finds nothing.
+        threshold_to_bits(ws.index_, out.stats.no_vegetation ? 255 : out.stats.threshold, ws.vegetation_);
     }
     const std::int64_t t_threshold = now_ns();
     out.stats.vegetation_px = static_cast<int>(ws.vegetation_.count());

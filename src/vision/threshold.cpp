@@ -154,6 +154,24 @@ int auto_threshold(const Histogram& histogram, ThresholdMethod method)
     return otsu_threshold(histogram);
 }
 
+double class_separation(const Histogram& histogram, int threshold)
+{
+    double n1 = 0, s1 = 0, n2 = 0, s2 = 0;
+    for (int v = 0; v < 256; ++v) {
+        const double n = histogram[v];
+        if (v <= threshold) {
+            n1 += n;
+            s1 += n * v;
+        } else {
+            n2 += n;
+            s2 += n * v;
+        }
+    }
+    if (n1 == 0 || n2 == 0)
+        return 0;
+    return s2 / n2 - s1 / n1;
+}
+
 namespace {
 
 // 64 pixels of one row to one word: bit i = (p[i] > threshold).

@@ -282,3 +282,65 @@ TEST(ActuationTracker, TargetIdsWrapAt4096)
     EXPECT_EQ(ids[4096], 0);
     EXPECT_EQ(ids[4097], 1);
 }
+
+TEST(ActuationTracker, RetiredTracksReportTheirLifeForThePlantMap)
+{
+    Tracker tracker(params());
+    // Plant A seen in frames 0..k while in view; a false positive B seen once.
+    const TrackDetection a{1000, 5, 0.8f, PlantClass::Crop, 4};
+    const TrackDetection b{1050, -40, 0.5f, PlantClass::Weed, 1};
+    std::vector<RetiredTrack> retired;
+    std::uint64_t seq = 10;
+    std::uint16_t a_id = 0;
+    for (double odom = 900; odom <= 1300; odom += kStepMm, ++seq) {
+        std::vector<TrackDetection> dets;
+        if (a.s_mm >= odom - kHalfViewMm && a.s_mm <= odom + kHalfViewMm)
+            dets.push_back(a);
+        if (seq == 11)
+            dets.push_back(b);
+        TrackFrame f = frame_at(odom, dets);
+        f.seq = seq;
+        for (const Target& t : tracker.update(f)) {
+            a_id = t.target_id;
+            EXPECT_EQ(t.first_seq, 10u);
+        }
+        for (const RetiredTrack& r : tracker.retired())
+            retired.push_back(r);
+    }
+    ASSERT_EQ(retired.size(), 2u);
+    const RetiredTrack& fp = retired[0].emitted ? retired[1] : retired[0];
+    const RetiredTrack& plant = retired[0].emitted ? retired[0] : retired[1];
+    EXPECT_FALSE(fp.emitted);
+    EXPECT_EQ(fp.first_seq, 11u);
+    EXPECT_EQ(fp.last_seq, 11u);
+    EXPECT_TRUE(plant.emitted);
+    EXPECT_EQ(plant.target_id, a_id);
+    EXPECT_EQ(plant.first_seq, 10u);
+    // In view from odom 900 (s_min 750) until s_min passes 1000: odom <= 1150,
+    // i.e. frames 10..18 (odom 900, 930, ..., 1140).
+    EXPECT_EQ(plant.last_seq, 18u);
+    EXPECT_EQ(plant.sightings, 9u);
+    EXPECT_EQ(plant.plant_class, PlantClass::Crop);
+    EXPECT_EQ(plant.leaves, 4);
+    EXPECT_DOUBLE_EQ(plant.s_mm, 1000);
+}
+
+TEST(ActuationTracker, DrainRetiresEveryActiveTrack)
+{
+    Tracker tracker(params());
+    const TrackDetection dets[] = {{1000, 0, 0.8f, PlantClass::Weed, 2}, {1060, 30, 0.8f, PlantClass::Weed, 2}};
+    for (int i = 0; i < 3; ++i) {
+        TrackFrame f = frame_at(1000, dets);
+        f.seq = static_cast<std::uint64_t>(i);
+        EXPECT_EQ(tracker.update(f).size(), i == 2 ? 2u : 0u);
+    }
+    const auto drained = tracker.drain();
+    ASSERT_EQ(drained.size(), 2u);
+    for (const RetiredTrack& r : drained) {
+        EXPECT_TRUE(r.emitted);
+        EXPECT_EQ(r.first_seq, 0u);
+        EXPECT_EQ(r.last_seq, 2u);
+    }
+    EXPECT_EQ(tracker.active_tracks(), 0u);
+    EXPECT_TRUE(tracker.drain().empty());
+}

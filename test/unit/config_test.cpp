@@ -207,13 +207,21 @@ TEST(ConfigSchema, MarkdownTableHasOneRowPerKey)
     std::stringstream stream(table);
     for (std::string row; std::getline(stream, row);)
         rows.push_back(row);
-    ASSERT_EQ(rows.size(), schema().size() + 2);
+    // The keys of schema(), then the list item keys ("tools[].offset_mm").
+    std::vector<const KeySpec*> keys;
+    for (const KeySpec& spec : schema())
+        keys.push_back(&spec);
+    for (const KeySpec& spec : list_item_schema())
+        keys.push_back(&spec);
+    ASSERT_EQ(rows.size(), keys.size() + 2);
     EXPECT_EQ(rows[0], "| key | type | unit | default | range / choices | meaning |");
     EXPECT_EQ(rows[1], "|---|---|---|---|---|---|");
-    for (std::size_t i = 0; i < schema().size(); ++i) {
-        EXPECT_EQ(rows[i + 2].rfind("| `" + std::string(schema()[i].key) + "` | ", 0), 0u) << rows[i + 2];
+    for (std::size_t i = 0; i < keys.size(); ++i) {
+        EXPECT_EQ(rows[i + 2].rfind("| `" + std::string(keys[i]->key) + "` | ", 0), 0u) << rows[i + 2];
         EXPECT_EQ(std::count(rows[i + 2].begin(), rows[i + 2].end(), '|'), 7) << rows[i + 2];
     }
+    EXPECT_NE(table.find("| `tools[].offset_mm` | real | mm | `600` | [-5000, 5000] | forward distance"),
+              std::string::npos);
     EXPECT_NE(table.find("| `closing.radius_px` | integer | px | `5` | [0, 50] | radius m of the elliptic"),
               std::string::npos);
     EXPECT_NE(table.find("| `segment.method` | choice |  | `exg` | `exg`, `ndvi`, `mask` | "), std::string::npos);
@@ -269,6 +277,21 @@ TEST(Config, DocumentedDefaultFileLoadsAndEqualsTheDefaults)
     for (const KeySpec& spec : schema())
         EXPECT_EQ(config.origin_of(spec.key).rfind(kDefaultConfig.string() + ":", 0), 0u)
             << spec.key << " from " << config.origin_of(spec.key);
+    // Each list: the default list (one item), every item key written out.
+    for (const ListSpec& list : list_schema()) {
+        ASSERT_EQ(config.list_size(list.section), 1u) << list.section;
+        for (const KeySpec& spec : item_keys(list.section)) {
+            const std::string leaf(item_leaf_of(spec));
+            SCOPED_TRACE(std::string(spec.key));
+            EXPECT_EQ(config.item_origin_of(list.section, 0, leaf).rfind(kDefaultConfig.string() + ":", 0), 0u)
+                << config.item_origin_of(list.section, 0, leaf);
+            if (spec.type == ValueType::integer) {
+                EXPECT_EQ(config.get_item_int(list.section, 0, leaf), std::stol(std::string(spec.default_value)));
+            } else if (spec.type == ValueType::real) {
+                EXPECT_EQ(config.get_item_real(list.section, 0, leaf), to_double(spec.default_value));
+            }
+        }
+    }
 }
 
 TEST(Config, DocumentedDefaultFileStatesEachRangeAndChoiceList)
@@ -276,7 +299,13 @@ TEST(Config, DocumentedDefaultFileStatesEachRangeAndChoiceList)
     std::ifstream in(kDefaultConfig);
     ASSERT_TRUE(in);
     const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    for (const KeySpec& spec : schema()) {
+    std::vector<const KeySpec*> keys;
+    for (const KeySpec& spec : schema())
+        keys.push_back(&spec);
+    for (const KeySpec& spec : list_item_schema())  // the list item keys too
+        keys.push_back(&spec);
+    for (const KeySpec* key : keys) {
+        const KeySpec& spec = *key;
         SCOPED_TRACE(std::string(spec.key));
         if (is_numeric(spec)) {
             EXPECT_NE(text.find(std::string(spec.unit) + ", range [" + format_number(spec.min) + ", " +

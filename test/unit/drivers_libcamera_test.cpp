@@ -122,6 +122,58 @@ TEST(LibcameraTime, SensorTimestampCappedAtDequeueElseDequeueTime)
     EXPECT_EQ(libcamera_capture_time_ns(std::int64_t{0}, 5'000), 5'000);
 }
 
+// When a streaming camera counts as lost (fake time; 0 turns a limit off).
+TEST(LibcameraWatchdog, FirstFrameThenStallTimeouts)
+{
+    constexpr std::int64_t ms = 1'000'000;
+    StreamWatchdog w(5000 * ms, 2000 * ms, 8);
+    w.started(1000 * ms);
+    EXPECT_EQ(w.check(1000 * ms), StreamLoss::none);
+    EXPECT_EQ(w.limit_ns(), 5000 * ms);
+    EXPECT_EQ(w.check(6000 * ms - 1), StreamLoss::none);
+    EXPECT_EQ(w.check(6000 * ms), StreamLoss::no_first_frame);  // exactly at the limit
+    w.frame(5500 * ms);
+    EXPECT_EQ(w.limit_ns(), 2000 * ms);
+    EXPECT_EQ(w.check(7500 * ms - 1), StreamLoss::none);
+    EXPECT_EQ(w.check(7500 * ms), StreamLoss::stalled);
+    w.frame(7400 * ms);
+    EXPECT_EQ(w.check(7500 * ms), StreamLoss::none);
+    w.started(10'000 * ms);  // a restart waits for a first frame again
+    EXPECT_EQ(w.check(14'000 * ms), StreamLoss::none);
+    EXPECT_EQ(w.check(15'000 * ms), StreamLoss::no_first_frame);
+}
+
+TEST(LibcameraWatchdog, FailedRequestsInARow)
+{
+    StreamWatchdog w(0, 0, 3);  // no time limits
+    w.started(0);
+    w.failed_request();
+    w.failed_request();
+    EXPECT_EQ(w.check(1'000'000'000'000), StreamLoss::none);
+    w.frame(5);  // a good frame breaks the row
+    EXPECT_EQ(w.failed_in_row(), 0u);
+    for (int i = 0; i < 3; ++i)
+        w.failed_request();
+    EXPECT_EQ(w.check(6), StreamLoss::failed_requests);
+    EXPECT_NE(to_string(StreamLoss::failed_requests), "?");
+
+    StreamWatchdog off(0, 0, 0);
+    off.started(0);
+    for (int i = 0; i < 100; ++i)
+        off.failed_request();
+    EXPECT_EQ(off.check(1'000'000'000'000), StreamLoss::none);
+}
+
+TEST(LibcameraSource, ReopenDefaultsAreAReopenBackoff)
+{
+    const LibcameraOptions o;
+    const ReopenBackoff b(o.reopen_min, o.reopen_max);
+    EXPECT_EQ(b.current_delay_ns(), 100'000'000);
+    EXPECT_EQ(b.max_ns(), 5'000'000'000);
+    EXPECT_GT(o.first_frame_timeout, o.stall_timeout);
+    EXPECT_GT(o.max_failed_requests, 0u);
+}
+
 // Real CameraManager; this machine has no camera with this id.
 TEST(LibcameraSource, NoMatchingCameraIsAClearErrorNotACrash)
 {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -185,4 +186,125 @@ TEST_F(ReplayTest, BadRecordingsFailToOpen)
     EXPECT_FALSE(empty.open());
     Frame f = slot();
     EXPECT_EQ(empty.next(f, 1ms), NextStatus::failed);
+}
+
+namespace {
+
+// Frames with an odom_mm column (frame 1 has none) and a class column
+// (frame i's class PNG is filled with i % 3; frame 2 has none).
+void write_class_recording(const fs::path& dir, int frames)
+{
+    fs::create_directories(dir / "class");
+    std::ofstream csv(dir / "frames.csv");
+    csv << "t_ns,rgb,nir,mask,class,odom_mm\n";
+    for (int i = 0; i < frames; ++i) {
+        const std::string rgb = "rgb/" + std::to_string(i) + ".png";
+        const std::string cls = i == 2 ? "" : "class/" + std::to_string(i) + ".png";
+        cv::imwrite((dir / rgb).string(), cv::Mat(kSize, CV_8UC3, cv::Scalar::all(10 * (i + 1))));
+        if (!cls.empty())
+            cv::imwrite((dir / cls).string(), cv::Mat(kSize, CV_8UC1, cv::Scalar(i % 3)));
+        csv << 1000 * i << "," << rgb << ",,," << cls << "," << (i == 1 ? std::string() : std::to_string(46 * i))
+            << "\n";
+    }
+}
+
+}  // namespace
+
+TEST_F(ReplayTest, OdometerComesFromTheRecording)
+{
+    write_recording(3, 1'000'000);
+    for (const bool preload : {false, true}) {
+        SCOPED_TRACE(preload ? "preload" : "decode per frame");
+        auto source = make(ReplayOptions::Pacing::fast, false, preload);
+        ASSERT_TRUE(source.open());
+        ASSERT_TRUE(source.start());
+        Frame f = slot();
+        for (int i = 0; i < 3; ++i) {
+            ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+            EXPECT_EQ(f.odom_mm, 12.5 * i);
+            EXPECT_FALSE(f.has_class_map);
+        }
+    }
+}
+
+TEST_F(ReplayTest, ClassMapsFillTheClassPlaneWhenTheSlotHasOne)
+{
+    write_class_recording(dir_, 4);
+    for (const bool preload : {false, true}) {
+        SCOPED_TRACE(preload ? "preload" : "decode per frame");
+        auto source = make(ReplayOptions::Pacing::fast, false, preload);
+        ASSERT_TRUE(source.open());
+        ASSERT_TRUE(source.start());
+        Frame f = slot();
+        f.plant_class = cv::Mat(kSize, CV_8UC1, cv::Scalar(77));
+        const uchar* class_pixels = f.plant_class.data;
+        for (int i = 0; i < 4; ++i) {
+            ASSERT_EQ(source.next(f, 1s), NextStatus::frame) << i;
+            EXPECT_EQ(f.plant_class.data, class_pixels) << "the slot is never reallocated";
+            if (i == 2) {
+                EXPECT_FALSE(f.has_class_map) << "a frame without a class PNG";
+            } else {
+                EXPECT_TRUE(f.has_class_map);
+                EXPECT_EQ(f.plant_class.at<std::uint8_t>(7, 9), i % 3);
+            }
+            if (i == 1)
+                EXPECT_TRUE(std::isnan(f.odom_mm));
+            else
+                EXPECT_EQ(f.odom_mm, 46.0 * i);
+        }
+        EXPECT_EQ(source.next(f, 1s), NextStatus::end_of_stream);
+    }
+}
+
+TEST_F(ReplayTest, ClassMapsAreIgnoredWithoutAClassPlane)
+{
+    write_class_recording(dir_, 2);
+    std::ofstream(dir_ / "class/1.png") << "corrupt, but never read";
+    auto source = make(ReplayOptions::Pacing::fast, false);
+    ASSERT_TRUE(source.open());
+    ASSERT_TRUE(source.start());
+    Frame f = slot();
+    for (int i = 0; i < 2; ++i) {
+        ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+        EXPECT_FALSE(f.has_class_map);
+        EXPECT_TRUE(f.plant_class.empty());
+    }
+    EXPECT_EQ(source.counters().corrupt, 0u);
+}
+
+TEST_F(ReplayTest, CorruptAndWrongSizeClassMapsSkipTheFrame)
+{
+    write_class_recording(dir_, 4);
+    std::ofstream(dir_ / "class/1.png") << "not a png";
+    cv::imwrite((dir_ / "class/3.png").string(), cv::Mat(kSize.height, kSize.width + 2, CV_8UC1, cv::Scalar(1)));
+    for (const bool preload : {false, true}) {
+        SCOPED_TRACE(preload ? "preload" : "decode per frame");
+        auto source = make(ReplayOptions::Pacing::fast, false, preload);
+        ASSERT_TRUE(source.open());
+        ASSERT_TRUE(source.start());
+        Frame f = slot();
+        f.plant_class = cv::Mat::zeros(kSize, CV_8UC1);
+        ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+        EXPECT_TRUE(f.has_class_map);
+        EXPECT_EQ(source.next(f, 1s), NextStatus::skipped);
+        EXPECT_FALSE(f.has_class_map);
+        ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+        EXPECT_EQ(f.name.view(), "rgb/2.png");
+        EXPECT_FALSE(f.has_class_map);
+        EXPECT_EQ(source.next(f, 1s), NextStatus::skipped);
+        EXPECT_EQ(source.next(f, 1s), NextStatus::end_of_stream);
+        EXPECT_EQ(source.counters().corrupt, 1u);
+        EXPECT_EQ(source.counters().bad_size, 1u);
+        EXPECT_EQ(source.counters().delivered, 2u);
+    }
+}
+
+TEST_F(ReplayTest, BadOdometerFailsToOpen)
+{
+    std::ofstream(dir_ / "frames.csv") << "t_ns,rgb,nir,mask,odom_mm\n0,a.png,,,12\n1,b.png,,,fast\n";
+    auto source = make(ReplayOptions::Pacing::fast, false);
+    EXPECT_FALSE(source.open());
+    std::ofstream(dir_ / "frames.csv") << "t_ns,rgb,nir,mask,odom_mm\n0,a.png,,,nan\n";
+    auto nan = make(ReplayOptions::Pacing::fast, false);
+    EXPECT_FALSE(nan.open());
 }

@@ -154,28 +154,31 @@ TEST(V4l2Time, OtherClocksUseTheDequeueTime)
     EXPECT_EQ(v4l2_capture_time_ns(buf, 77), 77);
 }
 
+// The schedule V4l2Source builds from its options (the shared ReopenBackoff,
+// tested on its own in drivers_backoff_test.cpp).
 TEST(V4l2Backoff, DoublesUpToTheCapAndStartsOverAfterSuccess)
 {
     constexpr std::int64_t ms = 1'000'000;
-    ReopenBackoff b(100ms, 1s);
+    const V4l2Options options;
+    ReopenBackoff b(options.backoff_initial, options.backoff_max);  // 100 ms .. 5 s
     EXPECT_TRUE(b.due(0));
-    b.failed(0);
+    b.on_failure(0);
     EXPECT_FALSE(b.due(99 * ms));
     EXPECT_TRUE(b.due(100 * ms));
     std::int64_t t = 100 * ms;
-    const std::int64_t expected_delays_ms[] = {200, 400, 800, 1000, 1000};
+    const std::int64_t expected_delays_ms[] = {200, 400, 800, 1600, 3200, 5000, 5000};
     for (std::int64_t d : expected_delays_ms) {
-        b.failed(t);
+        b.on_failure(t);
         EXPECT_EQ(b.next_attempt_ns(), t + d * ms);
         EXPECT_FALSE(b.due(t + d * ms - 1));
         t += d * ms;
         EXPECT_TRUE(b.due(t));
     }
-    EXPECT_EQ(b.consecutive_failures(), 6u);
-    b.succeeded();
+    EXPECT_EQ(b.consecutive_failures(), 8u);
+    b.on_success();
     EXPECT_EQ(b.consecutive_failures(), 0u);
-    EXPECT_EQ(b.delay(), 100ms);
-    b.failed(t);
+    EXPECT_EQ(b.current_delay_ns(), 100 * ms);
+    b.on_failure(t);
     EXPECT_EQ(b.next_attempt_ns(), t + 100 * ms);
 }
 

@@ -9,6 +9,9 @@
 
 #include "runtime_test_util.hpp"
 #include "stemd/runtime/daemon.hpp"
+#include "stemd/runtime/actuation_stage.hpp"
+#include "stemd/actuation/messages.hpp"
+#include "fake_can_bus.hpp"
 #include "stemd/runtime/logging.hpp"
 
 using namespace stemd;
@@ -192,4 +195,48 @@ TEST(Daemon, NoThreadIsStalledWhileFramesFlow)
     EXPECT_EQ(daemon.stalled_thread(runtime::monotonic_ns(), 1'000'000'000), nullptr);
     daemon.request_stop();
     EXPECT_TRUE(daemon.join());
+}
+
+TEST(Daemon, ActuatorThreadDrivesTheActuationStage)
+{
+    // Scripted frames: the stage gets every frame, its odometry (constant
+    // speed) and its heartbeat, while the status reads its counters from
+    // another thread (TSan checks the sharing).
+    runtime::ActuationConfig actuation;
+    actuation.tools = {{.id = 0, .offset_mm = 600, .y_min_mm = -220, .y_max_mm = 220, .lanes = 1}};
+    actuation.odometry = runtime::OdometrySource::constant;
+    actuation.heartbeat_interval_ns = 1'000'000;   // every ms: several during the run
+    geometry::NadirParams nadir;
+    nadir.principal_px = geometry::image_centre({1296, 966});
+    auto bus = std::make_unique<test::FakeCanBus>();
+    const test::FakeCanBus& sent = *bus;
+    runtime::ActuationStage::Parts parts;
+    parts.bus = std::move(bus);
+    std::string error;
+    auto stage = runtime::ActuationStage::make(actuation, *geometry::CameraModel::nadir(nadir), {1296, 966},
+                                               std::move(parts), runtime::make_logger("actuator"), error);
+    ASSERT_TRUE(stage) << error;
+    runtime::Daemon daemon(config_for(runtime::OverflowPolicy::drop_newest),
+                           std::make_unique<ScriptedSource>(40, false),
+                           std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator")),
+                           std::move(stage));
+    ASSERT_TRUE(daemon.start());
+    std::uint64_t reads = 0;
+    EXPECT_TRUE(test::wait_for([&] {
+        reads += daemon.snapshot(false).actuation ? 1 : 0;   // read concurrently with the actuator
+        return daemon.finished();
+    }, 120s));
+    EXPECT_TRUE(daemon.join());
+    EXPECT_GT(reads, 0u);
+    const runtime::StatusSnapshot end = daemon.snapshot(true);
+    EXPECT_TRUE(end.actuation);
+    EXPECT_EQ(end.frames_out, 40u);
+    EXPECT_EQ(end.no_odometry, 0u);
+    std::uint64_t targets = 0, heartbeats = 0;
+    for (const auto& frame : sent.sent) {
+        targets += actuation::CanIds{}.kind_of(frame) == actuation::MessageKind::Target;
+        heartbeats += actuation::CanIds{}.kind_of(frame) == actuation::MessageKind::Heartbeat;
+    }
+    EXPECT_EQ(targets, end.sent);
+    EXPECT_GE(heartbeats, 1u);
 }

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <optional>
+#include <string>
 
 #include "runtime_test_util.hpp"
 #include "stemd/runtime/config.hpp"
@@ -62,3 +64,52 @@ TEST(SourceFactory, BuildsTheConfiguredSource)
 }
 
 }  // namespace
+
+namespace {
+
+std::optional<std::string> problem_with(const std::string& yaml)
+{
+    config::Config config;
+    if (const auto e = config.load_text(yaml, "nir.yaml"))
+        return "load: " + e->to_string();
+    return runtime::check_source_config(runtime::daemon_config(config), config, false, /*check_only=*/true);
+}
+
+}  // namespace
+
+TEST(SourceFactory, NdviFromAV4l2CameraNeedsASecondNirDevice)
+{
+    const auto p = problem_with("segment:\n  method: ndvi\nsource:\n  kind: v4l2\n");
+    ASSERT_TRUE(p);
+    EXPECT_NE(p->find("nir.yaml:2: key 'segment.method'"), std::string::npos) << *p;
+    EXPECT_NE(p->find("source.nir_device"), std::string::npos) << *p;
+    EXPECT_FALSE(problem_with("segment:\n  method: ndvi\nsource:\n  kind: v4l2\n  nir_device: /dev/video2\n"));
+}
+
+TEST(SourceFactory, NirDeviceMustBeAnotherV4l2DeviceWithATightTolerance)
+{
+    auto p = problem_with("source:\n  kind: v4l2\n  v4l2_device: /dev/video0\n  nir_device: /dev/video0\n");
+    ASSERT_TRUE(p);
+    EXPECT_NE(p->find("nir.yaml:4: key 'source.nir_device'"), std::string::npos) << *p;
+
+    // 30 fps: half the period is 16.7 ms.
+    p = problem_with("source:\n  kind: v4l2\n  nir_device: /dev/video2\n  nir_tolerance_ms: 20\n");
+    ASSERT_TRUE(p);
+    EXPECT_NE(p->find("nir.yaml:4: key 'source.nir_tolerance_ms'"), std::string::npos) << *p;
+    EXPECT_FALSE(problem_with("source:\n  kind: v4l2\n  nir_device: /dev/video2\n  nir_tolerance_ms: 16\n"));
+
+    p = problem_with("source:\n  kind: replay\n  nir_device: /dev/video2\n");
+    ASSERT_TRUE(p);
+    EXPECT_NE(p->find("key 'source.nir_device'"), std::string::npos) << *p;
+}
+
+TEST(SourceFactory, ANirDeviceBuildsThePairedSource)
+{
+    config::Config config;
+    ASSERT_FALSE(config.load_text("source:\n  kind: v4l2\n  v4l2_device: /dev/video7\n  nir_device: /dev/video8\n",
+                                  "nir.yaml"));
+    const auto source = runtime::make_frame_source(runtime::daemon_config(config));
+    ASSERT_TRUE(source);
+    EXPECT_NE(source->name().find("/dev/video7"), std::string::npos) << source->name();
+    EXPECT_NE(source->name().find("/dev/video8"), std::string::npos) << source->name();
+}

@@ -228,6 +228,84 @@ TEST(Detect, ExcessGreenFindsAGreenPlantOnSoil)
     EXPECT_GT(d.stats.threshold, 128);
 }
 
+namespace {
+
+// Brownish soil with uniform noise: one mode in Excess Green.
+cv::Mat soil_frame(cv::Size size, std::uint64_t seed)
+{
+    cv::Mat bgr(size, CV_8UC3, cv::Scalar(60, 80, 110));
+    cv::RNG rng(seed);
+    cv::Mat noise(bgr.size(), CV_8UC3);
+    rng.fill(noise, cv::RNG::UNIFORM, 0, 20);
+    return bgr + noise;
+}
+
+}  // namespace
+
+TEST(Detect, BareSoilHasNoPlantsWithEveryAutomaticThreshold)
+{
+    const cv::Mat bgr = soil_frame({400, 300}, 3);
+    for (const ThresholdMethod m : {ThresholdMethod::otsu, ThresholdMethod::triangle, ThresholdMethod::min_error}) {
+        SCOPED_TRACE(std::string(to_string(m)));
+        Params params;
+        params.threshold = m;
+        Detections d = detect({.bgr = bgr}, params);
+        ASSERT_EQ(d.status, DetectStatus::ok);
+        EXPECT_TRUE(d.plants.empty());
+        EXPECT_TRUE(d.stats.no_vegetation);
+        EXPECT_LT(d.stats.class_separation, params.min_class_separation);
+        EXPECT_EQ(d.stats.vegetation_px, 0);
+        EXPECT_EQ(d.stats.components, 0);
+        EXPECT_GE(d.stats.threshold, 0);  // still reported
+        // Without the check the soil is split; Otsu cuts it in the middle
+        // and the closing makes a phantom plant of it.
+        params.min_class_separation = 0;
+        d = detect({.bgr = bgr}, params);
+        EXPECT_FALSE(d.stats.no_vegetation);
+        EXPECT_GT(d.stats.vegetation_px, 0);
+        if (m == ThresholdMethod::otsu) {
+            EXPECT_FALSE(d.plants.empty());
+        }
+    }
+}
+
+TEST(Detect, SeparationCheckLeavesAFrameWithPlantsUnchanged)
+{
+    cv::Mat bgr = soil_frame({400, 300}, 3);
+    const cv::Point stem(200, 150);
+    const cv::Mat plant = draw_plant(bgr.size(), stem, {{10, 20, 70, 18}, {100, 20, 60, 16}, {200, 20, 70, 18}, {290, 20, 50, 16}}, 4);
+    bgr.setTo(cv::Scalar(40, 150, 50), plant);
+    // A small second plant: a frame mostly soil still has two classes.
+    cv::circle(bgr, {60, 60}, 12, cv::Scalar(40, 150, 50), cv::FILLED);
+    for (const ThresholdMethod m : {ThresholdMethod::otsu, ThresholdMethod::triangle, ThresholdMethod::min_error}) {
+        SCOPED_TRACE(std::string(to_string(m)));
+        Params params;
+        params.threshold = m;
+        params.closing_radius_px = 2;
+        const Detections with = detect({.bgr = bgr}, params);
+        params.min_class_separation = 0;
+        const Detections without = detect({.bgr = bgr}, params);
+        ASSERT_EQ(with.status, DetectStatus::ok);
+        EXPECT_FALSE(with.stats.no_vegetation);
+        EXPECT_GT(with.stats.class_separation, 3 * Params{}.min_class_separation);
+        EXPECT_EQ(with.stats.threshold, without.stats.threshold);
+        EXPECT_EQ(with.stats.vegetation_px, without.stats.vegetation_px);
+        ASSERT_EQ(with.plants.size(), 2u);
+        ASSERT_EQ(with.plants.size(), without.plants.size());
+        for (std::size_t i = 0; i < with.plants.size(); ++i) {
+            EXPECT_EQ(with.plants[i].area_px, without.plants[i].area_px);
+            EXPECT_EQ(with.plants[i].stem, without.plants[i].stem);
+        }
+    }
+}
+
+TEST(Detect, ExternalMasksAreNeverVegetationFree)
+{
+    const Detections d = detect({.mask = cv::Mat(48, 64, CV_8UC1, cv::Scalar(0))}, mask_params());
+    EXPECT_FALSE(d.stats.no_vegetation);
+    EXPECT_EQ(d.stats.class_separation, 0.0f);
+}
+
 TEST(Detect, NdviFindsThePlantFromTheNirImage)
 {
     cv::Mat bgr(200, 200, CV_8UC3, cv::Scalar(80, 80, 90));

@@ -185,3 +185,42 @@ TEST(Threshold, MinErrorFindsTheBayesBoundaryOfTwoGaussians)
     EXPECT_NEAR(min_error, 165, 2);
     EXPECT_EQ(auto_threshold(h, ThresholdMethod::min_error), min_error);
 }
+
+TEST(Threshold, ClassSeparationIsTheDifferenceOfTheClassMeans)
+{
+    Histogram h{};
+    h[40] = 300;
+    h[60] = 100;  // below: mean 45
+    h[200] = 50;
+    h[220] = 50;  // above: mean 210
+    EXPECT_DOUBLE_EQ(class_separation(h, 100), 165.0);
+    EXPECT_DOUBLE_EQ(class_separation(h, 40), (200.0 * 50 + 220 * 50 + 60 * 100) / 200 - 40);
+    EXPECT_EQ(class_separation(h, 255), 0.0);  // nothing above
+    EXPECT_EQ(class_separation(Histogram{}, 128), 0.0);
+}
+
+TEST(Threshold, EveryMethodSplitsUnimodalSoilButWithASmallSeparation)
+{
+    // Bare soil's Excess Green: one mode near 130 (ExG about 8). Each
+    // automatic threshold still splits it, into two classes whose means are
+    // only a few index units apart; real soil and plants are far more.
+    cv::RNG rng(11);
+    cv::Mat soil(240, 320, CV_8UC1);
+    for (int y = 0; y < soil.rows; ++y)
+        for (int x = 0; x < soil.cols; ++x)
+            soil.at<std::uint8_t>(y, x) = cv::saturate_cast<std::uint8_t>(rng.uniform(126, 135));
+    Histogram h{};
+    compute_histogram(soil, h);
+    for (const ThresholdMethod m : {ThresholdMethod::otsu, ThresholdMethod::triangle, ThresholdMethod::min_error}) {
+        SCOPED_TRACE(std::string(to_string(m)));
+        const int t = auto_threshold(h, m);
+        EXPECT_GE(t, 126);
+        EXPECT_LT(t, 134);
+        EXPECT_GT(class_separation(h, t), 0.0);
+        EXPECT_LT(class_separation(h, t), Params{}.min_class_separation);
+    }
+    // Bimodal: separated far beyond the default.
+    const cv::Mat bimodal = test_image(0, 5);
+    compute_histogram(bimodal, h);
+    EXPECT_GT(class_separation(h, otsu_threshold(h)), 5 * Params{}.min_class_separation);
+}

@@ -290,6 +290,59 @@ check_gpiod() {
 extra_checks="$extra_checks gpiod"
 # --- end gpiod ---
 
+# --- libcamera_reopen: LibcameraSource recovers when vimc is unbound and bound again ---
+# Same binary as libcamera_source (KEY libcamera_source). Last of the vimc
+# checks: it unbinds and rebinds the vimc platform device. The control command
+# runs in the chroot (as the check does): rebinding gives new device nodes,
+# which need libcamera's udev "initialized" mark again.
+check_libcamera_reopen() {
+  [ -n "$libcamera_source" ] || skip "libcamera_source check not built: libcamera-dev was missing when CMake configured"
+  modprobe vimc || die "modprobe vimc"
+  for d in /sys/class/video4linux/* /sys/bus/media/devices/* /sys/class/v4l-subdev/*; do
+    [ -e "$d/dev" ] && echo "I:1" > "/host/run/udev/data/c$(cat "$d/dev")"
+  done
+  [ -e /sys/bus/platform/drivers/vimc/vimc.0 ] || die "vimc.0 is not bound to vimc"
+  echo "== LibcameraSource: vimc.0 unbound while streaming (timeouts, backoff), bound again (frames resume)"
+  hostrun env LIBCAMERA_LOG_LEVELS='*:ERROR' "$libcamera_source" unplug vimc "$out" -- sh -c '
+    case $1 in
+      unplug) echo vimc.0 > /sys/bus/platform/drivers/vimc/unbind ;;
+      plug)
+        echo vimc.0 > /sys/bus/platform/drivers/vimc/bind || exit 1
+        for d in /sys/class/video4linux/* /sys/bus/media/devices/* /sys/class/v4l-subdev/*; do
+          [ -e "$d/dev" ] && echo "I:1" > "/run/udev/data/c$(cat "$d/dev")"
+        done
+        echo "vimc.0 bound again: $(ls /sys/bus/media/devices | tr "\n" " ")" ;;
+    esac' sh
+  rc=$?
+  [ $rc -ne 77 ] || skip "libcamera 0.0.3 could not release the unplugged camera this time (see the log above)"
+  [ $rc -eq 0 ] || die "LibcameraSource unplug/plug"
+}
+extra_checks="$extra_checks libcamera_reopen"
+# --- end libcamera_reopen ---
+
+# --- paired_nir: PairedNirSource (drivers/v4l2/paired_nir_source) on two vivid instances ---
+# KEY paired_nir: host path of stemd-vm-paired-nir-check. Instance 000 loops the
+# RGB scene (BGR24), instance 001 the NIR scene (GREY); each has its own
+# output -> capture loopback. After the other vivid checks: it reloads vivid
+# with two instances (they loaded one).
+paired_nir=
+for kv in "$@"; do
+  case $kv in paired_nir=*) paired_nir=${kv#paired_nir=} ;; esac
+done
+check_paired_nir() {
+  [ -n "$paired_nir" ] || skip "paired_nir check not built"
+  if grep -q '^vivid ' /proc/modules; then rmmod vivid || die "rmmod vivid"; fi
+  modprobe vivid n_devs=2 node_types=0x101,0x101 || die "modprobe vivid n_devs=2"
+  rgb_cap=$(v4l_node vivid-000-vid-cap) || die "no vivid-000 capture node"
+  rgb_out=$(v4l_node vivid-000-vid-out) || die "no vivid-000 output node"
+  nir_cap=$(v4l_node vivid-001-vid-cap) || die "no vivid-001 capture node"
+  nir_out=$(v4l_node vivid-001-vid-out) || die "no vivid-001 output node"
+  echo "== PairedNirSource: RGB $rgb_out -> $rgb_cap, NIR $nir_out -> $nir_cap"
+  hostrun "$paired_nir" loop "$rgb_cap" "$rgb_out" "$nir_cap" "$nir_out" "$out" || die "PairedNirSource on two vivid loopbacks"
+}
+extra_checks="$extra_checks paired_nir"
+# --- end paired_nir ---
+
 if [ "$mode" = one ]; then
   "check_$check"
   exit $?

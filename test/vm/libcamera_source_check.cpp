@@ -17,6 +17,18 @@
 //       stop(), and open the same camera again by its full id (selection by
 //       id, a clean teardown of the CameraManager) for one more frame.
 //       DUMP_DIR gets the last image (PNG) on failure.
+//
+//   stemd-vm-libcamera-source-check unplug CAMERA DUMP_DIR -- COMMAND...
+//       streams CAMERA, then runs COMMAND unplug (the guest unbinds vimc):
+//       next() keeps returning timeouts (never `failed`), the source notices
+//       the loss (stall timeout: without udev libcamera sees no hot-unplug),
+//       releases the camera and goes to backoff (counters: lost 1). Then
+//       COMMAND plug (vimc bound again): the source finds the camera again by
+//       its id on its reopen schedule and frames resume into the same slot
+//       (colour bars; counters: reopens 1, frames keep counting).
+//       Exits 77 (SKIP) when the unplug caught requests inside the driver:
+//       libcamera 0.0.3 cannot release that camera, the source goes to
+//       `failed` without crashing (see drivers/libcamera/libcamera_source.hpp).
 #include <time.h>
 
 #include <array>
@@ -24,7 +36,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
+#include <vector>
 
 #include <opencv2/imgcodecs.hpp>
 #include <spdlog/sinks/stdout_sinks.h>
@@ -206,15 +220,108 @@ void capture(const std::string& camera, const std::string& dump_dir) {
   again.stop();
 }
 
+
+std::string counters_text(const LibcameraSource& source) {
+  const auto c = source.libcamera_counters();
+  return "frames " + std::to_string(c.frames) + ", timeouts " + std::to_string(c.timeouts) + ", errors " +
+         std::to_string(c.errors) + ", corrupt " + std::to_string(c.corrupt) + ", lost " + std::to_string(c.lost) +
+         ", reopens " + std::to_string(c.reopens) + ", state " + std::string(to_string(source.state()));
+}
+
+void run_ctl(const std::vector<std::string>& ctl, const std::string& step) {
+  std::vector<std::string> argv = ctl;
+  argv.push_back(step);
+  info("-- " + step);
+  if (const int rc = stemd::vmprobe::run_command(argv); rc != 0) fail(step + ": the command exited " + std::to_string(rc));
+}
+
+void unplug(const std::string& camera, const std::string& dump_dir, const std::vector<std::string>& ctl) {
+  if (ctl.empty()) fail("unplug needs -- COMMAND (called with unplug, then plug)");
+  auto log = spdlog::stdout_logger_mt("libcamera");
+  LibcameraOptions options;
+  options.camera = camera;
+  options.size = {kWidth, kHeight};
+  options.first_frame_timeout = kFirstFrameWait;  // TCG may start slowly
+  options.stall_timeout = std::chrono::seconds(1);
+  options.reopen_min = std::chrono::milliseconds(50);
+  options.reopen_max = std::chrono::milliseconds(400);
+  Frame frame;
+  frame.bgr = cv::Mat(kHeight, kWidth, CV_8UC3, cv::Scalar::all(0));
+  const std::uint8_t* const slot_data = frame.bgr.data;
+  LibcameraSource source(options, log);
+  if (!source.open() || !source.start()) fail("open and start " + camera + " (see the log above)");
+  const std::string id = source.camera_id();
+  for (int n = 0; n < 3; ++n)
+    capture_one(source, frame, n == 0 ? std::chrono::nanoseconds(kFirstFrameWait) : std::chrono::seconds(5),
+                "frame " + std::to_string(n) + " before the unplug");
+  info("streaming '" + id + "': " + counters_text(source));
+
+  run_ctl(ctl, "unplug");
+  // The daemon's loop: next() with a short timeout, which must never fail.
+  const std::int64_t unplugged = monotonic_ns();
+  while (source.state() != LibcameraSource::State::backoff) {
+    const NextStatus s = source.next(frame, std::chrono::milliseconds(100));
+    if (s == NextStatus::failed && source.state() == LibcameraSource::State::failed &&
+        source.libcamera_counters().lost == 1) {
+      // The documented limit (drivers/libcamera/libcamera_source.hpp): the
+      // unplug caught requests inside the driver and libcamera 0.0.3 can
+      // neither stop nor destroy that camera. A race of the unbind against
+      // vb2's queue release; reported as a skip, not a pass.
+      std::printf("SKIP: the unplug left requests stuck in the driver; libcamera 0.0.3 cannot release the camera "
+                  "(the source stopped cleanly instead of aborting): %s\n", counters_text(source).c_str());
+      std::fflush(stdout);
+      std::_Exit(77);
+    }
+    if (s == NextStatus::failed || s == NextStatus::end_of_stream) fail("next() failed after the unplug");
+    if (monotonic_ns() - unplugged > 10'000'000'000) fail("no loss noticed 10 s after the unplug: " + counters_text(source));
+  }
+  info("loss noticed after " + std::to_string((monotonic_ns() - unplugged) / 1'000'000) + " ms: " +
+       counters_text(source));
+  // Still away: a few reopen attempts, each a timeout.
+  const std::int64_t away_until = monotonic_ns() + 1'000'000'000;
+  while (monotonic_ns() < away_until) {
+    const NextStatus s = source.next(frame, std::chrono::milliseconds(100));
+    if (s != NextStatus::timeout) fail("next() while the camera is away: status " + std::to_string(static_cast<int>(s)));
+  }
+  if (source.state() != LibcameraSource::State::backoff) fail("not in backoff while the camera is away: " + counters_text(source));
+  if (source.libcamera_counters().lost != 1 || source.libcamera_counters().reopens != 0)
+    fail("counters while away: " + counters_text(source));
+  info("camera away: " + counters_text(source));
+
+  run_ctl(ctl, "plug");
+  const std::uint64_t frames_before = source.libcamera_counters().frames;
+  capture_one(source, frame, std::chrono::seconds(30), "first frame after the plug");
+  info("frames resume: " + counters_text(source));
+  for (int n = 0; n < 3; ++n) capture_one(source, frame, std::chrono::seconds(5), "frame after the plug");
+  const auto c = source.libcamera_counters();
+  if (c.reopens != 1 || c.lost != 1) fail("counters after the plug: " + counters_text(source));
+  if (c.frames != frames_before + 4) fail("frames did not keep counting: " + counters_text(source));
+  if (source.camera_id() != id) fail("reopened '" + source.camera_id() + "', not '" + id + "'");
+  if (frame.bgr.data != slot_data) fail("frame after the plug: slot reallocated");
+  if (const std::string why = judge_pattern(frame.bgr); !why.empty()) {
+    dump(frame.bgr, dump_dir);
+    fail("frame after the plug: " + why);
+  }
+  source.stop();
+  info("after stop: " + counters_text(source));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   const std::string mode = argc > 1 ? argv[1] : "";
-  if (mode != "capture" || argc < 3) {
-    std::fprintf(stderr, "usage: %s capture CAMERA [DUMP_DIR]\n", argv[0]);
+  if ((mode != "capture" && mode != "unplug") || argc < 3) {
+    std::fprintf(stderr, "usage: %s capture CAMERA [DUMP_DIR]\n       %s unplug CAMERA DUMP_DIR -- COMMAND...\n",
+                 argv[0], argv[0]);
     return 2;
   }
   const std::string camera = argv[2];
-  const std::string dump_dir = argc > 3 ? argv[3] : "";
-  return stemd::vmprobe::run_probe("libcamera-source-check", [&] { capture(camera, dump_dir); });
+  const std::string dump_dir = argc > 3 && std::string(argv[3]) != "--" ? argv[3] : "";
+  const auto ctl = stemd::vmprobe::command_after_dashes(argc, argv);
+  return stemd::vmprobe::run_probe("libcamera-source-check", [&] {
+    if (mode == "capture")
+      capture(camera, dump_dir);
+    else
+      unplug(camera, dump_dir, ctl);
+  });
 }

@@ -87,6 +87,7 @@ struct TrackDetection {
 };
 
 struct TrackFrame {
+    std::uint64_t seq = 0;            // the frame's number (first/last frame of a track)
     std::int64_t t_capture_ns = 0;    // CLOCK_MONOTONIC
     double odom_at_capture_mm = 0;
     double view_s_min_mm = 0;         // the view's along-track extent in field mm
@@ -105,6 +106,24 @@ struct Target {
     float confidence = 0;         // mean confidence of its sightings
     bool by_exit = false;         // emitted by the exit rule (fewer than confirm_frames sightings)
     std::int64_t t_emit_ns = 0;   // capture time of the frame that emitted it
+    std::uint64_t first_seq = 0;  // the frame it was first seen in
+};
+
+// A track at the end of its life (behind the view, unseen too long, or
+// drained): what the plant map records. Emitted tracks carry their
+// target_id; the position is fused over every sighting, including those
+// after the emission.
+struct RetiredTrack {
+    bool emitted = false;
+    std::uint16_t target_id = 0;  // emitted only
+    double s_mm = 0;
+    double y_mm = 0;
+    PlantClass plant_class = PlantClass::Unknown;
+    std::uint32_t sightings = 0;
+    std::uint8_t leaves = 0;
+    float confidence = 0;
+    std::uint64_t first_seq = 0;
+    std::uint64_t last_seq = 0;   // the last frame it was seen in
 };
 
 struct TrackerCounters {
@@ -135,6 +154,12 @@ public:
     double min_separation_mm(double max_error_mm) const { return params_.association_radius_mm + 2 * max_error_mm; }
 
     const TrackerParams& params() const { return params_; }
+    // The tracks retired by the last update() or drain() (a view of an
+    // internal buffer, valid until the next update(), drain() or reset()).
+    std::span<const RetiredTrack> retired() const { return {retired_.get(), n_retired_}; }
+    // Retires every active track (end of a run), for retired().
+    std::span<const RetiredTrack> drain() noexcept;
+
     const TrackerCounters& counters() const { return counters_; }
     std::size_t active_tracks() const { return active_; }
     // Drops every track (the counters and the target numbering go on).
@@ -156,6 +181,9 @@ private:
         double weed_w = 0;
         double conf_sum = 0;
         std::uint8_t leaves = 0;
+        std::uint16_t target_id = 0;  // once emitted
+        std::uint64_t first_seq = 0;
+        std::uint64_t last_seq = 0;
     };
     struct Candidate {
         double d2;
@@ -163,7 +191,7 @@ private:
         std::uint32_t track;
     };
 
-    void add_sighting(Track& t, const TrackDetection& d) noexcept;
+    void add_sighting(Track& t, const TrackDetection& d, std::uint64_t seq) noexcept;
     void emit(Track& t, const TrackFrame& frame, bool by_exit) noexcept;
     void retire(std::size_t i) noexcept;
 
@@ -172,6 +200,8 @@ private:
     std::unique_ptr<Candidate[]> candidates_;       // capacity * max_detections
     std::unique_ptr<std::uint32_t[]> det_track_;    // per detection: its track, or kNone
     std::unique_ptr<Target[]> out_;                 // capacity
+    std::unique_ptr<RetiredTrack[]> retired_;       // capacity
+    std::size_t n_retired_ = 0;
     std::size_t active_ = 0;
     std::size_t n_out_ = 0;
     std::uint32_t next_id_ = 0;

@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <string_view>
 
 #include <opencv2/core/mat.hpp>
@@ -45,8 +46,17 @@ struct Frame {
     cv::Mat bgr;   // CV_8UC3
     cv::Mat nir;   // CV_8UC1, same size (NDVI only)
     cv::Mat mask;  // CV_8UC1, same size (external mask only)
+    // CV_8UC1, same size, optional (the runtime allocates it only when a
+    // class map is configured): per-pixel plant class, 0 soil, 1 crop,
+    // 2 weed (values as actuation::PlantClass). A source without class maps
+    // leaves has_class_map false.
+    cv::Mat plant_class;
+    bool has_class_map = false;
     std::int64_t t_capture_ns = 0;   // CLOCK_MONOTONIC when the source delivered the frame
     std::int64_t t_recorded_ns = 0;  // the frame's own time: the camera's timestamp, or a recording's t_ns
+    // The odometer at capture (mm, monotonic) when the source knows it (a
+    // recording's odom_mm column); NaN otherwise.
+    double odom_mm = std::numeric_limits<double>::quiet_NaN();
     std::uint64_t source_seq = 0;    // the source's frame counter (gaps = frames the source lost)
     std::uint64_t seq = 0;           // set by the runtime: frames captured before this one
     FrameName name;

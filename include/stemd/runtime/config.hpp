@@ -11,8 +11,20 @@
 // Values are integers, reals, bare words, true/false or double-quoted
 // strings ("a \"b\" \\ c"). Keys are flattened to "section.key". Keys a file
 // does not mention keep their previous value.
+//
+// List sections (config_schema.hpp, ListSpec; "tools") hold a list of maps:
+//
+//   tools:
+//     - id: 0            # an item starts with "- " and its first key
+//       offset_mm: 600   # its other keys are aligned with the first
+//     - id: 1
+//
+// A file with a list section replaces the whole list; an item's omitted keys
+// take the item defaults. Without a file the list is one item at the
+// defaults. Errors name the item: "key 'tools[1].offset_mm'".
 #pragma once
 
+#include <cstddef>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -30,6 +42,11 @@ struct ConfigValue {
     bool boolean = false;
     std::string text;               // text and choice values
     std::string origin = "default";
+};
+
+// One list section's items; each item's values are parallel to item_keys().
+struct ListValue {
+    std::vector<std::vector<ConfigValue>> items;
 };
 }  // namespace detail
 
@@ -58,6 +75,9 @@ public:
     std::optional<ConfigError> load_text(std::string_view text, std::string_view origin);
 
     // "section.key=value" from --set. On an error nothing changes. Never throws.
+    // List items: "tools.0.offset_mm=650" (or "tools[0].offset_mm=650") sets
+    // item 0's key; index == list_size() appends an item at the item
+    // defaults, its unique key (id) the lowest value no other item has.
     std::optional<ConfigError> set_override(std::string_view key_equals_value);
 
     // Typed access. An unknown key or the wrong type is a programming error:
@@ -71,6 +91,16 @@ public:
     // Throws std::logic_error on an unknown key.
     std::string origin_of(std::string_view key) const;
 
+    // List sections ("tools"): items 0 .. list_size() - 1, and the item key
+    // ("offset_mm") of one item. An unknown section or key, an index out of
+    // range or the wrong type is a programming error: std::logic_error.
+    std::size_t list_size(std::string_view section) const;
+    long get_item_int(std::string_view section, std::size_t index, std::string_view key) const;
+    double get_item_real(std::string_view section, std::size_t index, std::string_view key) const;
+    bool get_item_bool(std::string_view section, std::size_t index, std::string_view key) const;
+    const std::string& get_item_text(std::string_view section, std::size_t index, std::string_view key) const;
+    std::string item_origin_of(std::string_view section, std::size_t index, std::string_view key) const;
+
     // The effective configuration as a config file (every key, with its unit,
     // range and origin in a comment); load_text() of it gives the same values.
     std::string to_yaml() const;
@@ -79,7 +109,13 @@ private:
     const detail::ConfigValue& value_for(std::string_view key, std::string_view getter,
                                          ValueType type, ValueType or_type) const;
 
+    std::optional<ConfigError> set_item_override(const ListSpec& list, std::string_view key,
+                                                 std::string_view raw_value, const std::string& origin);
+    const detail::ConfigValue& item_value_for(std::string_view section, std::size_t index, std::string_view key,
+                                              std::string_view getter, ValueType type, ValueType or_type) const;
+
     std::vector<detail::ConfigValue> values_;  // parallel to schema()
+    std::vector<detail::ListValue> lists_;     // parallel to list_schema()
 };
 
 }  // namespace stemd::config

@@ -3,6 +3,7 @@
 // documented config/stemd.yaml and the README's table cannot drift apart.
 #pragma once
 
+#include <cstddef>
 #include <span>
 #include <string>
 #include <string_view>
@@ -30,6 +31,47 @@ std::span<const KeySpec> schema();
 // The key's spec, or nullptr if the schema has no such key.
 const KeySpec* find_key(std::string_view key);
 
+// --- List sections --------------------------------------------------------
+// A list section is a top-level section holding a list of maps:
+//
+//   tools:
+//     - id: 0
+//       offset_mm: 600
+//     - id: 1
+//       offset_mm: 900
+//
+// Its item keys are KeySpecs named "section[].key" ("tools[].offset_mm"),
+// typed and ranged like any key; an item's omitted keys take their defaults.
+// Item keys are not in schema() and not found by find_key().
+struct ListSpec {
+    std::string_view section;     // "tools"
+    std::size_t max_items;        // at least 1 item, at most this many
+    std::string_view unique_key;  // item key whose values must differ across items ("" = none)
+    std::string_view lower_key;   // if both set: the upper key's value must be > the lower key's
+    std::string_view upper_key;
+    std::string_view help;
+};
+
+// Every list section, in the order config files list them (after the
+// sections of schema()).
+std::span<const ListSpec> list_schema();
+
+// The list section's spec, or nullptr if `section` is not a list section.
+const ListSpec* find_list(std::string_view section);
+
+// Every list's item keys, each list's keys together.
+std::span<const KeySpec> list_item_schema();
+
+// The item keys of one list section (empty if there is no such list).
+std::span<const KeySpec> item_keys(std::string_view section);
+
+// The item key "key" of list section `section` ("tools", "offset_mm"), or nullptr.
+const KeySpec* find_item_key(std::string_view section, std::string_view item_key);
+
+// "tools[].offset_mm" -> "tools" and "offset_mm" (item keys only).
+std::string_view item_list_of(const KeySpec& spec);
+std::string_view item_leaf_of(const KeySpec& spec);
+
 // True if value is one of spec.choices (choice keys only).
 bool is_choice(const KeySpec& spec, std::string_view value);
 
@@ -41,7 +83,8 @@ std::string list_choices(const KeySpec& spec, std::string_view separator = ", ")
 std::string format_number(double value);
 
 // The schema as a Markdown table for the README:
-// key | type | unit | default | range / choices | meaning.
+// key | type | unit | default | range / choices | meaning; the keys of
+// schema(), then the list item keys ("tools[].offset_mm").
 std::string schema_markdown();
 
 }  // namespace stemd::config

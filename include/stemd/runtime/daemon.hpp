@@ -31,6 +31,7 @@
 #include <spdlog/logger.h>
 
 #include "stemd/drivers/frame_source.hpp"
+#include "stemd/runtime/actuation_stage.hpp"
 #include "stemd/runtime/daemon_config.hpp"
 #include "stemd/runtime/detection_sink.hpp"
 #include "stemd/runtime/frame_pool.hpp"
@@ -43,8 +44,10 @@ namespace stemd::runtime {
 class Daemon {
 public:
     // Allocates everything the threads will use: slots, rings, workspace.
+    // `actuation` is optional (nullptr: detections are only logged / written
+    // as CSV); when given, the actuator thread drives it.
     Daemon(const DaemonConfig& config, std::unique_ptr<drivers::FrameSource> source,
-           std::unique_ptr<DetectionSink> sink);
+           std::unique_ptr<DetectionSink> sink, std::unique_ptr<ActuationStage> actuation = nullptr);
     ~Daemon();   // stops and joins
     Daemon(const Daemon&) = delete;
     Daemon& operator=(const Daemon&) = delete;
@@ -61,7 +64,8 @@ public:
     // actuator; or the source failed. The caller then joins.
     bool finished() const { return actuator_done_.load(std::memory_order_acquire); }
     bool source_failed() const { return source_failed_.load(std::memory_order_acquire); }
-    // Joins the threads and closes the sink; false if the sink lost data.
+    // Joins the threads and closes the sink and the plant map; false if
+    // either lost data.
     bool join();
 
     StatusSnapshot snapshot(bool whole_run);
@@ -89,6 +93,7 @@ private:
     const std::unique_ptr<drivers::FrameSource> source_;
     const std::unique_ptr<DetectionSink> sink_;
     const std::unique_ptr<Counters> counters_;
+    const std::unique_ptr<ActuationStage> actuation_;
 
     FramePool pool_;
     SpscRing<drivers::Frame*> free_slots_;   // processing -> capture

@@ -34,6 +34,8 @@ struct DaemonConfig {
     std::string v4l2_device = "/dev/video0";
     std::string v4l2_pixel_format = "yuyv";   // yuyv | bgr24 | grey
     unsigned v4l2_buffers = 4;
+    std::string nir_device;                   // empty: no NIR camera
+    double nir_tolerance_ms = 8;
     std::string libcamera_camera = "0";       // libcamera: index, id, or unique part of the id
     double fps = 30;
     cv::Size frame_size{1296, 966};
@@ -47,6 +49,9 @@ struct DaemonConfig {
     // status.*, log.*
     double status_interval_s = 5.0;
     std::string log_level = "info";
+    // Allocate a class-map plane per frame slot (replay of recordings with a
+    // class column, for the actuation's policy).
+    bool class_maps = false;
     // The pipeline's keys (camera.*, segment.*, closing.*, ...).
     vision::Params vision;
 };

@@ -5,6 +5,7 @@
 // actuation (tracker, scheduler) takes its place later.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
@@ -25,8 +26,14 @@ struct FrameResult {
     std::int64_t t_recorded_ns = 0;    // the frame's own time (recording t_ns)
     std::int64_t t_result_ns = 0;      // CLOCK_MONOTONIC when detect() returned
     std::int64_t pipeline_ns = 0;      // detect() wall time
+    double odom_mm = 0;                // the frame's odometer (recording column); NaN if unknown
+    bool has_class_map = false;        // plant_class below is meaningful
     drivers::FrameName name;
     vision::Detections detections;
+    // Per plant (parallel to detections.plants): the class map's value at
+    // its stem (majority of crop/weed pixels around it), as
+    // actuation::PlantClass: 0 unknown, 1 crop, 2 weed.
+    std::array<std::uint8_t, vision::kMaxPlants> plant_class{};
 };
 
 class DetectionSink {

@@ -16,8 +16,9 @@ namespace stemd::runtime {
 class FramePool {
 public:
     // `count` slots of `size`, with the planes `segmentation` reads: bgr for
-    // exg and ndvi, nir for ndvi, mask for mask. Throws std::bad_alloc.
-    FramePool(cv::Size size, vision::Segmentation segmentation, std::size_t count);
+    // exg and ndvi, nir for ndvi, mask for mask; plant_class with
+    // `class_maps`. Throws std::bad_alloc.
+    FramePool(cv::Size size, vision::Segmentation segmentation, std::size_t count, bool class_maps = false);
     FramePool(const FramePool&) = delete;
     FramePool& operator=(const FramePool&) = delete;
 

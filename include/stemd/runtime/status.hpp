@@ -57,6 +57,7 @@ struct Counters {
     struct Processing {
         std::atomic<std::uint64_t> frames{0};          // frames detect() ran on
         std::atomic<std::uint64_t> failed{0};          // detect() status != ok (size, format, missing plane)
+        std::atomic<std::uint64_t> no_vegetation{0};   // frames with no vegetation at all (bare soil)
         std::atomic<std::uint64_t> results_full{0};    // result ring full: result dropped
         std::atomic<std::uint64_t> plants_over_capacity{0};
         DurationHistogram pipeline;                    // detect() wall time
@@ -80,6 +81,10 @@ struct StatusSnapshot {
     std::uint64_t corrupt = 0;         // unreadable or undecodable frames (source)
     std::uint64_t bad_size = 0;        // frames not the slots' size (source)
     std::uint64_t failed = 0;          // detect() refused the frame
+    std::uint64_t no_vegetation = 0;   // bare-soil frames (not a drop: nothing to see)
+    // Actuation (when a CAN side is configured).
+    bool actuation = false;
+    std::uint64_t targets = 0, sent = 0, deadline_misses = 0, no_odometry = 0, not_treated = 0, bus_errors = 0;
     DurationHistogram::Summary latency;    // interval, or whole run for the final line
     DurationHistogram::Summary pipeline;
 };

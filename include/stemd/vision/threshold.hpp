@@ -29,6 +29,13 @@ int triangle_threshold(const Histogram& histogram);
 int min_error_threshold(const Histogram& histogram);
 int auto_threshold(const Histogram& histogram, ThresholdMethod method);
 
+// Difference of the mean index of the two classes the threshold makes,
+// mean(index > t) - mean(index <= t), from the histogram alone; 0 when
+// either class is empty. Every automatic threshold splits a histogram even
+// when it has one mode (bare soil); a small separation says there was no
+// second class to find.
+double class_separation(const Histogram& histogram, int threshold);
+
 // index > threshold -> set bit. `out` is resized if needed.
 void threshold_to_bits(const cv::Mat& index_u8, int threshold, BitMask& out);
 

@@ -83,6 +83,11 @@ struct Params {
     Segmentation segmentation = Segmentation::exg;
     ThresholdMethod threshold = ThresholdMethod::otsu;
     MaskVegetation mask_vegetation = MaskVegetation::nonzero;
+    // Automatic thresholds: if the mean index of the two classes differs by
+    // less than this (index units; ExG: 1 unit = 4 of 2G-R-B, NDVI: 1/127.5),
+    // the histogram has no second class and the frame has no vegetation.
+    // 0 disables the check.
+    double min_class_separation = 12.0;
     int closing_radius_px = 5;          // paper's m
     double gsd_mm_per_px = 0.33;        // ground sampling distance
     double min_plant_area_mm2 = 10.0;   // smaller components are noise
@@ -136,6 +141,8 @@ struct Plant {
 // Per-frame counters of the pipeline; the daemon sums them into its status.
 struct DetectStats {
     int threshold = -1;             // on the 8-bit index; -1 for external masks
+    float class_separation = 0;     // mean index above minus below the threshold; 0 for external masks
+    bool no_vegetation = false;     // separation below min_class_separation: no plants looked for
     int vegetation_px = 0;          // after thresholding, before closing
     int components = 0;             // 8-connected components after closing
     int small_components = 0;       // dropped below min_plant_area

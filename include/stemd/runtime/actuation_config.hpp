@@ -1,0 +1,67 @@
+// The actuation side of the configuration, typed: the tools list and the
+// tracker.*, scheduler.*, odometry.*, can.*, gpio.* and map.* keys
+// (config::Config, checked against the schema already).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "stemd/actuation/scheduler.hpp"
+#include "stemd/actuation/tracker.hpp"
+#include "stemd/runtime/config.hpp"
+
+namespace stemd::runtime {
+
+enum class OdometrySource : std::uint8_t {
+    automatic,  // odometry.source: auto — the recording's odom_mm column when the frames carry it, else constant
+    recording,  // the frames' odom_mm (replay of a recording with that column); frames without it are not actuated
+    constant,   // odometry.speed_mm_per_s from the first frame on
+    can,        // ODOMETRY frames received on the CAN bus
+    encoder,    // a wheel encoder on GPIO lines (gpio.encoder_*)
+};
+
+// scheduler.policy: auto = weeds_only when the frames carry a class map, all without.
+enum class PolicyChoice : std::uint8_t { automatic, weeds_only, all };
+
+struct ActuationConfig {
+    // tools: the list (1..16 entries, ids unique: checked by the loader).
+    std::vector<actuation::ToolSpec> tools;
+    actuation::TrackerParams tracker;
+    actuation::SchedulerParams scheduler;   // .policy: the resolved one is chosen at start (PolicyChoice)
+    PolicyChoice policy = PolicyChoice::automatic;
+
+    // odometry.*
+    OdometrySource odometry = OdometrySource::automatic;
+    double speed_mm_per_s = 1388.9;           // constant: 5 km/h
+    double encoder_mm_per_tick = 0.1;
+    std::int64_t max_extrapolation_ns = 100'000'000;
+    std::int64_t odometry_timeout_ns = 500'000'000;   // can/encoder: no fresh sample for this long = no odometry
+
+    // can.*
+    std::string can_interface;                // empty: none configured (log sink)
+    std::uint32_t can_base_id = 0x300;
+    std::string can_log_file = "-";           // log sink: "-" = stdout
+    bool can_log_monotonic = false;           // can.log_clock: monotonic
+    std::int64_t heartbeat_interval_ns = 100'000'000;
+
+    // gpio.* (chip empty: no GPIO; the enable input is then taken as active)
+    std::string gpio_chip;
+    int enable_line = -1;
+    bool enable_active_low = false;
+    std::int64_t enable_debounce_ns = 20'000'000;
+    int trigger_line = -1;
+    bool trigger_active_low = false;
+    std::uint32_t trigger_pulse_us = 100;
+    std::string encoder_mode = "none";        // none | quadrature | single
+    int encoder_a_line = -1;
+    int encoder_b_line = -1;
+
+    // map.file (empty: none); --map FILE sets it
+    std::string map_file;
+};
+
+// The schema has checked every value already, so this cannot fail.
+ActuationConfig actuation_config(const config::Config& config);
+
+}  // namespace stemd::runtime

@@ -1,0 +1,79 @@
+// The plant map (--map FILE, map.file): one JSON object per line for every
+// plant the tracker followed, written when its track ends (it left the view,
+// went unseen, or the run ended):
+//
+//   {"id":17,"s_mm":1234.6,"y_mm":-40.2,"class":"weed","leaves":4,"sightings":7,
+//    "first_frame":120,"last_frame":126,"treated":true,"reason":"sent",
+//    "tool":0,"lane":0,"fire_odom_mm":1834.6}
+//
+// id: the TARGET target_id (0..4095, wraps), or -1 for a track that was
+// never confirmed (a detection seen too few times: a likely false positive).
+// s_mm, y_mm: field coordinates (README, "Machine frame and field
+// coordinates"), fused over every sighting. class: unknown|crop|weed.
+// first_frame/last_frame: the daemon's frame numbers. treated: a TARGET
+// went onto the bus. reason: sent, or why not: policy, no_tool, disabled,
+// deadline_miss (the scheduler: it could not be on time), bus_deadline (the
+// bus could not take it before its deadline), bus_error, no_odometry,
+// unconfirmed. tool, lane, fire_odom_mm: when a tool was chosen.
+//
+// Written by the actuator thread through a 1 MiB buffer allocated at
+// open(): a line is formatted into it without allocating, and the buffer
+// is written out when it fills and at close().
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <string_view>
+
+#include <spdlog/logger.h>
+
+#include "stemd/actuation/tracker.hpp"
+
+namespace stemd::runtime {
+
+enum class MapReason : std::uint8_t {
+    sent, policy, no_tool, disabled, deadline_miss, bus_deadline, bus_error, no_odometry, unconfirmed, pending,
+};
+std::string_view to_string(MapReason r);
+
+struct MapEntry {
+    MapReason reason = MapReason::pending;
+    bool has_tool = false;
+    std::uint8_t tool = 0;
+    std::uint8_t lane = 0;
+    double fire_odom_mm = 0;
+};
+
+class PlantMap {
+public:
+    explicit PlantMap(std::shared_ptr<spdlog::logger> log);
+    ~PlantMap();
+    PlantMap(const PlantMap&) = delete;
+    PlantMap& operator=(const PlantMap&) = delete;
+
+    // Creates (truncates) the file; false (logged with path and errno) if it cannot.
+    bool open(const std::filesystem::path& path);
+    bool is_open() const { return file_ != nullptr; }
+
+    // One line; false if a write failed (logged once). No allocation.
+    bool write(const actuation::RetiredTrack& track, const MapEntry& entry);
+    // Flushes and closes; false if anything was lost.
+    bool close();
+
+    std::uint64_t lines() const { return lines_; }
+
+private:
+    struct FileCloser {
+        void operator()(std::FILE* f) const { std::fclose(f); }
+    };
+    std::shared_ptr<spdlog::logger> log_;
+    std::filesystem::path path_;
+    std::unique_ptr<char[]> buffer_;   // declared before the FILE that uses it
+    std::unique_ptr<std::FILE, FileCloser> file_;
+    bool failed_ = false;
+    std::uint64_t lines_ = 0;
+};
+
+}  // namespace stemd::runtime

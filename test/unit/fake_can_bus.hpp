@@ -1,0 +1,37 @@
+// A CanBus for tests: records what is sent (with deadlines) and delivers
+// queued frames to receive(). Not thread-safe: read it after the thread
+// driving it has been joined.
+#pragma once
+
+#include <deque>
+#include <vector>
+
+#include "stemd/drivers/can_bus.hpp"
+
+namespace stemd::test {
+
+class FakeCanBus final : public drivers::CanBus {
+public:
+    std::string_view name() const override { return "fake"; }
+    drivers::SendResult send(const actuation::CanFrame& frame, std::int64_t deadline_ns) override
+    {
+        sent.push_back(frame);
+        deadlines.push_back(deadline_ns);
+        return drivers::SendResult::sent;
+    }
+    bool receive(actuation::CanFrame& out, std::int64_t) override
+    {
+        if (inbox.empty())
+            return false;
+        out = inbox.front();
+        inbox.pop_front();
+        return true;
+    }
+    drivers::CanBusCounters counters() const override { return {}; }
+
+    std::vector<actuation::CanFrame> sent;
+    std::vector<std::int64_t> deadlines;
+    std::deque<actuation::CanFrame> inbox;
+};
+
+}  // namespace stemd::test

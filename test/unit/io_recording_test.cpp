@@ -1,0 +1,145 @@
+// frames.csv: the four fixed columns, the optional odom_mm and class
+// columns, and errors naming file and line.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "stemd/io/recording.hpp"
+
+namespace fs = std::filesystem;
+using namespace stemd::io;
+
+namespace {
+
+class RecordingTest : public ::testing::Test {
+protected:
+    void SetUp() override
+    {
+        dir_ = fs::temp_directory_path() / ("stemd-recording-" + std::to_string(std::random_device{}()));
+        fs::create_directories(dir_);
+    }
+    void TearDown() override { fs::remove_all(dir_); }
+
+    std::optional<Recording> read(const std::string& csv)
+    {
+        std::ofstream(dir_ / "frames.csv") << csv;
+        error_.clear();
+        return read_recording(dir_, error_);
+    }
+    std::string where(int line) const { return (dir_ / "frames.csv").string() + ":" + std::to_string(line) + ": "; }
+
+    fs::path dir_;
+    std::string error_;
+};
+
+}  // namespace
+
+TEST_F(RecordingTest, FourColumnFilesReadAsBefore)
+{
+    const auto rec = read("t_ns,rgb,nir,mask\n0,rgb/0.png,nir/0.png,mask/0.png\n5,rgb/1.png,,\n");
+    ASSERT_TRUE(rec) << error_;
+    ASSERT_EQ(rec->frames.size(), 2u);
+    EXPECT_EQ(rec->frames[0].t_ns, 0);
+    EXPECT_EQ(rec->frames[0].rgb, "rgb/0.png");
+    EXPECT_EQ(rec->frames[0].nir, "nir/0.png");
+    EXPECT_EQ(rec->frames[0].mask, "mask/0.png");
+    EXPECT_EQ(rec->frames[1].t_ns, 5);
+    EXPECT_TRUE(rec->frames[1].nir.empty());
+    for (const RecordingFrame& f : rec->frames) {
+        EXPECT_FALSE(f.odom_mm.has_value());
+        EXPECT_TRUE(f.plant_class.empty());
+    }
+    EXPECT_EQ(rec->resolve("rgb/0.png"), dir_ / "rgb/0.png");
+}
+
+TEST_F(RecordingTest, OdometerAndClassColumns)
+{
+    const auto rec = read(
+        "t_ns,rgb,nir,mask,odom_mm,class\n"
+        "1000,rgb/0.png,,,0,class/0.png\n"
+        "2000,rgb/1.png,,,46.2,\n"
+        "3000,rgb/2.png,,,,class/2.png\n"
+        "4000,rgb/3.png,,,-1.5e3,class/3.png\n");
+    ASSERT_TRUE(rec) << error_;
+    ASSERT_EQ(rec->frames.size(), 4u);
+    EXPECT_EQ(rec->frames[0].odom_mm, 0.0);
+    EXPECT_EQ(rec->frames[0].plant_class, "class/0.png");
+    EXPECT_EQ(rec->frames[1].odom_mm, 46.2);
+    EXPECT_TRUE(rec->frames[1].plant_class.empty());
+    EXPECT_FALSE(rec->frames[2].odom_mm.has_value());
+    EXPECT_EQ(rec->frames[2].plant_class, "class/2.png");
+    EXPECT_EQ(rec->frames[3].odom_mm, -1500.0);
+}
+
+TEST_F(RecordingTest, OptionalColumnsInAnyOrderAndAlone)
+{
+    auto rec = read("t_ns,rgb,nir,mask,class,odom_mm\n0,a.png,,,c.png,12.5\n");
+    ASSERT_TRUE(rec) << error_;
+    EXPECT_EQ(rec->frames[0].odom_mm, 12.5);
+    EXPECT_EQ(rec->frames[0].plant_class, "c.png");
+
+    rec = read("t_ns,rgb,nir,mask,odom_mm\n0,a.png,,,7\n");
+    ASSERT_TRUE(rec) << error_;
+    EXPECT_EQ(rec->frames[0].odom_mm, 7.0);
+    EXPECT_TRUE(rec->frames[0].plant_class.empty());
+
+    rec = read("t_ns,rgb,nir,mask,class\n0,a.png,,,c.png\n");
+    ASSERT_TRUE(rec) << error_;
+    EXPECT_FALSE(rec->frames[0].odom_mm.has_value());
+    EXPECT_EQ(rec->frames[0].plant_class, "c.png");
+}
+
+TEST_F(RecordingTest, UnknownOrRepeatedColumnIsAnError)
+{
+    EXPECT_FALSE(read("t_ns,rgb,nir,mask,x\n0,a.png,,,1\n"));
+    EXPECT_EQ(error_, where(1) + "unknown column 'x'");
+    EXPECT_FALSE(read("t_ns,rgb,nir,mask,odom_mm,speed\n0,a.png,,,1,2\n"));
+    EXPECT_EQ(error_, where(1) + "unknown column 'speed'");
+    EXPECT_FALSE(read("t_ns,rgb,nir,mask,class,class\n0,a.png,,,c,c\n"));
+    EXPECT_EQ(error_, where(1) + "column 'class' appears twice");
+}
+
+TEST_F(RecordingTest, FixedColumnsMustComeFirst)
+{
+    EXPECT_FALSE(read("t_ns,rgb,mask,nir\n0,a.png,,\n"));
+    EXPECT_NE(error_.find(where(1)), std::string::npos) << error_;
+    EXPECT_FALSE(read("odom_mm,t_ns,rgb,nir,mask\n0,0,a.png,,\n"));
+    EXPECT_NE(error_.find(where(1)), std::string::npos) << error_;
+    EXPECT_FALSE(read("t_ns,rgb,nir\n0,a.png,\n"));
+    EXPECT_NE(error_.find(where(1)), std::string::npos) << error_;
+}
+
+TEST_F(RecordingTest, BadOdometerValuesNameTheLine)
+{
+    for (const char* bad : {"abc", "1.5mm", "nan", "inf", "-inf", " 3", "1e999"}) {
+        SCOPED_TRACE(bad);
+        EXPECT_FALSE(read(std::string("t_ns,rgb,nir,mask,odom_mm\n0,a.png,,,1\n1,b.png,,,") + bad + "\n"));
+        EXPECT_EQ(error_, where(3) + "odom_mm '" + bad + "' is not a finite number");
+    }
+}
+
+TEST_F(RecordingTest, OtherRowErrors)
+{
+    EXPECT_FALSE(read("t_ns,rgb,nir,mask,odom_mm\nx,a.png,,,1\n"));
+    EXPECT_EQ(error_, where(2) + "t_ns 'x' is not an integer");
+    EXPECT_FALSE(read("t_ns,rgb,nir,mask,class\n0,,,,c.png\n"));
+    EXPECT_EQ(error_, where(2) + "a frame needs an rgb or a mask path");
+}
+
+TEST(RecordingOdometer, ParsesFiniteReals)
+{
+    double v = -1;
+    EXPECT_TRUE(parse_odom_mm("0", v));
+    EXPECT_EQ(v, 0.0);
+    EXPECT_TRUE(parse_odom_mm("3426.06", v));
+    EXPECT_EQ(v, 3426.06);
+    EXPECT_TRUE(parse_odom_mm("-2e1", v));
+    EXPECT_EQ(v, -20.0);
+    v = 5;
+    EXPECT_FALSE(parse_odom_mm("", v));
+    EXPECT_FALSE(parse_odom_mm("1,5", v));
+    EXPECT_FALSE(parse_odom_mm("NaN", v));
+    EXPECT_EQ(v, 5.0);
+}

@@ -1,0 +1,388 @@
+// The actuator's stage end to end on synthetic detections: a strip of
+// plants at known field positions seen by overlapping frames of a nadir
+// camera; each plant must become exactly one TARGET at its fire position,
+// and the enable input, a slow pipeline, CAN odometry (with corrupt frames),
+// the class policy and the heartbeat behave as documented.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <memory>
+#include <vector>
+
+#include "stemd/actuation/messages.hpp"
+#include "stemd/runtime/actuation_stage.hpp"
+#include "stemd/runtime/logging.hpp"
+#include "fake_can_bus.hpp"
+
+namespace stemd::runtime {
+namespace {
+
+using actuation::CanFrame;
+using actuation::MessageKind;
+using actuation::PlantClass;
+
+using FakeBus = test::FakeCanBus;
+
+class FakeGpio final : public drivers::GpioLines {
+public:
+    std::string_view name() const override { return "fake-gpio"; }
+    bool enabled() const override { return enable; }
+    bool wait_change(bool, std::int64_t) override { return false; }
+    bool has_trigger() const override { return false; }
+    bool set_trigger(bool) override { return false; }
+    bool pulse(std::uint32_t) override { return false; }
+    drivers::EncoderMode encoder_mode() const override { return drivers::EncoderMode::none; }
+    drivers::EncoderReading encoder() const override { return {}; }
+    drivers::GpioCounters counters() const override { return {}; }
+    bool enable = true;
+};
+
+constexpr double kGsd = 0.33;
+const cv::Size kSize{1296, 966};
+constexpr double kSpeed = 1388.9;           // mm/s, 5 km/h
+constexpr std::int64_t kPeriodNs = 33'333'333;  // 30 fps
+constexpr std::int64_t kT0 = 5'000'000'000;
+
+struct Plant {
+    double s_mm, y_mm;
+    PlantClass cls;
+};
+
+// Plants 60 mm apart along the strip, alternating sides and classes.
+std::vector<Plant> strip(int n)
+{
+    std::vector<Plant> plants;
+    for (int i = 0; i < n; ++i)
+        plants.push_back({250.0 + 60.0 * i, (i % 2 ? -1.0 : 1.0) * (20.0 + 7.0 * (i % 5)),
+                          i % 3 == 0 ? PlantClass::Crop : PlantClass::Weed});
+    return plants;
+}
+
+geometry::CameraModel nadir_camera()
+{
+    geometry::NadirParams p;
+    p.gsd_mm_per_px = kGsd;
+    p.principal_px = geometry::image_centre(kSize);
+    return *geometry::CameraModel::nadir(p);
+}
+
+ActuationConfig base_config()
+{
+    ActuationConfig c;
+    c.tools = {{.id = 3, .offset_mm = 600, .y_min_mm = -220, .y_max_mm = 220, .lanes = 4}};
+    c.policy = PolicyChoice::all;
+    c.odometry = OdometrySource::recording;
+    c.heartbeat_interval_ns = 100'000'000;
+    return c;
+}
+
+// Frame k as the processing thread would hand it over: the plants whose
+// stems are inside the image, at their pixels (forward = up: a plant ahead
+// of the principal point is above the centre row; left of the machine is
+// image left).
+std::unique_ptr<FrameResult> frame(const std::vector<Plant>& plants, int k, bool class_map = false,
+                                   bool with_odom = true)
+{
+    auto r = std::make_unique<FrameResult>();
+    const double odom = k * kSpeed / 30.0;
+    r->seq = static_cast<std::uint64_t>(k);
+    r->t_capture_ns = kT0 + k * kPeriodNs;
+    r->odom_mm = with_odom ? odom : std::nan("");
+    r->has_class_map = class_map;
+    const cv::Point2d c = geometry::image_centre(kSize);
+    for (const Plant& p : plants) {
+        const double u = c.x - p.y_mm / kGsd, v = c.y - (p.s_mm - odom) / kGsd;
+        if (u < 0 || v < 0 || u > kSize.width - 1 || v > kSize.height - 1)
+            continue;
+        vision::Plant vp;
+        vp.stem = {static_cast<float>(u), static_cast<float>(v)};
+        vp.has_stem = true;
+        vp.confidence = 0.8f;
+        r->plant_class[r->detections.plants.size()] = static_cast<std::uint8_t>(p.cls);
+        r->detections.plants.push_back(vp);
+    }
+    return r;
+}
+
+struct Stage {
+    std::unique_ptr<ActuationStage> stage;
+    FakeBus* bus = nullptr;
+    FakeGpio* gpio = nullptr;
+};
+
+Stage make_stage(const ActuationConfig& config, bool with_gpio = false)
+{
+    Stage run;
+    ActuationStage::Parts parts;
+    auto bus = std::make_unique<FakeBus>();
+    run.bus = bus.get();
+    parts.bus = std::move(bus);
+    if (with_gpio) {
+        auto gpio = std::make_unique<FakeGpio>();
+        run.gpio = gpio.get();
+        parts.gpio = std::move(gpio);
+    }
+    std::string error;
+    run.stage = ActuationStage::make(config, nadir_camera(), kSize, std::move(parts), runtime::make_logger("actuator-test"), error);
+    EXPECT_TRUE(run.stage) << error;
+    return run;
+}
+
+std::vector<actuation::TargetCommand> targets(const FakeBus& bus, const actuation::CanIds& ids = {})
+{
+    std::vector<actuation::TargetCommand> out;
+    for (const CanFrame& f : bus.sent)
+        if (ids.kind_of(f) == MessageKind::Target) {
+            actuation::TargetCommand t;
+            EXPECT_TRUE(actuation::decode(f, ids, t));
+            out.push_back(t);
+        }
+    return out;
+}
+
+// Frames until the last plant has left the view at the trailing edge.
+int frames_for(const std::vector<Plant>& plants)
+{
+    return static_cast<int>((plants.back().s_mm + kSize.height * kGsd) / (kSpeed / 30.0)) + 2;
+}
+
+TEST(ActuationStage, EveryPlantBecomesExactlyOneTargetAtItsFirePosition)
+{
+    const auto plants = strip(30);
+    Stage run = make_stage(base_config());
+    for (int k = 0; k < frames_for(plants); ++k) {
+        const auto r = frame(plants, k);
+        run.stage->on_frame(*r, r->t_capture_ns + 3'000'000);   // 3 ms pipeline
+    }
+    const auto sent = targets(*run.bus);
+    ASSERT_EQ(sent.size(), plants.size());
+    std::map<std::size_t, int> hits;
+    for (const auto& t : sent) {
+        // The plant this command is for: the one whose fire position is nearest.
+        std::size_t best = 0;
+        for (std::size_t i = 1; i < plants.size(); ++i)
+            if (std::abs(plants[i].s_mm + 600 - t.fire_odom_mm) < std::abs(plants[best].s_mm + 600 - t.fire_odom_mm))
+                best = i;
+        ++hits[best];
+        EXPECT_NEAR(t.fire_odom_mm, plants[best].s_mm + 600, 1.0);
+        EXPECT_NEAR(t.lateral_mm, plants[best].y_mm, 1.0);
+        EXPECT_EQ(t.tool_id, 3);
+        // Lanes of 110 mm from y = -220.
+        EXPECT_EQ(t.lane, static_cast<int>(std::floor((plants[best].y_mm + 220) / 110)));
+    }
+    EXPECT_EQ(hits.size(), plants.size()) << "a plant got two commands and another none";
+    EXPECT_EQ(run.stage->counters().deadline_misses.load(), 0u);
+    EXPECT_EQ(run.stage->counters().sent.load(), plants.size());
+    EXPECT_EQ(run.stage->counters().targets.load(), plants.size());
+}
+
+TEST(ActuationStage, EnableInactiveSendsNothingAndCountsEveryTarget)
+{
+    const auto plants = strip(10);
+    Stage run = make_stage(base_config(), true);
+    run.gpio->enable = false;
+    for (int k = 0; k < frames_for(plants); ++k) {
+        const auto r = frame(plants, k);
+        run.stage->on_frame(*r, r->t_capture_ns + 3'000'000);
+    }
+    EXPECT_TRUE(targets(*run.bus).empty());
+    EXPECT_EQ(run.stage->counters().disabled.load(), plants.size());
+    EXPECT_EQ(run.stage->counters().sent.load(), 0u);
+}
+
+TEST(ActuationStage, EnableTakesEffectFromTheNextFrame)
+{
+    const auto plants = strip(10);
+    Stage run = make_stage(base_config(), true);
+    std::size_t sent_before_disable = 0;
+    const int n = frames_for(plants);
+    for (int k = 0; k < n; ++k) {
+        if (k == n / 2) {
+            run.gpio->enable = false;
+            sent_before_disable = targets(*run.bus).size();
+        }
+        const auto r = frame(plants, k);
+        run.stage->on_frame(*r, r->t_capture_ns + 3'000'000);
+    }
+    EXPECT_GT(sent_before_disable, 0u);
+    EXPECT_EQ(targets(*run.bus).size(), sent_before_disable);
+    EXPECT_EQ(run.stage->counters().disabled.load() + sent_before_disable, plants.size());
+}
+
+TEST(ActuationStage, SlowPipelineMakesDeadlineMissesThatAreNeverSent)
+{
+    const auto plants = strip(10);
+    ActuationConfig config = base_config();
+    config.tools[0].offset_mm = 150;   // a tool close behind the camera
+    config.max_extrapolation_ns = 2'000'000'000;
+    Stage run = make_stage(config);
+    for (int k = 0; k < frames_for(plants); ++k) {
+        const auto r = frame(plants, k);
+        // 400 ms late: the machine has moved 556 mm since the capture, past
+        // every fire position (a plant is confirmed at most ~160 mm ahead).
+        run.stage->on_frame(*r, r->t_capture_ns + 400'000'000);
+    }
+    EXPECT_TRUE(targets(*run.bus).empty());
+    EXPECT_EQ(run.stage->counters().deadline_misses.load(), plants.size());
+}
+
+TEST(ActuationStage, DeadlineGivenToTheBusLeavesTheLeadTime)
+{
+    const auto plants = strip(5);
+    ActuationConfig config = base_config();
+    config.scheduler.lead_ms = 20;
+    Stage run = make_stage(config);
+    std::vector<std::int64_t> now_of_send;
+    for (int k = 0; k < frames_for(plants); ++k) {
+        const auto r = frame(plants, k);
+        const std::size_t before = run.bus->sent.size();
+        const std::int64_t now = r->t_capture_ns + 3'000'000;
+        run.stage->on_frame(*r, now);
+        for (std::size_t i = before; i < run.bus->sent.size(); ++i) {
+            actuation::TargetCommand t;
+            ASSERT_TRUE(actuation::decode(run.bus->sent[i], {}, t));
+            // Odometer now (interpolated at constant speed) and arrival.
+            const double odom_now = k * kSpeed / 30.0 + kSpeed * 0.003;
+            const double arrival_ms = (t.fire_odom_mm - odom_now) / kSpeed * 1000.0;
+            const double deadline_ms = static_cast<double>(run.bus->deadlines[i] - now) / 1e6;
+            EXPECT_NEAR(deadline_ms, arrival_ms - 20.0, 1.0);   // fire_odom_mm is rounded to 1 mm
+        }
+    }
+    EXPECT_EQ(targets(*run.bus).size(), plants.size());
+}
+
+TEST(ActuationStage, FramesWithoutOdometryAreNotActuated)
+{
+    const auto plants = strip(5);
+    Stage run = make_stage(base_config());   // odometry.source: recording
+    for (int k = 0; k < frames_for(plants); ++k) {
+        const auto r = frame(plants, k, false, /*with_odom=*/false);
+        run.stage->on_frame(*r, r->t_capture_ns + 3'000'000);
+    }
+    EXPECT_TRUE(targets(*run.bus).empty());
+    EXPECT_EQ(run.stage->counters().no_odometry.load(), static_cast<std::uint64_t>(frames_for(plants)));
+}
+
+TEST(ActuationStage, AutoPolicyTreatsOnlyWeedsWithAClassMapAndEverythingWithout)
+{
+    const auto plants = strip(12);
+    std::size_t weeds = 0;
+    for (const Plant& p : plants)
+        weeds += p.cls == PlantClass::Weed;
+    ActuationConfig config = base_config();
+    config.policy = PolicyChoice::automatic;
+    for (const bool class_map : {true, false}) {
+        Stage run = make_stage(config);
+        for (int k = 0; k < frames_for(plants); ++k) {
+            const auto r = frame(plants, k, class_map);
+            run.stage->on_frame(*r, r->t_capture_ns + 3'000'000);
+        }
+        const auto sent = targets(*run.bus);
+        if (class_map) {
+            EXPECT_EQ(sent.size(), weeds);
+            for (const auto& t : sent)
+                EXPECT_EQ(t.plant_class, PlantClass::Weed);
+            EXPECT_EQ(run.stage->counters().policy.load(), plants.size() - weeds);
+        } else {
+            EXPECT_EQ(sent.size(), plants.size());
+            for (const auto& t : sent)
+                EXPECT_EQ(t.plant_class, PlantClass::Unknown);
+        }
+    }
+}
+
+TEST(ActuationStage, CanOdometryDrivesTheFramesAndCorruptFramesAreRejected)
+{
+    const auto plants = strip(8);
+    ActuationConfig config = base_config();
+    config.odometry = OdometrySource::can;
+    Stage run = make_stage(config);
+    const actuation::CanIds ids;
+    actuation::E2eCounter counter;
+    std::size_t corrupted = 0;
+    // The drive sends ODOMETRY every 10 ms; the frames carry no odometer.
+    const int n = frames_for(plants);
+    for (std::int64_t t = kT0 - 50'000'000, k = 0; k < n; t += 10'000'000) {
+        CanFrame f;
+        const double odom = static_cast<double>(t - kT0) * 1e-9 * kSpeed;
+        ASSERT_TRUE(actuation::encode(
+            actuation::Odometry{static_cast<std::uint32_t>(std::llround(odom + 100000.0)), 1389}, counter.next(), ids,
+            f));
+        if ((t / 10'000'000) % 37 == 0) {
+            f.data[5] ^= 0x10;   // a flipped bit: the CRC no longer matches
+            ++corrupted;
+        }
+        run.bus->inbox.push_back(f);
+        run.stage->poll(t);
+        if (t >= kT0 + k * kPeriodNs) {
+            auto r = frame(plants, static_cast<int>(k), false, false);
+            run.stage->on_frame(*r, t + 1'000'000);
+            ++k;
+        }
+    }
+    EXPECT_EQ(run.stage->counters().rx_rejected.load(), corrupted);
+    EXPECT_GT(corrupted, 0u);
+    const auto sent = targets(*run.bus);
+    ASSERT_EQ(sent.size(), plants.size());
+    for (std::size_t i = 0; i < sent.size(); ++i) {
+        // Odometer offset 100000 mm; frames are stamped at multiples of the
+        // period but odometry samples every 10 ms: interpolated within 1 mm.
+        bool found = false;
+        for (const Plant& p : plants)
+            found = found || std::abs(sent[i].fire_odom_mm - (p.s_mm + 100000.0 + 600.0)) <= 2.0;
+        EXPECT_TRUE(found) << "fire_odom_mm " << sent[i].fire_odom_mm;
+    }
+}
+
+TEST(ActuationStage, HeartbeatEveryIntervalWithState)
+{
+    Stage run = make_stage(base_config());
+    for (std::int64_t t = kT0; t < kT0 + 1'000'000'000; t += 1'000'000)
+        run.stage->poll(t);
+    std::vector<actuation::Heartbeat> beats;
+    for (const CanFrame& f : run.bus->sent) {
+        actuation::Heartbeat hb;
+        ASSERT_TRUE(actuation::decode(f, {}, hb));
+        beats.push_back(hb);
+    }
+    ASSERT_EQ(beats.size(), 10u);   // t = 0, 100, ..., 900 ms
+    EXPECT_EQ(beats[0].state, actuation::DaemonState::Starting);
+    EXPECT_EQ(run.stage->counters().heartbeats.load(), 10u);
+}
+
+}  // namespace
+}  // namespace stemd::runtime
+
+namespace stemd::runtime {
+namespace {
+
+TEST(ActuationStage, ConstantSpeedOdometryNeverGoesStale)
+{
+    // No odometer in the frames: odometry.source constant. A pipeline
+    // 400 ms late (beyond the 100 ms extrapolation limit of sampled
+    // odometry) still knows the odometer now, and the 600 mm tool is still
+    // ahead of every plant: all are sent.
+    const auto plants = strip(6);
+    ActuationConfig config = base_config();
+    config.odometry = OdometrySource::constant;
+    config.speed_mm_per_s = kSpeed;
+    Stage run = make_stage(config);
+    for (int k = 0; k < frames_for(plants); ++k) {
+        const auto r = frame(plants, k, false, /*with_odom=*/false);
+        run.stage->on_frame(*r, r->t_capture_ns + 400'000'000);
+    }
+    EXPECT_EQ(run.stage->counters().no_odometry.load(), 0u);
+    EXPECT_EQ(targets(*run.bus).size(), plants.size());
+    // The constant odometer starts at 0 with the first frame, like the
+    // recording's: the fire positions are the same.
+    for (const auto& t : targets(*run.bus)) {
+        bool found = false;
+        for (const Plant& p : plants)
+            found = found || std::abs(t.fire_odom_mm - (p.s_mm + 600.0)) <= 1.0;
+        EXPECT_TRUE(found) << t.fire_odom_mm;
+    }
+}
+
+}  // namespace
+}  // namespace stemd::runtime

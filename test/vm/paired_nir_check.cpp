@@ -1,0 +1,388 @@
+// VM check of the paired RGB + NIR source (drivers/v4l2/paired_nir_source) on
+// two vivid instances, each with its own HDMI output -> HDMI capture loopback.
+//
+//   stemd-vm-paired-nir-check loop RGB_CAP RGB_OUT NIR_CAP NIR_OUT [DUMP_DIR]
+//       keeps writing a plant scene (green discs on brown soil, BGR24) to
+//       RGB_OUT and its NIR counterpart (GREY: bright leaves, dark soil) to
+//       NIR_OUT, captures pairs through stemd::drivers::PairedNirSource and
+//       checks:
+//       1. kPassPairs pairs (twice: at the start, then steady): bgr holds the RGB scene's colours, nir the NIR
+//          scene's levels (so each plane came from its own device), |t_nir -
+//          t_rgb| within the tolerance, timestamps increasing, the caller's
+//          planes never reallocated;
+//       2. vivid drops 50% of the NIR device's buffers ("Percentage of
+//          Dropped Buffers"): unpaired_rgb grows, pairs stay right;
+//       3. the same on the RGB device: unpaired_nir grows.
+//       DUMP_DIR gets the last pair (PNG) on failure.
+#include <fcntl.h>
+#include <linux/v4l2-dv-timings.h>
+#include <linux/videodev2.h>
+#include <sys/ioctl.h>
+#include <sys/mman.h>
+#include <time.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <spdlog/sinks/stdout_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include "probe_util.hpp"
+#include "v4l2/paired_nir_source.hpp"
+
+namespace {
+
+using stemd::vmprobe::fail;
+using stemd::vmprobe::fail_errno;
+using stemd::vmprobe::Fd;
+using stemd::vmprobe::info;
+
+constexpr int kWidth = 640;
+constexpr int kHeight = 480;
+constexpr int kPassPairs = 20;   // phase 1: good pairs needed
+constexpr int kDropPairs = 30;   // phases 2, 3: pairs read while one side drops
+constexpr int kMaxCalls = 600;   // next() calls per phase at most
+// vivid runs 640x480p60 at 59.94 fps: frames 16.7 ms apart. The two
+// instances' streams start independently, so their phases differ by up to a
+// period; a tolerance just over half of it pairs every RGB frame with its
+// nearest NIR frame.
+constexpr std::int64_t kToleranceNs = 9'000'000;
+
+const cv::Vec3b kSoil{45, 80, 125};  // BGR: brown
+const cv::Vec3b kLeaf{40, 150, 60};  // BGR: green
+constexpr int kNirSoil = 70;         // NIR: soil reflects little,
+constexpr int kNirLeaf = 230;        // leaves a lot
+const std::array<cv::Point, 2> kPlants{cv::Point{180, 200}, cv::Point{450, 300}};
+constexpr int kPlantRadius = 40;
+const cv::Rect kSoilPatch{8, 8, 24, 24};
+
+cv::Mat draw_rgb() {
+  cv::Mat bgr(kHeight, kWidth, CV_8UC3, cv::Scalar(kSoil[0], kSoil[1], kSoil[2]));
+  for (const cv::Point& p : kPlants) cv::circle(bgr, p, kPlantRadius, cv::Scalar(kLeaf[0], kLeaf[1], kLeaf[2]), cv::FILLED);
+  return bgr;
+}
+
+cv::Mat draw_nir() {
+  cv::Mat grey(kHeight, kWidth, CV_8UC1, cv::Scalar(kNirSoil));
+  for (const cv::Point& p : kPlants) cv::circle(grey, p, kPlantRadius, cv::Scalar(kNirLeaf), cv::FILLED);
+  return grey;
+}
+
+cv::Rect around(cv::Point p) { return {p.x - 5, p.y - 5, 10, 10}; }
+
+std::string bgr_text(const cv::Scalar& s) {
+  return fmt::format("({},{},{})", std::lround(s[0]), std::lround(s[1]), std::lround(s[2]));
+}
+
+// Empty: both planes show their own device's scene; else why not.
+std::string judge(const stemd::drivers::Frame& f) {
+  const cv::Scalar soil = cv::mean(f.bgr(kSoilPatch));
+  const cv::Scalar leaf = cv::mean(f.bgr(around(kPlants[0])));
+  for (int c = 0; c < 3; ++c) {
+    if (std::abs(soil[c] - kSoil[c]) > 12) return "bgr soil " + bgr_text(soil) + ", sent " + bgr_text(cv::Scalar(kSoil));
+    if (std::abs(leaf[c] - kLeaf[c]) > 12) return "bgr leaf " + bgr_text(leaf) + ", sent " + bgr_text(cv::Scalar(kLeaf));
+  }
+  const double nir_soil = cv::mean(f.nir(kSoilPatch))[0];
+  const double nir_leaf = cv::mean(f.nir(around(kPlants[1])))[0];
+  if (std::abs(nir_soil - kNirSoil) > 12 || std::abs(nir_leaf - kNirLeaf) > 12)
+    return "nir soil " + std::to_string(std::lround(nir_soil)) + " leaf " + std::to_string(std::lround(nir_leaf)) +
+           ", sent " + std::to_string(kNirSoil) + " / " + std::to_string(kNirLeaf);
+  return {};
+}
+
+// --- vivid loopback (as v4l2_source_check.cpp) ----------------------------------
+constexpr std::uint32_t kVividCidBase = 0x00f00000 | 0xf000;
+constexpr std::uint32_t kVividOsdTextMode = kVividCidBase + 1;
+constexpr std::uint32_t kVividLoopVideo = kVividCidBase + 37;
+
+void xioctl(int fd, unsigned long request, void* arg, const std::string& device, const char* name) {
+  int r = 0;
+  do r = ::ioctl(fd, request, arg);
+  while (r < 0 && errno == EINTR);
+  if (r < 0) fail_errno(device, name);
+}
+#define XIOCTL(fd, req, arg, dev) xioctl(fd, req, arg, dev, #req)
+
+int find_named(int fd, const std::string& device, bool output, const std::string& name) {
+  for (unsigned i = 0; i < 64; ++i) {
+    if (output) {
+      v4l2_output o{};
+      o.index = i;
+      if (::ioctl(fd, VIDIOC_ENUMOUTPUT, &o) < 0) break;
+      if (name == reinterpret_cast<const char*>(o.name)) return static_cast<int>(i);
+    } else {
+      v4l2_input in{};
+      in.index = i;
+      if (::ioctl(fd, VIDIOC_ENUMINPUT, &in) < 0) break;
+      if (name == reinterpret_cast<const char*>(in.name)) return static_cast<int>(i);
+    }
+  }
+  fail(device + ": no " + (output ? "output" : "input") + " named '" + name + "'");
+}
+
+void set_control(int fd, const std::string& device, std::uint32_t id, int value, const char* name) {
+  v4l2_control ctrl{};
+  ctrl.id = id;
+  ctrl.value = value;
+  xioctl(fd, VIDIOC_S_CTRL, &ctrl, device, name);
+}
+
+// A control's id by its name (vivid's test controls have no uapi ids).
+std::uint32_t control_named(int fd, const std::string& device, const std::string& name) {
+  v4l2_queryctrl q{};
+  q.id = V4L2_CTRL_FLAG_NEXT_CTRL;
+  while (::ioctl(fd, VIDIOC_QUERYCTRL, &q) == 0) {
+    if (name == reinterpret_cast<const char*>(q.name)) return q.id;
+    q.id |= V4L2_CTRL_FLAG_NEXT_CTRL;
+  }
+  fail(device + ": no control named '" + name + "'");
+}
+
+class Mapping {
+ public:
+  Mapping(int fd, std::size_t length, off_t offset, const std::string& device) : length_(length) {
+    data_ = ::mmap(nullptr, length, PROT_READ | PROT_WRITE, MAP_SHARED, fd, offset);
+    if (data_ == MAP_FAILED) fail_errno(device, "mmap");
+  }
+  Mapping(const Mapping&) = delete;
+  Mapping& operator=(const Mapping&) = delete;
+  Mapping(Mapping&& o) noexcept : data_(o.data_), length_(o.length_) { o.data_ = MAP_FAILED; }
+  Mapping& operator=(Mapping&&) = delete;
+  ~Mapping() {
+    if (data_ != MAP_FAILED) ::munmap(data_, length_);
+  }
+  [[nodiscard]] std::uint8_t* bytes() const { return static_cast<std::uint8_t*>(data_); }
+  [[nodiscard]] std::size_t size() const { return length_; }
+
+ private:
+  void* data_ = MAP_FAILED;
+  std::size_t length_;
+};
+
+// One vivid instance looping `image` (packed `fourcc`) from its HDMI output to its HDMI capture.
+class Loopback {
+ public:
+  Loopback(const std::string& cap_dev, const std::string& out_dev, std::uint32_t fourcc, const cv::Mat& image)
+      : cap_dev_(cap_dev), out_dev_(out_dev) {
+    cap_ = Fd(::open(cap_dev.c_str(), O_RDWR | O_CLOEXEC));
+    if (!cap_.valid()) fail_errno(cap_dev, "open");
+    out_ = Fd(::open(out_dev.c_str(), O_RDWR | O_CLOEXEC | O_NONBLOCK));
+    if (!out_.valid()) fail_errno(out_dev, "open");
+    int input = find_named(cap_.get(), cap_dev, false, "HDMI 0");
+    int output = find_named(out_.get(), out_dev, true, "HDMI 0");
+    XIOCTL(cap_.get(), VIDIOC_S_INPUT, &input, cap_dev);
+    XIOCTL(out_.get(), VIDIOC_S_OUTPUT, &output, out_dev);
+    v4l2_dv_timings timings = V4L2_DV_BT_DMT_640X480P60;
+    XIOCTL(cap_.get(), VIDIOC_S_DV_TIMINGS, &timings, cap_dev);
+    timings = V4L2_DV_BT_DMT_640X480P60;
+    XIOCTL(out_.get(), VIDIOC_S_DV_TIMINGS, &timings, out_dev);
+    set_control(cap_.get(), cap_dev, kVividLoopVideo, 1, "VIDIOC_S_CTRL(loop_video=1)");
+    set_control(cap_.get(), cap_dev, kVividOsdTextMode, 2, "VIDIOC_S_CTRL(osd_text_mode=2)");
+    drop_ctrl_ = control_named(cap_.get(), cap_dev, "Percentage of Dropped Buffers");
+    set_control(cap_.get(), cap_dev, drop_ctrl_, 0, "VIDIOC_S_CTRL(perc_dropped_buffers=0)");
+
+    v4l2_format fmt{};
+    fmt.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
+    fmt.fmt.pix.width = kWidth;
+    fmt.fmt.pix.height = kHeight;
+    fmt.fmt.pix.pixelformat = fourcc;
+    fmt.fmt.pix.field = V4L2_FIELD_NONE;
+    XIOCTL(out_.get(), VIDIOC_S_FMT, &fmt, out_dev);
+    const v4l2_pix_format pix = fmt.fmt.pix;
+    if (pix.width != kWidth || pix.height != kHeight || pix.pixelformat != fourcc)
+      fail(out_dev + ": the output does not take this format at 640x480");
+    const std::size_t row = static_cast<std::size_t>(image.cols) * image.elemSize();
+    if (pix.bytesperline < row || pix.sizeimage < pix.bytesperline * kHeight) fail(out_dev + ": unexpected stride");
+    bytes_ = pix.sizeimage;
+
+    v4l2_requestbuffers req{};
+    req.count = 6;  // vivid holds one while it shows it; several so a slow loop does not starve it
+    req.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
+    req.memory = V4L2_MEMORY_MMAP;
+    XIOCTL(out_.get(), VIDIOC_REQBUFS, &req, out_dev);
+    if (req.count < 2) fail(out_dev + ": fewer than 2 output buffers");
+    for (unsigned i = 0; i < req.count; ++i) {
+      v4l2_buffer buf{};
+      buf.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
+      buf.memory = V4L2_MEMORY_MMAP;
+      buf.index = i;
+      XIOCTL(out_.get(), VIDIOC_QUERYBUF, &buf, out_dev);
+      maps_.emplace_back(out_.get(), buf.length, buf.m.offset, out_dev);
+      if (maps_.back().size() < bytes_) fail(out_dev + ": output buffer smaller than the image");
+      std::memset(maps_.back().bytes(), 0, bytes_);
+      for (int y = 0; y < kHeight; ++y)
+        std::memcpy(maps_.back().bytes() + static_cast<std::size_t>(y) * pix.bytesperline, image.ptr(y), row);
+      queue(i);
+    }
+    int type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
+    XIOCTL(out_.get(), VIDIOC_STREAMON, &type, out_dev);
+  }
+  Loopback(const Loopback&) = delete;
+  Loopback& operator=(const Loopback&) = delete;
+  ~Loopback() {
+    int type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
+    ::ioctl(out_.get(), VIDIOC_STREAMOFF, &type);
+  }
+
+  // Gives back every output buffer vivid has finished with.
+  void pump() {
+    for (;;) {
+      v4l2_buffer done{};
+      done.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
+      done.memory = V4L2_MEMORY_MMAP;
+      if (::ioctl(out_.get(), VIDIOC_DQBUF, &done) < 0) {
+        if (errno == EAGAIN) return;
+        fail_errno(out_dev_, "VIDIOC_DQBUF");
+      }
+      queue(done.index);
+    }
+  }
+  void drop_percent(int percent) {
+    set_control(cap_.get(), cap_dev_, drop_ctrl_, percent, "VIDIOC_S_CTRL(Percentage of Dropped Buffers)");
+  }
+
+ private:
+  void queue(unsigned index) {
+    v4l2_buffer buf{};
+    buf.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
+    buf.memory = V4L2_MEMORY_MMAP;
+    buf.index = index;
+    buf.bytesused = static_cast<std::uint32_t>(bytes_);
+    XIOCTL(out_.get(), VIDIOC_QBUF, &buf, out_dev_);
+  }
+
+  std::string cap_dev_, out_dev_;
+  Fd cap_, out_;
+  std::uint32_t drop_ctrl_ = 0;
+  std::size_t bytes_ = 0;
+  std::vector<Mapping> maps_;
+};
+
+std::string counters_text(const stemd::drivers::PairedNirCounters& c) {
+  return "delivered=" + std::to_string(c.delivered) + " unpaired_rgb=" + std::to_string(c.unpaired_rgb) +
+         " unpaired_nir=" + std::to_string(c.unpaired_nir) + " forced=" + std::to_string(c.forced) +
+         " out_of_order=" + std::to_string(c.out_of_order) + " bad_size=" + std::to_string(c.bad_size) +
+         " rgb.frames=" + std::to_string(c.rgb.frames) + " nir.frames=" + std::to_string(c.nir.frames) +
+         " rgb.corrupt=" + std::to_string(c.rgb.corrupt) + " nir.corrupt=" + std::to_string(c.nir.corrupt) +
+         " last_offset=" + std::to_string(c.last_offset_ns / 1000) + " us";
+}
+
+void loop(const std::string& rgb_cap, const std::string& rgb_out, const std::string& nir_cap, const std::string& nir_out,
+          const std::string& dump_dir) {
+  const cv::Mat rgb_scene = draw_rgb();
+  const cv::Mat nir_scene = draw_nir();
+  Loopback rgb_loop(rgb_cap, rgb_out, V4L2_PIX_FMT_BGR24, rgb_scene);
+  Loopback nir_loop(nir_cap, nir_out, V4L2_PIX_FMT_GREY, nir_scene);
+
+  stemd::drivers::Frame slot;
+  slot.bgr = cv::Mat(kHeight, kWidth, CV_8UC3, cv::Scalar::all(0));
+  slot.nir = cv::Mat(kHeight, kWidth, CV_8UC1, cv::Scalar::all(0));
+  const std::uint8_t* const bgr_data = slot.bgr.data;
+  const std::uint8_t* const nir_data = slot.nir.data;
+  auto log = spdlog::stdout_logger_mt("paired");
+  stemd::drivers::PairedNirOptions options;
+  options.rgb.device = rgb_cap;
+  options.rgb.pixel_format = stemd::drivers::V4l2PixelFormat::bgr24;
+  options.rgb.size = {kWidth, kHeight};
+  options.rgb.fps = 60;
+  options.nir.device = nir_cap;
+  options.nir.fps = 60;
+  options.tolerance = std::chrono::nanoseconds(kToleranceNs);
+  stemd::drivers::PairedNirSource source(options, log);
+  if (!source.open() || !source.start()) fail(std::string(source.name()) + " did not start");
+  info(std::string(source.name()) + ": streaming, tolerance " + std::to_string(kToleranceNs / 1000) + " us");
+
+  std::int64_t last_t = 0;
+  std::int64_t min_offset = 0, max_offset = 0;  // t_nir - t_rgb of the pairs of a phase
+  std::string last_why;
+  auto fail_dump = [&](const std::string& why) {
+    if (!dump_dir.empty()) {
+      cv::imwrite(dump_dir + "/paired_nir-bgr.png", slot.bgr);
+      cv::imwrite(dump_dir + "/paired_nir-nir.png", slot.nir);
+      info("wrote " + dump_dir + "/paired_nir-{bgr,nir}.png");
+    }
+    fail(why + " [" + counters_text(source.paired_counters()) + "]");
+  };
+  // Reads pairs until `want` good ones (after the scene has arrived, every
+  // pair must be good).
+  auto read_pairs = [&](const char* phase, int want) {
+    int good = 0, calls = 0;
+    while (good < want) {
+      if (++calls > kMaxCalls) fail_dump(std::string(phase) + ": only " + std::to_string(good) + " good pairs in " +
+                                         std::to_string(kMaxCalls) + " calls (last: " + last_why + ")");
+      rgb_loop.pump();
+      nir_loop.pump();
+      const auto status = source.next(slot, std::chrono::milliseconds(50));
+      if (status == stemd::drivers::NextStatus::timeout || status == stemd::drivers::NextStatus::skipped) continue;
+      if (status != stemd::drivers::NextStatus::frame) fail_dump(std::string(phase) + ": next() failed");
+      if (slot.bgr.data != bgr_data || slot.nir.data != nir_data) fail_dump("the source reallocated the caller's planes");
+      if (slot.t_capture_ns <= last_t) fail_dump("pair timestamps not increasing");
+      last_t = slot.t_capture_ns;
+      const auto c = source.paired_counters();
+      if (std::llabs(c.last_offset_ns) > kToleranceNs)
+        fail_dump("pair offset " + std::to_string(c.last_offset_ns) + " ns over the tolerance");
+      min_offset = std::min(min_offset, c.last_offset_ns);
+      max_offset = std::max(max_offset, c.last_offset_ns);
+      last_why = judge(slot);
+      if (!last_why.empty()) {
+        if (good > 0 || std::string(phase) != "synchronous") fail_dump(std::string(phase) + ": bad pair: " + last_why);
+        continue;  // the first frames may predate the first output frame
+      }
+      ++good;
+    }
+  };
+
+  read_pairs("synchronous", kPassPairs);
+  auto c0 = source.paired_counters();
+  info("synchronous: " + std::to_string(kPassPairs) + " good pairs; " + counters_text(c0));
+  // Streaming steadily (the start is behind): how well they pair here.
+  min_offset = kToleranceNs, max_offset = -kToleranceNs;
+  read_pairs("steady", kPassPairs);
+  const auto cs = source.paired_counters();
+  info(fmt::format("steady: {} pairs of {} RGB and {} NIR frames, offsets {:.2f}..{:.2f} ms; {}",
+                   cs.delivered - c0.delivered, cs.rgb.frames - c0.rgb.frames, cs.nir.frames - c0.nir.frames,
+                   static_cast<double>(min_offset) / 1e6, static_cast<double>(max_offset) / 1e6, counters_text(cs)));
+  c0 = cs;
+
+  info("== vivid drops 50% of the NIR device's buffers");
+  nir_loop.drop_percent(50);
+  read_pairs("NIR drops", kDropPairs);
+  nir_loop.drop_percent(0);
+  auto c1 = source.paired_counters();
+  info("NIR drops: " + counters_text(c1));
+  if (c1.unpaired_rgb <= c0.unpaired_rgb) fail("NIR frames dropped, but unpaired_rgb did not grow");
+
+  info("== vivid drops 50% of the RGB device's buffers");
+  rgb_loop.drop_percent(50);
+  read_pairs("RGB drops", kDropPairs);
+  rgb_loop.drop_percent(0);
+  auto c2 = source.paired_counters();
+  info("RGB drops: " + counters_text(c2));
+  if (c2.unpaired_nir <= c1.unpaired_nir) fail("RGB frames dropped, but unpaired_nir did not grow");
+
+  if (c2.bad_size != 0 || c2.rgb.errors != 0 || c2.nir.errors != 0) fail("errors: " + counters_text(c2));
+  source.stop();
+  info("pairs: bgr from " + rgb_cap + ", nir from " + nir_cap + ", within " + std::to_string(kToleranceNs / 1000) +
+       " us; drops on either side counted as unpaired on the other");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 6 || std::string(argv[1]) != "loop") {
+    std::fprintf(stderr, "usage: %s loop RGB_CAPTURE RGB_OUTPUT NIR_CAPTURE NIR_OUTPUT [DUMP_DIR]\n", argv[0]);
+    return 2;
+  }
+  return stemd::vmprobe::run_probe("paired-nir-check",
+                                   [&] { loop(argv[2], argv[3], argv[4], argv[5], argc > 6 ? argv[6] : ""); });
+}
