@@ -4,6 +4,10 @@
 //   stemd-bench [--json] [--preset early|late|dense] [--frames N] [--radius M] [benchmark flags]
 // (defaults: late, 8 frames, the pipeline's default closing radius)
 // Each repetition is one frame; medians and p90 are over repetitions.
+// "actuation" is the actuator thread's work per frame (field positions,
+// tracker, scheduler, TARGET encoding; the bus discards the frames) on the
+// detections of a 1 m moving strip of the same preset, driven over again
+// and again.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -17,6 +21,8 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "stemd/runtime/actuation_stage.hpp"
+#include "stemd/runtime/logging.hpp"
 #include "stemd/synth/synth.hpp"
 #include "stemd/vision/detect.hpp"
 
@@ -33,6 +39,51 @@ struct Setup {
 };
 
 Setup* g_setup = nullptr;  // benchmark callbacks are plain functions
+
+// A bus that takes every frame and keeps nothing.
+class NullBus final : public drivers::CanBus {
+public:
+    std::string_view name() const override { return "null"; }
+    drivers::SendResult send(const actuation::CanFrame&, std::int64_t) override
+    {
+        ++sent;
+        return drivers::SendResult::sent;
+    }
+    bool receive(actuation::CanFrame&, std::int64_t) override { return false; }
+    drivers::CanBusCounters counters() const override { return {.sent = sent}; }
+    std::uint64_t sent = 0;
+};
+
+struct ActuationSetup {
+    std::vector<std::unique_ptr<runtime::FrameResult>> frames;   // one strip's detections
+    double strip_odom_mm = 0;     // odometer advance of one pass (the strip repeats)
+    std::int64_t period_ns = 0;
+    std::unique_ptr<runtime::ActuationStage> stage;
+    std::uint64_t i = 0;
+};
+
+ActuationSetup* g_actuation = nullptr;
+
+void bench_actuation(benchmark::State& state)
+{
+    ActuationSetup& a = *g_actuation;
+    for (auto _ : state) {
+        const std::size_t n = a.frames.size();
+        runtime::FrameResult& r = *a.frames[a.i % n];
+        const auto pass = static_cast<double>(a.i / n);
+        const double odom = r.odom_mm;
+        r.odom_mm = odom + pass * a.strip_odom_mm;
+        r.t_capture_ns = static_cast<std::int64_t>(a.i) * a.period_ns;
+        r.seq = a.i;
+        const auto t0 = std::chrono::steady_clock::now();
+        a.stage->on_frame(r, r.t_capture_ns + 2'000'000);
+        const auto t1 = std::chrono::steady_clock::now();
+        r.odom_mm = odom;
+        ++a.i;
+        state.SetIterationTime(std::chrono::duration<double>(t1 - t0).count());
+    }
+    state.counters["targets"] = static_cast<double>(a.stage->counters().targets.load());
+}
 
 double percentile(std::vector<double> v, double q)
 {
@@ -150,11 +201,50 @@ int main(int argc, char** argv)
     setup.workspace = std::make_unique<vision::Workspace>(setup.frames.front().bgr.size(), setup.params);
     g_setup = &setup;
 
+    // The actuation: detections of a 1 m strip, then the stage driving over it.
+    ActuationSetup actuation_setup;
+    {
+        synth::StripOptions strip_options;
+        strip_options.preset = *preset;
+        strip_options.seed = 2024;
+        strip_options.length_mm = 1000;
+        const synth::Strip strip = synth::generate_strip(strip_options);
+        for (int k = 0; k < strip.frame_count; ++k) {
+            const synth::StripFrame f = synth::render_strip_frame(strip, k);
+            auto r = std::make_unique<runtime::FrameResult>();
+            vision::detect({.bgr = f.bgr}, setup.params, *setup.workspace, r->detections);
+            r->odom_mm = f.odom_mm;
+            actuation_setup.frames.push_back(std::move(r));
+        }
+        actuation_setup.strip_odom_mm = strip.odom_mm(strip.frame_count);
+        actuation_setup.period_ns = strip.t_ns(1) - strip.t_ns(0);
+        runtime::ActuationConfig config;
+        config.tools = {{.id = 0, .offset_mm = 600, .y_min_mm = -220, .y_max_mm = 220, .lanes = 8}};
+        config.policy = runtime::PolicyChoice::all;
+        geometry::NadirParams nadir;
+        nadir.principal_px = geometry::image_centre(setup.frames.front().bgr.size());
+        runtime::ActuationStage::Parts parts;
+        parts.bus = std::make_unique<NullBus>();
+        std::string error;
+        runtime::set_log_level("warn");
+        actuation_setup.stage =
+            runtime::ActuationStage::make(config, *geometry::CameraModel::nadir(nadir), setup.frames.front().bgr.size(),
+                                          std::move(parts), runtime::make_logger("actuator"), error);
+        if (!actuation_setup.stage) {
+            std::fprintf(stderr, "stemd-bench: actuation: %s\n", error.c_str());
+            return 1;
+        }
+    }
+    g_actuation = &actuation_setup;
+
     auto p90 = [](const std::vector<double>& v) { return percentile(v, 0.9); };
     for (int stage = 0; stage < 6; ++stage)
         benchmark::RegisterBenchmark(kStageNames[stage], bench_stage, stage)
             ->UseManualTime()->Iterations(1)->Repetitions(repetitions)->ReportAggregatesOnly(true)
             ->ComputeStatistics("p90", p90)->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark("actuation", bench_actuation)
+        ->UseManualTime()->Iterations(1)->Repetitions(repetitions)->ReportAggregatesOnly(true)
+        ->ComputeStatistics("p90", p90)->Unit(benchmark::kMillisecond);
     benchmark::RegisterBenchmark("cvtcolor", bench_cvtcolor)
         ->UseManualTime()->Iterations(1)->Repetitions(repetitions)->ReportAggregatesOnly(true)
         ->ComputeStatistics("p90", p90)->Unit(benchmark::kMillisecond);

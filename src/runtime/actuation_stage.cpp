@@ -159,13 +159,11 @@ void ActuationStage::add_frame_odometry(const FrameResult& r) noexcept
         constant_now_ = true;
         sample = geometry::ConstantSpeedOdometer(config_.speed_mm_per_s, constant_t0_ns_).sample(r.t_capture_ns);
         break;
-    case OdometrySource::encoder: {
-        const drivers::EncoderReading e = parts_.gpio->encoder();
-        sample.odom_mm = static_cast<double>(e.ticks) * config_.encoder_mm_per_tick;
-        break;
-    }
+    case OdometrySource::encoder:
     case OdometrySource::can:
-        return;   // from poll()
+        // Sampled in poll() with the time they were read; a reading taken
+        // now is not the odometer at this frame's capture.
+        return;
     }
     if (!odometry_.empty() && odometry_.newest().t_ns >= sample.t_ns)
         return;   // the same instant again (no new information)
@@ -292,8 +290,8 @@ void ActuationStage::poll(std::int64_t now_ns) noexcept
     if (config_.odometry == OdometrySource::encoder) {
         const geometry::OdomSample sample{
             now_ns, static_cast<double>(parts_.gpio->encoder().ticks) * config_.encoder_mm_per_tick};
-        // A sample per ~5 ms is plenty for interpolation and speed.
-        if (odometry_.empty() || now_ns - odometry_.newest().t_ns >= 5'000'000)
+        // A sample per ~2 ms is plenty for interpolation and speed.
+        if (odometry_.empty() || now_ns - odometry_.newest().t_ns >= 2'000'000)
             if (!odometry_.push(sample))
                 bump(counters_.odometry_rejected);
     }

@@ -9,6 +9,7 @@
 
 #include "stemd/runtime/logging.hpp"
 #include "stemd/runtime/thread_settings.hpp"
+#include "stemd/runtime/trigger_clock.hpp"
 
 namespace stemd::runtime {
 
@@ -176,17 +177,36 @@ void Daemon::capture_loop()
     Idle idle;
     const bool can_wait = !source_->realtime();
     std::uint64_t seq = 0;
+    // The camera trigger, if any: one pulse per frame period, before the
+    // wait for the frame it asks for (the pulse blocks for its width, about
+    // 100 us: a GPIO ioctl, the only I/O here besides the source's).
+    drivers::GpioLines* const trigger = actuation_ ? actuation_->trigger_lines() : nullptr;
+    TriggerClock trigger_clock(static_cast<std::int64_t>(1e9 / config_.fps));
     while (!stopping()) {
         beat(kCapture);
+        auto timeout = std::chrono::nanoseconds(kSourceTimeout);
+        if (trigger != nullptr) {
+            const std::int64_t now_ns = monotonic_ns();
+            if (trigger_clock.due(now_ns)) {
+                const std::uint64_t late_before = trigger_clock.late();
+                if (trigger->pulse(actuation_->trigger_pulse_us()))
+                    bump(counters_->capture.trigger_pulses);
+                trigger_clock.fired(now_ns);
+                bump(counters_->capture.trigger_late, trigger_clock.late() - late_before);
+            }
+            timeout = std::min(timeout, std::chrono::nanoseconds(trigger_clock.wait_ns(monotonic_ns())));
+        }
         if (hand == nullptr && !free_slots_.try_pop(hand)) {
             // The pool is sized so that this cannot happen; count it if it does.
             bump(counters_->capture.no_free_slot);
             idle.wait();
             continue;
         }
-        const drivers::NextStatus status = source_->next(*hand, kSourceTimeout);
+        const drivers::NextStatus status = source_->next(*hand, timeout);
         if (status == drivers::NextStatus::timeout) {
-            bump(counters_->capture.timeouts);
+            // A wait cut short for the next trigger pulse is not a timeout.
+            if (timeout == kSourceTimeout)
+                bump(counters_->capture.timeouts);
             continue;
         }
         if (status == drivers::NextStatus::skipped)

@@ -14,6 +14,7 @@
 #include "stemd/runtime/actuation_stage.hpp"
 #include "stemd/runtime/logging.hpp"
 #include "fake_can_bus.hpp"
+#include "fake_gpio_lines.hpp"
 
 namespace stemd::runtime {
 namespace {
@@ -24,19 +25,7 @@ using actuation::PlantClass;
 
 using FakeBus = test::FakeCanBus;
 
-class FakeGpio final : public drivers::GpioLines {
-public:
-    std::string_view name() const override { return "fake-gpio"; }
-    bool enabled() const override { return enable; }
-    bool wait_change(bool, std::int64_t) override { return false; }
-    bool has_trigger() const override { return false; }
-    bool set_trigger(bool) override { return false; }
-    bool pulse(std::uint32_t) override { return false; }
-    drivers::EncoderMode encoder_mode() const override { return drivers::EncoderMode::none; }
-    drivers::EncoderReading encoder() const override { return {}; }
-    drivers::GpioCounters counters() const override { return {}; }
-    bool enable = true;
-};
+using FakeGpio = test::FakeGpioLines;
 
 constexpr double kGsd = 0.33;
 const cv::Size kSize{1296, 966};
@@ -382,6 +371,68 @@ TEST(ActuationStage, ConstantSpeedOdometryNeverGoesStale)
             found = found || std::abs(t.fire_odom_mm - (p.s_mm + 600.0)) <= 1.0;
         EXPECT_TRUE(found) << t.fire_odom_mm;
     }
+}
+
+}  // namespace
+}  // namespace stemd::runtime
+
+namespace stemd::runtime {
+namespace {
+
+TEST(ActuationStage, WheelEncoderOdometry)
+{
+    // odometry.source encoder: 0.1 mm per tick, sampled between frames;
+    // the frames carry no odometer. Fire positions follow the encoder.
+    const auto plants = strip(6);
+    ActuationConfig config = base_config();
+    config.odometry = OdometrySource::encoder;
+    config.encoder_mm_per_tick = 0.1;
+    Stage run;
+    {
+        ActuationStage::Parts parts;
+        auto bus = std::make_unique<FakeBus>();
+        run.bus = bus.get();
+        parts.bus = std::move(bus);
+        auto gpio = std::make_unique<FakeGpio>();
+        gpio->encoder_mode_value = drivers::EncoderMode::quadrature;
+        run.gpio = gpio.get();
+        parts.gpio = std::move(gpio);
+        std::string error;
+        run.stage = ActuationStage::make(config, nadir_camera(), kSize, std::move(parts),
+                                         runtime::make_logger("actuator-test"), error);
+        ASSERT_TRUE(run.stage) << error;
+    }
+    const int n = frames_for(plants);
+    for (std::int64_t t = kT0 - 20'000'000, k = 0; k < n; t += 5'000'000) {
+        // 5 km/h: ticks of 0.1 mm.
+        run.gpio->ticks.store(std::llround(static_cast<double>(t - kT0) * 1e-9 * kSpeed / 0.1) + 50'000);
+        run.stage->poll(t);
+        if (t >= kT0 + k * kPeriodNs) {
+            const auto r = frame(plants, static_cast<int>(k), false, false);
+            run.stage->on_frame(*r, t + 1'000'000);
+            ++k;
+        }
+    }
+    const auto sent = targets(*run.bus);
+    ASSERT_EQ(sent.size(), plants.size());
+    for (const auto& t : sent) {
+        bool found = false;
+        for (const Plant& p : plants)   // encoder offset 50000 ticks = 5000 mm
+            found = found || std::abs(t.fire_odom_mm - (p.s_mm + 5000.0 + 600.0)) <= 2.0;
+        EXPECT_TRUE(found) << t.fire_odom_mm;
+    }
+}
+
+TEST(ActuationStage, EncoderOdometryWithoutAnEncoderIsRefused)
+{
+    ActuationConfig config = base_config();
+    config.odometry = OdometrySource::encoder;
+    ActuationStage::Parts parts;
+    parts.bus = std::make_unique<FakeBus>();
+    std::string error;
+    EXPECT_FALSE(ActuationStage::make(config, nadir_camera(), kSize, std::move(parts),
+                                      runtime::make_logger("actuator-test"), error));
+    EXPECT_NE(error.find("encoder"), std::string::npos) << error;
 }
 
 }  // namespace

@@ -20,6 +20,8 @@
 
 #include "replay/replay_source.hpp"
 #include "runtime_test_util.hpp"
+#include "canlog/canlog_bus.hpp"
+#include "stemd/runtime/actuation_stage.hpp"
 #include "stemd/runtime/daemon.hpp"
 #include "stemd/runtime/logging.hpp"
 #include "stemd/synth/synth.hpp"
@@ -78,6 +80,63 @@ TEST(DaemonRealTime, RunningDaemonAllocatesNothingPerFrame)
     EXPECT_EQ(after - before, 0) << "heap allocations over " << out_after - out_before << " frames";
     EXPECT_GT(daemon.counters().actuator.stems.load(), 0u) << "the frames had plants";
     EXPECT_EQ(daemon.counters().processing.failed.load(), 0u);
+    std::filesystem::remove_all(dir);
+}
+
+TEST(DaemonRealTime, ActuationAllocatesNothingPerFrame)
+{
+    // The same steady state with the actuation on: field positions, the
+    // tracker, the scheduler, TARGET and HEARTBEAT frames into a candump
+    // log, and the plant map, all written to files through their buffers.
+    const cv::Size size(1296, 966);
+    const auto dir = write_recording(3, size);
+    runtime::DaemonConfig config;
+    config.frame_size = size;
+    config.replay_fast = true;
+    drivers::ReplayOptions replay{.dir = dir, .pacing = drivers::ReplayOptions::Pacing::fast, .loop = true,
+                                  .preload = true};
+    runtime::ActuationConfig actuation;
+    actuation.tools = {{.id = 0, .offset_mm = 600, .y_min_mm = -220, .y_max_mm = 220, .lanes = 4}};
+    actuation.policy = runtime::PolicyChoice::all;
+    // The recording loops, so its odometer would jump back: a constant speed.
+    actuation.odometry = runtime::OdometrySource::constant;
+    actuation.heartbeat_interval_ns = 1'000'000;
+    runtime::ActuationStage::Parts parts;
+    auto bus = std::make_unique<drivers::CanLogBus>(drivers::CanLogOptions{.path = dir / "can.log"},
+                                                    runtime::make_logger("canlog"));
+    ASSERT_TRUE(bus->open());
+    const drivers::CanBus& bus_view = *bus;
+    parts.bus = std::move(bus);
+    parts.map = std::make_unique<runtime::PlantMap>(runtime::make_logger("map"));
+    ASSERT_TRUE(parts.map->open(dir / "map.jsonl"));
+    geometry::NadirParams nadir;
+    nadir.principal_px = geometry::image_centre(size);
+    std::string error;
+    auto stage = runtime::ActuationStage::make(actuation, *geometry::CameraModel::nadir(nadir), size,
+                                               std::move(parts), runtime::make_logger("actuator"), error);
+    ASSERT_TRUE(stage) << error;
+    const runtime::ActuationStage& stage_view = *stage;
+    runtime::Daemon daemon(config, std::make_unique<drivers::ReplaySource>(replay, runtime::make_logger("replay")),
+                           std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator")),
+                           std::move(stage));
+    ASSERT_TRUE(daemon.start());
+    const auto& out = daemon.counters().actuator.frames;
+    ASSERT_TRUE(test::wait_for([&] { return out.load() >= 10; }, std::chrono::seconds(60)));
+    const long before = stemd::test::allocations();
+    const std::uint64_t out_before = out.load();
+    const std::uint64_t sent_before = bus_view.counters().sent;
+    constexpr std::uint64_t kFrames = 60;
+    ASSERT_TRUE(test::wait_for([&] { return out.load() >= out_before + kFrames; }, std::chrono::seconds(120)));
+    const long after = stemd::test::allocations();
+    const std::uint64_t sent_after = bus_view.counters().sent;
+    daemon.request_stop();
+    EXPECT_TRUE(daemon.join());
+    EXPECT_EQ(after - before, 0) << "heap allocations over " << out.load() - out_before << " frames";
+    // The path was exercised: frames sent while counting, targets and map lines.
+    EXPECT_GT(sent_after, sent_before);
+    EXPECT_GT(stage_view.counters().sent.load(), 0u);
+    EXPECT_EQ(stage_view.counters().no_odometry.load(), 0u);
+    EXPECT_GT(std::filesystem::file_size(dir / "map.jsonl"), 0u);
     std::filesystem::remove_all(dir);
 }
 

@@ -12,6 +12,7 @@
 #include "stemd/runtime/actuation_stage.hpp"
 #include "stemd/actuation/messages.hpp"
 #include "fake_can_bus.hpp"
+#include "fake_gpio_lines.hpp"
 #include "stemd/runtime/logging.hpp"
 
 using namespace stemd;
@@ -239,4 +240,36 @@ TEST(Daemon, ActuatorThreadDrivesTheActuationStage)
     }
     EXPECT_EQ(targets, end.sent);
     EXPECT_GE(heartbeats, 1u);
+}
+
+TEST(Daemon, CaptureThreadPulsesTheCameraTrigger)
+{
+    // A source that waits for frames (realtime, endless) and GPIO lines with
+    // a trigger output: the capture thread pulses it, with the configured
+    // width, and counts the pulses. (The cadence itself: TriggerClock tests.)
+    runtime::ActuationConfig actuation;
+    actuation.tools = {{.id = 0, .offset_mm = 600, .y_min_mm = -220, .y_max_mm = 220, .lanes = 1}};
+    actuation.trigger_pulse_us = 150;
+    geometry::NadirParams nadir;
+    nadir.principal_px = geometry::image_centre({1296, 966});
+    auto gpio = std::make_unique<test::FakeGpioLines>(/*with_trigger=*/true);
+    const test::FakeGpioLines& lines = *gpio;
+    runtime::ActuationStage::Parts parts;
+    parts.bus = std::make_unique<test::FakeCanBus>();
+    parts.gpio = std::move(gpio);
+    std::string error;
+    auto stage = runtime::ActuationStage::make(actuation, *geometry::CameraModel::nadir(nadir), {1296, 966},
+                                               std::move(parts), runtime::make_logger("actuator"), error);
+    ASSERT_TRUE(stage) << error;
+    runtime::DaemonConfig config = config_for(runtime::OverflowPolicy::drop_newest);
+    config.fps = 200;
+    runtime::Daemon daemon(config, std::make_unique<ScriptedSource>(-1, true),
+                           std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator")),
+                           std::move(stage));
+    ASSERT_TRUE(daemon.start());
+    EXPECT_TRUE(test::wait_for([&] { return lines.pulses.load() >= 3; }, 60s));
+    daemon.request_stop();
+    EXPECT_TRUE(daemon.join());
+    EXPECT_EQ(lines.last_width_us.load(), 150u);
+    EXPECT_EQ(daemon.counters().capture.trigger_pulses.load(), lines.pulses.load());
 }

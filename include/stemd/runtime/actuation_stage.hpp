@@ -99,6 +99,13 @@ public:
     const ActuationCounters& counters() const { return counters_; }
     const drivers::CanBus& bus() const { return *parts_.bus; }
     const actuation::Tracker& tracker() const { return tracker_; }
+    // The GPIO lines when they have a camera trigger output (else nullptr):
+    // the capture thread pulses it once per frame period (gpio.trigger_pulse_us).
+    drivers::GpioLines* trigger_lines() const
+    {
+        return parts_.gpio && parts_.gpio->has_trigger() ? parts_.gpio.get() : nullptr;
+    }
+    std::uint32_t trigger_pulse_us() const { return config_.trigger_pulse_us; }
     // The view's along-track extent relative to the odometer at capture.
     double view_forward_min_mm() const { return view_min_mm_; }
     double view_forward_max_mm() const { return view_max_mm_; }

@@ -53,6 +53,8 @@ struct Counters {
         std::atomic<std::uint64_t> timeouts{0};        // next() returned nothing in its timeout
         std::atomic<std::uint64_t> backpressure_waits{0};  // fast replay: ring full, waited (not a drop)
         std::atomic<std::uint64_t> no_free_slot{0};    // never expected: the pool is sized so it cannot happen
+        std::atomic<std::uint64_t> trigger_pulses{0};  // camera trigger pulses sent (gpio.trigger_line)
+        std::atomic<std::uint64_t> trigger_late{0};    // trigger periods skipped: the thread came back too late
     } capture;
     struct Processing {
         std::atomic<std::uint64_t> frames{0};          // frames detect() ran on
