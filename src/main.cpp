@@ -214,7 +214,8 @@ int main(int argc, char** argv)
             ready = true;
             notify("READY=1");
         }
-        if (watchdog_ns > 0 && now_ns >= next_watchdog_ns) {
+        // systemd starts the watchdog once the service is ready.
+        if (ready && watchdog_ns > 0 && now_ns >= next_watchdog_ns) {
             // A thread silent for half the watchdog interval is stuck: stop
             // petting and let systemd restart us.
             const char* stalled = daemon->stalled_thread(now_ns, watchdog_ns / 2);

@@ -63,6 +63,8 @@ void Tracker::add_sighting(Track& t, const TrackDetection& d, std::uint64_t seq)
         t.weed_w += w;
     t.conf_sum += c;
     t.leaves = std::max(t.leaves, d.leaves);
+    if (std::isfinite(d.extent_mm))
+        t.extent_mm = std::max(t.extent_mm, d.extent_mm);
     ++t.sightings;
     t.missed = 0;
     t.seen_this_frame = true;
@@ -215,7 +217,7 @@ std::span<const Target> Tracker::update(const TrackFrame& frame) noexcept
         if (!t.emitted && t.sightings >= 1) {
             if (t.sightings >= params_.confirm_frames)
                 emit(t, frame, false);
-            else if (view_ok && t.s_mm < s_min + params_.exit_margin_mm)
+            else if (view_ok && t.s_mm < s_min + params_.exit_margin_mm + t.extent_mm)
                 emit(t, frame, true);
         }
         if (behind || t.missed >= params_.max_missed_frames)

@@ -90,7 +90,7 @@ std::unique_ptr<ActuationStage> ActuationStage::make(const ActuationConfig& conf
         return nullptr;
     }
     std::unique_ptr<ActuationStage> stage(
-        new ActuationStage(config, camera, std::move(parts), *scheduler, *ids, std::move(log)));
+        new ActuationStage(config, camera, frame_size, std::move(parts), *scheduler, *ids, std::move(log)));
     if (!view_extent(camera, frame_size, stage->view_min_mm_, stage->view_max_mm_)) {
         error = "the camera model puts no part of the image on the ground";
         return nullptr;
@@ -101,11 +101,13 @@ std::unique_ptr<ActuationStage> ActuationStage::make(const ActuationConfig& conf
     return stage;
 }
 
-ActuationStage::ActuationStage(const ActuationConfig& config, const geometry::CameraModel& camera, Parts parts,
+ActuationStage::ActuationStage(const ActuationConfig& config, const geometry::CameraModel& camera,
+                               cv::Size frame_size, Parts parts,
                                actuation::Scheduler scheduler, actuation::CanIds ids,
                                std::shared_ptr<spdlog::logger> log)
     : config_(config),
       camera_(camera),
+      frame_size_(frame_size),
       parts_(std::move(parts)),
       log_(std::move(log)),
       tracker_(config.tracker),
@@ -186,6 +188,10 @@ void ActuationStage::on_frame(const FrameResult& r, std::int64_t now_ns) noexcep
         const vision::Plant& p = plants[i];
         if (!p.has_stem)
             continue;
+        if (clipped_along_track(p.bbox)) {
+            bump(counters_.clipped);
+            continue;
+        }
         const auto field = geometry::field_position(camera_, p.stem, odom_at_capture);
         if (!field) {
             bump(counters_.off_ground);
@@ -198,6 +204,7 @@ void ActuationStage::on_frame(const FrameResult& r, std::int64_t now_ns) noexcep
         d.plant_class = r.has_class_map && r.plant_class[i] <= 2 ? static_cast<PlantClass>(r.plant_class[i])
                                                                 : PlantClass::Unknown;
         d.leaves = static_cast<std::uint8_t>(std::min<std::size_t>(p.leaves.size(), 255));
+        d.extent_mm = extent_mm(p, odom_at_capture);
     }
     actuation::TrackFrame frame;
     frame.seq = r.seq;
@@ -213,6 +220,31 @@ void ActuationStage::on_frame(const FrameResult& r, std::int64_t now_ns) noexcep
         schedule(t, now_ns, r.has_class_map);
     }
     write_retired(tracker_.retired());
+}
+
+bool ActuationStage::clipped_along_track(const cv::Rect& bbox) const noexcept
+{
+    using geometry::Forward;
+    const Forward f = camera_.mount().forward;
+    if (f == Forward::up || f == Forward::down)
+        return bbox.y <= 0 || bbox.y + bbox.height >= frame_size_.height;
+    return bbox.x <= 0 || bbox.x + bbox.width >= frame_size_.width;
+}
+
+double ActuationStage::extent_mm(const vision::Plant& p, double odom_mm) const noexcept
+{
+    // Half the distance along track between the plant's two along-track
+    // bounding-box edges, through the stem.
+    using geometry::Forward;
+    const Forward f = camera_.mount().forward;
+    const bool vertical = f == Forward::up || f == Forward::down;
+    const cv::Point2f a = vertical ? cv::Point2f(p.stem.x, static_cast<float>(p.bbox.y))
+                                   : cv::Point2f(static_cast<float>(p.bbox.x), p.stem.y);
+    const cv::Point2f b = vertical ? cv::Point2f(p.stem.x, static_cast<float>(p.bbox.y + p.bbox.height - 1))
+                                   : cv::Point2f(static_cast<float>(p.bbox.x + p.bbox.width - 1), p.stem.y);
+    const auto fa = geometry::field_position(camera_, a, odom_mm);
+    const auto fb = geometry::field_position(camera_, b, odom_mm);
+    return fa && fb ? std::abs(fa->s_mm - fb->s_mm) / 2 : 0.0;
 }
 
 void ActuationStage::schedule(const actuation::Target& target, std::int64_t now_ns, bool class_map) noexcept

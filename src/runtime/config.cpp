@@ -12,6 +12,8 @@
 #include <stdexcept>
 #include <system_error>
 
+#include <yaml-cpp/yaml.h>
+
 namespace stemd::config {
 
 namespace {
@@ -186,20 +188,21 @@ std::string unknown_item_key_message(const ListSpec& list, std::size_t index, st
     return cat("unknown key; a ", list.section, " item has: ", keys);
 }
 
-// A value as written: bare, or double-quoted with \" \\ \n \t escapes.
+// A value as written: bare, or quoted (a YAML quoted scalar in a file, a
+// double-quoted string with \" \\ \n \t escapes after --set KEY=).
 struct Scalar {
     std::string text;
     bool quoted = false;
     bool empty() const { return !quoted && text.empty(); }
 };
 
-// Parses the text after "key:" (file) or after "=" (--set). In a file a '#'
-// after whitespace starts a comment; on the command line it is literal.
-std::optional<std::string> parse_scalar(std::string_view raw, bool comments, Scalar& out)
+// Parses the text after "=" of --set KEY=VALUE (not YAML: '#' is literal and
+// a lone "-" is a plain value, "standard output").
+std::optional<std::string> parse_scalar(std::string_view raw, Scalar& out)
 {
     raw = trim(raw);
     out = Scalar{};
-    if (raw.empty() || (comments && raw.front() == '#'))
+    if (raw.empty())
         return std::nullopt;
     if (raw.front() == '"') {
         out.quoted = true;
@@ -224,24 +227,14 @@ std::optional<std::string> parse_scalar(std::string_view raw, bool comments, Sca
         if (i >= raw.size())
             return std::string("unterminated double-quoted string");
         const std::string_view after = trim(raw.substr(i + 1));
-        if (!after.empty() && !(comments && after.front() == '#' &&
-                                kWhitespace.find(raw[i + 1]) != std::string_view::npos))
+        if (!after.empty())
             return cat("unexpected text after the closing quote: ", quote(after));
         return std::nullopt;
     }
-    if (comments) {
-        for (std::size_t i = 1; i < raw.size(); ++i) {
-            if (raw[i] == '#' && kWhitespace.find(raw[i - 1]) != std::string_view::npos) {
-                raw = trim(raw.substr(0, i));
-                break;
-            }
-        }
-    }
-    // YAML syntax this subset does not support would otherwise be read as text.
-    // On the command line a lone "-" is a plain value ("standard output").
+    // YAML syntax a value given this way does not support would otherwise be
+    // read as text.
     constexpr std::string_view kIndicators = "[]{}&*!|>'%@`,?";
-    if (kIndicators.find(raw.front()) != std::string_view::npos || (raw == "-" && comments) ||
-        raw.starts_with("- "))
+    if (kIndicators.find(raw.front()) != std::string_view::npos || raw.starts_with("- "))
         return cat("unsupported YAML syntax ", quote(raw), "; write a plain value or a double-quoted string");
     out.text = std::string(raw);
     return std::nullopt;
@@ -366,38 +359,22 @@ std::optional<ItemProblem> check_item(const ListSpec& list, const detail::ListVa
     return std::nullopt;
 }
 
+// Control characters would break a one-line error message, or the comment
+// to_yaml() writes an origin in.
+std::string printable(std::string_view s)
+{
+    std::string out(s);
+    for (char& c : out)
+        if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f)
+            c = '?';
+    return out;
+}
+
 std::string_view without_cr(std::string_view line)
 {
     if (!line.empty() && line.back() == '\r')
         line.remove_suffix(1);
     return line;
-}
-
-struct LineParts {
-    std::size_t indent = 0;       // leading spaces and tabs
-    bool tab = false;             // a tab among them
-    bool content = false;         // neither blank nor a comment
-    std::string_view name;        // before the ':' (trimmed); the whole text if no ':'
-    bool colon = false;
-    std::string_view after_colon; // untrimmed
-};
-
-LineParts split_line(std::string_view line)
-{
-    LineParts p;
-    p.indent = std::min(line.find_first_not_of(kWhitespace), line.size());
-    const std::string_view lead = line.substr(0, p.indent);
-    p.tab = lead.find('\t') != std::string_view::npos;
-    const std::string_view rest = line.substr(p.indent);
-    p.content = !rest.empty() && rest.front() != '#';
-    if (!p.content)
-        return p;
-    const std::size_t colon = rest.find(':');
-    p.colon = colon != std::string_view::npos;
-    p.name = trim(rest.substr(0, colon));
-    if (p.colon)
-        p.after_colon = rest.substr(colon + 1);
-    return p;
 }
 
 bool is_valid_name(std::string_view name)
@@ -408,306 +385,485 @@ bool is_valid_name(std::string_view name)
     });
 }
 
-// The first line after `index` that is neither blank nor a comment, if it is
-// indented deeper than `indent`: "key:" followed by it is a nested mapping.
-std::optional<std::size_t> deeper_line(const std::vector<std::string_view>& lines, std::size_t index,
-                                       std::size_t indent)
+// One source line, for what the YAML tree does not say: tabs in the
+// indentation, and which key a YAML syntax error is on.
+struct LineParts {
+    std::size_t indent = 0;       // leading spaces and tabs
+    bool tab = false;             // a tab in the indentation or after an item's '-'
+    bool content = false;         // neither blank nor a comment
+    std::size_t dashes = 0;       // "- " item indicators before the text
+    std::string_view text;        // after the indentation and the dashes
+    std::string_view name;        // before the ':' (trimmed) if a valid name, else empty
+};
+
+LineParts split_line(std::string_view line)
 {
-    for (std::size_t j = index + 1; j < lines.size(); ++j) {
-        const LineParts next = split_line(lines[j]);
-        if (!next.content)
-            continue;
-        if (next.indent > indent)
-            return j;
-        break;
+    LineParts p;
+    p.indent = std::min(line.find_first_not_of(kWhitespace), line.size());
+    p.tab = line.substr(0, p.indent).find('\t') != std::string_view::npos;
+    std::string_view rest = line.substr(p.indent);
+    while (!rest.empty() && rest.front() == '-' &&
+           (rest.size() == 1 || kWhitespace.find(rest[1]) != std::string_view::npos)) {
+        const std::size_t next = std::min(rest.find_first_not_of(kWhitespace, 1), rest.size());
+        p.tab = p.tab || rest.substr(1, next - 1).find('\t') != std::string_view::npos;
+        rest.remove_prefix(next);
+        ++p.dashes;
     }
-    return std::nullopt;
+    p.content = !(rest.empty() && p.dashes == 0) && !rest.starts_with('#');
+    p.text = rest;
+    const std::size_t colon = rest.find(':');
+    if (colon != std::string_view::npos && is_valid_name(trim(rest.substr(0, colon))))
+        p.name = trim(rest.substr(0, colon));
+    return p;
 }
 
-// Parses configuration text into `values` and `lists` (copies the caller commits).
-class TextLoader {
+// The YAML tree of a configuration file, checked against the schema, into
+// `values` and `lists` (copies the caller commits).
+class YamlLoader {
 public:
-    TextLoader(std::string_view origin, std::vector<ConfigValue>& values, std::vector<detail::ListValue>& lists)
+    YamlLoader(std::string_view origin, std::vector<ConfigValue>& values, std::vector<detail::ListValue>& lists)
         : origin_(origin), values_(values), lists_(lists) {}
 
     std::optional<ConfigError> load(std::string_view text)
     {
         if (text.starts_with("\xEF\xBB\xBF"))  // UTF-8 byte order mark
             text.remove_prefix(3);
-        std::vector<std::string_view> lines;
-        while (!text.empty()) {
-            const std::size_t nl = text.find('\n');
-            lines.push_back(without_cr(text.substr(0, nl)));
-            text = nl == std::string_view::npos ? std::string_view{} : text.substr(nl + 1);
+        text_ = std::string(text);
+        for (std::string_view rest = text_; !rest.empty();) {
+            const std::size_t nl = rest.find('\n');
+            lines_.push_back(without_cr(rest.substr(0, nl)));
+            rest = nl == std::string_view::npos ? std::string_view{} : rest.substr(nl + 1);
         }
-        for (std::size_t i = 0; i < lines.size(); ++i)
-            if (auto error = line(lines, i))
-                return error;
-        return finish_list();
+        // YAML does not allow tabs in the indentation; say so before the
+        // parser reports something less clear.
+        for (std::size_t i = 0; i < lines_.size(); ++i) {
+            const LineParts p = split_line(lines_[i]);
+            if (p.content && p.tab)
+                return error(static_cast<int>(i) + 1, key_at_line(i), "tab in the indentation; indent with spaces");
+        }
+        std::vector<YAML::Node> documents;
+        try {
+            documents = YAML::LoadAll(text_);
+        } catch (const YAML::ParserException& e) {
+            return syntax_error(e.mark, e.msg);
+        } catch (const YAML::Exception& e) {
+            return syntax_error(e.mark, e.msg);
+        }
+        if (documents.empty())
+            return std::nullopt;  // nothing but comments
+        if (documents.size() > 1) {
+            // The second document's "---" line, above its first node.
+            int line = line_of(documents[1]);
+            for (int l = line; l >= 1; --l)
+                if (static_cast<std::size_t>(l) <= lines_.size() && lines_[l - 1].starts_with("---")) {
+                    line = l;
+                    break;
+                }
+            return error(line, "", "more than one YAML document ('---'); a config file holds one map of sections");
+        }
+        const YAML::Node& root = documents.front();
+        if (root.IsNull())
+            return std::nullopt;
+        if (!root.IsMap())
+            return error(line_of(root), "",
+                         cat("expected 'section:' lines (a map of sections) at the top level, got ", what(root)));
+        try {
+            for (auto it = root.begin(); it != root.end(); ++it)
+                if (auto error = section(it->first, it->second))
+                    return error;
+        } catch (const YAML::Exception& e) {
+            return error(line_of(e.mark), "", cat("invalid YAML: ", e.msg));
+        }
+        return std::nullopt;
     }
 
 private:
-    ConfigError error(int line, std::string key, std::string message) const
+    ConfigError error(int line, std::string_view key, std::string_view message) const
     {
-        return ConfigError{origin_, line, std::move(key), std::move(message)};
+        return ConfigError{origin_, line, printable(key), printable(message)};
     }
 
-    std::optional<ConfigError> line(const std::vector<std::string_view>& lines, std::size_t index)
+    int line_of(const YAML::Mark& mark) const
     {
-        const int number = static_cast<int>(index) + 1;
-        const LineParts p = split_line(lines[index]);
-        if (!p.content)
-            return std::nullopt;
-        if (list_ != nullptr) {
-            // Inside a list section: items, until the next line at indent 0
-            // that is not an item.
-            if (lines[index][p.indent] == '-' || p.indent > 0)
-                return list_line(lines, index, p);
-            if (auto error = finish_list())
-                return error;
+        // A mark without a position (end of input): the last line.
+        return mark.line >= 0 ? mark.line + 1 : static_cast<int>(lines_.size());
+    }
+
+    int line_of(const YAML::Node& node) const { return line_of(node.Mark()); }
+
+    ConfigError syntax_error(const YAML::Mark& mark, const std::string& message) const
+    {
+        const int line = line_of(mark);
+        const std::size_t index = static_cast<std::size_t>(std::max(line, 1) - 1);
+        const std::string key = key_at_line(index);
+        // "key: -": the dash starts a YAML list item, not the text "-".
+        if (index < lines_.size()) {
+            const LineParts p = split_line(lines_[index]);
+            if (!p.name.empty()) {
+                std::string_view value = p.text.substr(p.text.find(':') + 1);
+                const std::size_t comment = value.find(" #");
+                value = trim(value.substr(0, comment));
+                if (value == "-" || value.starts_with("- "))
+                    return error(line, key, "invalid YAML: a bare '-' starts a list item, not a value; write "
+                                            "\"-\" (double-quoted) for a dash");
+            }
         }
-        const bool nested = p.indent > 0;
-        const std::string full = nested && !section_.empty() && p.colon
-            ? cat(section_, ".", p.name)
-            : std::string(p.colon ? p.name : std::string_view{});
-        if (p.tab)
-            return error(number, full, "tab in the indentation; indent with spaces");
-        if (!p.colon || !is_valid_name(p.name))
-            return error(number, "", cat("expected 'section:' or 'key: value', got ", quote(trim(lines[index]))));
-        if (!p.after_colon.empty() && kWhitespace.find(p.after_colon.front()) == std::string_view::npos)
-            return error(number, full, "expected a space after ':'");
-        Scalar scalar;
-        if (auto message = parse_scalar(p.after_colon, true, scalar))
-            return error(number, full, *message);
-        return nested ? key_line(lines, index, p, full, scalar) : section_line(number, p.name, scalar);
+        return error(line, key, cat("invalid YAML: ", message, indentation_hint(index)));
     }
 
-    std::optional<ConfigError> section_line(int number, std::string_view name, const Scalar& scalar)
+    // " (inconsistent indentation? ...)" when line `index` starts in a column
+    // no line above starts a key in, after a line with a value (so it cannot
+    // open a deeper level); "" otherwise.
+    std::string indentation_hint(std::size_t index) const
     {
-        const std::string section(name);
+        if (index >= lines_.size())
+            return "";
+        const LineParts p = split_line(lines_[index]);
+        if (!p.content)
+            return "";
+        std::vector<std::size_t> columns;
+        std::optional<std::size_t> previous;
+        bool previous_has_value = false;
+        for (std::size_t j = 0; j < index; ++j) {
+            const LineParts above = split_line(lines_[j]);
+            if (!above.content)
+                continue;
+            const std::size_t key_column = lines_[j].size() - above.text.size();
+            columns.push_back(above.indent);
+            columns.push_back(key_column);
+            previous = key_column;
+            std::string_view after = above.name.empty() ? above.text : above.text.substr(above.text.find(':') + 1);
+            after = trim(after);
+            previous_has_value = above.name.empty() || (!after.empty() && !after.starts_with('#'));
+        }
+        if (!previous || !previous_has_value ||
+            std::find(columns.begin(), columns.end(), p.indent) != columns.end())
+            return "";
+        return cat(" (inconsistent indentation? ", std::to_string(p.indent), " spaces here, ",
+                   std::to_string(*previous), " on the line above)");
+    }
+
+    // The key a source line holds, as errors name it ("closing.radius_px",
+    // "tools[1].offset_mm", a section), or "" if the line does not say.
+    std::string key_at_line(std::size_t index) const
+    {
+        if (index >= lines_.size())
+            return "";
+        const LineParts p = split_line(lines_[index]);
+        if (p.name.empty())
+            return "";
+        if (p.indent == 0 && p.dashes == 0)
+            return std::string(p.name);
+        // The section: the nearest line above at indent 0.
+        std::size_t section_line = index;
+        while (section_line > 0) {
+            const LineParts above = split_line(lines_[--section_line]);
+            if (above.content && above.indent == 0 && above.dashes == 0) {
+                if (above.name.empty())
+                    return "";
+                const ListSpec* list = find_list(above.name);
+                if (list == nullptr)
+                    return cat(above.name, ".", p.name);
+                // A list item: count the "- " lines from the section down.
+                std::size_t items = 0;
+                for (std::size_t j = section_line + 1; j <= index; ++j)
+                    items += split_line(lines_[j]).dashes > 0 ? 1 : 0;
+                return items == 0 ? std::string(list->section)
+                                  : item_key_name(list->section, items - 1, p.name);
+            }
+        }
+        return "";
+    }
+
+    // "a list", "a map", "'text'": a node where something else belongs.
+    static std::string what(const YAML::Node& node)
+    {
+        if (node.IsSequence())
+            return "a list";
+        if (node.IsMap())
+            return "a map";
+        if (node.IsNull())
+            return "nothing";
+        return quote(node.Scalar());
+    }
+
+    // The name of a map key; nullopt (and `failure` set) if the key is not a
+    // scalar.
+    std::optional<std::string> key_name(const YAML::Node& key, std::string_view where,
+                                        std::optional<ConfigError>& failure) const
+    {
+        if (key.IsScalar() && !key.Scalar().empty())
+            return key.Scalar();
+        failure = error(line_of(key), where, cat("expected a key name, got ", what(key)));
+        return std::nullopt;
+    }
+
+    // A value that is not a scalar (or empty), where one line "key: value"
+    // belongs: the error, naming the nested key if there is one.
+    std::optional<ConfigError> not_a_value(const std::string& full, const YAML::Node& value,
+                                           std::string_view holder) const
+    {
+        const std::string rule = cat("; ", holder, " holds only 'key: value' lines");
+        if (value.IsMap()) {
+            if (value.size() > 0) {
+                const YAML::Node first = value.begin()->first;
+                return error(line_of(first), cat(full, ".", first.IsScalar() ? first.Scalar() : "?"),
+                             cat("nesting deeper than one level", rule));
+            }
+            return error(line_of(value), full, cat("expected a value, got a map", rule));
+        }
+        if (value.IsSequence())
+            return error(line_of(value), full, cat("expected a value, got a list", rule));
+        return std::nullopt;
+    }
+
+    // A scalar (or null) value as the schema checks read it.
+    std::optional<std::string> scalar_of(const YAML::Node& value, int key_line, Scalar& out) const
+    {
+        out = Scalar{};
+        const YAML::Mark mark = value.Mark();
+        const std::size_t pos = mark.pos >= 0 ? static_cast<std::size_t>(mark.pos) : text_.size();
+        if (value.IsNull()) {
+            // "key: ~" and "key: null" are YAML for no value, like "key:".
+            const std::string_view at = pos < text_.size() ? std::string_view(text_).substr(pos) : "";
+            if (mark.line + 1 == key_line &&
+                (at.starts_with("~") || at.starts_with("null") || at.starts_with("Null") || at.starts_with("NULL")))
+                return std::string("empty value ('~' and 'null' are YAML for no value; quote them for the text)");
+            return std::nullopt;
+        }
+        const std::string& tag = value.Tag();
+        if (tag != "?" && tag != "!")
+            return cat("YAML tags are not supported (", quote(tag), "); write a plain value or a double-quoted string");
+        out.text = value.Scalar();
+        out.quoted = tag == "!";
+        if (out.quoted && pos < text_.size() && (text_[pos] == '"' || text_[pos] == '\'') && !closed_quote(pos))
+            return std::string(text_[pos] == '"' ? "unterminated double-quoted string"
+                                                  : "unterminated single-quoted string");
+        return std::nullopt;
+    }
+
+    // yaml-cpp 0.7 reads a quoted string the input ends in as if closed.
+    bool closed_quote(std::size_t pos) const
+    {
+        const char q = text_[pos];
+        for (std::size_t i = pos + 1; i < text_.size(); ++i) {
+            if (q == '"' && text_[i] == '\\') {
+                ++i;
+            } else if (text_[i] == q) {
+                if (q == '\'' && i + 1 < text_.size() && text_[i + 1] == '\'')
+                    ++i;  // '' in a single-quoted string
+                else
+                    return true;
+            }
+        }
+        return false;
+    }
+
+    // A scalar on a line of its own where "key: value" belongs: "radius_px 6",
+    // or "radius_px:6" (YAML needs the space).
+    ConfigError not_key_value(const YAML::Node& value, std::string_view key_prefix, std::string_view expected) const
+    {
+        const std::string& text = value.Scalar();
+        const std::size_t colon = text.find(':');
+        if (colon != std::string::npos && is_valid_name(text.substr(0, colon)))
+            return error(line_of(value), cat(key_prefix, text.substr(0, colon)), "expected a space after ':'");
+        return error(line_of(value), "", cat("expected ", expected, ", got ", quote(text)));
+    }
+
+    std::optional<ConfigError> section(const YAML::Node& key, const YAML::Node& value)
+    {
+        std::optional<ConfigError> failure;
+        const auto name = key_name(key, "", failure);
+        if (!name)
+            return failure;
+        const int line = line_of(key);
+        const std::string& section = *name;
         const ListSpec* list = find_list(section);
-        if (!scalar.empty()) {
+        if (value.IsScalar()) {
+            if (line_of(value) > line)  // the section's line, then a line without "key: "
+                return list != nullptr
+                    ? error(line_of(value), section,
+                            cat("expected a list of items ('- key: value' lines) under '", section, ":'"))
+                    : not_key_value(value, cat(section, "."), "'section:' or 'key: value'");
             if (list != nullptr)
-                return error(number, section, cat("a list section cannot have a value; put its items ('- ",
-                                                      item_leaf_of(item_keys(section).front()),
-                                                      ": ...') on indented lines below it"));
+                return error(line, section, cat("a list section cannot have a value; put its items ('- ",
+                                                item_leaf_of(item_keys(section).front()),
+                                                ": ...') on indented lines below it"));
             if (is_known_section(section))
-                return error(number, section, "a section cannot have a value; put its keys on indented lines below it");
+                return error(line, section, "a section cannot have a value; put its keys on indented lines below it");
             if (find_key(section) != nullptr)
-                return error(number, section, cat("key outside a section; write '", section_of(section), ":' and indent '",
-                                                      leaf_of(section), ": ...' below it"));
+                return error(line, section, cat("key outside a section; write '", section_of(section),
+                                                ":' and indent '", leaf_of(section), ": ...' below it"));
             for (const KeySpec& spec : schema())
-                if (leaf_of(spec.key) == name)
-                    return error(number, section, cat("key outside a section; indent it under '", section_of(spec.key), ":'"));
-            return error(number, section, cat("key outside a section; indent it under its section (", list_sections(), ")"));
+                if (leaf_of(spec.key) == section)
+                    return error(line, section, cat("key outside a section; indent it under '",
+                                                    section_of(spec.key), ":'"));
+            return error(line, section,
+                         cat("key outside a section; indent it under its section (", list_sections(), ")"));
         }
         if (!is_known_section(section) && list == nullptr)
-            return error(number, section, cat("unknown section; the sections are: ", list_sections()));
-        const auto [it, inserted] = section_lines_.emplace(section, number);
+            return error(line, section, cat("unknown section; the sections are: ", list_sections()));
+        const auto [it, inserted] = section_lines_.emplace(section, line);
         if (!inserted)
-            return error(number, section, cat("duplicate section (first on line ", std::to_string(it->second), ")"));
-        section_ = section;
-        section_indent_ = 0;
-        if (list != nullptr) {
-            // The file's list replaces the whole list.
-            list_ = list;
-            list_value_ = &lists_[list_index(*list)];
-            list_value_->items.clear();
-            list_line_ = number;
-            dash_indent_ = std::string_view::npos;
-            item_open_ = false;
-            unique_lines_.clear();
-        }
+            return error(line, section, cat("duplicate section (first on line ", std::to_string(it->second), ")"));
+        if (list != nullptr)
+            return list_section(*list, line, value);
+        if (value.IsNull())
+            return error(line, section, "empty section; put its keys ('key: value') on indented lines below it, "
+                                        "or remove the line");
+        if (value.IsSequence())
+            return error(line_of(value), section,
+                         cat("expected 'key: value' lines under '", section, ":', got a list ('- ' items); only ",
+                             list_names(), " holds a list"));
+        for (auto entry = value.begin(); entry != value.end(); ++entry)
+            if (auto error = key_value(section, entry->first, entry->second))
+                return error;
         return std::nullopt;
     }
 
-    std::optional<ConfigError> key_line(const std::vector<std::string_view>& lines, std::size_t index,
-                                        const LineParts& p, const std::string& full, const Scalar& scalar)
+    static std::string list_names()
     {
-        const int number = static_cast<int>(index) + 1;
-        if (section_.empty())
-            return error(number, std::string(p.name), "key outside a section; no 'section:' line above it");
-        if (section_indent_ == 0)
-            section_indent_ = p.indent;
-        if (p.indent != section_indent_)
-            return error(number, full, cat("inconsistent indentation: ", std::to_string(p.indent),
-                                               " spaces, the keys of section '", section_, "' have ",
-                                               std::to_string(section_indent_)));
-        if (scalar.empty()) {
-            if (const auto j = deeper_line(lines, index, p.indent))
-                return error(static_cast<int>(*j) + 1, cat(full, ".", split_line(lines[*j]).name),
-                             "nesting deeper than one level; a section holds only 'key: value' lines");
-        }
+        std::string out;
+        for (const ListSpec& list : list_schema())
+            out += cat(out.empty() ? "" : ", ", quote(list.section));
+        return out;
+    }
+
+    std::optional<ConfigError> key_value(const std::string& section, const YAML::Node& key, const YAML::Node& value)
+    {
+        std::optional<ConfigError> failure;
+        const auto leaf = key_name(key, section, failure);
+        if (!leaf)
+            return failure;
+        const int line = line_of(key);
+        const std::string full = cat(section, ".", *leaf);
+        if (auto error = not_a_value(full, value, "a section"))
+            return error;
         const KeySpec* spec = find_key(full);
         if (spec == nullptr)
-            return error(number, full, unknown_key_message(full));
-        const auto [it, inserted] = key_lines_.emplace(full, number);
+            return error(line, full, unknown_key_message(full));
+        const auto [it, inserted] = key_lines_.emplace(full, line);
         if (!inserted)
-            return error(number, full, cat("duplicate key (first on line ", std::to_string(it->second), ")"));
-        ConfigValue& value = values_[index_of(*spec)];
-        if (auto message = parse_value(*spec, scalar, value))
-            return error(number, full, *message);
-        value.origin = cat(origin_, ":", std::to_string(number));
-        return std::nullopt;
-    }
-
-    // A line inside a list section: "- key: value" starts an item, "key: value"
-    // (aligned with the item's first key) continues it.
-    std::optional<ConfigError> list_line(const std::vector<std::string_view>& lines, std::size_t index,
-                                         const LineParts& p)
-    {
-        const int number = static_cast<int>(index) + 1;
-        const std::string_view section = list_->section;
-        std::string_view rest = lines[index].substr(p.indent);
-        const bool dash = rest.front() == '-';
-        const std::size_t item = list_value_->items.size() - (dash || list_value_->items.empty() ? 0 : 1);
-        if (!dash && !item_open_)
-            return error(number, std::string(section),
-                         cat("expected a list of items ('- key: value' lines) under '", section, ":'"));
-        std::size_t key_column = p.indent;
-        bool tab = p.tab;
-        if (dash) {
-            const std::size_t key_start = rest.find_first_not_of(kWhitespace, 1);
-            if (rest.size() < 2 || kWhitespace.find(rest[1]) == std::string_view::npos ||
-                key_start == std::string_view::npos || rest[key_start] == '#')
-                return error(number, item_name(section, item),
-                             cat("expected '- key: value' (an item starts with '- ' and its first key), got ",
-                                 quote(trim(rest))));
-            tab = tab || rest.substr(1, key_start - 1).find('\t') != std::string_view::npos;
-            key_column = p.indent + key_start;
-            rest = rest.substr(key_start);
-        }
-        const LineParts k = split_line(rest);
-        const std::string full = k.colon ? item_key_name(section, item, k.name) : item_name(section, item);
-        if (tab)
-            return error(number, full, "tab in the indentation; indent with spaces");
-        if (item_open_ && p.indent > item_indent_)
-            return error(number, full, "nesting deeper than one level; a list item holds only 'key: value' lines");
-        if (dash) {
-            if (dash_indent_ == std::string_view::npos)
-                dash_indent_ = p.indent;
-            if (p.indent != dash_indent_)
-                return error(number, full, cat("inconsistent indentation: ", std::to_string(p.indent),
-                                                   " spaces, the items of '", section, "' start at ",
-                                                   std::to_string(dash_indent_)));
-            if (auto error = finish_item())
-                return error;
-            if (list_value_->items.size() >= list_->max_items)
-                return error(number, item_name(section, item),
-                             cat("more than ", std::to_string(list_->max_items), " items; '", section,
-                                 "' holds at most ", std::to_string(list_->max_items)));
-            list_value_->items.push_back(default_item(*list_));
-            item_open_ = true;
-            item_line_ = number;
-            item_indent_ = key_column;
-            item_key_lines_.clear();
-        } else if (p.indent != item_indent_) {
-            return error(number, full, cat("inconsistent indentation: ", std::to_string(p.indent),
-                                               " spaces, the keys of item ", item_name(section, item), " are at ",
-                                               std::to_string(item_indent_)));
-        }
-        if (!k.colon || !is_valid_name(k.name))
-            return error(number, "", cat("expected '- key: value' or 'key: value' in a list item, got ",
-                                         quote(trim(lines[index]))));
-        if (!k.after_colon.empty() && kWhitespace.find(k.after_colon.front()) == std::string_view::npos)
-            return error(number, full, "expected a space after ':'");
+            return error(line, full, cat("duplicate key (first on line ", std::to_string(it->second), ")"));
         Scalar scalar;
-        if (auto message = parse_scalar(k.after_colon, true, scalar))
-            return error(number, full, *message);
-        if (scalar.empty()) {
-            if (const auto j = deeper_line(lines, index, key_column))
-                return error(static_cast<int>(*j) + 1, cat(full, ".", split_line(lines[*j]).name),
-                             "nesting deeper than one level; a list item holds only 'key: value' lines");
-        }
-        const KeySpec* spec = find_item_key(section, k.name);
-        if (spec == nullptr)
-            return error(number, full, unknown_item_key_message(*list_, item, k.name));
-        const auto [it, inserted] = item_key_lines_.emplace(std::string(k.name), number);
-        if (!inserted)
-            return error(number, full, cat("duplicate key (first on line ", std::to_string(it->second), ")"));
-        ConfigValue& value = list_value_->items[item][item_key_index(*list_, *spec)];
-        if (auto message = parse_value(*spec, scalar, value))
-            return error(number, full, *message);
-        value.origin = cat(origin_, ":", std::to_string(number));
+        if (auto message = scalar_of(value, line, scalar))
+            return error(line, full, *message);
+        ConfigValue& stored = values_[index_of(*spec)];
+        if (auto message = parse_value(*spec, scalar, stored))
+            return error(line, full, *message);
+        stored.origin = cat(origin_, ":", std::to_string(line));
         return std::nullopt;
     }
 
-    // The line of `leaf` in the current item, or 0.
-    int item_key_line(std::string_view leaf) const
+    // The line of a null list item ("-" alone): the node's mark is where the
+    // next token starts, so look back for the dash.
+    int null_item_line(const YAML::Node& item, int list_line) const
     {
-        const auto it = item_key_lines_.find(leaf);
-        return it == item_key_lines_.end() ? 0 : it->second;
-    }
-
-    // Checks the item just read against the earlier ones.
-    std::optional<ConfigError> finish_item()
-    {
-        if (!item_open_)
-            return std::nullopt;
-        item_open_ = false;
-        const std::size_t item = list_value_->items.size() - 1;
-        const int unique_line = item_key_line(list_->unique_key);
-        unique_lines_.push_back(unique_line != 0 ? unique_line : item_line_);
-        auto problem = check_item(*list_, *list_value_, item, true);
-        if (!problem)
-            return std::nullopt;
-        std::string_view leaf = problem->leaf;
-        int line = item_key_line(leaf);
-        if (leaf == list_->unique_key) {
-            problem->message += cat(" (line ", std::to_string(unique_lines_[problem->other]), ")");
-        } else if (line == 0 && item_key_line(list_->lower_key) != 0) {
-            // The upper key is at its default: the lower key set is at fault.
-            leaf = list_->lower_key;
-            line = item_key_line(leaf);
+        const int mark_line = line_of(item);
+        for (int line = mark_line; line > list_line; --line) {
+            const std::size_t index = static_cast<std::size_t>(line - 1);
+            if (index >= lines_.size())
+                continue;
+            const LineParts p = split_line(lines_[index]);
+            if (p.dashes > 0 && (p.text.empty() || p.text.starts_with('#') || p.text.starts_with('~') ||
+                                 p.text.starts_with("null") || p.text.starts_with("Null") || p.text.starts_with("NULL")))
+                return line;
         }
-        return error(line != 0 ? line : item_line_, item_key_name(list_->section, item, leaf), problem->message);
+        return mark_line;
     }
 
-    std::optional<ConfigError> finish_list()
+    std::optional<ConfigError> list_section(const ListSpec& list, int line, const YAML::Node& value)
     {
-        if (list_ == nullptr)
-            return std::nullopt;
-        if (auto error = finish_item())
-            return error;
-        const ListSpec* list = list_;
-        list_ = nullptr;
-        section_.clear();
-        if (list_value_->items.empty())
-            return error(list_line_, std::string(list->section),
-                         cat("empty list; give at least one item ('- ", item_leaf_of(item_keys(list->section).front()),
-                             ": ...') on indented lines below it"));
+        const std::string section(list.section);
+        const std::string first_key(item_leaf_of(item_keys(section).front()));
+        if (value.IsMap())
+            return error(line_of(value), section,
+                         cat("expected a list of items ('- key: value' lines) under '", section, ":'"));
+        if (value.IsNull() || value.size() == 0)
+            return error(line, section, cat("empty list; give at least one item ('- ", first_key,
+                                            ": ...') on indented lines below it"));
+        // The file's list replaces the whole list.
+        detail::ListValue& items = lists_[list_index(list)];
+        items.items.clear();
+        std::vector<int> unique_lines;  // per item: line of its unique key (or its first line)
+        for (std::size_t i = 0; i < value.size(); ++i) {
+            const YAML::Node item = value[i];
+            const std::string name = item_name(section, i);
+            const int item_line = item.IsNull() ? null_item_line(item, line) : line_of(item);
+            if (i >= list.max_items)
+                return error(item_line, name, cat("more than ", std::to_string(list.max_items), " items; '",
+                                                  section, "' holds at most ", std::to_string(list.max_items)));
+            if (item.IsNull())
+                return error(item_line, name, cat("empty item; an item starts with '- ' and its first key ('- ",
+                                                  first_key, ": ...')"));
+            if (item.IsScalar()) {
+                if (item.Tag() == "?" && item.Scalar().find(':') != std::string::npos &&
+                    is_valid_name(item.Scalar().substr(0, item.Scalar().find(':'))))
+                    return not_key_value(item, cat(name, "."), "'- key: value'");
+                return error(item_line, name, cat("expected '- key: value' (an item is 'key: value' lines), got ",
+                                                  quote(item.Scalar())));
+            }
+            if (item.IsSequence())
+                return error(item_line, name, "expected '- key: value' (an item is 'key: value' lines), got a list");
+            items.items.push_back(default_item(list));
+            std::map<std::string, int, std::less<>> key_lines;
+            for (auto entry = item.begin(); entry != item.end(); ++entry) {
+                std::optional<ConfigError> failure;
+                const auto leaf = key_name(entry->first, name, failure);
+                if (!leaf)
+                    return failure;
+                const int key_line = line_of(entry->first);
+                const std::string full = item_key_name(section, i, *leaf);
+                if (auto error = not_a_value(full, entry->second, "a list item"))
+                    return error;
+                const KeySpec* spec = find_item_key(section, *leaf);
+                if (spec == nullptr)
+                    return error(key_line, full, unknown_item_key_message(list, i, *leaf));
+                const auto [it, inserted] = key_lines.emplace(*leaf, key_line);
+                if (!inserted)
+                    return error(key_line, full,
+                                 cat("duplicate key (first on line ", std::to_string(it->second), ")"));
+                Scalar scalar;
+                if (auto message = scalar_of(entry->second, key_line, scalar))
+                    return error(key_line, full, *message);
+                ConfigValue& stored = items.items[i][item_key_index(list, *spec)];
+                if (auto message = parse_value(*spec, scalar, stored))
+                    return error(key_line, full, *message);
+                stored.origin = cat(origin_, ":", std::to_string(key_line));
+            }
+            // The item against the earlier ones.
+            const auto line_of_key = [&](std::string_view leaf) {
+                const auto it = key_lines.find(leaf);
+                return it == key_lines.end() ? 0 : it->second;
+            };
+            const int unique_line = line_of_key(list.unique_key);
+            unique_lines.push_back(unique_line != 0 ? unique_line : item_line);
+            auto problem = check_item(list, items, i, true);
+            if (!problem)
+                continue;
+            std::string_view leaf = problem->leaf;
+            int problem_line = line_of_key(leaf);
+            if (leaf == list.unique_key) {
+                problem->message += cat(" (line ", std::to_string(unique_lines[problem->other]), ")");
+            } else if (problem_line == 0 && line_of_key(list.lower_key) != 0) {
+                // The upper key is at its default: the lower key set is at fault.
+                leaf = list.lower_key;
+                problem_line = line_of_key(leaf);
+            }
+            return error(problem_line != 0 ? problem_line : item_line, item_key_name(section, i, leaf),
+                         problem->message);
+        }
         return std::nullopt;
     }
 
     std::string origin_;
     std::vector<ConfigValue>& values_;
     std::vector<detail::ListValue>& lists_;
-    std::string section_;
-    std::size_t section_indent_ = 0;  // 0: not known yet
+    std::string text_;
+    std::vector<std::string_view> lines_;  // of text_, without '\r'
     std::map<std::string, int, std::less<>> section_lines_;
     std::map<std::string, int, std::less<>> key_lines_;
-
-    // The list section being read (nullptr: none).
-    const ListSpec* list_ = nullptr;
-    detail::ListValue* list_value_ = nullptr;
-    int list_line_ = 0;                              // its "section:" line
-    std::size_t dash_indent_ = std::string_view::npos;  // column of its items' '-'
-    bool item_open_ = false;
-    int item_line_ = 0;                              // the current item's '-' line
-    std::size_t item_indent_ = 0;                    // column of the current item's keys
-    std::map<std::string, int, std::less<>> item_key_lines_;
-    std::vector<int> unique_lines_;                  // per item: line of its unique key (or its '-' line)
 };
-
-// Control characters would break the comment to_yaml() writes an origin in.
-std::string printable(std::string_view s)
-{
-    std::string out(s);
-    for (char& c : out)
-        if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f)
-            c = '?';
-    return out;
-}
 
 std::string yaml_quoted(std::string_view s)
 {
@@ -718,7 +874,14 @@ std::string yaml_quoted(std::string_view s)
         case '\\': out += "\\\\"; break;
         case '\n': out += "\\n"; break;
         case '\t': out += "\\t"; break;
-        default: out += c;
+        default:
+            if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {  // YAML's \xXX escape
+                constexpr std::string_view kHex = "0123456789abcdef";
+                const auto byte = static_cast<unsigned char>(c);
+                out += cat("\\x", std::string_view(&kHex[byte >> 4], 1), std::string_view(&kHex[byte & 15], 1));
+            } else {
+                out += c;
+            }
         }
     }
     return out + "\"";
@@ -808,7 +971,7 @@ std::optional<ConfigError> Config::load_text(std::string_view text, std::string_
 {
     std::vector<ConfigValue> staged = values_;
     std::vector<detail::ListValue> staged_lists = lists_;
-    TextLoader loader(origin, staged, staged_lists);
+    YamlLoader loader(origin, staged, staged_lists);
     if (auto error = loader.load(text))
         return error;
     values_ = std::move(staged);
@@ -848,7 +1011,7 @@ std::optional<ConfigError> Config::set_override(std::string_view key_equals_valu
     if (spec == nullptr)
         return ConfigError{origin, 0, key, unknown_key_message(key)};
     Scalar scalar;
-    if (auto message = parse_scalar(key_equals_value.substr(eq + 1), false, scalar))
+    if (auto message = parse_scalar(key_equals_value.substr(eq + 1), scalar))
         return ConfigError{origin, 0, key, *message};
     ConfigValue value = values_[index_of(*spec)];
     if (auto message = parse_value(*spec, scalar, value))
@@ -902,7 +1065,7 @@ std::optional<ConfigError> Config::set_item_override(const ListSpec& list, std::
         staged.items.push_back(std::move(item));
     }
     Scalar scalar;
-    if (auto message = parse_scalar(raw_value, false, scalar))
+    if (auto message = parse_scalar(raw_value, scalar))
         return ConfigError{origin, 0, full, *message};
     ConfigValue& value = staged.items[index][item_key_index(list, *spec)];
     if (auto message = parse_value(*spec, scalar, value))

@@ -79,6 +79,8 @@ constexpr std::array kSchema{
             "robust estimator: plants at least this large and thinner than stem.grass_max_width_mm are grass, without a stem"},
     KeySpec{"stem.grass_max_width_mm", real, "mm", 0, 100, "3", "",
             "robust estimator: mean width (2 area / perimeter) below which a large plant is grass; 0 disables"},
+    KeySpec{"stem.grass_max_hull_fill", real, "fraction", 0, 2, "0.4", "",
+            "robust estimator: grass also covers less than this fraction of its convex hull; 1 or more: width alone"},
 
     // The daemon (stemd): frame source, rings, threads, status, logging.
     KeySpec{"source.kind", choice, "", 0, 0, "replay", "replay|v4l2|libcamera",

@@ -26,6 +26,7 @@ vision::Params vision_params(const Config& config)
     p.min_confidence = config.get_real("stem.min_confidence");
     p.grass_min_area_mm2 = config.get_real("stem.grass_min_area_mm2");
     p.grass_max_width_mm = config.get_real("stem.grass_max_width_mm");
+    p.grass_max_hull_fill = config.get_real("stem.grass_max_hull_fill");
     return p;
 }
 

@@ -160,6 +160,8 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
             convexity_defects(ws.contour_, ws.hull_, depth_px, ws.defects_);
             plant.defects = static_cast<int>(ws.defects_.size());
             out.stats.leaves_over_capacity += leaves_from_defects(ws.contour_, ws.defects_, plant.leaves);
+            plant.hull_fill = static_cast<float>(static_cast<double>(c.area_px) /
+                                                 std::max(convex_hull_area_px(ws.contour_, ws.hull_), 1.0));
             plant.mean_width_mm =
                 static_cast<float>(2.0 * static_cast<double>(c.area_px) / std::max(contour_length_px(ws.contour_), 1.0) *
                                    params.gsd_mm_per_px);
@@ -173,10 +175,12 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
         plant.com_reason = stem.com_reason;
         if (stem.com_reason == ComReason::outside_box)
             ++out.stats.outside_box_fallbacks;
-        // Linear-leaved blobs (grass) have no stem to strike.
+        // Linear-leaved blobs (grass) have no stem to strike: thin on
+        // average and mostly empty hull (blades fanned out from the base).
         const bool grass = params.stem_estimator == StemEstimator::robust &&
                            static_cast<double>(c.area_px) * pixel_area_mm2 >= params.grass_min_area_mm2 &&
-                           plant.mean_width_mm < params.grass_max_width_mm;
+                           plant.mean_width_mm < params.grass_max_width_mm &&
+                           plant.hull_fill < params.grass_max_hull_fill;
         if (grass)
             plant.confidence = 0;
         if (grass || plant.confidence < params.min_confidence) {

@@ -72,6 +72,21 @@ void convex_hull_indices(std::span<const cv::Point> contour, std::vector<int>& h
         hull.push_back(order.front());
 }
 
+double convex_hull_area_px(std::span<const cv::Point> contour, std::span<const int> hull)
+{
+    if (hull.empty())
+        return 0;
+    double twice_area = 0, perimeter = 0;
+    const cv::Point& origin = contour[static_cast<std::size_t>(hull[0])];
+    for (std::size_t k = 0; k < hull.size(); ++k) {
+        const cv::Point a = contour[static_cast<std::size_t>(hull[k])] - origin;
+        const cv::Point b = contour[static_cast<std::size_t>(hull[(k + 1) % hull.size()])] - origin;
+        twice_area += static_cast<double>(a.x) * b.y - static_cast<double>(b.x) * a.y;
+        perimeter += std::hypot(static_cast<double>(b.x - a.x), static_cast<double>(b.y - a.y));
+    }
+    return 0.5 * std::abs(twice_area) + 0.5 * perimeter + 1.0;
+}
+
 void convexity_defects(std::span<const cv::Point> contour, std::span<const int> hull, float min_depth_px,
                        std::vector<Defect>& out)
 {

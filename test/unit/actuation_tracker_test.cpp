@@ -344,3 +344,20 @@ TEST(ActuationTracker, DrainRetiresEveryActiveTrack)
     EXPECT_EQ(tracker.active_tracks(), 0u);
     EXPECT_TRUE(tracker.drain().empty());
 }
+
+TEST(ActuationTracker, ExitRuleAllowsForThePlantsExtent)
+{
+    // A plant 50 mm along-track half-size, seen twice (fewer than
+    // confirm_frames) with its stem 80 mm ahead of the trailing edge: beyond
+    // exit_margin_mm (40), but its leaves already reach the edge (80 < 40 +
+    // 50): it is emitted now, before the border cuts it.
+    Tracker tracker(params());
+    const TrackDetection big{1000, 0, 0.8f, PlantClass::Weed, 4, 50.0};
+    const TrackDetection small{1000, 0, 0.8f, PlantClass::Weed, 4, 0.0};
+    for (const TrackDetection* d : {&big, &small}) {
+        Tracker t(params());
+        EXPECT_TRUE(t.update(frame_at(1000 + kHalfViewMm - 100, std::span(d, 1))).empty());
+        const auto out = t.update(frame_at(1000 + kHalfViewMm - 80, std::span(d, 1)));
+        EXPECT_EQ(out.size(), d == &big ? 1u : 0u);
+    }
+}

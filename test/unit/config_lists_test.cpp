@@ -203,13 +203,21 @@ TEST(ConfigListSchema, ActuationScalarKeys)
         EXPECT_EQ(spec->default_value, e.def) << e.key;
         EXPECT_EQ(spec->choices, e.choices) << e.key;
     }
-    // "-" is a plain value on the command line; a file quotes it.
+    // "-" is a plain value on the command line; a file quotes it (a bare '-'
+    // is YAML for a list item).
     Config config;
     ASSERT_FALSE(config.set_override("can.log_file=out.log"));
     ASSERT_FALSE(config.set_override("can.log_file=-"));
     EXPECT_EQ(config.get_text("can.log_file"), "-");
     EXPECT_EQ(config.load_text("can:\n  log_file: -\n", "x")->to_string(),
-              "x:2: key 'can.log_file': unsupported YAML syntax '-'; write a plain value or a double-quoted string");
+              "x:2: key 'can.log_file': invalid YAML: a bare '-' starts a list item, not a value; "
+              "write \"-\" (double-quoted) for a dash");
+    ASSERT_FALSE(config.set_override("can.log_file=out.log"));
+    const auto quoted = config.load_text("can:\n  log_file: \"-\"  # standard output\n", "x");
+    ASSERT_FALSE(quoted) << quoted->to_string();
+    EXPECT_EQ(config.get_text("can.log_file"), "-");
+    ASSERT_FALSE(config.load_text("can:\n  log_file: '-'\n", "x"));
+    EXPECT_EQ(config.get_text("can.log_file"), "-");
 }
 
 // --- defaults and parsing ---------------------------------------------------------
@@ -344,24 +352,46 @@ TEST_F(ConfigListTest, NotAListEmptyTooLongOrWithAValue)
 
 TEST_F(ConfigListTest, MalformedItems)
 {
-    expect_error("tools:\n  -\n    id: 0\n", 2, "tools[0]",
-                 "expected '- key: value' (an item starts with '- ' and its first key), got '-'");
-    expect_error("tools:\n  -id: 0\n", 2, "tools[0]",
-                 "expected '- key: value' (an item starts with '- ' and its first key), got '-id: 0'");
-    expect_error("tools:\n  - 5\n", 2, "", "expected '- key: value' or 'key: value' in a list item, got '- 5'");
+    expect_error("tools:\n  -id: 0\n", 2, "tools", "expected a list of items ('- key: value' lines) under 'tools:'");
+    expect_error("tools:\n  - 5\n", 2, "tools[0]", "expected '- key: value' (an item is 'key: value' lines), got '5'");
+    expect_error("tools:\n  - [1, 2]\n", 2, "tools[0]", "expected '- key: value' (an item is 'key: value' lines), got a list");
+    expect_error("tools:\n  -\n  - id: 1\n", 2, "tools[0]",
+                 "empty item; an item starts with '- ' and its first key ('- id: ...')");
+    expect_error("tools:\n  - id: 0\n  - # nothing\n", 3, "tools[1]",
+                 "empty item; an item starts with '- ' and its first key ('- id: ...')");
     expect_error("tools:\n  - id:0\n", 2, "tools[0].id", "expected a space after ':'");
     expect_error("tools:\n  - id: 0\n\tlanes: 2\n", 3, "tools[0].lanes", "tab in the indentation; indent with spaces");
     expect_error("tools:\n  -\tid: 0\n", 2, "tools[0].id", "tab in the indentation; indent with spaces");
+    // Indentation YAML cannot read: yaml-cpp's message, the key the line holds.
     expect_error("tools:\n  - id: 0\n   lanes: 2\n", 3, "tools[0].lanes",
-                 "inconsistent indentation: 3 spaces, the keys of item tools[0] are at 4");
+                 "invalid YAML: end of sequence not found (inconsistent indentation? 3 spaces here, 4 on the line above)");
     expect_error("tools:\n  - id: 0\n - id: 1\n", 3, "tools[1].id",
-                 "inconsistent indentation: 1 spaces, the items of 'tools' start at 2");
-    expect_error("tools:\n  - id: 0\n    lanes:\n      - 1\n", 4, "tools[0].lanes.- 1",
+                 "invalid YAML: end of map not found (inconsistent indentation? 1 spaces here, 4 on the line above)");
+    expect_error("tools:\n  - id: 0\n    lanes:\n      - 1\n", 4, "tools[0].lanes",
+                 "expected a value, got a list; a list item holds only 'key: value' lines");
+    expect_error("tools:\n  - id: 0\n    lanes:\n      x: 1\n", 4, "tools[0].lanes.x",
                  "nesting deeper than one level; a list item holds only 'key: value' lines");
     expect_error("tools:\n  - id: 0\n    lanes: 2\n      x: 1\n", 4, "tools[0].x",
-                 "nesting deeper than one level; a list item holds only 'key: value' lines");
-    // A "- " line outside a list section is still not supported.
-    expect_error("segment:\n  - method: exg\n", 2, "", "expected 'section:' or 'key: value', got '- method: exg'");
+                 "invalid YAML: illegal map value (inconsistent indentation? 6 spaces here, 4 on the line above)");
+    // A list outside a list section.
+    expect_error("segment:\n  - method: exg\n", 2, "segment",
+                 "expected 'key: value' lines under 'segment:', got a list ('- ' items); only 'tools' holds a list");
+}
+
+TEST_F(ConfigListTest, AnyYamlLayoutOfTheSameShapeReads)
+{
+    // An item's first key on the line after its '-', and YAML flow style.
+    Config config;
+    auto error = config.load_file(write("tools:\n  -\n    id: 0\n    lanes: 2\n  - {id: 1, offset_mm: 700}\n"));
+    ASSERT_FALSE(error) << error->to_string();
+    EXPECT_EQ(tools_of(config), (std::vector<Tool>{{0, 600, -220, 220, 2}, {1, 700, -220, 220, 1}}));
+    EXPECT_EQ(config.item_origin_of("tools", 0, "id"), (dir_ / "test.yaml").string() + ":3");
+    error = config.load_file(write("tools: [{id: 5}]\n"));
+    ASSERT_FALSE(error) << error->to_string();
+    EXPECT_EQ(tools_of(config), (std::vector<Tool>{{5, 600, -220, 220, 1}}));
+    expect_error("tools: []\n", 1, "tools", "empty list; give at least one item ('- id: ...') on indented lines below it");
+    // Duplicate keys are found in flow style too.
+    expect_error("tools: [{id: 1, id: 2}]\n", 1, "tools[0].id", "duplicate key (first on line 1)");
 }
 
 TEST_F(ConfigListTest, AnErrorAfterTheListKeepsTheOldList)

@@ -420,9 +420,11 @@ TEST_F(ConfigFileTest, NestingDeeperThanOneLevel)
 
 TEST_F(ConfigFileTest, InconsistentIndentation)
 {
+    // YAML cannot read these: yaml-cpp's message, with a hint.
     expect_error("stem:\n  min_leaves: 4\n    method: com\n", 3, "stem.method",
-                 "inconsistent indentation: 4 spaces, the keys of section 'stem' have 2");
-    expect_error("stem:\n    min_leaves: 4\n  method: com\n", 3, "stem.method", "inconsistent indentation");
+                 "invalid YAML: illegal map value (inconsistent indentation? 4 spaces here, 2 on the line above)");
+    expect_error("stem:\n    min_leaves: 4\n  method: com\n", 3, "stem.method",
+                 "invalid YAML: end of map not found (inconsistent indentation? 2 spaces here, 4 on the line above)");
 }
 
 TEST_F(ConfigFileTest, DuplicateKeysAndSections)
@@ -447,6 +449,7 @@ TEST_F(ConfigFileTest, WrongTypes)
     expect_error("closing:\n  radius_px: abc\n", 2, "closing.radius_px", "expected an integer, got 'abc'");
     expect_error("closing:\n  radius_px: 6.5\n", 2, "closing.radius_px", "expected an integer, got '6.5'");
     expect_error("closing:\n  radius_px: \"6\"\n", 2, "closing.radius_px", "expected an integer, got a quoted string");
+    expect_error("closing:\n  radius_px: '6'\n", 2, "closing.radius_px", "expected an integer, got a quoted string");
     expect_error("camera:\n  gsd_mm_per_px: fast\n", 2, "camera.gsd_mm_per_px", "expected a real number, got 'fast'");
     expect_error("camera:\n  gsd_mm_per_px: nan\n", 2, "camera.gsd_mm_per_px", "expected a real number, got 'nan'");
     expect_error("camera:\n  gsd_mm_per_px: 0.3mm\n", 2, "camera.gsd_mm_per_px", "expected a real number");
@@ -480,9 +483,54 @@ TEST_F(ConfigFileTest, MalformedLines)
     expect_error("closing:\n  radius_px 6\n", 2, "", "expected 'section:' or 'key: value', got 'radius_px 6'");
     expect_error("closing:\n  radius_px:6\n", 2, "closing.radius_px", "expected a space after ':'");
     expect_error("segment:\n  method: \"exg\n", 2, "segment.method", "unterminated double-quoted string");
-    expect_error("segment:\n  method: \"exg\" ndvi\n", 2, "segment.method", "unexpected text after the closing quote");
-    expect_error("segment:\n  method: [exg, ndvi]\n", 2, "segment.method", "unsupported YAML syntax");
-    expect_error("segment:\n  - exg\n", 2, "", "expected 'section:' or 'key: value'");
+    expect_error("segment:\n  method: 'exg\n", 2, "segment.method", "unterminated single-quoted string");
+    expect_error("segment:\n  method: \"exg\" ndvi\n", 2, "segment.method", "invalid YAML: end of map not found");
+    expect_error("segment:\n  method: [exg, ndvi]\n", 2, "segment.method",
+                 "expected a value, got a list; a section holds only 'key: value' lines");
+    expect_error("segment:\n  method: {a: 1}\n", 2, "segment.method.a", "nesting deeper than one level");
+    expect_error("segment:\n  - exg\n", 2, "segment", "expected 'key: value' lines under 'segment:', got a list");
+    expect_error("closing:\n  radius_px: 6\n  : 7\n", 3, "closing", "expected a key name");
+}
+
+TEST_F(ConfigFileTest, TheShapeIsAMapOfSectionsOfScalars)
+{
+    expect_error("- closing\n", 1, "", "expected 'section:' lines (a map of sections) at the top level, got a list");
+    expect_error("\nclosing\n", 2, "", "expected 'section:' lines (a map of sections) at the top level, got 'closing'");
+    expect_error("closing:\nstem:\n  min_leaves: 3\n", 1, "closing",
+                 "empty section; put its keys ('key: value') on indented lines below it, or remove the line");
+    expect_error("closing:\n  radius_px: 6\n---\nstem:\n  min_leaves: 3\n", 3, "",
+                 "more than one YAML document ('---'); a config file holds one map of sections");
+    expect_error("closing:\n  radius_px: ~\n", 2, "closing.radius_px", "empty value ('~' and 'null' are YAML");
+    expect_error("map:\n  file: null\n", 2, "map.file", "empty value ('~' and 'null' are YAML");
+    expect_error("closing:\n  radius_px: !!int 6\n", 2, "closing.radius_px", "YAML tags are not supported");
+    // A key YAML would keep once is still a duplicate, however it is quoted.
+    expect_error("closing:\n  radius_px: 6\n  \"radius_px\": 7\n", 3, "closing.radius_px",
+                 "duplicate key (first on line 2)");
+    expect_error("closing: {radius_px: 6, radius_px: 7}\n", 1, "closing.radius_px", "duplicate key (first on line 1)");
+}
+
+TEST_F(ConfigFileTest, AnyYamlLayoutOfTheSameShapeReads)
+{
+    const fs::path path = write(
+        "---\n"
+        "closing: {radius_px: 7}\n"
+        "segment:\n"
+        "  method: 'ndvi'\n"
+        "map:\n"
+        "  file: \"it's \\\"here\\\"\"\n"
+        "can:\n"
+        "  interface: 'can''0'\n"
+        "  log_file: \"null\"\n"
+        "...\n");
+    Config config;
+    const auto error = config.load_file(path);
+    ASSERT_FALSE(error) << error->to_string();
+    EXPECT_EQ(config.get_int("closing.radius_px"), 7);
+    EXPECT_EQ(config.origin_of("closing.radius_px"), path.string() + ":2");
+    EXPECT_EQ(config.get_text("segment.method"), "ndvi");
+    EXPECT_EQ(config.get_text("map.file"), "it's \"here\"");
+    EXPECT_EQ(config.get_text("can.interface"), "can'0");
+    EXPECT_EQ(config.get_text("can.log_file"), "null");
 }
 
 TEST_F(ConfigFileTest, AnErrorLeavesEarlierValuesUntouched)
@@ -631,8 +679,11 @@ TEST_F(ConfigFileTest, ToYamlRoundTrips)
     for (const char* set : {"camera.gsd_mm_per_px=0.30000000000000004", "segment.method=ndvi",
                             "segment.threshold=triangle", "segment.mask_vegetation=zero",
                             "plants.min_area_mm2=12345.678", "leaves.defect_depth_mm=0.1",
-                            "stem.method=com", "stem.min_leaves=16", "stem.min_angle_deg=1e-7"})
+                            "stem.method=com", "stem.min_leaves=16", "stem.min_angle_deg=1e-7",
+                            // Text YAML must quote and escape: quotes, '#', a tab, a newline, a control byte.
+                            "map.file=\"a \\\"b\\\" # c\\td\\n: - e\\\\\"", "can.interface=x\x01y"})
         ASSERT_FALSE(config.set_override(set)) << set;
+    EXPECT_EQ(config.get_text("map.file"), "a \"b\" # c\td\n: - e\\");
     const std::string yaml = config.to_yaml();
     EXPECT_NE(yaml.find("closing:\n  radius_px: 7  # [0, 50] px; " + (dir_ / "test.yaml").string() + ":2\n"),
               std::string::npos)

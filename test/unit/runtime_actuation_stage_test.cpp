@@ -86,6 +86,8 @@ std::unique_ptr<FrameResult> frame(const std::vector<Plant>& plants, int k, bool
             continue;
         vision::Plant vp;
         vp.stem = {static_cast<float>(u), static_cast<float>(v)};
+        // A plant 10 mm across (30 px): cut by the border near the edges.
+        vp.bbox = cv::Rect(static_cast<int>(u) - 15, static_cast<int>(v) - 15, 31, 31) & cv::Rect({0, 0}, kSize);
         vp.has_stem = true;
         vp.confidence = 0.8f;
         r->plant_class[r->detections.plants.size()] = static_cast<std::uint8_t>(p.cls);
@@ -433,6 +435,38 @@ TEST(ActuationStage, EncoderOdometryWithoutAnEncoderIsRefused)
     EXPECT_FALSE(ActuationStage::make(config, nadir_camera(), kSize, std::move(parts),
                                       runtime::make_logger("actuator-test"), error));
     EXPECT_NE(error.find("encoder"), std::string::npos) << error;
+}
+
+}  // namespace
+}  // namespace stemd::runtime
+
+namespace stemd::runtime {
+namespace {
+
+TEST(ActuationStage, PlantsCutByTheAlongTrackBordersAreNotTrackedButLateralOnesAre)
+{
+    Stage run = make_stage(base_config());
+    auto r = std::make_unique<FrameResult>();
+    r->t_capture_ns = kT0;
+    r->odom_mm = 0;
+    const auto add = [&](cv::Point2f stem, cv::Rect bbox) {
+        vision::Plant p;
+        p.stem = stem;
+        p.confidence = 0.8f;
+        p.bbox = bbox;
+        r->detections.plants.push_back(p);
+    };
+    add({600, 10}, {580, 0, 40, 40});       // cut by the top (leading) border
+    add({600, 950}, {580, 930, 40, 36});    // cut by the bottom (trailing) border
+    add({5, 480}, {0, 460, 30, 40});        // cut by the left border: kept
+    add({600, 480}, {580, 460, 40, 40});    // whole
+    for (int k = 0; k < 3; ++k) {
+        r->seq = static_cast<std::uint64_t>(k);
+        r->t_capture_ns = kT0 + k;   // the same view again: three sightings
+        run.stage->on_frame(*r, r->t_capture_ns + 1'000'000);
+    }
+    EXPECT_EQ(run.stage->counters().clipped.load(), 6u);
+    EXPECT_EQ(run.stage->counters().targets.load(), 2u);
 }
 
 }  // namespace

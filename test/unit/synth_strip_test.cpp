@@ -371,5 +371,10 @@ TEST(SynthStrip, DetectorFindsTheStems)
         add(f.bgr, f.stems, std::to_string(i));
     }
     const eval::MatchResult frames_5mm = eval::match_stems(truth, predictions, 5.0, o.gsd_mm_per_px);
-    EXPECT_GE(within_5mm.recall, frames_5mm.recall - 0.1);
+    // ~50 stems on each side: the standard error of a difference of two
+    // recalls near 0.9 is ~0.06, so 0.15 (2.5 of them) separates "as
+    // detectable" from "worse" without failing on sampling noise.
+    EXPECT_GE(within_5mm.recall, frames_5mm.recall - 0.15)
+        << within_5mm.true_positives << " of " << within_5mm.ground_truth << " against "
+        << frames_5mm.true_positives << " of " << frames_5mm.ground_truth;
 }

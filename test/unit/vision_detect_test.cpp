@@ -109,6 +109,51 @@ TEST(Detect, ComMethodReportsTheCentreOfMass)
     EXPECT_EQ(d.plants[0].area_px, cv::countNonZero(mask));
 }
 
+// Grass: thin blades fanned out from one base leave most of the convex hull
+// empty; a weed rosette with thin leaf stalks is as thin on average
+// (2 area / perimeter) but fills much more of its hull.
+TEST(Detect, GrassTuftIsStemlessButAThinStalkedRosetteIsNot)
+{
+    cv::Mat tuft = cv::Mat::zeros(300, 300, CV_8UC1);
+    const cv::Point2d base(150, 220);
+    for (int i = 0; i < 7; ++i) {
+        const double a = (-90 + 22 * (i - 3)) * std::numbers::pi / 180.0;
+        const cv::Point2d u(std::cos(a), std::sin(a)), n(-u.y, u.x);
+        const double length = 120 + 10 * (i % 3), half_width = 3;  // ~40 mm long, 2 mm wide at 0.33 mm/px
+        std::vector<cv::Point> blade;
+        for (const cv::Point2d p : {base + n * half_width, base + u * length, base - n * half_width})
+            blade.emplace_back(cvRound(p.x), cvRound(p.y));
+        cv::fillConvexPoly(tuft, blade, 255, cv::LINE_8);
+    }
+    const cv::Mat rosette =
+        draw_plant({300, 300}, {150, 150}, {{0, 6, 26, 6}, {90, 6, 24, 6}, {180, 6, 26, 6}, {270, 6, 24, 6}}, 1);
+    const Params params = mask_params();
+    const Detections grass = detect({.mask = tuft}, params);
+    const Detections weed = detect({.mask = rosette}, params);
+    ASSERT_EQ(grass.plants.size(), 1u);
+    ASSERT_EQ(weed.plants.size(), 1u);
+    const Plant& g = grass.plants[0];
+    const Plant& w = weed.plants[0];
+    const double px_mm2 = params.gsd_mm_per_px * params.gsd_mm_per_px;
+    // Both are large and thin enough for the width test alone.
+    for (const Plant* p : {&g, &w}) {
+        EXPECT_GE(p->area_px * px_mm2, params.grass_min_area_mm2);
+        EXPECT_LT(p->mean_width_mm, params.grass_max_width_mm);
+    }
+    EXPECT_LT(g.hull_fill, params.grass_max_hull_fill);
+    EXPECT_GT(w.hull_fill, params.grass_max_hull_fill);
+    EXPECT_FALSE(g.has_stem);
+    EXPECT_EQ(g.confidence, 0.0f);
+    EXPECT_TRUE(w.has_stem);
+    EXPECT_EQ(grass.stats.stemless, 1);
+    EXPECT_EQ(weed.stats.stemless, 0);
+
+    // With the width test alone (the rule before hull_fill) the rosette was grass too.
+    Params width_only = params;
+    width_only.grass_max_hull_fill = 1.5;
+    EXPECT_FALSE(detect({.mask = rosette}, width_only).plants[0].has_stem);
+}
+
 TEST(Detect, EmptyFrameHasNoPlants)
 {
     const cv::Mat mask = cv::Mat::zeros(120, 160, CV_8UC1);

@@ -138,3 +138,25 @@ TEST(Leaves, FewerThanTwoCutsGiveNoLeaves)
     EXPECT_EQ(leaves_from_defects(square, one, leaves), 0);
     EXPECT_TRUE(leaves.empty());
 }
+
+TEST(Hull, AreaCoversThePixelSquares)
+{
+    // Convex blobs: the hull around the pixel squares has their pixel count.
+    cv::Mat mask = cv::Mat::zeros(60, 60, CV_8UC1);
+    mask(cv::Rect(10, 20, 30, 12)).setTo(255);
+    auto contour = largest_contour(mask);
+    EXPECT_NEAR(convex_hull_area_px(contour, hull_of(contour)), 360.0, 1e-9);
+    mask.setTo(0);
+    mask(cv::Rect(5, 7, 25, 1)).setTo(255);  // a one-pixel line: its hull has no area inside
+    contour = largest_contour(mask);
+    EXPECT_NEAR(convex_hull_area_px(contour, hull_of(contour)), 25.0, 1e-9);
+    mask.setTo(0);
+    mask.at<std::uint8_t>(3, 4) = 255;
+    contour = largest_contour(mask);
+    EXPECT_NEAR(convex_hull_area_px(contour, hull_of(contour)), 1.0, 1e-9);
+    cv::circle(mask, {30, 30}, 20, 255, cv::FILLED);
+    contour = largest_contour(mask);
+    EXPECT_NEAR(convex_hull_area_px(contour, hull_of(contour)) / cv::countNonZero(mask(cv::Rect(5, 5, 55, 55))), 1.0,
+                0.05);
+    EXPECT_EQ(convex_hull_area_px(contour, {}), 0.0);
+}

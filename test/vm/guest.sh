@@ -343,6 +343,118 @@ check_paired_nir() {
 extra_checks="$extra_checks paired_nir"
 # --- end paired_nir ---
 
+# --- daemon: the real stemd binary on vivid, vcan0 and gpio-sim ---
+# KEYs daemon (stemd-vm-daemon-check: feeds frames, judges the bus) and stemd
+# (the daemon). stemd captures from vivid-000's capture node, which the check
+# feeds through the loopback with a field scrolling past at the configured
+# speed; sends on vcan0 (candump -L records it); its enable input is line 0
+# of its own gpio-sim chip. The check pulls that line down between the two
+# groups of plants. Last: it takes vivid as the checks before left it.
+daemon=; stemd=
+for kv in "$@"; do
+  case $kv in
+    daemon=*) daemon=${kv#daemon=} ;;
+    stemd=*) stemd=${kv#stemd=} ;;
+  esac
+done
+# wait_until N CMD...: runs CMD every 50 ms until it succeeds (0) or N tries failed (1).
+wait_until() {
+  n=$1
+  shift
+  until "$@"; do
+    n=$((n - 1))
+    [ $n -gt 0 ] || return 1
+    sleep 0.05
+  done
+}
+check_daemon() {
+  [ -n "$daemon" ] && [ -n "$stemd" ] || skip "daemon check not built: libgpiod-dev (1.x) was missing when CMake configured"
+  grep -q '^vivid ' /proc/modules || modprobe vivid n_devs=1 node_types=0x101 || die "modprobe vivid"
+  cap=$(v4l_node vivid-000-vid-cap) || die "no vivid capture node"
+  outn=$(v4l_node vivid-000-vid-out) || die "no vivid output node"
+  modprobe can-raw && modprobe vcan || die "modprobe can-raw vcan"
+  ip link show vcan0 > /dev/null 2>&1 || ip link add dev vcan0 type vcan || die "creating vcan0"
+  ip link set vcan0 up || die "vcan0 up"
+  modprobe gpio-sim || die "modprobe gpio-sim"
+  grep -q ' /sys/kernel/config configfs ' /proc/mounts ||
+    mount -t configfs none /sys/kernel/config || die "mount configfs"
+  c=/sys/kernel/config/gpio-sim/stemd_daemon
+  mkdir "$c" "$c/bank0" "$c/bank0/line0" || die "gpio-sim configfs"
+  echo 2 > "$c/bank0/num_lines"
+  echo enable > "$c/bank0/line0/name"
+  echo 1 > "$c/live" || die "gpio-sim: going live"
+  chip=$(cat "$c/bank0/chip_name")
+  pull=/sys/devices/platform/$(cat "$c/dev_name")/$chip/sim_gpio0/pull
+  echo pull-up > "$pull" || die "pull-up enable"
+  echo "vivid $outn -> $cap, vcan0, gpio-sim $chip line 0 (enable) pulled up"
+
+  t0=$(uptime_s)
+  hostrun "$daemon" feed "$cap" "$outn" -- sh -c 'echo "pull-$2" > "$1"' sh "$pull" > /tmp/feeder.log 2>&1 &
+  feeder=$!
+  wait_until 200 grep -q '^ready' /tmp/feeder.log || die "feeder did not get ready: $(cat /tmp/feeder.log)"
+  echo "t=$(uptime_s) s: $(cat /tmp/feeder.log)"
+  hostrun candump -L vcan0 > /tmp/daemon.candump 2> /tmp/candump.err &
+  dump=$!
+  # As check_can: candump is ready once its socket is on vcan0's receive list.
+  wait_until 100 grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all || die "candump did not start listening on vcan0"
+  sets=
+  for s in $(hostrun "$daemon" config) source.v4l2_device="$cap" can.interface=vcan0 gpio.chip="$chip" gpio.enable_line=0; do
+    sets="$sets --set $s"
+  done
+  echo "== t=$(uptime_s) s: stemd$sets --map $out/daemon-map.jsonl"
+  # shellcheck disable=SC2086  # one word per setting
+  hostrun "$stemd" $sets --map "$out/daemon-map.jsonl" > /tmp/stemd.log 2>&1 &
+  daemon_pid=$!
+  # Active once it has frames (HEARTBEAT byte 1: state << 4 | counter).
+  n=0
+  until grep -q ' vcan0 303#..[23]' /tmp/daemon.candump; do
+    n=$((n + 1))
+    if [ $n -gt 500 ] || ! kill -0 $daemon_pid 2>/dev/null; then
+      cat /tmp/stemd.log; kill $feeder $dump 2>/dev/null; die "stemd did not become active"
+    fi
+    sleep 0.05
+  done
+  echo "t=$(uptime_s) s: stemd active; feeding the field"
+  kill -USR1 $feeder
+  n=0
+  until grep -q '^done' /tmp/feeder.log; do
+    n=$((n + 1))
+    if [ $n -gt 600 ] || ! kill -0 $feeder 2>/dev/null; then
+      cat /tmp/feeder.log /tmp/stemd.log; kill $daemon_pid $dump 2>/dev/null; die "feeder did not finish"
+    fi
+    sleep 0.05
+  done
+  sleep 1  # the last plants' outcomes reach a heartbeat
+  echo "== SIGTERM stemd"
+  ts=$(uptime_s)
+  kill -TERM $daemon_pid
+  n=0
+  while kill -0 $daemon_pid 2>/dev/null; do
+    n=$((n + 1))
+    [ $n -le 40 ] || break
+    sleep 0.025
+  done
+  te=$(uptime_s)
+  alive=0; kill -0 $daemon_pid 2>/dev/null && alive=1
+  [ $alive = 0 ] || kill -KILL $daemon_pid
+  wait $daemon_pid
+  rc=$?
+  kill -TERM $feeder; wait $feeder; frc=$?
+  kill -INT $dump; wait $dump
+  echo "--- stemd log"; cat /tmp/stemd.log; echo "---"
+  cat /tmp/feeder.log
+  rm -f "/host$out/daemon.candump"
+  cp /tmp/daemon.candump "/host$out/daemon.candump"
+  echo "stemd exited $rc $(echo "$te $ts" | awk '{printf "%.3f", $1 - $2}') s after SIGTERM; feed took $(echo "$(uptime_s) $t0" | awk '{printf "%.1f", $1 - $2}') s in all"
+  [ $alive = 0 ] || die "stemd still running 1 s after SIGTERM"
+  [ $rc = 0 ] || die "stemd exited $rc on SIGTERM"
+  [ $frc = 0 ] || die "feeder exited $frc"
+  echo "== the bus: $(wc -l < /tmp/daemon.candump) frames"
+  hostrun "$daemon" verify "$out/daemon.candump" "$out/daemon-map.jsonl" || die "the daemon's CAN frames"
+}
+extra_checks="$extra_checks daemon"
+# --- end daemon ---
+
 if [ "$mode" = one ]; then
   "check_$check"
   exit $?

@@ -14,11 +14,7 @@
 //          Dropped Buffers"): unpaired_rgb grows, pairs stay right;
 //       3. the same on the RGB device: unpaired_nir grows.
 //       DUMP_DIR gets the last pair (PNG) on failure.
-#include <fcntl.h>
-#include <linux/v4l2-dv-timings.h>
 #include <linux/videodev2.h>
-#include <sys/ioctl.h>
-#include <sys/mman.h>
 #include <time.h>
 
 #include <algorithm>
@@ -38,14 +34,16 @@
 #include <spdlog/spdlog.h>
 
 #include "probe_util.hpp"
+#include "vivid_loopback.hpp"
 #include "v4l2/paired_nir_source.hpp"
 
 namespace {
 
+using stemd::vmprobe::control_named;
 using stemd::vmprobe::fail;
-using stemd::vmprobe::fail_errno;
-using stemd::vmprobe::Fd;
 using stemd::vmprobe::info;
+using stemd::vmprobe::set_control;
+using stemd::vmprobe::VividLoopback;
 
 constexpr int kWidth = 640;
 constexpr int kHeight = 480;
@@ -100,172 +98,33 @@ std::string judge(const stemd::drivers::Frame& f) {
   return {};
 }
 
-// --- vivid loopback (as v4l2_source_check.cpp) ----------------------------------
-constexpr std::uint32_t kVividCidBase = 0x00f00000 | 0xf000;
-constexpr std::uint32_t kVividOsdTextMode = kVividCidBase + 1;
-constexpr std::uint32_t kVividLoopVideo = kVividCidBase + 37;
-
-void xioctl(int fd, unsigned long request, void* arg, const std::string& device, const char* name) {
-  int r = 0;
-  do r = ::ioctl(fd, request, arg);
-  while (r < 0 && errno == EINTR);
-  if (r < 0) fail_errno(device, name);
-}
-#define XIOCTL(fd, req, arg, dev) xioctl(fd, req, arg, dev, #req)
-
-int find_named(int fd, const std::string& device, bool output, const std::string& name) {
-  for (unsigned i = 0; i < 64; ++i) {
-    if (output) {
-      v4l2_output o{};
-      o.index = i;
-      if (::ioctl(fd, VIDIOC_ENUMOUTPUT, &o) < 0) break;
-      if (name == reinterpret_cast<const char*>(o.name)) return static_cast<int>(i);
-    } else {
-      v4l2_input in{};
-      in.index = i;
-      if (::ioctl(fd, VIDIOC_ENUMINPUT, &in) < 0) break;
-      if (name == reinterpret_cast<const char*>(in.name)) return static_cast<int>(i);
-    }
-  }
-  fail(device + ": no " + (output ? "output" : "input") + " named '" + name + "'");
-}
-
-void set_control(int fd, const std::string& device, std::uint32_t id, int value, const char* name) {
-  v4l2_control ctrl{};
-  ctrl.id = id;
-  ctrl.value = value;
-  xioctl(fd, VIDIOC_S_CTRL, &ctrl, device, name);
-}
-
-// A control's id by its name (vivid's test controls have no uapi ids).
-std::uint32_t control_named(int fd, const std::string& device, const std::string& name) {
-  v4l2_queryctrl q{};
-  q.id = V4L2_CTRL_FLAG_NEXT_CTRL;
-  while (::ioctl(fd, VIDIOC_QUERYCTRL, &q) == 0) {
-    if (name == reinterpret_cast<const char*>(q.name)) return q.id;
-    q.id |= V4L2_CTRL_FLAG_NEXT_CTRL;
-  }
-  fail(device + ": no control named '" + name + "'");
-}
-
-class Mapping {
- public:
-  Mapping(int fd, std::size_t length, off_t offset, const std::string& device) : length_(length) {
-    data_ = ::mmap(nullptr, length, PROT_READ | PROT_WRITE, MAP_SHARED, fd, offset);
-    if (data_ == MAP_FAILED) fail_errno(device, "mmap");
-  }
-  Mapping(const Mapping&) = delete;
-  Mapping& operator=(const Mapping&) = delete;
-  Mapping(Mapping&& o) noexcept : data_(o.data_), length_(o.length_) { o.data_ = MAP_FAILED; }
-  Mapping& operator=(Mapping&&) = delete;
-  ~Mapping() {
-    if (data_ != MAP_FAILED) ::munmap(data_, length_);
-  }
-  [[nodiscard]] std::uint8_t* bytes() const { return static_cast<std::uint8_t*>(data_); }
-  [[nodiscard]] std::size_t size() const { return length_; }
-
- private:
-  void* data_ = MAP_FAILED;
-  std::size_t length_;
-};
-
-// One vivid instance looping `image` (packed `fourcc`) from its HDMI output to its HDMI capture.
+// One vivid instance looping `image` (packed `fourcc`) from its HDMI output to
+// its HDMI capture, with vivid's "Percentage of Dropped Buffers" at hand.
 class Loopback {
  public:
   Loopback(const std::string& cap_dev, const std::string& out_dev, std::uint32_t fourcc, const cv::Mat& image)
-      : cap_dev_(cap_dev), out_dev_(out_dev) {
-    cap_ = Fd(::open(cap_dev.c_str(), O_RDWR | O_CLOEXEC));
-    if (!cap_.valid()) fail_errno(cap_dev, "open");
-    out_ = Fd(::open(out_dev.c_str(), O_RDWR | O_CLOEXEC | O_NONBLOCK));
-    if (!out_.valid()) fail_errno(out_dev, "open");
-    int input = find_named(cap_.get(), cap_dev, false, "HDMI 0");
-    int output = find_named(out_.get(), out_dev, true, "HDMI 0");
-    XIOCTL(cap_.get(), VIDIOC_S_INPUT, &input, cap_dev);
-    XIOCTL(out_.get(), VIDIOC_S_OUTPUT, &output, out_dev);
-    v4l2_dv_timings timings = V4L2_DV_BT_DMT_640X480P60;
-    XIOCTL(cap_.get(), VIDIOC_S_DV_TIMINGS, &timings, cap_dev);
-    timings = V4L2_DV_BT_DMT_640X480P60;
-    XIOCTL(out_.get(), VIDIOC_S_DV_TIMINGS, &timings, out_dev);
-    set_control(cap_.get(), cap_dev, kVividLoopVideo, 1, "VIDIOC_S_CTRL(loop_video=1)");
-    set_control(cap_.get(), cap_dev, kVividOsdTextMode, 2, "VIDIOC_S_CTRL(osd_text_mode=2)");
-    drop_ctrl_ = control_named(cap_.get(), cap_dev, "Percentage of Dropped Buffers");
-    set_control(cap_.get(), cap_dev, drop_ctrl_, 0, "VIDIOC_S_CTRL(perc_dropped_buffers=0)");
-
-    v4l2_format fmt{};
-    fmt.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-    fmt.fmt.pix.width = kWidth;
-    fmt.fmt.pix.height = kHeight;
-    fmt.fmt.pix.pixelformat = fourcc;
-    fmt.fmt.pix.field = V4L2_FIELD_NONE;
-    XIOCTL(out_.get(), VIDIOC_S_FMT, &fmt, out_dev);
-    const v4l2_pix_format pix = fmt.fmt.pix;
-    if (pix.width != kWidth || pix.height != kHeight || pix.pixelformat != fourcc)
-      fail(out_dev + ": the output does not take this format at 640x480");
+      : cap_dev_(cap_dev), loop_(cap_dev, out_dev) {
+    drop_ctrl_ = control_named(loop_.cap_fd(), cap_dev, "Percentage of Dropped Buffers");
+    drop_percent(0);
+    const v4l2_pix_format pix = loop_.set_output_format(fourcc, kWidth, kHeight);
     const std::size_t row = static_cast<std::size_t>(image.cols) * image.elemSize();
     if (pix.bytesperline < row || pix.sizeimage < pix.bytesperline * kHeight) fail(out_dev + ": unexpected stride");
-    bytes_ = pix.sizeimage;
-
-    v4l2_requestbuffers req{};
-    req.count = 6;  // vivid holds one while it shows it; several so a slow loop does not starve it
-    req.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-    req.memory = V4L2_MEMORY_MMAP;
-    XIOCTL(out_.get(), VIDIOC_REQBUFS, &req, out_dev);
-    if (req.count < 2) fail(out_dev + ": fewer than 2 output buffers");
-    for (unsigned i = 0; i < req.count; ++i) {
-      v4l2_buffer buf{};
-      buf.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-      buf.memory = V4L2_MEMORY_MMAP;
-      buf.index = i;
-      XIOCTL(out_.get(), VIDIOC_QUERYBUF, &buf, out_dev);
-      maps_.emplace_back(out_.get(), buf.length, buf.m.offset, out_dev);
-      if (maps_.back().size() < bytes_) fail(out_dev + ": output buffer smaller than the image");
-      std::memset(maps_.back().bytes(), 0, bytes_);
-      for (int y = 0; y < kHeight; ++y)
-        std::memcpy(maps_.back().bytes() + static_cast<std::size_t>(y) * pix.bytesperline, image.ptr(y), row);
-      queue(i);
-    }
-    int type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-    XIOCTL(out_.get(), VIDIOC_STREAMON, &type, out_dev);
-  }
-  Loopback(const Loopback&) = delete;
-  Loopback& operator=(const Loopback&) = delete;
-  ~Loopback() {
-    int type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-    ::ioctl(out_.get(), VIDIOC_STREAMOFF, &type);
+    std::vector<std::uint8_t> bytes(pix.sizeimage, 0);
+    for (int y = 0; y < kHeight; ++y)
+      std::memcpy(bytes.data() + static_cast<std::size_t>(y) * pix.bytesperline, image.ptr(y), row);
+    loop_.start(std::move(bytes), 6);  // vivid holds one while it shows it; several so a slow loop does not starve it
   }
 
   // Gives back every output buffer vivid has finished with.
-  void pump() {
-    for (;;) {
-      v4l2_buffer done{};
-      done.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-      done.memory = V4L2_MEMORY_MMAP;
-      if (::ioctl(out_.get(), VIDIOC_DQBUF, &done) < 0) {
-        if (errno == EAGAIN) return;
-        fail_errno(out_dev_, "VIDIOC_DQBUF");
-      }
-      queue(done.index);
-    }
-  }
+  void pump() { loop_.pump(); }
   void drop_percent(int percent) {
-    set_control(cap_.get(), cap_dev_, drop_ctrl_, percent, "VIDIOC_S_CTRL(Percentage of Dropped Buffers)");
+    set_control(loop_.cap_fd(), cap_dev_, drop_ctrl_, percent, "VIDIOC_S_CTRL(Percentage of Dropped Buffers)");
   }
 
  private:
-  void queue(unsigned index) {
-    v4l2_buffer buf{};
-    buf.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-    buf.memory = V4L2_MEMORY_MMAP;
-    buf.index = index;
-    buf.bytesused = static_cast<std::uint32_t>(bytes_);
-    XIOCTL(out_.get(), VIDIOC_QBUF, &buf, out_dev_);
-  }
-
-  std::string cap_dev_, out_dev_;
-  Fd cap_, out_;
+  std::string cap_dev_;
+  VividLoopback loop_;
   std::uint32_t drop_ctrl_ = 0;
-  std::size_t bytes_ = 0;
-  std::vector<Mapping> maps_;
 };
 
 std::string counters_text(const stemd::drivers::PairedNirCounters& c) {

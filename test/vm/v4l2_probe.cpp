@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "probe_util.hpp"
+#include "vivid_loopback.hpp"
 
 namespace {
 
@@ -31,51 +32,12 @@ using stemd::vmprobe::fail;
 using stemd::vmprobe::fail_errno;
 using stemd::vmprobe::Fd;
 using stemd::vmprobe::info;
-
-// vivid's private controls (drivers/media/test-drivers/vivid/vivid-ctrls.c).
-constexpr std::uint32_t kVividCidBase = 0x00f00000 | 0xf000;
-constexpr std::uint32_t kVividOsdTextMode = kVividCidBase + 1;  // 2 = no text over the picture
-constexpr std::uint32_t kVividLoopVideo = kVividCidBase + 37;   // 1 = output loops to capture
+using stemd::vmprobe::Mapping;
+using stemd::vmprobe::open_device;
+using stemd::vmprobe::VividLoopback;
 
 constexpr unsigned kWidth = 640;
 constexpr unsigned kHeight = 480;
-
-// ioctl that retries on EINTR and fails naming the device, request and errno.
-void xioctl(int fd, unsigned long request, void* arg, const std::string& device, const char* name) {
-  int r = 0;
-  do r = ::ioctl(fd, request, arg);
-  while (r < 0 && errno == EINTR);
-  if (r < 0) fail_errno(device, name);
-}
-#define XIOCTL(fd, req, arg, dev) xioctl(fd, req, arg, dev, #req)
-
-// One mmap'ed V4L2 buffer, unmapped on destruction.
-class Mapping {
- public:
-  Mapping(int fd, std::size_t length, off_t offset, const std::string& device) : length_(length) {
-    data_ = ::mmap(nullptr, length, PROT_READ | PROT_WRITE, MAP_SHARED, fd, offset);
-    if (data_ == MAP_FAILED) fail_errno(device, "mmap");
-  }
-  Mapping(const Mapping&) = delete;
-  Mapping& operator=(const Mapping&) = delete;
-  Mapping(Mapping&& other) noexcept : data_(other.data_), length_(other.length_) { other.data_ = MAP_FAILED; }
-  Mapping& operator=(Mapping&&) = delete;
-  ~Mapping() {
-    if (data_ != MAP_FAILED) ::munmap(data_, length_);
-  }
-  [[nodiscard]] std::uint8_t* bytes() const { return static_cast<std::uint8_t*>(data_); }
-  [[nodiscard]] std::size_t size() const { return length_; }
-
- private:
-  void* data_ = MAP_FAILED;
-  std::size_t length_;
-};
-
-Fd open_device(const std::string& device, int extra_flags = 0) {
-  Fd fd(::open(device.c_str(), O_RDWR | O_CLOEXEC | extra_flags));
-  if (!fd.valid()) fail_errno(device, "open");
-  return fd;
-}
 
 void require_caps(int fd, const std::string& device, std::uint32_t caps, const char* what) {
   v4l2_capability cap{};
@@ -86,19 +48,7 @@ void require_caps(int fd, const std::string& device, std::uint32_t caps, const c
 }
 
 v4l2_pix_format set_yuyv(int fd, const std::string& device, v4l2_buf_type type) {
-  v4l2_format fmt{};
-  fmt.type = type;
-  fmt.fmt.pix.width = kWidth;
-  fmt.fmt.pix.height = kHeight;
-  fmt.fmt.pix.pixelformat = V4L2_PIX_FMT_YUYV;
-  fmt.fmt.pix.field = V4L2_FIELD_NONE;
-  XIOCTL(fd, VIDIOC_S_FMT, &fmt, device);
-  const auto& pix = fmt.fmt.pix;
-  if (pix.width != kWidth || pix.height != kHeight || pix.pixelformat != V4L2_PIX_FMT_YUYV) {
-    fail(device + ": driver changed the format to " + std::to_string(pix.width) + "x" + std::to_string(pix.height));
-  }
-  if (pix.sizeimage < pix.bytesperline * pix.height) fail(device + ": sizeimage smaller than the image");
-  return pix;
+  return stemd::vmprobe::set_format(fd, device, type, V4L2_PIX_FMT_YUYV, kWidth, kHeight);
 }
 
 std::vector<Mapping> request_buffers(int fd, const std::string& device, v4l2_buf_type type, unsigned count) {
@@ -178,30 +128,6 @@ void capture(const std::string& device, int frames) {
        std::to_string(pix.height) + " YUYV from " + device);
 }
 
-int find_named(int fd, const std::string& device, bool output, const std::string& name) {
-  for (unsigned i = 0; i < 64; ++i) {
-    if (output) {
-      v4l2_output o{};
-      o.index = i;
-      if (::ioctl(fd, VIDIOC_ENUMOUTPUT, &o) < 0) break;
-      if (name == reinterpret_cast<const char*>(o.name)) return static_cast<int>(i);
-    } else {
-      v4l2_input in{};
-      in.index = i;
-      if (::ioctl(fd, VIDIOC_ENUMINPUT, &in) < 0) break;
-      if (name == reinterpret_cast<const char*>(in.name)) return static_cast<int>(i);
-    }
-  }
-  fail(device + ": no " + (output ? "output" : "input") + " named '" + name + "'");
-}
-
-void set_control(int fd, const std::string& device, std::uint32_t id, int value, const char* name) {
-  v4l2_control ctrl{};
-  ctrl.id = id;
-  ctrl.value = value;
-  xioctl(fd, VIDIOC_S_CTRL, &ctrl, device, name);
-}
-
 // The known image: a soil-and-stem scene with deterministic noise, every byte
 // inside the video range (Y 16..235, Cb/Cr 16..240) so that no range clamping
 // anywhere could pass unnoticed or be blamed.
@@ -232,44 +158,24 @@ void dump(const std::string& dir, const std::string& name, const std::uint8_t* d
 }
 
 void loopback(const std::string& cap_dev, const std::string& out_dev, const std::string& dump_dir) {
-  Fd cap = open_device(cap_dev);
-  Fd out = open_device(out_dev, O_NONBLOCK);  // output buffers are reclaimed without waiting
-  require_caps(cap.get(), cap_dev, V4L2_CAP_VIDEO_CAPTURE | V4L2_CAP_STREAMING, "capture");
-  require_caps(out.get(), out_dev, V4L2_CAP_VIDEO_OUTPUT | V4L2_CAP_STREAMING, "output");
+  VividLoopback loop(cap_dev, out_dev);
+  const int cap = loop.cap_fd();
+  require_caps(cap, cap_dev, V4L2_CAP_VIDEO_CAPTURE | V4L2_CAP_STREAMING, "capture");
+  require_caps(loop.out_fd(), out_dev, V4L2_CAP_VIDEO_OUTPUT | V4L2_CAP_STREAMING, "output");
 
-  // vivid loops output to capture only HDMI to HDMI (or S-Video), with equal
-  // DV timings, format and field on both sides.
-  int input = find_named(cap.get(), cap_dev, false, "HDMI 0");
-  int output = find_named(out.get(), out_dev, true, "HDMI 0");
-  XIOCTL(cap.get(), VIDIOC_S_INPUT, &input, cap_dev);
-  XIOCTL(out.get(), VIDIOC_S_OUTPUT, &output, out_dev);
-  v4l2_dv_timings timings = V4L2_DV_BT_DMT_640X480P60;
-  XIOCTL(cap.get(), VIDIOC_S_DV_TIMINGS, &timings, cap_dev);
-  timings = V4L2_DV_BT_DMT_640X480P60;
-  XIOCTL(out.get(), VIDIOC_S_DV_TIMINGS, &timings, out_dev);
-  set_control(cap.get(), cap_dev, kVividLoopVideo, 1, "VIDIOC_S_CTRL(loop_video=1)");
-  set_control(cap.get(), cap_dev, kVividOsdTextMode, 2, "VIDIOC_S_CTRL(osd_text_mode=2)");
-
-  const auto cap_pix = set_yuyv(cap.get(), cap_dev, V4L2_BUF_TYPE_VIDEO_CAPTURE);
-  const auto out_pix = set_yuyv(out.get(), out_dev, V4L2_BUF_TYPE_VIDEO_OUTPUT);
+  const auto cap_pix = set_yuyv(cap, cap_dev, V4L2_BUF_TYPE_VIDEO_CAPTURE);
+  const auto out_pix = loop.set_output_format(V4L2_PIX_FMT_YUYV, kWidth, kHeight);
   if (cap_pix.bytesperline != out_pix.bytesperline || cap_pix.sizeimage != out_pix.sizeimage) {
     fail("capture and output layouts differ (bytesperline " + std::to_string(cap_pix.bytesperline) + " vs " +
          std::to_string(out_pix.bytesperline) + ")");
   }
   const auto image = known_image(out_pix);
 
-  // At least two output buffers: vivid holds one while it shows it.
-  auto out_maps = request_buffers(out.get(), out_dev, V4L2_BUF_TYPE_VIDEO_OUTPUT, 3);
-  for (unsigned i = 0; i < out_maps.size(); ++i) {
-    if (out_maps[i].size() < image.size()) fail(out_dev + ": output buffer smaller than the image");
-    std::memcpy(out_maps[i].bytes(), image.data(), image.size());
-    queue(out.get(), out_dev, V4L2_BUF_TYPE_VIDEO_OUTPUT, i, static_cast<std::uint32_t>(image.size()));
-  }
-  stream(out.get(), out_dev, V4L2_BUF_TYPE_VIDEO_OUTPUT, true);
+  loop.start(image, 3);  // at least two output buffers: vivid holds one while it shows it
 
-  auto cap_maps = request_buffers(cap.get(), cap_dev, V4L2_BUF_TYPE_VIDEO_CAPTURE, 4);
-  for (unsigned i = 0; i < cap_maps.size(); ++i) queue(cap.get(), cap_dev, V4L2_BUF_TYPE_VIDEO_CAPTURE, i);
-  stream(cap.get(), cap_dev, V4L2_BUF_TYPE_VIDEO_CAPTURE, true);
+  auto cap_maps = request_buffers(cap, cap_dev, V4L2_BUF_TYPE_VIDEO_CAPTURE, 4);
+  for (unsigned i = 0; i < cap_maps.size(); ++i) queue(cap, cap_dev, V4L2_BUF_TYPE_VIDEO_CAPTURE, i);
+  stream(cap, cap_dev, V4L2_BUF_TYPE_VIDEO_CAPTURE, true);
 
   // The first captured frames may predate the first output frame; keep
   // feeding the output and take the first frame that arrives after it.
@@ -277,17 +183,8 @@ void loopback(const std::string& cap_dev, const std::string& out_dev, const std:
   std::size_t best_differing = image.size();
   std::vector<std::uint8_t> best_frame;
   for (int n = 0; n < kMaxFrames; ++n) {
-    for (;;) {  // re-queue every output buffer vivid has finished with
-      v4l2_buffer done{};
-      done.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-      done.memory = V4L2_MEMORY_MMAP;
-      if (::ioctl(out.get(), VIDIOC_DQBUF, &done) < 0) {
-        if (errno == EAGAIN) break;
-        fail_errno(out_dev, "VIDIOC_DQBUF");
-      }
-      queue(out.get(), out_dev, V4L2_BUF_TYPE_VIDEO_OUTPUT, done.index, static_cast<std::uint32_t>(image.size()));
-    }
-    const v4l2_buffer buf = dequeue_capture(cap.get(), cap_dev, 5000);
+    loop.pump();  // re-queue every output buffer vivid has finished with
+    const v4l2_buffer buf = dequeue_capture(cap, cap_dev, 5000);
     if (buf.index >= cap_maps.size()) fail(cap_dev + ": dequeued unknown buffer " + std::to_string(buf.index));
     const std::uint8_t* p = cap_maps[buf.index].bytes();
     std::size_t differing = 0;
@@ -300,11 +197,11 @@ void loopback(const std::string& cap_dev, const std::string& out_dev, const std:
       best_differing = differing;
       best_frame.assign(p, p + buf.bytesused);
     }
-    queue(cap.get(), cap_dev, V4L2_BUF_TYPE_VIDEO_CAPTURE, buf.index);
+    queue(cap, cap_dev, V4L2_BUF_TYPE_VIDEO_CAPTURE, buf.index);
     if (differing == 0) break;
   }
-  stream(cap.get(), cap_dev, V4L2_BUF_TYPE_VIDEO_CAPTURE, false);
-  stream(out.get(), out_dev, V4L2_BUF_TYPE_VIDEO_OUTPUT, false);
+  stream(cap, cap_dev, V4L2_BUF_TYPE_VIDEO_CAPTURE, false);
+  loop.stop();
   if (best_differing != 0) {
     dump(dump_dir, "loopback-sent.yuyv", image.data(), image.size());
     dump(dump_dir, "loopback-best.yuyv", best_frame.data(), best_frame.size());

@@ -17,11 +17,7 @@
 //       the same scene through the format conversion and detection, without
 //       a device (host sanity check of the check itself).
 #include <algorithm>
-#include <fcntl.h>
-#include <linux/v4l2-dv-timings.h>
 #include <linux/videodev2.h>
-#include <sys/ioctl.h>
-#include <sys/mman.h>
 #include <time.h>
 
 #include <array>
@@ -38,7 +34,9 @@
 #include <spdlog/sinks/stdout_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include "plant_scene.hpp"
 #include "probe_util.hpp"
+#include "vivid_loopback.hpp"
 #include "stemd/vision/detect.hpp"
 #include "v4l2/v4l2_source.hpp"
 
@@ -46,9 +44,8 @@ namespace {
 
 using stemd::drivers::V4l2PixelFormat;
 using stemd::vmprobe::fail;
-using stemd::vmprobe::fail_errno;
-using stemd::vmprobe::Fd;
 using stemd::vmprobe::info;
+using stemd::vmprobe::VividLoopback;
 
 constexpr int kWidth = 640;
 constexpr int kHeight = 480;
@@ -68,12 +65,7 @@ const cv::Vec3b kSoil{45, 80, 125};   // BGR: brown
 const cv::Vec3b kLeaf{40, 150, 60};   // BGR: green
 const cv::Rect kSoilPatch{8, 8, 24, 24};
 
-struct Rosette {
-    cv::Point2f stem;
-    int leaves;
-    float leaf_length;
-    float rotation_deg;
-};
+using stemd::vmprobe::Rosette;
 const std::array kRosettes{Rosette{{180, 200}, 5, 70, 10}, Rosette{{450, 300}, 6, 60, 35}};
 
 std::int64_t monotonic_ns() {
@@ -89,16 +81,7 @@ cv::Mat draw_scene() {
   cv::RNG rng(0x5eed);
   rng.fill(noise, cv::RNG::UNIFORM, 0, 8);
   bgr += noise;
-  for (const Rosette& r : kRosettes) {
-    for (int i = 0; i < r.leaves; ++i) {
-      const float a = r.rotation_deg + 360.0f * static_cast<float>(i) / static_cast<float>(r.leaves);
-      const float rad = a * static_cast<float>(CV_PI) / 180.0f;
-      const cv::Point2f centre = r.stem + 0.5f * r.leaf_length * cv::Point2f(std::cos(rad), std::sin(rad));
-      cv::ellipse(bgr, cv::RotatedRect(centre, cv::Size2f(r.leaf_length, r.leaf_length * 0.38f), a),
-                  cv::Scalar(kLeaf[0], kLeaf[1], kLeaf[2]), cv::FILLED, cv::LINE_AA);
-    }
-    cv::circle(bgr, r.stem, 4, cv::Scalar(kLeaf[0], kLeaf[1], kLeaf[2]), cv::FILLED, cv::LINE_AA);
-  }
+  for (const Rosette& r : kRosettes) stemd::vmprobe::draw_rosette(bgr, r, cv::Scalar(kLeaf[0], kLeaf[1], kLeaf[2]));
   return bgr;
 }
 
@@ -189,124 +172,15 @@ void selftest(V4l2PixelFormat format) {
   info("selftest " + std::string(stemd::drivers::to_string(format)) + ": scene converts and detects");
 }
 
-// --- vivid loopback setup (as v4l2_probe.cpp) ------------------------------------
-constexpr std::uint32_t kVividCidBase = 0x00f00000 | 0xf000;
-constexpr std::uint32_t kVividOsdTextMode = kVividCidBase + 1;
-constexpr std::uint32_t kVividLoopVideo = kVividCidBase + 37;
-
-void xioctl(int fd, unsigned long request, void* arg, const std::string& device, const char* name) {
-  int r = 0;
-  do r = ::ioctl(fd, request, arg);
-  while (r < 0 && errno == EINTR);
-  if (r < 0) fail_errno(device, name);
-}
-#define XIOCTL(fd, req, arg, dev) xioctl(fd, req, arg, dev, #req)
-
-int find_named(int fd, const std::string& device, bool output, const std::string& name) {
-  for (unsigned i = 0; i < 64; ++i) {
-    if (output) {
-      v4l2_output o{};
-      o.index = i;
-      if (::ioctl(fd, VIDIOC_ENUMOUTPUT, &o) < 0) break;
-      if (name == reinterpret_cast<const char*>(o.name)) return static_cast<int>(i);
-    } else {
-      v4l2_input in{};
-      in.index = i;
-      if (::ioctl(fd, VIDIOC_ENUMINPUT, &in) < 0) break;
-      if (name == reinterpret_cast<const char*>(in.name)) return static_cast<int>(i);
-    }
-  }
-  fail(device + ": no " + (output ? "output" : "input") + " named '" + name + "'");
-}
-
-void set_control(int fd, const std::string& device, std::uint32_t id, int value, const char* name) {
-  v4l2_control ctrl{};
-  ctrl.id = id;
-  ctrl.value = value;
-  xioctl(fd, VIDIOC_S_CTRL, &ctrl, device, name);
-}
-
-class Mapping {
- public:
-  Mapping(int fd, std::size_t length, off_t offset, const std::string& device) : length_(length) {
-    data_ = ::mmap(nullptr, length, PROT_READ | PROT_WRITE, MAP_SHARED, fd, offset);
-    if (data_ == MAP_FAILED) fail_errno(device, "mmap");
-  }
-  Mapping(const Mapping&) = delete;
-  Mapping& operator=(const Mapping&) = delete;
-  Mapping(Mapping&& o) noexcept : data_(o.data_), length_(o.length_) { o.data_ = MAP_FAILED; }
-  Mapping& operator=(Mapping&&) = delete;
-  ~Mapping() {
-    if (data_ != MAP_FAILED) ::munmap(data_, length_);
-  }
-  [[nodiscard]] std::uint8_t* bytes() const { return static_cast<std::uint8_t*>(data_); }
-  [[nodiscard]] std::size_t size() const { return length_; }
-
- private:
-  void* data_ = MAP_FAILED;
-  std::size_t length_;
-};
-
-void queue_out(int fd, const std::string& dev, unsigned index, std::size_t bytes) {
-  v4l2_buffer buf{};
-  buf.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-  buf.memory = V4L2_MEMORY_MMAP;
-  buf.index = index;
-  buf.bytesused = static_cast<std::uint32_t>(bytes);
-  XIOCTL(fd, VIDIOC_QBUF, &buf, dev);
-}
-
 void loop(const std::string& cap_dev, const std::string& out_dev, V4l2PixelFormat format, const std::string& dump_dir) {
   // Routing and controls on the capture side; V4l2Source opens the node again.
-  Fd cap(::open(cap_dev.c_str(), O_RDWR | O_CLOEXEC));
-  if (!cap.valid()) fail_errno(cap_dev, "open");
-  Fd out(::open(out_dev.c_str(), O_RDWR | O_CLOEXEC | O_NONBLOCK));
-  if (!out.valid()) fail_errno(out_dev, "open");
-  int input = find_named(cap.get(), cap_dev, false, "HDMI 0");
-  int output = find_named(out.get(), out_dev, true, "HDMI 0");
-  XIOCTL(cap.get(), VIDIOC_S_INPUT, &input, cap_dev);
-  XIOCTL(out.get(), VIDIOC_S_OUTPUT, &output, out_dev);
-  v4l2_dv_timings timings = V4L2_DV_BT_DMT_640X480P60;
-  XIOCTL(cap.get(), VIDIOC_S_DV_TIMINGS, &timings, cap_dev);
-  timings = V4L2_DV_BT_DMT_640X480P60;
-  XIOCTL(out.get(), VIDIOC_S_DV_TIMINGS, &timings, out_dev);
-  set_control(cap.get(), cap_dev, kVividLoopVideo, 1, "VIDIOC_S_CTRL(loop_video=1)");
-  set_control(cap.get(), cap_dev, kVividOsdTextMode, 2, "VIDIOC_S_CTRL(osd_text_mode=2)");
-
-  v4l2_format fmt{};
-  fmt.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-  fmt.fmt.pix.width = kWidth;
-  fmt.fmt.pix.height = kHeight;
-  fmt.fmt.pix.pixelformat = stemd::drivers::v4l2_fourcc_of(format);
-  fmt.fmt.pix.field = V4L2_FIELD_NONE;
-  XIOCTL(out.get(), VIDIOC_S_FMT, &fmt, out_dev);
-  const v4l2_pix_format pix = fmt.fmt.pix;
-  if (pix.width != kWidth || pix.height != kHeight || pix.pixelformat != stemd::drivers::v4l2_fourcc_of(format))
-    fail(out_dev + ": the output does not take " + std::string(stemd::drivers::to_string(format)) + " 640x480");
+  VividLoopback out(cap_dev, out_dev);
+  const v4l2_pix_format pix =
+      out.set_output_format(stemd::drivers::v4l2_fourcc_of(format), kWidth, kHeight);
 
   const cv::Mat scene = draw_scene();
   const auto image = encode(scene, format, pix.bytesperline, pix.sizeimage);
-
-  v4l2_requestbuffers req{};
-  req.count = 3;  // vivid holds one while it shows it
-  req.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-  req.memory = V4L2_MEMORY_MMAP;
-  XIOCTL(out.get(), VIDIOC_REQBUFS, &req, out_dev);
-  if (req.count < 2) fail(out_dev + ": fewer than 2 output buffers");
-  std::vector<Mapping> out_maps;
-  for (unsigned i = 0; i < req.count; ++i) {
-    v4l2_buffer buf{};
-    buf.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-    buf.memory = V4L2_MEMORY_MMAP;
-    buf.index = i;
-    XIOCTL(out.get(), VIDIOC_QUERYBUF, &buf, out_dev);
-    out_maps.emplace_back(out.get(), buf.length, buf.m.offset, out_dev);
-    if (out_maps.back().size() < image.size()) fail(out_dev + ": output buffer smaller than the image");
-    std::memcpy(out_maps.back().bytes(), image.data(), image.size());
-    queue_out(out.get(), out_dev, i, image.size());
-  }
-  int out_type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-  XIOCTL(out.get(), VIDIOC_STREAMON, &out_type, out_dev);
+  out.start(image, 3);  // vivid holds one while it shows it
 
   // The project's source, as the daemon would build it.
   // Everything the loop needs exists before streaming starts, so that the
@@ -332,16 +206,7 @@ void loop(const std::string& cap_dev, const std::string& out_dev, V4l2PixelForma
   std::vector<std::int64_t> intervals_ns;
   std::string last_why;
   while (frames < kMaxFrames && good_in_a_row < kPassFrames) {
-    for (;;) {  // give back every output buffer vivid has finished with
-      v4l2_buffer done{};
-      done.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-      done.memory = V4L2_MEMORY_MMAP;
-      if (::ioctl(out.get(), VIDIOC_DQBUF, &done) < 0) {
-        if (errno == EAGAIN) break;
-        fail_errno(out_dev, "VIDIOC_DQBUF");
-      }
-      queue_out(out.get(), out_dev, done.index, image.size());
-    }
+    out.pump();  // give back every output buffer vivid has finished with
     const auto status = source.next(slot, std::chrono::milliseconds(2000));
     if (status == stemd::drivers::NextStatus::timeout) fail(cap_dev + ": no frame within 2 s through V4l2Source");
     if (status != stemd::drivers::NextStatus::frame) fail(cap_dev + ": V4l2Source::next did not deliver a frame");
@@ -377,7 +242,7 @@ void loop(const std::string& cap_dev, const std::string& out_dev, V4l2PixelForma
        " errors=" + std::to_string(c.errors) + " corrupt=" + std::to_string(c.corrupt) +
        " bad_size=" + std::to_string(c.bad_size));
   source.stop();
-  XIOCTL(out.get(), VIDIOC_STREAMOFF, &out_type, out_dev);
+  out.stop();
   if (good_in_a_row < kPassFrames) {
     if (!dump_dir.empty()) {
       cv::imwrite(dump_dir + "/v4l2_source-sent.png", scene);

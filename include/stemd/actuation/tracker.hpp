@@ -22,9 +22,13 @@
 //     in use the detection is dropped and counted (capacity_drops).
 //  4. Confirmation: a track not yet emitted is emitted, once, when it has
 //     been seen in >= confirm_frames frames, or when its fused s is within
-//     exit_margin_mm of the trailing edge of the current view
-//     (s < s_min + exit_margin_mm, which includes a track already behind
-//     the view) with >= 1 sighting. exit_margin_mm should be at least the
+//     exit_margin_mm + its extent of the trailing edge of the current view
+//     (s < s_min + exit_margin_mm + extent_mm, which includes a track
+//     already behind the view) with >= 1 sighting. The extent is the
+//     largest along-track half-size of its sightings (0 if the caller does
+//     not say): a plant whose leaves reach the trailing edge is about to be
+//     cut by the image border, and a caller that ignores cut plants (as the
+//     daemon does) sees it no more. exit_margin_mm should be at least the
 //     distance travelled between two frames, so that a plant's last
 //     sighting before it leaves falls in the margin.
 //  5. Retirement: a track behind the current view (s < s_min) is retired
@@ -84,6 +88,7 @@ struct TrackDetection {
     float confidence = 1.0f;  // fusion weight, 0..1
     PlantClass plant_class = PlantClass::Unknown;
     std::uint8_t leaves = 0;
+    double extent_mm = 0;     // along-track half-size of the plant (for the exit rule), >= 0
 };
 
 struct TrackFrame {
@@ -182,6 +187,7 @@ private:
         double conf_sum = 0;
         std::uint8_t leaves = 0;
         std::uint16_t target_id = 0;  // once emitted
+        double extent_mm = 0;         // largest along-track half-size seen
         std::uint64_t first_seq = 0;
         std::uint64_t last_seq = 0;
     };

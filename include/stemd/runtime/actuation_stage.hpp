@@ -8,7 +8,11 @@
 //     encoder. Without a usable reading (none yet, stale) the frame's
 //     detections are not actuated (counted: no_odometry).
 //  2. Each stem -> field position (s_mm, y_mm) through the camera model;
-//     the plant's class from the frame's class map, if any.
+//     the plant's class from the frame's class map, if any. A plant cut by
+//     the leading or trailing image border (the along-track borders, per
+//     camera.forward) is skipped (counted: clipped): its stem is estimated
+//     from part of it, and the same plant is seen whole in other frames.
+//     Plants cut by the lateral borders are kept (some are never seen whole).
 //  3. Tracker::update: each plant becomes one target, once.
 //  4. For each new target, Scheduler::schedule with the odometer and speed
 //     NOW (not at capture) and the enable input; a target that cannot be on
@@ -54,6 +58,7 @@ struct ActuationCounters {
     std::atomic<std::uint64_t> frames{0};           // frames whose stems were tracked
     std::atomic<std::uint64_t> no_odometry{0};      // frames not actuated: no usable odometer reading
     std::atomic<std::uint64_t> off_ground{0};       // stems the camera model could not put on the ground
+    std::atomic<std::uint64_t> clipped{0};          // plants cut by the leading/trailing border, not tracked
     std::atomic<std::uint64_t> targets{0};          // plants confirmed (one target each)
     std::atomic<std::uint64_t> sent{0};             // TARGET frames the bus took
     std::atomic<std::uint64_t> policy{0};           // targets not treated by policy (crops, unclassified)
@@ -111,7 +116,10 @@ public:
     double view_forward_max_mm() const { return view_max_mm_; }
 
 private:
-    ActuationStage(const ActuationConfig& config, const geometry::CameraModel& camera, Parts parts,
+    bool clipped_along_track(const cv::Rect& bbox) const noexcept;
+    double extent_mm(const vision::Plant& plant, double odom_mm) const noexcept;
+
+    ActuationStage(const ActuationConfig& config, const geometry::CameraModel& camera, cv::Size frame_size, Parts parts,
                    actuation::Scheduler scheduler, actuation::CanIds ids, std::shared_ptr<spdlog::logger> log);
 
     bool odometer_at(std::int64_t t_ns, double& odom_mm) const noexcept;
@@ -123,6 +131,7 @@ private:
 
     const ActuationConfig config_;
     const geometry::CameraModel camera_;
+    const cv::Size frame_size_;
     Parts parts_;
     const std::shared_ptr<spdlog::logger> log_;
     actuation::Tracker tracker_;

@@ -2,17 +2,26 @@
 // --set overrides, each value checked against the schema (type, range,
 // choices) as it arrives.
 //
-// File format, a strict YAML subset (see config/stemd.yaml):
+// A config file is YAML, read with yaml-cpp (see config/stemd.yaml), in one
+// shape: a map of sections, each a map of scalars.
 //
 //   # a comment
-//   closing:              # a section: a top-level name ending in ':'
-//     radius_px: 10       # key: value, indented by spaces, one level only
+//   closing:              # a section
+//     radius_px: 10       # key: value, one level only
 //
-// Values are integers, reals, bare words, true/false or double-quoted
-// strings ("a \"b\" \\ c"). Keys are flattened to "section.key". Keys a file
-// does not mention keep their previous value.
+// Values are YAML scalars: integers, reals, bare words, true/false, or quoted
+// strings ("a \"b\" \\ c", 'it''s'); a quoted value is text, never a number
+// or a boolean. "key:", "key: ~" and "key: null" are empty values (an error);
+// a bare - starts a YAML list item, so the text "-" is written quoted. Keys
+// are flattened to "section.key". Keys a file does not mention keep their
+// previous value. Anything else is an error naming file, line and key: a value
+// where a section belongs, a section without keys, nesting deeper than one
+// level, a list outside a list section, an unknown or duplicate key or
+// section, a wrong type or range, a tab in the indentation, a YAML syntax
+// error ("invalid YAML: ..."), more than one YAML document.
 //
-// List sections (config_schema.hpp, ListSpec; "tools") hold a list of maps:
+// List sections (config_schema.hpp, ListSpec; "tools") hold a list of maps
+// of scalars:
 //
 //   tools:
 //     - id: 0            # an item starts with "- " and its first key
@@ -22,6 +31,9 @@
 // A file with a list section replaces the whole list; an item's omitted keys
 // take the item defaults. Without a file the list is one item at the
 // defaults. Errors name the item: "key 'tools[1].offset_mm'".
+//
+// --set values are not YAML: "--set can.log_file=-" is the text "-", and a
+// value may be double-quoted ("a \"b\"").
 #pragma once
 
 #include <cstddef>

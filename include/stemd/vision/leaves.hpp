@@ -17,6 +17,11 @@ namespace stemd::vision {
 // `order` is scratch of at least 2 * (contour's x extent + 1) capacity.
 void convex_hull_indices(std::span<const cv::Point> contour, std::vector<int>& hull, std::vector<int>& order);
 
+// Area of the convex hull around the contour's pixel squares (not just
+// their centres): the hull polygon's area plus half its perimeter plus 1,
+// so a convex blob's pixel area is about equal to it. 0 for no hull.
+double convex_hull_area_px(std::span<const cv::Point> contour, std::span<const int> hull);
+
 struct Defect {
     int start = 0;      // hull vertex before the pocket (contour index)
     int end = 0;        // hull vertex after it

@@ -107,6 +107,10 @@ struct Params {
     // than this on average (2 * area / perimeter) have no stem to strike.
     double grass_min_area_mm2 = 100.0;
     double grass_max_width_mm = 3.0;
+    // ... and covering less than this fraction of their convex hull: a tuft
+    // of blades fanned out from one point leaves most of its hull empty, a
+    // rosette of thin-stalked leaves does not. 1 (or more): width alone.
+    double grass_max_hull_fill = 0.4;
 };
 
 inline constexpr std::size_t kMaxLeaves = 16;
@@ -136,6 +140,7 @@ struct Plant {
     cv::Point2f centre_of_mass;
     cv::Point first_pixel;       // top-most, then left-most pixel: where its outer contour starts
     float mean_width_mm = 0;     // 2 * area / perimeter of the outer contour
+    float hull_fill = 0;         // area / convex hull area (0 when not traced)
 };
 
 // Per-frame counters of the pipeline; the daemon sums them into its status.
