@@ -376,7 +376,11 @@ void ActuationStage::receive(std::int64_t now_ns) noexcept
 
 void ActuationStage::heartbeat(std::int64_t now_ns) noexcept
 {
-    next_heartbeat_ns_ = now_ns + config_.heartbeat_interval_ns;
+    // On a fixed grid (10 Hz stays 10 Hz however late a poll comes); a
+    // heartbeat more than a period late is not caught up.
+    next_heartbeat_ns_ = next_heartbeat_ns_ == 0 || now_ns - next_heartbeat_ns_ >= config_.heartbeat_interval_ns
+        ? now_ns + config_.heartbeat_interval_ns
+        : next_heartbeat_ns_ + config_.heartbeat_interval_ns;
     const std::uint64_t misses = counters_.deadline_misses.load(std::memory_order_relaxed) +
                                  counters_.bus_deadline.load(std::memory_order_relaxed);
     actuation::Heartbeat hb;

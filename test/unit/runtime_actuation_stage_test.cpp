@@ -471,3 +471,30 @@ TEST(ActuationStage, PlantsCutByTheAlongTrackBordersAreNotTrackedButLateralOnesA
 
 }  // namespace
 }  // namespace stemd::runtime
+
+namespace stemd::runtime {
+namespace {
+
+TEST(ActuationStage, HeartbeatKeepsItsCadenceWhenPollsComeLate)
+{
+    // Polls every 3 ms against a 100 ms heartbeat: each heartbeat goes out
+    // up to 3 ms late, but the next is still due on the 100 ms grid, so 10
+    // heartbeats fit in 1 s (not 9.7, as with "100 ms after the last one").
+    Stage run = make_stage(base_config());
+    std::vector<std::int64_t> sent_at;
+    for (std::int64_t t = kT0; t < kT0 + 1'000'000'000; t += 3'000'000) {
+        const std::size_t before = run.bus->sent.size();
+        run.stage->poll(t);
+        if (run.bus->sent.size() > before)
+            sent_at.push_back(t);
+    }
+    ASSERT_EQ(sent_at.size(), 10u);
+    for (std::size_t i = 1; i < sent_at.size(); ++i) {
+        const std::int64_t grid = kT0 + static_cast<std::int64_t>(i) * 100'000'000;
+        EXPECT_GE(sent_at[i], grid);
+        EXPECT_LT(sent_at[i], grid + 3'000'000);
+    }
+}
+
+}  // namespace
+}  // namespace stemd::runtime
