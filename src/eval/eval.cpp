@@ -27,16 +27,6 @@ std::string_view trim(std::string_view s)
     return s.substr(first, last - first + 1);
 }
 
-bool parse_finite(std::string_view text, double& out)
-{
-    text = trim(text);
-    if (text.empty())
-        return false;
-    const char* const end = text.data() + text.size();
-    const auto [ptr, ec] = std::from_chars(text.data(), end, out);
-    return ec == std::errc() && ptr == end && std::isfinite(out);
-}
-
 std::string join(const std::vector<std::string>& fields)
 {
     std::string out;
@@ -185,6 +175,16 @@ std::optional<IouResult> mask_iou(const cv::Mat& predicted, const cv::Mat& groun
     }
     r.iou = r.union_px > 0 ? static_cast<double>(r.intersection_px) / static_cast<double>(r.union_px) : 1.0;
     return r;
+}
+
+bool parse_finite(std::string_view text, double& out)
+{
+    text = trim(text);
+    if (text.empty())
+        return false;
+    const char* const end = text.data() + text.size();
+    const auto [ptr, ec] = std::from_chars(text.data(), end, out);
+    return ec == std::errc() && ptr == end && std::isfinite(out);
 }
 
 }  // namespace stemd::eval

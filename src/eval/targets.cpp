@@ -6,37 +6,12 @@
 #include <limits>
 
 #include "stemd/actuation/candump_format.hpp"
+#include "stemd/eval/eval.hpp"
+#include "stemd/io/csv.hpp"
 
 namespace stemd::eval {
 
 namespace {
-
-std::vector<std::string> split(const std::string& line)
-{
-    std::vector<std::string> out;
-    std::string cell;
-    for (const char c : line) {
-        if (c == ',') {
-            out.push_back(cell);
-            cell.clear();
-        } else if (c != '\r') {
-            cell += c;
-        }
-    }
-    out.push_back(cell);
-    return out;
-}
-
-bool to_double(const std::string& s, double& out)
-{
-    try {
-        std::size_t used = 0;
-        out = std::stod(s, &used);
-        return used == s.size() && std::isfinite(out);
-    } catch (...) {
-        return false;
-    }
-}
 
 // p in [0, 1] of sorted values, nearest rank.
 double percentile(const std::vector<double>& sorted, double p)
@@ -51,56 +26,31 @@ double percentile(const std::vector<double>& sorted, double p)
 
 std::optional<std::vector<TruthPlant>> read_truth_plants(const std::filesystem::path& csv, std::string& error)
 {
-    std::ifstream in(csv);
-    if (!in) {
-        error = csv.string() + ": cannot read";
+    const auto table = io::read_csv(csv, error);
+    if (!table)
         return std::nullopt;
-    }
-    std::string line;
-    if (!std::getline(in, line)) {
-        error = csv.string() + ":1: empty file";
-        return std::nullopt;
-    }
-    const auto header = split(line);
-    int col_id = -1, col_s = -1, col_y = -1, col_kind = -1, col_radius = -1;
-    for (int i = 0; i < static_cast<int>(header.size()); ++i) {
-        const std::string& h = header[static_cast<std::size_t>(i)];
-        if (h == "id")
-            col_id = i;
-        else if (h == "s_mm")
-            col_s = i;
-        else if (h == "y_mm")
-            col_y = i;
-        else if (h == "kind")
-            col_kind = i;
-        else if (h == "radius_mm")
-            col_radius = i;
-    }
+    const int col_id = table->column("id"), col_s = table->column("s_mm"), col_y = table->column("y_mm"),
+              col_kind = table->column("kind"), col_radius = table->column("radius_mm");
     if (col_id < 0 || col_s < 0 || col_y < 0 || col_kind < 0) {
         error = csv.string() + ":1: expected columns id, s_mm, y_mm, kind";
         return std::nullopt;
     }
     std::vector<TruthPlant> plants;
-    for (int n = 2; std::getline(in, line); ++n) {
-        if (line.empty() || line == "\r")
-            continue;
-        const auto cells = split(line);
-        const int need = std::max({col_id, col_s, col_y, col_kind});
+    for (const auto& row : table->rows) {
+        const auto cell = [&](int col) -> const std::string& { return row.fields[static_cast<std::size_t>(col)]; };
+        const std::string where = csv.string() + ":" + std::to_string(row.line) + ": ";
         TruthPlant p;
         double id = 0;
-        if (static_cast<int>(cells.size()) <= need || !to_double(cells[static_cast<std::size_t>(col_id)], id) ||
-            !to_double(cells[static_cast<std::size_t>(col_s)], p.s_mm) ||
-            !to_double(cells[static_cast<std::size_t>(col_y)], p.y_mm)) {
-            error = csv.string() + ":" + std::to_string(n) + ": expected id, s_mm and y_mm numbers";
+        if (!parse_finite(cell(col_id), id) || !parse_finite(cell(col_s), p.s_mm) || !parse_finite(cell(col_y), p.y_mm)) {
+            error = where + "expected id, s_mm and y_mm numbers";
+            return std::nullopt;
+        }
+        if (col_radius >= 0 && !parse_finite(cell(col_radius), p.radius_mm)) {
+            error = where + "radius_mm is not a number";
             return std::nullopt;
         }
         p.id = static_cast<long>(id);
-        p.kind = cells[static_cast<std::size_t>(col_kind)];
-        if (col_radius >= 0 && (static_cast<int>(cells.size()) <= col_radius ||
-                                !to_double(cells[static_cast<std::size_t>(col_radius)], p.radius_mm))) {
-            error = csv.string() + ":" + std::to_string(n) + ": radius_mm is not a number";
-            return std::nullopt;
-        }
+        p.kind = cell(col_kind);
         plants.push_back(p);
     }
     return plants;

@@ -5,18 +5,13 @@
 #include <limits>
 
 #include "stemd/geometry/field.hpp"
+#include "stemd/runtime/status.hpp"
 
 namespace stemd::runtime {
 
 namespace {
 
 using actuation::PlantClass;
-
-void bump(std::atomic<std::uint64_t>& counter, std::uint64_t by = 1)
-{
-    // One writer (the actuator thread): a relaxed load-add-store suffices.
-    counter.store(counter.load(std::memory_order_relaxed) + by, std::memory_order_relaxed);
-}
 
 // Speed over this window: smooths encoder ticks and frame-rate odometry.
 constexpr std::int64_t kSpeedWindowNs = 200'000'000;
@@ -253,15 +248,14 @@ void ActuationStage::schedule(const actuation::Target& target, std::int64_t now_
     entry = MapEntry{};
     // The odometer and speed now (not at capture): the time the pipeline
     // took is already gone from the command's budget.
-    const std::int64_t t_ns = now_ns;
     double odom_now = 0;
-    if (!odometer_at(t_ns, odom_now)) {
+    if (!odometer_at(now_ns, odom_now)) {
         entry.reason = MapReason::no_odometry;
         bump(counters_.no_odometry);
         return;
     }
     actuation::ScheduleNow now;
-    now.now_ns = t_ns;
+    now.now_ns = now_ns;
     now.odom_mm = odom_now;
     now.speed_mm_per_s = constant_now_ ? config_.speed_mm_per_s : odometry_.speed_mm_per_s(kSpeedWindowNs);
     now.enabled = parts_.gpio ? parts_.gpio->enabled() : true;

@@ -65,13 +65,6 @@ void classify_plants(const cv::Mat& class_map, const vision::Detections& detecti
     }
 }
 
-void bump(std::atomic<std::uint64_t>& counter, std::uint64_t by = 1)
-{
-    // Each counter has one writer: a relaxed load-add-store is enough and
-    // cheaper than a locked read-modify-write.
-    counter.store(counter.load(std::memory_order_relaxed) + by, std::memory_order_relaxed);
-}
-
 }  // namespace
 
 Daemon::Daemon(const DaemonConfig& config, std::unique_ptr<drivers::FrameSource> source,

@@ -7,6 +7,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <opencv2/core/mat.hpp>
@@ -28,6 +29,10 @@ struct StemPoint {
 //   "<path>: cannot open", "<path>: header has no column 'x' (columns: ...)",
 //   "<path>:<line>: x 'abc' is not a finite number", ...
 std::optional<std::vector<StemPoint>> read_stem_points(const std::filesystem::path& csv, std::string& error);
+
+// A CSV cell as a finite number (surrounding blanks ignored); false if it is
+// empty, not a number, has trailing text, or is infinite/NaN.
+bool parse_finite(std::string_view text, double& out);
 
 struct MatchResult {
     int ground_truth = 0;    // number of ground-truth stems

@@ -46,6 +46,14 @@ private:
     Buckets total_;
 };
 
+// Adds to a counter that has one writer thread: a relaxed load-add-store is
+// enough (readers only need a recent value) and cheaper than a locked
+// read-modify-write.
+inline void bump(std::atomic<std::uint64_t>& counter, std::uint64_t by = 1)
+{
+    counter.store(counter.load(std::memory_order_relaxed) + by, std::memory_order_relaxed);
+}
+
 // Every counter of the daemon, grouped by the thread that writes it.
 struct Counters {
     struct Capture {
