@@ -16,6 +16,9 @@ vision::Params vision_params(const Config& config)
     if (const auto v = vision::parse_stem_estimator(config.get_text("stem.method")))
         p.stem_estimator = *v;
     p.min_class_separation = config.get_real("segment.min_class_separation");
+    p.soil_sigmas = config.get_real("segment.soil_sigmas");
+    p.smooth_index = config.get_bool("segment.smooth");
+    p.opening_radius_px = static_cast<int>(config.get_int("segment.opening_radius_px"));
     p.closing_radius_px = static_cast<int>(config.get_int("closing.radius_px"));
     p.gsd_mm_per_px = config.get_real("camera.gsd_mm_per_px");
     p.min_plant_area_mm2 = config.get_real("plants.min_area_mm2");

@@ -163,17 +163,23 @@ void morph_pass(const BitMask& src, BitMask& dst, const Kernel& kernel, std::uin
 
 }  // namespace
 
-void close_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch)
-{
-    CV_Assert(&in != &out);
-    if (out.width() != in.width() || out.height() != in.height())
-        out.reset(in.width(), in.height());
-    radius_px = std::max(radius_px, 0);
-    if (radius_px == 0 || in.width() == 0 || in.height() == 0) {
-        for (int y = 0; y < in.height(); ++y)
-            std::copy(in.row(y), in.row(y) + in.words_per_row(), out.row(y));
-        return;
+struct MorphologyAccess {
+    // Sizes the scratch for `in` and sets the kernel up for `radius_px` (> 0).
+    // Allocates only when the size or a larger radius is new.
+    static Kernel prepare_kernel(const BitMask& in, int radius_px, ClosingScratch& scratch);
+    // `op` from `in` into the scratch's intermediate mask, then the other one into `out`.
+    template <Op first, Op second>
+    static void run(const BitMask& in, const Kernel& kernel, BitMask& out, ClosingScratch& scratch)
+    {
+        morph_pass<first>(in, scratch.dilated_, kernel, scratch.ring_.data(), scratch.row_tmp_.data(),
+                          scratch.row_clear_.get());
+        morph_pass<second>(scratch.dilated_, out, kernel, scratch.ring_.data(), scratch.row_tmp_.data(),
+                           scratch.row_clear_.get());
     }
+};
+
+Kernel MorphologyAccess::prepare_kernel(const BitMask& in, int radius_px, ClosingScratch& scratch)
+{
     const std::size_t words = static_cast<std::size_t>(in.words_per_row());
     const std::size_t ring_needed = static_cast<std::size_t>(2 * radius_px + 1) * (radius_px + 1) * words;
     if (scratch.dilated_.width() != in.width() || scratch.dilated_.height() != in.height() ||
@@ -196,11 +202,43 @@ void close_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& 
                 scratch.slot_half_width_.begin()));
         scratch.kernel_radius_ = radius_px;
     }
-    const Kernel kernel{radius_px, scratch.width_slot_, scratch.slot_half_width_};
-    morph_pass<Op::dilate>(in, scratch.dilated_, kernel, scratch.ring_.data(), scratch.row_tmp_.data(),
-                           scratch.row_clear_.get());
-    morph_pass<Op::erode>(scratch.dilated_, out, kernel, scratch.ring_.data(), scratch.row_tmp_.data(),
-                          scratch.row_clear_.get());
+    return Kernel{radius_px, scratch.width_slot_, scratch.slot_half_width_};
+}
+
+namespace {
+
+// Radius 0 (or an empty mask): out = in. Returns whether it copied.
+bool copy_if_trivial(const BitMask& in, int radius_px, BitMask& out)
+{
+    if (out.width() != in.width() || out.height() != in.height())
+        out.reset(in.width(), in.height());
+    if (radius_px > 0 && in.width() > 0 && in.height() > 0)
+        return false;
+    for (int y = 0; y < in.height(); ++y)
+        std::copy(in.row(y), in.row(y) + in.words_per_row(), out.row(y));
+    return true;
+}
+
+}  // namespace
+
+void close_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch)
+{
+    CV_Assert(&in != &out);
+    radius_px = std::max(radius_px, 0);
+    if (copy_if_trivial(in, radius_px, out))
+        return;
+    const Kernel kernel = MorphologyAccess::prepare_kernel(in, radius_px, scratch);
+    MorphologyAccess::run<Op::dilate, Op::erode>(in, kernel, out, scratch);
+}
+
+void open_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch)
+{
+    CV_Assert(&in != &out);
+    radius_px = std::max(radius_px, 0);
+    if (copy_if_trivial(in, radius_px, out))
+        return;
+    const Kernel kernel = MorphologyAccess::prepare_kernel(in, radius_px, scratch);
+    MorphologyAccess::run<Op::erode, Op::dilate>(in, kernel, out, scratch);
 }
 
 }  // namespace stemd::vision

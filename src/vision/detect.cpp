@@ -59,8 +59,11 @@ Workspace::Workspace(cv::Size frame_size, const Params& params)
 {
     const int width = std::max(frame_size.width, 0);
     const int height = std::max(frame_size.height, 0);
+    raw_index_.create(height, width, CV_8UC1);
     index_.create(height, width, CV_8UC1);
+    smooth_row_.resize(static_cast<std::size_t>(width));
     vegetation_.reset(width, height);
+    thresholded_.reset(width, height);
     closed_.reset(width, height);
     reserved_radius_px_ = std::clamp(params.closing_radius_px, 0, kMaxClosingRadiusPx);
     closing_.reserve(width, height, kMaxClosingRadiusPx);
@@ -73,9 +76,12 @@ Workspace::Workspace(cv::Size frame_size, const Params& params)
     hull_.reserve(contour_.capacity() + 2);  // the monotone chain holds one extra point while building
     hull_order_.reserve(contour_.capacity());
     defects_.reserve(kMaxLeaves * 4);
-    // Set the kernel up once so the first frame allocates nothing either.
-    if (width > 0 && height > 0)
+    // Set the kernels up once so the first frame allocates nothing either.
+    if (width > 0 && height > 0) {
         close_mask(vegetation_, reserved_radius_px_, closed_, closing_);
+        open_mask(thresholded_, std::clamp(params.opening_radius_px, 0, kMaxClosingRadiusPx), vegetation_,
+                  opening_);
+    }
 }
 
 void detect(const FrameView& frame, const Params& params, Workspace& ws, Detections& out, StageTimes* times)
@@ -94,19 +100,26 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
         pack_mask(frame.mask, params.mask_vegetation, ws.vegetation_);
         t_index = now_ns();
     } else {
+        cv::Mat& index = params.smooth_index ? ws.raw_index_ : ws.index_;
         if (params.segmentation == Segmentation::ndvi)
-            ndvi(frame.bgr, frame.nir, ws.ndvi_table_, ws.index_);
+            ndvi(frame.bgr, frame.nir, ws.ndvi_table_, index);
+        else if (params.segmentation == Segmentation::chromatic_exg)
+            chromatic_excess_green(frame.bgr, index);
         else
-            excess_green(frame.bgr, ws.index_);
+            excess_green(frame.bgr, index);
+        if (params.smooth_index)
+            smooth_binomial3(ws.raw_index_, ws.smooth_row_.data(), ws.index_);
         t_index = now_ns();
         compute_histogram(ws.index_, ws.histogram_);
-        out.stats.threshold = auto_threshold(ws.histogram_, params.threshold);
+        out.stats.threshold = auto_threshold(ws.histogram_, params.threshold, params.soil_sigmas);
         const double separation = class_separation(ws.histogram_, out.stats.threshold);
         out.stats.class_separation = static_cast<float>(separation);
         out.stats.no_vegetation = separation < params.min_class_separation;
         // No second class: an empty mask (index > 255 never holds), so the
         // rest of the pipeline runs as usual and finds nothing.
-        threshold_to_bits(ws.index_, out.stats.no_vegetation ? 255 : out.stats.threshold, ws.vegetation_);
+        threshold_to_bits(ws.index_, out.stats.no_vegetation ? 255 : out.stats.threshold, ws.thresholded_);
+        open_mask(ws.thresholded_, std::clamp(params.opening_radius_px, 0, kMaxClosingRadiusPx), ws.vegetation_,
+                  ws.opening_);
     }
     const std::int64_t t_threshold = now_ns();
     out.stats.vegetation_px = static_cast<int>(ws.vegetation_.count());
@@ -203,8 +216,9 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
 
 std::size_t Workspace::reserved_bytes() const
 {
-    return index_.total() * index_.elemSize() + vegetation_.reserved_bytes() + closed_.reserved_bytes() +
-           closing_.reserved_bytes() + labels_.reserved_bytes() + components_.capacity() * sizeof(Component) +
+    return (raw_index_.total() + index_.total()) * index_.elemSize() + smooth_row_.capacity() * sizeof(std::uint16_t) +
+           vegetation_.reserved_bytes() + thresholded_.reserved_bytes() + closed_.reserved_bytes() +
+           opening_.reserved_bytes() + closing_.reserved_bytes() + labels_.reserved_bytes() + components_.capacity() * sizeof(Component) +
            contour_.capacity() * sizeof(cv::Point) + (hull_.capacity() + hull_order_.capacity()) * sizeof(int) +
            defects_.capacity() * sizeof(Defect) + sizeof(NdviTable);
 }

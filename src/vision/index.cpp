@@ -1,5 +1,6 @@
 #include "stemd/vision/index.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include <opencv2/core.hpp>
@@ -37,6 +38,59 @@ void excess_green(const cv::Mat& bgr, cv::Mat& index_u8)
             const int b = src[3 * x], g = src[3 * x + 1], r = src[3 * x + 2];
             dst[x] = static_cast<std::uint8_t>((2 * g - r - b + 512) >> 2);
         }
+    }
+}
+
+void chromatic_excess_green(const cv::Mat& bgr, cv::Mat& index_u8)
+{
+    CV_Assert(bgr.type() == CV_8UC3);
+    index_u8.create(bgr.size(), CV_8UC1);
+    const int width = bgr.cols;
+    std::uint64_t sum = 0;
+    for (int y = 0; y < bgr.rows; ++y) {
+        const std::uint8_t* src = bgr.ptr<std::uint8_t>(y);
+        std::uint32_t row_sum = 0;  // at most 765 * width: fits for any width below 5.6 million
+        for (int i = 0; i < 3 * width; ++i)
+            row_sum += src[i];
+        sum += row_sum;
+    }
+    const double pixels = std::max(1.0, static_cast<double>(bgr.total()));
+    // The floor keeps an all-black frame from dividing by zero; it is far
+    // below any exposed frame's mean.
+    const float mean_brightness = static_cast<float>(std::max(static_cast<double>(sum) / pixels, 1.0));
+    for (int y = 0; y < bgr.rows; ++y) {
+        const std::uint8_t* src = bgr.ptr<std::uint8_t>(y);
+        std::uint8_t* dst = index_u8.ptr<std::uint8_t>(y);
+        for (int x = 0; x < width; ++x) {
+            const float b = src[3 * x], g = src[3 * x + 1], r = src[3 * x + 2];
+            const float value = 128.5f + 160.0f * (2.0f * g - r - b) / (r + g + b + mean_brightness);
+            dst[x] = static_cast<std::uint8_t>(std::clamp(value, 0.0f, 255.0f));
+        }
+    }
+}
+
+void smooth_binomial3(const cv::Mat& src_u8, std::uint16_t* row_sums, cv::Mat& dst_u8)
+{
+    CV_Assert(src_u8.type() == CV_8UC1 && src_u8.data != dst_u8.data);
+    dst_u8.create(src_u8.size(), CV_8UC1);
+    const int width = src_u8.cols, height = src_u8.rows;
+    if (width == 0 || height == 0)
+        return;
+    for (int y = 0; y < height; ++y) {
+        const std::uint8_t* above = src_u8.ptr<std::uint8_t>(std::max(y - 1, 0));
+        const std::uint8_t* centre = src_u8.ptr<std::uint8_t>(y);
+        const std::uint8_t* below = src_u8.ptr<std::uint8_t>(std::min(y + 1, height - 1));
+        for (int x = 0; x < width; ++x)
+            row_sums[x] = static_cast<std::uint16_t>(above[x] + 2 * centre[x] + below[x]);
+        std::uint8_t* dst = dst_u8.ptr<std::uint8_t>(y);
+        if (width == 1) {
+            dst[0] = static_cast<std::uint8_t>((4 * row_sums[0] + 8) >> 4);
+            continue;
+        }
+        dst[0] = static_cast<std::uint8_t>((3 * row_sums[0] + row_sums[1] + 8) >> 4);
+        for (int x = 1; x + 1 < width; ++x)
+            dst[x] = static_cast<std::uint8_t>((row_sums[x - 1] + 2 * row_sums[x] + row_sums[x + 1] + 8) >> 4);
+        dst[width - 1] = static_cast<std::uint8_t>((row_sums[width - 2] + 3 * row_sums[width - 1] + 8) >> 4);
     }
 }
 

@@ -144,9 +144,41 @@ int min_error_threshold(const Histogram& histogram)
     return best < 0 ? otsu_threshold(histogram) : best;
 }
 
-int auto_threshold(const Histogram& histogram, ThresholdMethod method)
+int soil_noise_threshold(const Histogram& histogram, double sigmas)
+{
+    // The mode of the histogram smoothed over three levels, so that a
+    // quantisation comb does not pick a spike.
+    int mode = 0;
+    std::uint64_t best = 0;
+    for (int v = 0; v < 256; ++v) {
+        const std::uint64_t smoothed = static_cast<std::uint64_t>(histogram[v]) + (v > 0 ? histogram[v - 1] : 0) +
+                                       (v < 255 ? histogram[v + 1] : 0);
+        if (smoothed > best) {
+            best = smoothed;
+            mode = v;
+        }
+    }
+    if (best == 0)
+        return 255;
+    // Half-normal spread of the levels at and below the mode.
+    double n = 0, squares = 0;
+    for (int v = 0; v <= mode; ++v) {
+        n += histogram[v];
+        squares += static_cast<double>(histogram[v]) * (v - mode) * (v - mode);
+    }
+    const double sigma = n > 0 ? std::sqrt(squares / n) : 0.0;
+    return static_cast<int>(std::clamp(std::ceil(mode + sigmas * sigma), 0.0, 255.0));
+}
+
+int above_soil_threshold(const Histogram& histogram, double sigmas)
+{
+    return std::max(otsu_threshold(histogram), soil_noise_threshold(histogram, sigmas));
+}
+
+int auto_threshold(const Histogram& histogram, ThresholdMethod method, double soil_sigmas)
 {
     switch (method) {
+    case ThresholdMethod::above_soil: return above_soil_threshold(histogram, soil_sigmas);
     case ThresholdMethod::triangle: return triangle_threshold(histogram);
     case ThresholdMethod::min_error: return min_error_threshold(histogram);
     case ThresholdMethod::otsu: break;

@@ -6,6 +6,7 @@ std::string_view to_string(Segmentation v)
 {
     switch (v) {
     case Segmentation::exg: return "exg";
+    case Segmentation::chromatic_exg: return "chromatic_exg";
     case Segmentation::ndvi: return "ndvi";
     case Segmentation::mask: return "mask";
     }
@@ -18,6 +19,7 @@ std::string_view to_string(ThresholdMethod v)
     case ThresholdMethod::otsu: return "otsu";
     case ThresholdMethod::triangle: return "triangle";
     case ThresholdMethod::min_error: return "min_error";
+    case ThresholdMethod::above_soil: return "above_soil";
     }
     return "?";
 }
@@ -80,6 +82,7 @@ std::string_view to_string(DetectStatus v)
 std::optional<Segmentation> parse_segmentation(std::string_view s)
 {
     if (s == "exg") return Segmentation::exg;
+    if (s == "chromatic_exg") return Segmentation::chromatic_exg;
     if (s == "ndvi") return Segmentation::ndvi;
     if (s == "mask") return Segmentation::mask;
     return std::nullopt;
@@ -90,6 +93,7 @@ std::optional<ThresholdMethod> parse_threshold_method(std::string_view s)
     if (s == "otsu") return ThresholdMethod::otsu;
     if (s == "triangle") return ThresholdMethod::triangle;
     if (s == "min_error") return ThresholdMethod::min_error;
+    if (s == "above_soil") return ThresholdMethod::above_soil;
     return std::nullopt;
 }
 

@@ -96,3 +96,45 @@ TEST(Closing, ScratchIsReusableAcrossRadii)
         EXPECT_EQ(cv::countNonZero(actual != opencv_close(mask, radius)), 0) << radius;
     }
 }
+
+TEST(Opening, BitExactWithOpenCvOnRandomMasks)
+{
+    const cv::Size sizes[] = {{1, 1}, {1, 17}, {63, 9}, {64, 64}, {65, 33}, {130, 70}, {257, 41}};
+    std::uint64_t seed = 100;
+    for (const cv::Size size : sizes) {
+        for (const int radius : {0, 1, 2, 3, 6}) {
+            for (const double salt : {0.0, 0.02, 0.3}) {
+                const cv::Mat mask = stemd::test::random_blob_mask(size, seed++, 8, salt);
+                cv::Mat expected = mask.clone();
+                if (radius > 0)
+                    cv::morphologyEx(mask, expected, cv::MORPH_OPEN,
+                                     cv::getStructuringElement(cv::MORPH_ELLIPSE,
+                                                               cv::Size(2 * radius + 1, 2 * radius + 1)));
+                BitMask in, out;
+                ClosingScratch scratch;
+                pack_mask(mask, MaskVegetation::nonzero, in);
+                open_mask(in, radius, out, scratch);
+                cv::Mat actual;
+                unpack_mask(out, actual);
+                ASSERT_EQ(cv::countNonZero(expected != actual), 0)
+                    << "size " << size << " radius " << radius << " salt " << salt;
+            }
+        }
+    }
+}
+
+TEST(Opening, RemovesSpecksAndKeepsBlobs)
+{
+    cv::Mat mask = cv::Mat::zeros(40, 80, CV_8UC1);
+    mask.at<std::uint8_t>(5, 5) = 255;                  // a single-pixel speck
+    mask(cv::Rect(10, 20, 40, 1)).setTo(255);           // a one-pixel-wide fringe
+    mask(cv::Rect(60, 10, 12, 12)).setTo(255);          // a leaf-sized blob
+    BitMask in, out;
+    ClosingScratch scratch;
+    pack_mask(mask, MaskVegetation::nonzero, in);
+    open_mask(in, 1, out, scratch);
+    EXPECT_FALSE(out.get(5, 5));
+    EXPECT_FALSE(out.get(30, 20));
+    EXPECT_TRUE(out.get(65, 15));
+    EXPECT_TRUE(out.get(60, 15));  // straight edges survive a cross-shaped opening
+}

@@ -292,7 +292,12 @@ TEST(Detect, BareSoilHasNoPlantsWithEveryAutomaticThreshold)
     const cv::Mat bgr = soil_frame({400, 300}, 3);
     for (const ThresholdMethod m : {ThresholdMethod::otsu, ThresholdMethod::triangle, ThresholdMethod::min_error}) {
         SCOPED_TRACE(std::string(to_string(m)));
+        // The plain index without smoothing or opening, where the split
+        // soil reaches the mask.
         Params params;
+        params.segmentation = Segmentation::exg;
+        params.smooth_index = false;
+        params.opening_radius_px = 0;
         params.threshold = m;
         Detections d = detect({.bgr = bgr}, params);
         ASSERT_EQ(d.status, DetectStatus::ok);
@@ -311,6 +316,21 @@ TEST(Detect, BareSoilHasNoPlantsWithEveryAutomaticThreshold)
         if (m == ThresholdMethod::otsu) {
             EXPECT_FALSE(d.plants.empty());
         }
+    }
+}
+
+TEST(Detect, BareSoilHasNoPlantsWithTheDefaultsEvenWithoutTheSeparationCheck)
+{
+    // The default threshold stays above the soil's own spread, so the
+    // separation check is a second line, not the only one.
+    for (const std::uint64_t seed : {3u, 4u, 5u}) {
+        const cv::Mat bgr = soil_frame({400, 300}, seed);
+        Params params;
+        params.min_class_separation = 0;
+        const Detections d = detect({.bgr = bgr}, params);
+        ASSERT_EQ(d.status, DetectStatus::ok);
+        EXPECT_TRUE(d.plants.empty()) << "seed " << seed;
+        EXPECT_LT(d.stats.vegetation_px, 10) << "seed " << seed;
     }
 }
 

@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -63,5 +65,71 @@ TEST(ExcessGreen, VectorPathEqualsTheFormulaOnEveryPixel)
             const cv::Vec3b p = bgr.at<cv::Vec3b>(y, x);
             ASSERT_EQ(index.at<std::uint8_t>(y, x), (2 * p[1] - p[2] - p[0] + 512) / 4) << x << "," << y;
         }
+    }
+}
+
+namespace {
+
+// A frame of `soil` with one `leaf`-coloured square; the index at the leaf's centre.
+int chromatic_index_at_leaf(cv::Vec3b soil, cv::Vec3b leaf)
+{
+    cv::Mat bgr(60, 60, CV_8UC3, cv::Scalar(soil[0], soil[1], soil[2]));
+    bgr(cv::Rect(20, 20, 20, 20)).setTo(cv::Scalar(leaf[0], leaf[1], leaf[2]));
+    cv::Mat index;
+    chromatic_excess_green(bgr, index);
+    return index.at<std::uint8_t>(30, 30);
+}
+
+}  // namespace
+
+TEST(ChromaticExcessGreen, GreyIsNeutralAndGreenIsHigh)
+{
+    cv::Mat bgr(1, 3, CV_8UC3);
+    bgr.at<cv::Vec3b>(0, 0) = {100, 100, 100};
+    bgr.at<cv::Vec3b>(0, 1) = {30, 90, 50};
+    bgr.at<cv::Vec3b>(0, 2) = {0, 0, 0};
+    cv::Mat index;
+    chromatic_excess_green(bgr, index);
+    ASSERT_EQ(index.type(), CV_8UC1);
+    // Mean brightness (300 + 170 + 0) / 3; the value is 128 + 160 e / (s + mean).
+    const double mean = 470.0 / 3;
+    EXPECT_EQ(index.at<std::uint8_t>(0, 0), 128);
+    EXPECT_EQ(index.at<std::uint8_t>(0, 1), std::lround(128 + 160 * 100 / (170 + mean)));
+    EXPECT_EQ(index.at<std::uint8_t>(0, 2), 128);  // black is neutral, not a division by zero
+}
+
+TEST(ChromaticExcessGreen, DoesNotChangeWithExposure)
+{
+    // Halving every channel (half the exposure or gain) keeps the index
+    // within one level; plain Excess Green halves its distance from neutral.
+    const cv::Vec3b soil{60, 80, 110}, leaf{40, 120, 70};
+    const cv::Vec3b dark_soil{30, 40, 55}, dark_leaf{20, 60, 35};
+    EXPECT_NEAR(chromatic_index_at_leaf(soil, leaf), chromatic_index_at_leaf(dark_soil, dark_leaf), 1);
+    EXPECT_GT(chromatic_index_at_leaf(soil, leaf), 150);
+}
+
+TEST(SmoothBinomial3, EqualsOpenCvGaussian3x3WithReplicatedEdges)
+{
+    cv::RNG rng(7);
+    for (const cv::Size size : {cv::Size(1, 1), cv::Size(1, 5), cv::Size(7, 1), cv::Size(33, 17), cv::Size(130, 40)}) {
+        cv::Mat src(size, CV_8UC1);
+        rng.fill(src, cv::RNG::UNIFORM, 0, 256);
+        // Integer reference: (sum of [1 2 1] x [1 2 1] weights * pixels + 8) / 16.
+        cv::Mat expected(size, CV_8UC1);
+        for (int y = 0; y < size.height; ++y)
+            for (int x = 0; x < size.width; ++x) {
+                int sum = 0;
+                for (int dy = -1; dy <= 1; ++dy)
+                    for (int dx = -1; dx <= 1; ++dx) {
+                        const int yy = std::clamp(y + dy, 0, size.height - 1);
+                        const int xx = std::clamp(x + dx, 0, size.width - 1);
+                        sum += (dy == 0 ? 2 : 1) * (dx == 0 ? 2 : 1) * src.at<std::uint8_t>(yy, xx);
+                    }
+                expected.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>((sum + 8) / 16);
+            }
+        std::vector<std::uint16_t> row(static_cast<std::size_t>(size.width));
+        cv::Mat actual;
+        smooth_binomial3(src, row.data(), actual);
+        ASSERT_EQ(cv::countNonZero(expected != actual), 0) << size;
     }
 }

@@ -224,3 +224,48 @@ TEST(Threshold, EveryMethodSplitsUnimodalSoilButWithASmallSeparation)
     compute_histogram(bimodal, h);
     EXPECT_GT(class_separation(h, otsu_threshold(h)), 5 * Params{}.min_class_separation);
 }
+
+namespace {
+
+// A histogram of a Gaussian soil (mode `soil`, spread `sigma`) plus
+// `vegetation_fraction` of the pixels around `vegetation`.
+Histogram soil_and_vegetation(double soil, double sigma, double vegetation, double vegetation_fraction)
+{
+    Histogram h{};
+    const double total = 1e6;
+    for (int v = 0; v < 256; ++v) {
+        const double z = (v - soil) / sigma;
+        double n = (1 - vegetation_fraction) * total * std::exp(-0.5 * z * z) / (sigma * std::sqrt(2 * M_PI));
+        const double zv = (v - vegetation) / 6.0;
+        n += vegetation_fraction * total * std::exp(-0.5 * zv * zv) / (6.0 * std::sqrt(2 * M_PI));
+        h[static_cast<std::size_t>(v)] = static_cast<std::uint32_t>(std::lround(n));
+    }
+    return h;
+}
+
+}  // namespace
+
+TEST(Threshold, SoilNoiseThresholdIsTheModePlusSigmasOfTheLowerSide)
+{
+    // No vegetation, no tail: mode 100, sigma 3.
+    const Histogram h = soil_and_vegetation(100, 3, 0, 0);
+    EXPECT_NEAR(soil_noise_threshold(h, 5), 115, 1);
+    EXPECT_NEAR(soil_noise_threshold(h, 3), 109, 1);
+    // Vegetation does not move it: only the soil mode's lower side counts.
+    EXPECT_NEAR(soil_noise_threshold(soil_and_vegetation(100, 3, 160, 0.2), 5), 115, 1);
+    EXPECT_EQ(soil_noise_threshold(Histogram{}, 5), 255);  // empty: nothing is vegetation
+}
+
+TEST(Threshold, AboveSoilKeepsOtsuWhereItSeparatesAndRisesAboveTheSoilWhereItDoesNot)
+{
+    // 1 % vegetation: Otsu splits the soil near its mode, above_soil stays
+    // 5 sigma above it and below the vegetation.
+    const Histogram sparse = soil_and_vegetation(100, 8, 160, 0.01);
+    EXPECT_LT(otsu_threshold(sparse), 110);
+    EXPECT_NEAR(above_soil_threshold(sparse, 5), 140, 1);
+    // 30 % vegetation: Otsu already separates the classes, and is kept.
+    const Histogram dense = soil_and_vegetation(100, 3, 140, 0.3);
+    EXPECT_GT(otsu_threshold(dense), 115);
+    EXPECT_EQ(above_soil_threshold(dense, 5), otsu_threshold(dense));
+    EXPECT_EQ(auto_threshold(dense, ThresholdMethod::above_soil, 5), above_soil_threshold(dense, 5));
+}

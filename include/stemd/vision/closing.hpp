@@ -1,4 +1,4 @@
-// Morphological closing of a bit mask with OpenCV's elliptic kernel of
+// Morphological closing (and opening) of a bit mask with OpenCV's elliptic kernel of
 // size (2r+1)x(2r+1). Bit for bit equal to cv::morphologyEx(MORPH_CLOSE)
 // with the default border (outside is background for the dilation and
 // vegetation for the erosion), at a fraction of its cost.
@@ -12,15 +12,16 @@
 
 namespace stemd::vision {
 
-// Scratch memory of the closing; reserve() once, then close() allocates
-// nothing for that width and any radius up to the reserved one.
+// Scratch memory of the closing or opening; reserve() once, then they
+// allocate nothing for that width and any radius up to the reserved one.
+// Changing the radius recomputes the kernel: keep one scratch per radius.
 class ClosingScratch {
 public:
     void reserve(int width_px, int height_px, int max_radius_px);
     std::size_t reserved_bytes() const;
 
 private:
-    friend void close_mask(const BitMask&, int, BitMask&, ClosingScratch&);
+    friend struct MorphologyAccess;
     BitMask dilated_;
     std::vector<std::uint64_t> ring_;      // horizontally dilated rows, one per kernel width
     std::vector<std::uint64_t> row_tmp_;
@@ -37,5 +38,9 @@ std::vector<int> ellipse_half_widths(int radius_px);
 // out = close(in) with the (2r+1)-pixel ellipse. r = 0 copies. `in` and
 // `out` must be different objects.
 void close_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch);
+
+// out = open(in) with the same kernel, equal to cv::morphologyEx(MORPH_OPEN)
+// (outside is vegetation for the erosion, background for the dilation).
+void open_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch);
 
 }  // namespace stemd::vision

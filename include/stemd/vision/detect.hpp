@@ -1,4 +1,5 @@
-// The whole pipeline: index -> threshold -> closing -> plants -> leaves -> stems.
+// The whole pipeline: index -> smoothing -> threshold -> opening -> closing ->
+// plants -> leaves -> stems.
 #pragma once
 
 #include <vector>
@@ -43,10 +44,14 @@ private:
     cv::Size frame_size_;
     int reserved_radius_px_ = 0;
     NdviTable ndvi_table_;
-    cv::Mat index_;
+    cv::Mat raw_index_;                     // before smoothing
+    cv::Mat index_;                         // what the threshold sees
+    std::vector<std::uint16_t> smooth_row_;
     Histogram histogram_{};
-    BitMask vegetation_;
+    BitMask vegetation_;                    // after the threshold and the opening
+    BitMask thresholded_;
     BitMask closed_;
+    ClosingScratch opening_;
     ClosingScratch closing_;
     LabelScratch labels_;
     std::vector<Component> components_;

@@ -13,6 +13,17 @@ namespace stemd::vision {
 // index = (2G - R - B + 512) / 4, rounded down. `bgr` is CV_8UC3.
 void excess_green(const cv::Mat& bgr, cv::Mat& index_u8);
 
+// Chromatic Excess Green e / (s + mean_s), where e = 2G - R - B, s = R + G + B
+// and mean_s is the frame's mean of s: exposure and gain scale e, s and
+// mean_s alike and cancel, shadows keep their leaves, and in dark pixels
+// (s << mean_s) the noisy chromaticity is damped. Mapped to
+// round(128 + 160 * value), clamped to [0, 255]: neutral soil sits near 128.
+void chromatic_excess_green(const cv::Mat& bgr, cv::Mat& index_u8);
+
+// 3x3 binomial ([1 2 1] x [1 2 1] / 16, rounded; edges replicated).
+// `row_sums` is scratch of at least src.cols entries; `dst` must not be `src`.
+void smooth_binomial3(const cv::Mat& src_u8, std::uint16_t* row_sums, cv::Mat& dst_u8);
+
 // NDVI (NIR - R) / (NIR + R) in [-1, 1], mapped to round((ndvi + 1) * 127.5);
 // NIR + R = 0 gives 128 (ndvi 0). One 256x256 table replaces the division.
 class NdviTable {

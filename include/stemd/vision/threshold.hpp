@@ -27,7 +27,16 @@ int triangle_threshold(const Histogram& histogram);
 // threshold into the smaller class when vegetation covers little of the
 // frame (on CWFID: mean IoU 0.912 against 0.867 for Otsu).
 int min_error_threshold(const Histogram& histogram);
-int auto_threshold(const Histogram& histogram, ThresholdMethod method);
+// The upper edge of the soil's own spread: the histogram's mode (the soil,
+// as long as vegetation covers less of the frame than soil) plus `sigmas`
+// standard deviations, measured on the mode's lower side only, which
+// vegetation (above) does not reach. Valid for any small vegetation cover,
+// where Otsu and min_error split the soil itself.
+int soil_noise_threshold(const Histogram& histogram, double sigmas);
+// Otsu where it separates two classes, never inside the soil's spread.
+int above_soil_threshold(const Histogram& histogram, double sigmas);
+// `soil_sigmas` is used by above_soil only.
+int auto_threshold(const Histogram& histogram, ThresholdMethod method, double soil_sigmas = 5.0);
 
 // Difference of the mean index of the two classes the threshold makes,
 // mean(index > t) - mean(index <= t), from the histogram alone; 0 when

@@ -43,8 +43,14 @@ private:
     std::size_t size_ = 0;
 };
 
-enum class Segmentation : std::uint8_t { exg, ndvi, mask };
-enum class ThresholdMethod : std::uint8_t { otsu, triangle, min_error };
+// exg: 2G - R - B. chromatic_exg: the same divided by the pixel's brightness
+// plus the frame's mean brightness, so that the index does not change with
+// exposure, gain or shadow, and dark pixels (where chromaticity is mostly
+// sensor noise) are pulled towards 0.
+enum class Segmentation : std::uint8_t { exg, chromatic_exg, ndvi, mask };
+// above_soil: Otsu, but never inside the soil's own spread: max(Otsu,
+// soil mode + soil_sigmas standard deviations of the soil).
+enum class ThresholdMethod : std::uint8_t { otsu, triangle, min_error, above_soil };
 // Which pixel value of an external mask means vegetation.
 enum class MaskVegetation : std::uint8_t { nonzero, zero };
 // What a stem point came from: the plant's leaves or its centre of mass.
@@ -80,14 +86,24 @@ std::optional<StemEstimator> parse_stem_estimator(std::string_view s);
 // The pipeline's parameters, in the units their names carry. Ranges are
 // enforced by the config schema (runtime/config_schema), not here.
 struct Params {
-    Segmentation segmentation = Segmentation::exg;
-    ThresholdMethod threshold = ThresholdMethod::otsu;
+    Segmentation segmentation = Segmentation::chromatic_exg;
+    ThresholdMethod threshold = ThresholdMethod::above_soil;
     MaskVegetation mask_vegetation = MaskVegetation::nonzero;
     // Automatic thresholds: if the mean index of the two classes differs by
     // less than this (index units; ExG: 1 unit = 4 of 2G-R-B, NDVI: 1/127.5),
     // the histogram has no second class and the frame has no vegetation.
     // 0 disables the check.
     double min_class_separation = 12.0;
+    // above_soil: the threshold lies at least this many standard deviations
+    // of the soil (measured on the soil mode's side away from vegetation)
+    // above the soil mode.
+    double soil_sigmas = 5.0;
+    // 3x3 binomial smoothing of the index before the threshold: single-pixel
+    // sensor noise then no longer crosses it.
+    bool smooth_index = true;
+    // Opening with a 3x3 square before the closing: removes vegetation
+    // specks and colour fringes one or two pixels wide (0 disables).
+    int opening_radius_px = 1;
     int closing_radius_px = 5;          // paper's m
     double gsd_mm_per_px = 0.33;        // ground sampling distance
     double min_plant_area_mm2 = 10.0;   // smaller components are noise
