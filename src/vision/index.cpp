@@ -61,10 +61,39 @@ void chromatic_excess_green(const cv::Mat& bgr, cv::Mat& index_u8)
     for (int y = 0; y < bgr.rows; ++y) {
         const std::uint8_t* src = bgr.ptr<std::uint8_t>(y);
         std::uint8_t* dst = index_u8.ptr<std::uint8_t>(y);
-        for (int x = 0; x < width; ++x) {
+        int x = 0;
+#if CV_SIMD
+        // 2G - R - B and R + G + B in 16 bits, the quotient in float32,
+        // rounded, and packed back with saturation (the clamp to [0, 255]).
+        const int lanes = cv::v_uint8::nlanes;
+        const cv::v_float32 mean = cv::vx_setall_f32(mean_brightness);
+        const cv::v_float32 scale = cv::vx_setall_f32(160.0f);
+        const cv::v_float32 neutral = cv::vx_setall_f32(128.0f);
+        auto quarter = [&](const cv::v_int32& e, const cv::v_int32& s) {
+            return cv::v_round(cv::v_cvt_f32(e) * scale / (cv::v_cvt_f32(s) + mean) + neutral);
+        };
+        auto half = [&](const cv::v_uint16& b, const cv::v_uint16& g, const cv::v_uint16& r) {
+            const cv::v_int16 e = cv::v_reinterpret_as_s16(g + g) - cv::v_reinterpret_as_s16(r + b);
+            const cv::v_int16 s = cv::v_reinterpret_as_s16(r + g + b);
+            cv::v_int32 e0, e1, s0, s1;
+            cv::v_expand(e, e0, e1);
+            cv::v_expand(s, s0, s1);
+            return cv::v_pack(quarter(e0, s0), quarter(e1, s1));
+        };
+        for (; x + lanes <= width; x += lanes) {
+            cv::v_uint8 b, g, r;
+            cv::v_load_deinterleave(src + 3 * x, b, g, r);
+            cv::v_uint16 b0, b1, g0, g1, r0, r1;
+            cv::v_expand(b, b0, b1);
+            cv::v_expand(g, g0, g1);
+            cv::v_expand(r, r0, r1);
+            cv::v_store(dst + x, cv::v_pack_u(half(b0, g0, r0), half(b1, g1, r1)));
+        }
+#endif
+        for (; x < width; ++x) {
             const float b = src[3 * x], g = src[3 * x + 1], r = src[3 * x + 2];
-            const float value = 128.5f + 160.0f * (2.0f * g - r - b) / (r + g + b + mean_brightness);
-            dst[x] = static_cast<std::uint8_t>(std::clamp(value, 0.0f, 255.0f));
+            const float value = 128.0f + 160.0f * (2.0f * g - r - b) / (r + g + b + mean_brightness);
+            dst[x] = cv::saturate_cast<std::uint8_t>(cvRound(value));
         }
     }
 }

@@ -1,0 +1,234 @@
+// The detector with the shipped configuration on real field frames in
+// ../shared/data (or STEMD_REAL_DATA). The data is not part of the
+// repository (its licences forbid copying it): without it every test here
+// is skipped with the reason.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "stemd/eval/eval.hpp"
+#include "stemd/io/recording.hpp"
+#include "stemd/runtime/config.hpp"
+#include "stemd/runtime/vision_config.hpp"
+#include "stemd/vision/detect.hpp"
+
+namespace fs = std::filesystem;
+using namespace stemd;
+
+namespace {
+
+fs::path real_data_dir()
+{
+    if (const char* dir = std::getenv("STEMD_REAL_DATA"))
+        return dir;
+    return fs::path(STEMD_SOURCE_DIR) / ".." / "shared" / "data";
+}
+
+// Skips the calling test when `set` is not there.
+#define REQUIRE_REAL_SET(set)                                                                                       \
+    do {                                                                                                            \
+        if (!fs::exists(real_data_dir() / (set)))                                                                   \
+            GTEST_SKIP() << "real data set " << (real_data_dir() / (set)).string()                                 \
+                         << " is absent (set STEMD_REAL_DATA to the folder holding bonirob/, carrot-dev/, "        \
+                            "cwfid-train/)";                                                                        \
+    } while (0)
+
+// The shipped configuration (config/stemd.yaml) with `overrides`.
+vision::Params shipped_params(const std::vector<std::string>& overrides)
+{
+    config::Config config;
+    const auto error = config.load_file(fs::path(STEMD_SOURCE_DIR) / "config" / "stemd.yaml");
+    EXPECT_FALSE(error) << error->to_string();
+    for (const std::string& set : overrides) {
+        const auto bad = config.set_override(set);
+        EXPECT_FALSE(bad) << set;
+    }
+    return config::vision_params(config);
+}
+
+cv::Mat read(const fs::path& path, int flags)
+{
+    cv::Mat image = cv::imread(path.string(), flags);
+    EXPECT_FALSE(image.empty()) << path;
+    return image;
+}
+
+// Mean IoU of the detector's vegetation mask against the human masks of a
+// recording whose mask column holds them.
+double mean_mask_iou(const fs::path& recording_dir, const vision::Params& params, bool gt_vegetation_is_zero)
+{
+    std::string error;
+    const auto recording = io::read_recording(recording_dir, error);
+    EXPECT_TRUE(recording) << error;
+    if (!recording)
+        return 0;
+    double sum = 0;
+    int frames = 0;
+    for (const io::RecordingFrame& frame : recording->frames) {
+        const cv::Mat bgr = read(recording->resolve(frame.rgb), cv::IMREAD_COLOR);
+        cv::Mat truth = read(recording->resolve(frame.mask), cv::IMREAD_GRAYSCALE);
+        if (gt_vegetation_is_zero)
+            truth = truth == 0;
+        vision::Workspace workspace(bgr.size(), params);
+        vision::Detections detections;
+        vision::detect({.bgr = bgr}, params, workspace, detections);
+        cv::Mat predicted;
+        vision::unpack_mask(workspace.vegetation(), predicted);
+        const auto iou = eval::mask_iou(predicted, truth, error);
+        EXPECT_TRUE(iou) << error;
+        sum += iou ? iou->iou : 0;
+        ++frames;
+    }
+    return frames ? sum / frames : 0;
+}
+
+// CWFID's images/ and masks/ as a list of (image, mask) paths.
+std::vector<std::pair<fs::path, fs::path>> cwfid_pairs()
+{
+    std::vector<std::pair<fs::path, fs::path>> pairs;
+    const fs::path dir = real_data_dir() / "cwfid-train";
+    for (const auto& entry : fs::directory_iterator(dir / "images")) {
+        const std::string name = entry.path().filename().string();
+        const auto cut = name.find("_image.png");
+        if (cut == std::string::npos)
+            continue;
+        pairs.emplace_back(entry.path(), dir / "masks" / (name.substr(0, cut) + "_mask.png"));
+    }
+    std::sort(pairs.begin(), pairs.end());
+    return pairs;
+}
+
+double cwfid_mean_iou(const vision::Params& params)
+{
+    double sum = 0;
+    int frames = 0;
+    std::string error;
+    for (const auto& [image, mask] : cwfid_pairs()) {
+        const cv::Mat bgr = read(image, cv::IMREAD_COLOR);
+        const cv::Mat truth = read(mask, cv::IMREAD_GRAYSCALE) == 0;  // 0 = vegetation
+        vision::Workspace workspace(bgr.size(), params);
+        vision::Detections detections;
+        vision::detect({.bgr = bgr}, params, workspace, detections);
+        cv::Mat predicted;
+        vision::unpack_mask(workspace.vegetation(), predicted);
+        const auto iou = eval::mask_iou(predicted, truth, error);
+        EXPECT_TRUE(iou) << error;
+        sum += iou ? iou->iou : 0;
+        ++frames;
+    }
+    EXPECT_GT(frames, 0);
+    return frames ? sum / frames : 0;
+}
+
+struct BoniRobFrame {
+    std::string name;
+    cv::Mat bgr;
+    cv::Mat nir;
+};
+
+std::vector<BoniRobFrame> bonirob_frames()
+{
+    const fs::path dir = real_data_dir() / "bonirob";
+    std::vector<BoniRobFrame> frames;
+    for (int i = 0; i < 3; ++i) {
+        char rgb[32], nir[32];
+        std::snprintf(rgb, sizeof rgb, "rgb_%05d.png", i);
+        std::snprintf(nir, sizeof nir, "nir_%05d.png", i);
+        frames.push_back({rgb, read(dir / rgb, cv::IMREAD_COLOR), read(dir / nir, cv::IMREAD_GRAYSCALE)});
+    }
+    return frames;
+}
+
+constexpr double kBoniRobGsdMmPerPx = 0.395;  // measured from the plants' motion (data README)
+
+std::vector<eval::StemPoint> detect_stems(const std::vector<BoniRobFrame>& frames, const vision::Params& params)
+{
+    std::vector<eval::StemPoint> stems;
+    for (const BoniRobFrame& frame : frames) {
+        const vision::Detections d = vision::detect({.bgr = frame.bgr, .nir = frame.nir}, params);
+        EXPECT_EQ(d.status, vision::DetectStatus::ok) << frame.name;
+        for (const vision::Plant& plant : d.plants)
+            if (plant.has_stem)
+                stems.push_back({frame.name, plant.stem.x, plant.stem.y});
+    }
+    return stems;
+}
+
+std::vector<eval::StemPoint> bonirob_truth()
+{
+    std::string error;
+    const auto truth = eval::read_stem_points(real_data_dir() / "bonirob" / "stems.csv", error);
+    EXPECT_TRUE(truth) << error;
+    return truth.value_or(std::vector<eval::StemPoint>{});
+}
+
+}  // namespace
+
+TEST(RealFrames, BoniRobRgbFindsAPlantWithItsStemInEveryFrame)
+{
+    // The shipped configuration once called these frames bare soil: Otsu
+    // split the soil (1 % vegetation) and the frame was thrown away.
+    REQUIRE_REAL_SET("bonirob");
+    const auto frames = bonirob_frames();
+    const auto truth = bonirob_truth();
+    const auto params = shipped_params({"camera.gsd_mm_per_px=0.395"});
+    for (const BoniRobFrame& frame : frames) {
+        std::vector<eval::StemPoint> frame_truth;
+        for (const auto& t : truth)
+            if (t.image == frame.name)
+                frame_truth.push_back(t);
+        const auto stems = detect_stems({frame}, params);
+        const auto match = eval::match_stems(frame_truth, stems, 5.0, kBoniRobGsdMmPerPx);
+        EXPECT_GE(match.true_positives, 1) << frame.name << ": " << stems.size() << " stems reported";
+    }
+}
+
+TEST(RealFrames, BoniRobRgbAndNirFindsEveryAnnotatedStemWithin5mm)
+{
+    REQUIRE_REAL_SET("bonirob");
+    const auto stems =
+        detect_stems(bonirob_frames(), shipped_params({"camera.gsd_mm_per_px=0.395", "segment.method=ndvi"}));
+    const auto truth = bonirob_truth();
+    const auto match = eval::match_stems(truth, stems, 5.0, kBoniRobGsdMmPerPx);
+    EXPECT_EQ(match.true_positives, static_cast<int>(truth.size())) << stems.size() << " stems reported";
+}
+
+TEST(RealFrames, BoniRobSoilWithoutPlantsHasNoPlantWithNir)
+{
+    // The right-hand 60 % of every frame holds no plant (stems.csv: all
+    // stems are at x < 420), only clods, straw and husks.
+    REQUIRE_REAL_SET("bonirob");
+    const auto params = shipped_params({"camera.gsd_mm_per_px=0.395", "segment.method=ndvi"});
+    for (const BoniRobFrame& frame : bonirob_frames()) {
+        const cv::Rect soil(520, 0, frame.bgr.cols - 520, frame.bgr.rows);
+        const cv::Mat bgr = frame.bgr(soil).clone(), nir = frame.nir(soil).clone();
+        const vision::Detections d = vision::detect({.bgr = bgr, .nir = nir}, params);
+        ASSERT_EQ(d.status, vision::DetectStatus::ok);
+        EXPECT_EQ(d.plants.size(), 0u) << frame.name;
+    }
+}
+
+TEST(RealFrames, CwfidMaskIouBeatsPlainExcessGreenWithOtsu)
+{
+    REQUIRE_REAL_SET("cwfid-train");
+    const double shipped = cwfid_mean_iou(shipped_params({"camera.gsd_mm_per_px=0.11"}));
+    const double plain = cwfid_mean_iou(shipped_params({"camera.gsd_mm_per_px=0.11", "segment.method=exg",
+                                                        "segment.threshold=otsu", "segment.smooth=false",
+                                                        "segment.opening_radius_px=0"}));
+    EXPECT_GT(shipped, plain + 0.01) << "shipped " << shipped << ", plain ExG + Otsu " << plain;
+}
+
+TEST(RealFrames, CarrotMaskIouStaysAboveTheFloor)
+{
+    // A floor against regressions while the 0.90 goal is open: plain ExG +
+    // Otsu reaches 0.878 here, the shipped segmentation 0.868.
+    REQUIRE_REAL_SET("carrot-dev");
+    const double iou = mean_mask_iou(real_data_dir() / "carrot-dev", shipped_params({}), false);
+    EXPECT_GE(iou, 0.85);
+}
