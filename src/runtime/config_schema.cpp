@@ -67,6 +67,8 @@ constexpr std::array kSchema{
 
     KeySpec{"plants.min_area_mm2", real, "mm2", 0, 100000, "10", "",
             "plants with a smaller area are dropped as noise"},
+    KeySpec{"plants.group_gap_mm", real, "mm", 0, 50, "6", "",
+            "pieces of vegetation less than this far apart are one plant (leaves whose petioles fell below the threshold); 0: every piece is a plant"},
 
     KeySpec{"leaves.defect_depth_mm", real, "mm", 0.1, 100, "1", "",
             "convexity defects deeper than this cut the contour into leaves (the paper: 3.3)"},

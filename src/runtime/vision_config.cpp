@@ -22,6 +22,7 @@ vision::Params vision_params(const Config& config)
     p.closing_radius_px = static_cast<int>(config.get_int("closing.radius_px"));
     p.gsd_mm_per_px = config.get_real("camera.gsd_mm_per_px");
     p.min_plant_area_mm2 = config.get_real("plants.min_area_mm2");
+    p.group_gap_mm = config.get_real("plants.group_gap_mm");
     p.defect_depth_mm = config.get_real("leaves.defect_depth_mm");
     p.min_leaves = static_cast<int>(config.get_int("stem.min_leaves"));
     p.min_intersection_angle_deg = config.get_real("stem.min_angle_deg");

@@ -168,6 +168,11 @@ struct MorphologyAccess {
     // Allocates only when the size or a larger radius is new.
     static Kernel prepare_kernel(const BitMask& in, int radius_px, ClosingScratch& scratch);
     // `op` from `in` into the scratch's intermediate mask, then the other one into `out`.
+    template <Op op>
+    static void run_one(const BitMask& in, const Kernel& kernel, BitMask& out, ClosingScratch& scratch)
+    {
+        morph_pass<op>(in, out, kernel, scratch.ring_.data(), scratch.row_tmp_.data(), scratch.row_clear_.get());
+    }
     template <Op first, Op second>
     static void run(const BitMask& in, const Kernel& kernel, BitMask& out, ClosingScratch& scratch)
     {
@@ -239,6 +244,16 @@ void open_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& s
         return;
     const Kernel kernel = MorphologyAccess::prepare_kernel(in, radius_px, scratch);
     MorphologyAccess::run<Op::erode, Op::dilate>(in, kernel, out, scratch);
+}
+
+void dilate_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch)
+{
+    CV_Assert(&in != &out);
+    radius_px = std::max(radius_px, 0);
+    if (copy_if_trivial(in, radius_px, out))
+        return;
+    const Kernel kernel = MorphologyAccess::prepare_kernel(in, radius_px, scratch);
+    MorphologyAccess::run_one<Op::dilate>(in, kernel, out, scratch);
 }
 
 }  // namespace stemd::vision

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <numbers>
+#include <span>
 
 #include "stemd/vision/contour.hpp"
 #include "stemd/vision/stem.hpp"
@@ -52,6 +54,33 @@ double contour_length_px(const std::vector<cv::Point>& contour)
     return straight + std::numbers::sqrt2 * diagonal;
 }
 
+// Dilating both pieces by half the gap joins them when the gap is at most
+// the gap (to the pixel).
+int group_radius_px(const Params& params)
+{
+    if (params.group_gap_mm <= 0 || params.gsd_mm_per_px <= 0)
+        return 0;
+    return std::clamp(static_cast<int>(std::ceil(params.group_gap_mm / (2.0 * params.gsd_mm_per_px))), 0,
+                      kMaxClosingRadiusPx);
+}
+
+// The contour point nearest `target`: where a leaf that is a piece of its
+// own meets the rest of its plant.
+cv::Point2f nearest_point(std::span<const cv::Point> contour, cv::Point2f target)
+{
+    cv::Point2f best = contour.empty() ? target : cv::Point2f(contour[0]);
+    float best_d2 = std::numeric_limits<float>::max();
+    for (const cv::Point& p : contour) {
+        const cv::Point2f d = cv::Point2f(p) - target;
+        const float d2 = d.dot(d);
+        if (d2 < best_d2) {
+            best_d2 = d2;
+            best = cv::Point2f(p);
+        }
+    }
+    return best;
+}
+
 }  // namespace
 
 Workspace::Workspace(cv::Size frame_size, const Params& params)
@@ -69,7 +98,14 @@ Workspace::Workspace(cv::Size frame_size, const Params& params)
     closing_.reserve(width, height, kMaxClosingRadiusPx);
     labels_.reserve(width, height);
     // 8-connected components are at least one pixel apart in both directions.
-    components_.reserve(static_cast<std::size_t>((width + 1) / 2) * static_cast<std::size_t>((height + 1) / 2));
+    const std::size_t max_components =
+        static_cast<std::size_t>((width + 1) / 2) * static_cast<std::size_t>((height + 1) / 2);
+    components_.reserve(max_components);
+    groups_.reserve(max_components);
+    piece_group_.reserve(max_components);
+    piece_order_.reserve(max_components);
+    group_rank_.reserve(max_components);
+    grouped_.reset(width, height);
     // Room for ordinary plants; longer (comb-like) contours are truncated,
     // counted, and the plant falls back to its centre of mass.
     contour_.reserve(static_cast<std::size_t>(2 * (width + height)) * 8);
@@ -81,6 +117,7 @@ Workspace::Workspace(cv::Size frame_size, const Params& params)
         close_mask(vegetation_, reserved_radius_px_, closed_, closing_);
         open_mask(thresholded_, std::clamp(params.opening_radius_px, 0, kMaxClosingRadiusPx), vegetation_,
                   opening_);
+        dilate_mask(closed_, group_radius_px(params), grouped_, grouping_);
     }
 }
 
@@ -129,16 +166,68 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
                ws.closing_);
     const std::int64_t t_closing = now_ns();
 
-    // 3. Plants.
+    // 3. Plants: pieces of the closed mask, grouped when they lie closer
+    // than the group gap.
     label_components(ws.closed_, ws.labels_, ws.components_);
+    const int pieces = static_cast<int>(ws.components_.size());
+    out.stats.components = pieces;
+    ws.piece_group_.resize(static_cast<std::size_t>(pieces));
+    ws.piece_order_.resize(static_cast<std::size_t>(pieces));
+    const int group_radius = group_radius_px(params);
+    if (group_radius > 0 && pieces > 1) {
+        dilate_mask(ws.closed_, group_radius, ws.grouped_, ws.grouping_);
+        label_components(ws.grouped_, ws.labels_, ws.groups_);
+        // Groups numbered in the order of their first piece, so plants keep
+        // the raster order of their top-most pixel.
+        ws.group_rank_.assign(ws.groups_.size(), -1);
+        int ranked = 0;
+        for (int i = 0; i < pieces; ++i) {
+            const int g = component_at(ws.labels_, ws.components_[static_cast<std::size_t>(i)].first_pixel);
+            int& rank = ws.group_rank_[static_cast<std::size_t>(g)];
+            if (rank < 0)
+                rank = ranked++;
+            ws.piece_group_[static_cast<std::size_t>(i)] = rank;
+        }
+    } else {
+        for (int i = 0; i < pieces; ++i)
+            ws.piece_group_[static_cast<std::size_t>(i)] = i;
+    }
+    for (int i = 0; i < pieces; ++i)
+        ws.piece_order_[static_cast<std::size_t>(i)] = i;
+    // By group, then raster order, so each group's first piece is its
+    // top-most one (std::sort: stable_sort would allocate).
+    std::sort(ws.piece_order_.begin(), ws.piece_order_.end(), [&](int a, int b) {
+        const int group_a = ws.piece_group_[static_cast<std::size_t>(a)];
+        const int group_b = ws.piece_group_[static_cast<std::size_t>(b)];
+        return group_a != group_b ? group_a < group_b : a < b;
+    });
     const std::int64_t t_plants = now_ns();
-    out.stats.components = static_cast<int>(ws.components_.size());
 
     // 4. Leaves and stems, plant by plant.
     const double pixel_area_mm2 = params.gsd_mm_per_px * params.gsd_mm_per_px;
     const auto min_depth_px = static_cast<float>(params.defect_depth_mm / params.gsd_mm_per_px);
-    for (const Component& c : ws.components_) {
-        if (static_cast<double>(c.area_px) * pixel_area_mm2 < params.min_plant_area_mm2) {
+    for (int begin = 0; begin < pieces;) {
+        int end = begin + 1;
+        const int group = ws.piece_group_[static_cast<std::size_t>(ws.piece_order_[static_cast<std::size_t>(begin)])];
+        while (end < pieces && ws.piece_group_[static_cast<std::size_t>(ws.piece_order_[static_cast<std::size_t>(end)])] == group)
+            ++end;
+        const std::span<const int> members(ws.piece_order_.data() + begin, static_cast<std::size_t>(end - begin));
+        begin = end;
+
+        long area_px = 0;
+        double sum_x = 0, sum_y = 0;
+        int x_min = std::numeric_limits<int>::max(), y_min = x_min, x_max = -1, y_max = -1;
+        for (const int m : members) {
+            const Component& c = ws.components_[static_cast<std::size_t>(m)];
+            area_px += c.area_px;
+            sum_x += c.sum_x;
+            sum_y += c.sum_y;
+            x_min = std::min(x_min, c.x_min);
+            y_min = std::min(y_min, c.y_min);
+            x_max = std::max(x_max, c.x_max);
+            y_max = std::max(y_max, c.y_max);
+        }
+        if (static_cast<double>(area_px) * pixel_area_mm2 < params.min_plant_area_mm2) {
             ++out.stats.small_components;
             continue;
         }
@@ -147,16 +236,46 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
             continue;
         }
         Plant plant;
-        plant.area_px = static_cast<int>(c.area_px);
-        plant.bbox = cv::Rect(c.x_min, c.y_min, c.x_max - c.x_min + 1, c.y_max - c.y_min + 1);
-        plant.centre_of_mass = {static_cast<float>(c.sum_x / static_cast<double>(c.area_px)),
-                                static_cast<float>(c.sum_y / static_cast<double>(c.area_px))};
-        plant.first_pixel = c.first_pixel;
+        plant.area_px = static_cast<int>(area_px);
+        plant.bbox = cv::Rect(x_min, y_min, x_max - x_min + 1, y_max - y_min + 1);
+        plant.centre_of_mass = {static_cast<float>(sum_x / static_cast<double>(area_px)),
+                                static_cast<float>(sum_y / static_cast<double>(area_px))};
+        plant.first_pixel = ws.components_[static_cast<std::size_t>(members.front())].first_pixel;
 
-        const double radius_px = std::sqrt(static_cast<double>(c.area_px) / std::numbers::pi);
+        const double radius_px = std::sqrt(static_cast<double>(area_px) / std::numbers::pi);
         if (params.stem_estimator != StemEstimator::com) {
-            if (!trace_outer_contour(ws.closed_, c.first_pixel, ws.contour_)) {
+            // The cut depth scales with the plant when asked: a fixed depth
+            // over-cuts large plants' wavy edges and under-cuts small ones.
+            const float depth_px = std::max(min_depth_px, static_cast<float>(params.defect_depth_rel * radius_px));
+            bool overflow = false;
+            double hull_area_px = 0, perimeter_px = 0;
+            for (const int m : members) {
+                const Component& c = ws.components_[static_cast<std::size_t>(m)];
+                if (!trace_outer_contour(ws.closed_, c.first_pixel, ws.contour_)) {
+                    overflow = true;
+                    break;
+                }
+                convex_hull_indices(ws.contour_, ws.hull_, ws.hull_order_);
+                convexity_defects(ws.contour_, ws.hull_, depth_px, ws.defects_);
+                plant.defects += static_cast<int>(ws.defects_.size());
+                FixedVector<Leaf, kMaxLeaves> piece_leaves;
+                out.stats.leaves_over_capacity += leaves_from_defects(ws.contour_, ws.defects_, piece_leaves);
+                if (piece_leaves.empty() && members.size() > 1) {
+                    // A piece without cuts is one leaf, rooted where it
+                    // comes nearest the plant's centre.
+                    Leaf leaf = leaf_from_polygon(ws.contour_, 0, static_cast<int>(ws.contour_.size()) - 1);
+                    leaf.root = leaf.cut_a = leaf.cut_b = nearest_point(ws.contour_, plant.centre_of_mass);
+                    piece_leaves.push_back(leaf);
+                }
+                for (const Leaf& leaf : piece_leaves)
+                    if (!plant.leaves.push_back(leaf))
+                        ++out.stats.leaves_over_capacity;
+                hull_area_px += convex_hull_area_px(ws.contour_, ws.hull_);
+                perimeter_px += contour_length_px(ws.contour_);
+            }
+            if (overflow) {
                 ++out.stats.contour_overflows;
+                plant.leaves.clear();
                 plant.stem = plant.centre_of_mass;
                 plant.com_reason = ComReason::contour_overflow;
                 plant.confidence = 0;
@@ -165,19 +284,9 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
                 out.plants.push_back(plant);
                 continue;
             }
-            convex_hull_indices(ws.contour_, ws.hull_, ws.hull_order_);
-            // The cut depth scales with the plant when asked: a fixed depth
-            // over-cuts large plants' wavy edges and under-cuts small ones.
-            const float depth_px =
-                std::max(min_depth_px, static_cast<float>(params.defect_depth_rel * radius_px));
-            convexity_defects(ws.contour_, ws.hull_, depth_px, ws.defects_);
-            plant.defects = static_cast<int>(ws.defects_.size());
-            out.stats.leaves_over_capacity += leaves_from_defects(ws.contour_, ws.defects_, plant.leaves);
-            plant.hull_fill = static_cast<float>(static_cast<double>(c.area_px) /
-                                                 std::max(convex_hull_area_px(ws.contour_, ws.hull_), 1.0));
-            plant.mean_width_mm =
-                static_cast<float>(2.0 * static_cast<double>(c.area_px) / std::max(contour_length_px(ws.contour_), 1.0) *
-                                   params.gsd_mm_per_px);
+            plant.hull_fill = static_cast<float>(static_cast<double>(area_px) / std::max(hull_area_px, 1.0));
+            plant.mean_width_mm = static_cast<float>(2.0 * static_cast<double>(area_px) /
+                                                     std::max(perimeter_px, 1.0) * params.gsd_mm_per_px);
         }
         const StemEstimate stem = estimate_stem({plant.leaves.begin(), plant.leaves.size()}, plant.centre_of_mass,
                                                 plant.bbox, radius_px, params);
@@ -191,7 +300,7 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
         // Linear-leaved blobs (grass) have no stem to strike: thin on
         // average and mostly empty hull (blades fanned out from the base).
         const bool grass = params.stem_estimator == StemEstimator::robust &&
-                           static_cast<double>(c.area_px) * pixel_area_mm2 >= params.grass_min_area_mm2 &&
+                           static_cast<double>(area_px) * pixel_area_mm2 >= params.grass_min_area_mm2 &&
                            plant.mean_width_mm < params.grass_max_width_mm &&
                            plant.hull_fill < params.grass_max_hull_fill;
         if (grass)
@@ -218,7 +327,9 @@ std::size_t Workspace::reserved_bytes() const
 {
     return (raw_index_.total() + index_.total()) * index_.elemSize() + smooth_row_.capacity() * sizeof(std::uint16_t) +
            vegetation_.reserved_bytes() + thresholded_.reserved_bytes() + closed_.reserved_bytes() +
-           opening_.reserved_bytes() + closing_.reserved_bytes() + labels_.reserved_bytes() + components_.capacity() * sizeof(Component) +
+           opening_.reserved_bytes() + closing_.reserved_bytes() + grouped_.reserved_bytes() +
+           grouping_.reserved_bytes() + (groups_.capacity()) * sizeof(Component) +
+           (piece_group_.capacity() + piece_order_.capacity() + group_rank_.capacity()) * sizeof(int) + labels_.reserved_bytes() + components_.capacity() * sizeof(Component) +
            contour_.capacity() * sizeof(cv::Point) + (hull_.capacity() + hull_order_.capacity()) * sizeof(int) +
            defects_.capacity() * sizeof(Defect) + sizeof(NdviTable);
 }

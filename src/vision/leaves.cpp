@@ -122,6 +122,54 @@ void convexity_defects(std::span<const cv::Point> contour, std::span<const int> 
     std::sort(out.begin(), out.end(), [](const Defect& x, const Defect& y) { return x.deepest < y.deepest; });
 }
 
+Leaf leaf_from_polygon(std::span<const cv::Point> contour, int from, int to)
+{
+    const int n = static_cast<int>(contour.size());
+    // Green's theorem over the contour from one cut to the next, closed
+    // by the cut: area, centroid and second moments of the leaf polygon,
+    // in coordinates relative to the first cut for numerical headroom.
+    double twice_area = 0, cx = 0, cy = 0, mean_x = 0, mean_y = 0, sxx = 0, syy = 0, sxy = 0;
+    const cv::Point& first = contour[static_cast<std::size_t>(from)];
+    for (int j = from; j <= to; ++j) {
+        const cv::Point p = contour[static_cast<std::size_t>(j % n)] - first;
+        const cv::Point q = (j < to ? contour[static_cast<std::size_t>((j + 1) % n)] : first) - first;
+        const double c = static_cast<double>(p.x) * q.y - static_cast<double>(q.x) * p.y;
+        twice_area += c;
+        cx += (p.x + q.x) * c;
+        cy += (p.y + q.y) * c;
+        sxx += (static_cast<double>(p.x) * p.x + static_cast<double>(p.x) * q.x + static_cast<double>(q.x) * q.x) * c;
+        syy += (static_cast<double>(p.y) * p.y + static_cast<double>(p.y) * q.y + static_cast<double>(q.y) * q.y) * c;
+        sxy += (2.0 * p.x * p.y + 2.0 * q.x * q.y + static_cast<double>(p.x) * q.y + static_cast<double>(q.x) * p.y) * c;
+        mean_x += p.x;
+        mean_y += p.y;
+    }
+    const int count = to - from + 1;
+    Leaf leaf;
+    leaf.cut_a = cv::Point2f(first);
+    leaf.cut_b = cv::Point2f(contour[static_cast<std::size_t>(to % n)]);
+    leaf.root = (leaf.cut_a + leaf.cut_b) * 0.5f;
+    const cv::Point2f origin(first);
+    if (std::abs(twice_area) >= 1.0) {
+        const double gx = cx / (3.0 * twice_area), gy = cy / (3.0 * twice_area);
+        leaf.centre = origin + cv::Point2f(static_cast<float>(gx), static_cast<float>(gy));
+        // Central second moments (per unit area) and their principal axis.
+        const double area = 0.5 * twice_area;
+        const double mu20 = sxx / 12.0 / area - gx * gx;
+        const double mu02 = syy / 12.0 / area - gy * gy;
+        const double mu11 = sxy / 24.0 / area - gx * gy;
+        const double theta = 0.5 * std::atan2(2.0 * mu11, mu20 - mu02);
+        const double spread = std::sqrt(0.25 * (mu20 - mu02) * (mu20 - mu02) + mu11 * mu11);
+        const double major = 0.5 * (mu20 + mu02) + spread, minor = 0.5 * (mu20 + mu02) - spread;
+        leaf.axis = {static_cast<float>(std::cos(theta)), static_cast<float>(std::sin(theta))};
+        leaf.elongation = minor > 1e-9 ? static_cast<float>(major / minor) : 1e6f;
+    } else {
+        leaf.centre = origin + cv::Point2f(static_cast<float>(mean_x / count), static_cast<float>(mean_y / count));
+        leaf.axis = {1, 0};
+        leaf.elongation = 1;
+    }
+    return leaf;
+}
+
 int leaves_from_defects(std::span<const cv::Point> contour, std::span<const Defect> defects,
                         FixedVector<Leaf, kMaxLeaves>& out)
 {
@@ -136,48 +184,7 @@ int leaves_from_defects(std::span<const cv::Point> contour, std::span<const Defe
         int to = defects[static_cast<std::size_t>((k + 1) % d)].deepest;
         if (to <= from)
             to += n;
-        // Green's theorem over the contour from one cut to the next, closed
-        // by the cut: area, centroid and second moments of the leaf polygon,
-        // in coordinates relative to the first cut for numerical headroom.
-        double twice_area = 0, cx = 0, cy = 0, mean_x = 0, mean_y = 0, sxx = 0, syy = 0, sxy = 0;
-        const cv::Point& first = contour[static_cast<std::size_t>(from)];
-        for (int j = from; j <= to; ++j) {
-            const cv::Point p = contour[static_cast<std::size_t>(j % n)] - first;
-            const cv::Point q = (j < to ? contour[static_cast<std::size_t>((j + 1) % n)] : first) - first;
-            const double c = static_cast<double>(p.x) * q.y - static_cast<double>(q.x) * p.y;
-            twice_area += c;
-            cx += (p.x + q.x) * c;
-            cy += (p.y + q.y) * c;
-            sxx += (static_cast<double>(p.x) * p.x + static_cast<double>(p.x) * q.x + static_cast<double>(q.x) * q.x) * c;
-            syy += (static_cast<double>(p.y) * p.y + static_cast<double>(p.y) * q.y + static_cast<double>(q.y) * q.y) * c;
-            sxy += (2.0 * p.x * p.y + 2.0 * q.x * q.y + static_cast<double>(p.x) * q.y + static_cast<double>(q.x) * p.y) * c;
-            mean_x += p.x;
-            mean_y += p.y;
-        }
-        const int count = to - from + 1;
-        Leaf leaf;
-        leaf.cut_a = cv::Point2f(first);
-        leaf.cut_b = cv::Point2f(contour[static_cast<std::size_t>(to % n)]);
-        leaf.root = (leaf.cut_a + leaf.cut_b) * 0.5f;
-        const cv::Point2f origin(first);
-        if (std::abs(twice_area) >= 1.0) {
-            const double gx = cx / (3.0 * twice_area), gy = cy / (3.0 * twice_area);
-            leaf.centre = origin + cv::Point2f(static_cast<float>(gx), static_cast<float>(gy));
-            // Central second moments (per unit area) and their principal axis.
-            const double area = 0.5 * twice_area;
-            const double mu20 = sxx / 12.0 / area - gx * gx;
-            const double mu02 = syy / 12.0 / area - gy * gy;
-            const double mu11 = sxy / 24.0 / area - gx * gy;
-            const double theta = 0.5 * std::atan2(2.0 * mu11, mu20 - mu02);
-            const double spread = std::sqrt(0.25 * (mu20 - mu02) * (mu20 - mu02) + mu11 * mu11);
-            const double major = 0.5 * (mu20 + mu02) + spread, minor = 0.5 * (mu20 + mu02) - spread;
-            leaf.axis = {static_cast<float>(std::cos(theta)), static_cast<float>(std::sin(theta))};
-            leaf.elongation = minor > 1e-9 ? static_cast<float>(major / minor) : 1e6f;
-        } else {
-            leaf.centre = origin + cv::Point2f(static_cast<float>(mean_x / count), static_cast<float>(mean_y / count));
-            leaf.axis = {1, 0};
-            leaf.elongation = 1;
-        }
+        const Leaf leaf = leaf_from_polygon(contour, from, to);
         if (!out.push_back(leaf))
             ++dropped;
     }

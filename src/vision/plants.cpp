@@ -111,4 +111,22 @@ void label_components(const BitMask& mask, LabelScratch& scratch, std::vector<Co
     }
 }
 
+int component_at(const LabelScratch& scratch, cv::Point p)
+{
+    const auto& runs = scratch.runs_;
+    // Runs are in raster order: the last one starting at or before p.
+    const auto after = std::upper_bound(runs.begin(), runs.end(), p, [](cv::Point q, const LabelScratch::Run& r) {
+        return q.y < r.y || (q.y == r.y && q.x < r.x0);
+    });
+    if (after == runs.begin())
+        return -1;
+    const auto run = std::prev(after);
+    if (run->y != p.y || p.x > run->x1)
+        return -1;
+    int i = static_cast<int>(run - runs.begin());
+    while (scratch.parent_[static_cast<std::size_t>(i)] != i)
+        i = scratch.parent_[static_cast<std::size_t>(i)];
+    return scratch.root_slot_[static_cast<std::size_t>(i)];
+}
+
 }  // namespace stemd::vision

@@ -138,3 +138,24 @@ TEST(Opening, RemovesSpecksAndKeepsBlobs)
     EXPECT_TRUE(out.get(65, 15));
     EXPECT_TRUE(out.get(60, 15));  // straight edges survive a cross-shaped opening
 }
+
+TEST(Dilation, BitExactWithOpenCv)
+{
+    std::uint64_t seed = 300;
+    for (const cv::Size size : {cv::Size(1, 1), cv::Size(63, 9), cv::Size(130, 70)}) {
+        for (const int radius : {0, 1, 4, 10}) {
+            const cv::Mat mask = stemd::test::random_blob_mask(size, seed++, 6, 0.02);
+            cv::Mat expected = mask.clone();
+            if (radius > 0)
+                cv::dilate(mask, expected,
+                           cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1)));
+            BitMask in, out;
+            ClosingScratch scratch;
+            pack_mask(mask, MaskVegetation::nonzero, in);
+            dilate_mask(in, radius, out, scratch);
+            cv::Mat actual;
+            unpack_mask(out, actual);
+            ASSERT_EQ(cv::countNonZero(expected != actual), 0) << "size " << size << " radius " << radius;
+        }
+    }
+}

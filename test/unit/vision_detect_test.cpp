@@ -428,3 +428,44 @@ TEST(Detect, ReusedWorkspaceGivesTheSameResult)
     for (std::size_t i = 0; i < first.plants.size(); ++i)
         EXPECT_EQ(first.plants[i].stem, again.plants[i].stem);
 }
+
+TEST(Detect, LeavesCutOffFromTheirStemAreOnePlant)
+{
+    // A five-leaf rosette whose petioles and centre fell below the
+    // threshold: a hole of radius 14 px leaves five pieces, neighbours
+    // 2 * 14 * sin(36 deg) = 16.5 px (5.4 mm) apart at their inner ends.
+    const cv::Point stem(200, 150);
+    cv::Mat mask = draw_plant(
+        {400, 300}, stem, {{10, 20, 60, 16}, {82, 20, 60, 16}, {154, 20, 60, 16}, {226, 20, 60, 16}, {298, 20, 60, 16}}, 4);
+    cv::circle(mask, stem, 14, 0, cv::FILLED);
+    Params params = mask_params();
+    params.group_gap_mm = 0;
+    EXPECT_EQ(detect({.mask = mask}, params).plants.size(), 5u);
+
+    params.group_gap_mm = 6;
+    const Detections d = detect({.mask = mask}, params);
+    ASSERT_EQ(d.plants.size(), 1u);
+    EXPECT_EQ(d.stats.components, 5);
+    const Plant& p = d.plants[0];
+    EXPECT_EQ(p.area_px, cv::countNonZero(mask));
+    EXPECT_EQ(p.leaves.size(), 5u);
+    EXPECT_EQ(p.method, StemMethod::leaves);
+    // Each piece's long axis points at the stem.
+    EXPECT_LT(distance(p.stem, cv::Point2f(stem)), 1.0) << p.stem;
+}
+
+TEST(Detect, PlantsFartherApartThanTheGroupGapStayApart)
+{
+    // Two four-leaf plants whose leaf tips are 39 background pixels
+    // (12.9 mm at 0.33 mm/px) apart.
+    cv::Mat mask = draw_plant({400, 300}, {100, 150}, {{0, 20, 60, 16}, {90, 20, 60, 16}, {180, 20, 60, 16}, {270, 20, 60, 16}}, 4);
+    mask |= draw_plant({400, 300}, {300, 150}, {{0, 20, 60, 16}, {90, 20, 60, 16}, {180, 20, 60, 16}, {270, 20, 60, 16}}, 4);
+    Params params = mask_params();
+    params.group_gap_mm = 12;
+    const Detections apart = detect({.mask = mask}, params);
+    ASSERT_EQ(apart.plants.size(), 2u);
+    EXPECT_LT(distance(apart.plants[0].stem, {100, 150}), 0.5);
+    EXPECT_LT(distance(apart.plants[1].stem, {300, 150}), 0.5);
+    params.group_gap_mm = 14;
+    EXPECT_EQ(detect({.mask = mask}, params).plants.size(), 1u);
+}

@@ -4,6 +4,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "stemd/vision/bitmask.hpp"
 #include "stemd/vision/plants.hpp"
 #include "vision_test_util.hpp"
 
@@ -80,4 +81,38 @@ TEST(Plants, DiagonalNeighboursJoin)
     const auto ours = label(mask);
     ASSERT_EQ(ours.size(), 1u);
     EXPECT_EQ(ours[0].area_px, 10);
+}
+
+TEST(Plants, ComponentAtFindsThePixelsComponent)
+{
+    for (const std::uint64_t seed : {1u, 2u, 3u}) {
+        const cv::Mat mask = stemd::test::random_blob_mask({131, 67}, seed, 10, 0.05);
+        BitMask bits;
+        pack_mask(mask, MaskVegetation::nonzero, bits);
+        LabelScratch scratch;
+        scratch.reserve(mask.cols, mask.rows);
+        std::vector<Component> components;
+        label_components(bits, scratch, components);
+        cv::Mat labels;
+        const int n = cv::connectedComponents(mask, labels, 8, CV_32S, cv::CCL_DEFAULT);
+        ASSERT_EQ(static_cast<int>(components.size()), n - 1);
+        // OpenCV's label of each component's first pixel names the same set.
+        std::vector<int> ours_for_theirs(static_cast<std::size_t>(n), -2);
+        for (int y = 0; y < mask.rows; ++y)
+            for (int x = 0; x < mask.cols; ++x) {
+                const int ours = component_at(scratch, {x, y});
+                const int theirs = labels.at<int>(y, x);
+                if (theirs == 0) {
+                    ASSERT_EQ(ours, -1) << x << "," << y;
+                    continue;
+                }
+                ASSERT_GE(ours, 0);
+                int& seen = ours_for_theirs[static_cast<std::size_t>(theirs)];
+                if (seen == -2)
+                    seen = ours;
+                ASSERT_EQ(seen, ours) << x << "," << y;
+            }
+        EXPECT_EQ(component_at(scratch, {-1, 0}), -1);
+        EXPECT_EQ(component_at(scratch, {0, mask.rows}), -1);
+    }
 }

@@ -43,4 +43,7 @@ void close_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& 
 // (outside is vegetation for the erosion, background for the dilation).
 void open_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch);
 
+// out = dilate(in) with the same kernel (outside is background).
+void dilate_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch);
+
 }  // namespace stemd::vision

@@ -54,7 +54,13 @@ private:
     ClosingScratch opening_;
     ClosingScratch closing_;
     LabelScratch labels_;
-    std::vector<Component> components_;
+    std::vector<Component> components_;     // pieces of the closed mask
+    BitMask grouped_;                       // the closed mask dilated by half the group gap
+    ClosingScratch grouping_;
+    std::vector<Component> groups_;         // components of grouped_
+    std::vector<int> piece_group_;          // per piece: its group
+    std::vector<int> piece_order_;          // pieces sorted by group
+    std::vector<int> group_rank_;           // per group: its rank by first piece
     std::vector<cv::Point> contour_;
     std::vector<int> hull_;
     std::vector<int> hull_order_;

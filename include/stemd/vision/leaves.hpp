@@ -34,6 +34,13 @@ struct Defect {
 void convexity_defects(std::span<const cv::Point> contour, std::span<const int> hull, float min_depth_px,
                        std::vector<Defect>& out);
 
+// The leaf bounded by the contour from index `from` to `to` (to may exceed
+// the contour's size: it wraps), closed by the straight cut between them:
+// cut_a, cut_b at the ends, root their mean, centre the polygon's area
+// centroid (its vertex mean if it has no area), axis and elongation from
+// its second moments. from = 0, to = size - 1 makes the whole contour a leaf.
+Leaf leaf_from_polygon(std::span<const cv::Point> contour, int from, int to);
+
 // Each pair of neighbouring cut points (cyclic) bounds one leaf: the
 // contour between them closed by the cut. root = mean of the cut points,
 // centre = area centroid of that polygon (its vertex mean if it has no

@@ -30,6 +30,7 @@ public:
 
 private:
     friend void label_components(const BitMask&, LabelScratch&, std::vector<Component>&);
+    friend int component_at(const LabelScratch&, cv::Point);
     struct Run { int y, x0, x1; };
     std::vector<Run> runs_;
     std::vector<int> parent_;
@@ -39,5 +40,9 @@ private:
 // Components in raster order of their first pixel. `out` is cleared and
 // refilled; reserve it (one entry per possible run) to avoid allocations.
 void label_components(const BitMask& mask, LabelScratch& scratch, std::vector<Component>& out);
+
+// After label_components: the index (into its `out`) of the component
+// holding pixel `p`, or -1 if `p` is background. O(log runs), no allocation.
+int component_at(const LabelScratch& scratch, cv::Point p);
 
 }  // namespace stemd::vision
