@@ -1,7 +1,7 @@
 // stemd-bench: per-stage and whole-pipeline timings on synthetic
 // 1296x966 frames, one thread, with one cv::cvtColor BGR->GRAY pass over the
 // same frames as a yardstick of this machine's speed.
-//   stemd-bench [--json] [--preset early|late|dense] [--frames N] [--radius M] [benchmark flags]
+//   stemd-bench [--json] [--preset early|late|dense|seedling] [--frames N] [--radius M] [benchmark flags]
 // (defaults: late, 8 frames, the pipeline's default closing radius)
 // Each repetition is one frame; medians and p90 are over repetitions.
 // "actuation" is the actuator thread's work per frame (field positions,

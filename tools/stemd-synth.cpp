@@ -42,13 +42,15 @@ constexpr int kWriteError = 1;
 constexpr int kMaxFrames = 1000000;   // file names have six digits
 
 const char* const kUsage =
-    "usage: stemd-synth --out DIR [--preset early|late|dense] [--frames N] [--seed S]\n"
+    "usage: stemd-synth --out DIR [--preset early|late|dense|seedling] [--frames N] [--seed S]\n"
     "                   [--fragment F] [--width W] [--height H] [--gsd-mm-per-px G] [--fps FPS]\n"
     "       stemd-synth --strip --out DIR [--length-mm L] [--speed-kmh V] [--fps FPS]\n"
     "                   [--preset P] [--seed S] [--fragment F] [--width W] [--height H] [--gsd-mm-per-px G]\n"
     "  --out             recording directory to write (created if missing)\n"
     "  --preset          early (small crops, tiny weeds), late (default: medium crops),\n"
-    "                    dense (many crops, weeds, grass, fragmented masks)\n"
+    "                    dense (many crops, weeds, grass, fragmented masks),\n"
+    "                    seedling (~1 % vegetation on dark cloddy soil, a real camera's\n"
+    "                    exposure, colour cast, vignetting, gain noise and colour fringes)\n"
     "  --frames          number of frames, 1..1000000 (default 10)\n"
     "  --seed            unsigned 64-bit seed (default 1); same seed, same bytes\n"
     "  --fragment        mask fragmentation 0..1 (default: the preset's)\n"

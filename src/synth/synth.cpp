@@ -62,7 +62,8 @@ private:
     std::uint64_t state_;
 };
 
-enum class Stream : std::uint64_t { layout = 1, soil, fragments, sensor };
+// New streams go at the end: the others' numbers key every preset's bytes.
+enum class Stream : std::uint64_t { layout = 1, soil, fragments, sensor, camera };
 
 Rng make_stream(const Options& options, int frame_index, Stream stream)
 {
@@ -87,6 +88,10 @@ struct PlantClassSpec {
 struct PresetSpec {
     PlantClassSpec crop, weed, grass;
     double fragmentation = 0;
+    double soil_brightness = 1;   // times the soil's base colour
+    double clods_per_m2 = 500;
+    double stones_per_m2 = 250;
+    bool real_camera = false;     // exposure, colour cast, vignetting, fringes, gain noise
 };
 
 // Counts are per frame (the paper's field of view is ~428 x 319 mm); plants
@@ -98,6 +103,15 @@ PresetSpec preset_spec(Preset preset)
         return {.crop = {{4, 7}, {12, 25}, {2, 4}}, .weed = {{6, 12}, {3, 8}, {2, 4}}, .grass = {}, .fragmentation = 0};
     case Preset::late:
         return {.crop = {{2, 4}, {35, 70}, {4, 8}}, .weed = {{2, 5}, {8, 20}, {2, 4}}, .grass = {}, .fragmentation = 0};
+    case Preset::seedling:
+        return {.crop = {{3, 4}, {14, 24}, {2, 4}},
+                .weed = {{3, 8}, {3, 8}, {2, 4}},
+                .grass = {},
+                .fragmentation = 0,
+                .soil_brightness = 0.6,
+                .clods_per_m2 = 1500,
+                .stones_per_m2 = 120,
+                .real_camera = true};
     case Preset::dense:
         break;
     }
@@ -417,7 +431,7 @@ void add_value_noise(std::vector<float>& field, cv::Size size, double cell_px, f
     }
 }
 
-void render_soil_texture(cv::Mat& bgr, cv::Mat& nir, double px_per_mm, Rng& rng)
+void render_soil_texture(cv::Mat& bgr, cv::Mat& nir, double px_per_mm, double brightness, Rng& rng)
 {
     const cv::Size size = bgr.size();
     const std::size_t n = static_cast<std::size_t>(size.area());
@@ -428,7 +442,7 @@ void render_soil_texture(cv::Mat& bgr, cv::Mat& nir, double px_per_mm, Rng& rng)
     for (std::size_t i = 0; i < kCellMm.size(); ++i)
         add_value_noise(light, size, kCellMm[i] * px_per_mm, kAmplitude[i], rng);
     add_value_noise(moisture, size, 80 * px_per_mm, 1.0f, rng);
-    const cv::Vec3d base{rng.uniform(55, 70), rng.uniform(85, 100), rng.uniform(115, 135)};
+    const cv::Vec3d base = cv::Vec3d{rng.uniform(55, 70), rng.uniform(85, 100), rng.uniform(115, 135)} * brightness;
     for (int y = 0; y < size.height; ++y) {
         auto* colour = bgr.ptr<cv::Vec3b>(y);
         std::uint8_t* near_infrared = nir.ptr<std::uint8_t>(y);
@@ -465,11 +479,12 @@ void fill(cv::Mat& image, const Polygon& poly, cv::Point2d origin, const cv::Sca
 
 // Dark clods with a lit top-left rim, and greyish stones; counts scale
 // with the ground area so the texture density does not depend on size.
-void render_clods_and_stones(cv::Mat& bgr, cv::Mat& nir, double px_per_mm, Rng& rng)
+void render_clods_and_stones(cv::Mat& bgr, cv::Mat& nir, double px_per_mm, double clods_per_m2, double stones_per_m2,
+                             Rng& rng)
 {
     const double area_mm2 = bgr.size().area() / (px_per_mm * px_per_mm);
-    const int clods = static_cast<int>(area_mm2 / 2000);
-    const int stones = static_cast<int>(area_mm2 / 4000);
+    const int clods = static_cast<int>(area_mm2 * clods_per_m2 / 1e6);
+    const int stones = static_cast<int>(area_mm2 * stones_per_m2 / 1e6);
     const cv::Size size = bgr.size();
     for (int i = 0; i < clods + stones; ++i) {
         const bool stone = i >= clods;
@@ -763,6 +778,41 @@ void add_sensor_noise(cv::Mat& image, double sigma, Rng& rng)
     }
 }
 
+// A camera of its own: one exposure, colour saturation (a dull colour
+// matrix, as on BoniRob's camera) and colour cast per frame,
+// a radial vignetting falloff, red and blue planes one pixel off the green
+// one horizontally (lateral chromatic aberration: coloured fringes at every
+// edge), then sensor noise that grows as the gain lowers the signal.
+void apply_real_camera(cv::Mat& bgr, cv::Mat& nir, Rng& rng)
+{
+    const double exposure = rng.uniform(0.55, 1.25);
+    const double cast[3] = {rng.uniform(0.85, 1.15), rng.uniform(0.9, 1.1), rng.uniform(0.85, 1.15)};
+    const double vignetting = rng.uniform(0.15, 0.35);
+    const double saturation = rng.uniform(0.4, 0.7);
+    const double cx = (bgr.cols - 1) / 2.0, cy = (bgr.rows - 1) / 2.0;
+    const double r2_max = cx * cx + cy * cy;
+    const cv::Mat source = bgr.clone();
+    for (int y = 0; y < bgr.rows; ++y) {
+        const auto* in = source.ptr<cv::Vec3b>(y);
+        auto* out = bgr.ptr<cv::Vec3b>(y);
+        std::uint8_t* near_infrared = nir.ptr<std::uint8_t>(y);
+        for (int x = 0; x < bgr.cols; ++x) {
+            const double r2 = ((x - cx) * (x - cx) + (y - cy) * (y - cy)) / r2_max;
+            const double light = exposure * (1 - vignetting * r2);
+            const int from_blue = std::min(x + 1, bgr.cols - 1), from_red = std::max(x - 1, 0);
+            const double b = in[from_blue][0], g = in[x][1], r = in[from_red][2];
+            const double grey = (b + g + r) / 3;
+            auto channel = [&](double v, double gain) {
+                return cv::saturate_cast<std::uint8_t>((grey + saturation * (v - grey)) * light * gain);
+            };
+            out[x] = cv::Vec3b(channel(b, cast[0]), channel(g, cast[1]), channel(r, cast[2]));
+            near_infrared[x] = cv::saturate_cast<std::uint8_t>(near_infrared[x] * light);
+        }
+    }
+    add_sensor_noise(bgr, 2.5 / std::sqrt(exposure), rng);
+    add_sensor_noise(nir, 2.0 / std::sqrt(exposure), rng);
+}
+
 void validate(const Options& options, int frame_index)
 {
     if (options.width_px < 16 || options.height_px < 16 || options.width_px > 32768 || options.height_px > 32768)
@@ -779,7 +829,7 @@ void validate(const Options& options, int frame_index)
 
 std::optional<Preset> parse_preset(std::string_view name)
 {
-    for (const Preset p : {Preset::early, Preset::late, Preset::dense})
+    for (const Preset p : {Preset::early, Preset::late, Preset::dense, Preset::seedling})
         if (name == to_string(p))
             return p;
     return std::nullopt;
@@ -791,6 +841,7 @@ std::string_view to_string(Preset preset)
     case Preset::early: return "early";
     case Preset::late: return "late";
     case Preset::dense: return "dense";
+    case Preset::seedling: return "seedling";
     }
     return "late";
 }
@@ -805,8 +856,8 @@ Frame generate_frame(const Options& options, int frame_index)
 
     Canvas canvas{cv::Mat(size, CV_8UC3), cv::Mat(size, CV_8UC1), cv::Mat::zeros(size, CV_8UC1), {}, {}};
     Rng soil = make_stream(options, frame_index, Stream::soil);
-    render_soil_texture(canvas.bgr, canvas.nir, px_per_mm, soil);
-    render_clods_and_stones(canvas.bgr, canvas.nir, px_per_mm, soil);
+    render_soil_texture(canvas.bgr, canvas.nir, px_per_mm, spec.soil_brightness, soil);
+    render_clods_and_stones(canvas.bgr, canvas.nir, px_per_mm, spec.clods_per_m2, spec.stones_per_m2, soil);
     canvas.leaf_texture.assign(static_cast<std::size_t>(size.area()), 0.0f);
     add_value_noise(canvas.leaf_texture, size, 3 * px_per_mm, 0.6f, soil);
     add_value_noise(canvas.leaf_texture, size, 1 * px_per_mm, 0.4f, soil);
@@ -825,9 +876,14 @@ Frame generate_frame(const Options& options, int frame_index)
     // GaussianBlur on 8-bit with the 3x3 [1 2 1] kernel is fixed-point.
     cv::GaussianBlur(canvas.bgr, canvas.bgr, cv::Size(3, 3), 0);
     cv::GaussianBlur(canvas.nir, canvas.nir, cv::Size(3, 3), 0);
-    Rng sensor = make_stream(options, frame_index, Stream::sensor);
-    add_sensor_noise(canvas.bgr, 2.5, sensor);
-    add_sensor_noise(canvas.nir, 2.0, sensor);
+    if (spec.real_camera) {
+        Rng camera = make_stream(options, frame_index, Stream::camera);
+        apply_real_camera(canvas.bgr, canvas.nir, camera);
+    } else {
+        Rng sensor = make_stream(options, frame_index, Stream::sensor);
+        add_sensor_noise(canvas.bgr, 2.5, sensor);
+        add_sensor_noise(canvas.nir, 2.0, sensor);
+    }
 
     frame.bgr = canvas.bgr;
     frame.nir = canvas.nir;
@@ -1005,8 +1061,8 @@ Strip generate_strip(const StripOptions& options)
     Canvas canvas{cv::Mat(size, CV_8UC3), cv::Mat(size, CV_8UC1), cv::Mat::zeros(size, CV_8UC1), {},
                   cv::Mat::zeros(size, CV_8UC1)};
     Rng soil = make_strip_stream(options, 0, Stream::soil);
-    render_soil_texture(canvas.bgr, canvas.nir, px_per_mm, soil);
-    render_clods_and_stones(canvas.bgr, canvas.nir, px_per_mm, soil);
+    render_soil_texture(canvas.bgr, canvas.nir, px_per_mm, spec.soil_brightness, soil);
+    render_clods_and_stones(canvas.bgr, canvas.nir, px_per_mm, spec.clods_per_m2, spec.stones_per_m2, soil);
     canvas.leaf_texture.assign(static_cast<std::size_t>(size.area()), 0.0f);
     add_value_noise(canvas.leaf_texture, size, 3 * px_per_mm, 0.6f, soil);
     add_value_noise(canvas.leaf_texture, size, 1 * px_per_mm, 0.4f, soil);
@@ -1062,9 +1118,14 @@ StripFrame render_strip_frame(const Strip& strip, int k)
     frame.nir = strip.nir(view).clone();
     frame.mask = strip.mask(view).clone();
     frame.plant_class = strip.plant_class(view).clone();
-    Rng sensor = make_strip_stream(o, k, Stream::sensor);
-    add_sensor_noise(frame.bgr, 2.5, sensor);
-    add_sensor_noise(frame.nir, 2.0, sensor);
+    if (preset_spec(o.preset).real_camera) {
+        Rng camera = make_strip_stream(o, k, Stream::camera);
+        apply_real_camera(frame.bgr, frame.nir, camera);
+    } else {
+        Rng sensor = make_strip_stream(o, k, Stream::sensor);
+        add_sensor_noise(frame.bgr, 2.5, sensor);
+        add_sensor_noise(frame.nir, 2.0, sensor);
+    }
 
     for (const StripPlant& p : strip.plants) {
         const cv::Point2d px = strip_pixel(o, p.s_mm, p.y_mm, frame.odom_mm);

@@ -81,7 +81,7 @@ constexpr PresetRanges kRanges[] = {
 
 TEST(SynthPreset, ParseAndName)
 {
-    for (const Preset p : {Preset::early, Preset::late, Preset::dense})
+    for (const Preset p : {Preset::early, Preset::late, Preset::dense, Preset::seedling})
         EXPECT_EQ(parse_preset(to_string(p)), p);
     EXPECT_EQ(to_string(Preset::dense), "dense");
     EXPECT_FALSE(parse_preset("Late").has_value());
@@ -115,7 +115,7 @@ TEST(SynthDeterminism, SeedPresetAndIndexChangeTheFrame)
 
 TEST(SynthFrame, SizesAndTypesFollowOptions)
 {
-    for (const Preset p : {Preset::early, Preset::late, Preset::dense}) {
+    for (const Preset p : {Preset::early, Preset::late, Preset::dense, Preset::seedling}) {
         Options options;
         options.preset = p;
         options.width_px = 320;
@@ -315,4 +315,24 @@ TEST(SynthFragmentation, BreaksTheMaskButKeepsTheLayout)
     EXPECT_GT(regions_of(broken.mask).count, regions_of(whole.mask).count + 10);
     // Every removed pixel was vegetation in the unbroken frame.
     EXPECT_EQ(cv::countNonZero(broken.mask & ~whole.mask), 0);
+}
+
+TEST(SynthSeedling, SparseVegetationOnDarkSoilThroughADullCamera)
+{
+    // What real frames at weeding time look like: about 1 % vegetation
+    // (0.2 to 1.5 % per frame), soil darker than the other presets', and
+    // identical bytes for identical inputs.
+    double soil_seedling = 0, soil_late = 0;
+    for (int i = 0; i < 4; ++i) {
+        const Frame f = make(Preset::seedling, 7, i);
+        const double vegetation = cv::countNonZero(f.mask) / static_cast<double>(f.mask.total());
+        EXPECT_GT(vegetation, 0.002) << i;
+        EXPECT_LT(vegetation, 0.015) << i;
+        EXPECT_FALSE(f.stems.empty()) << i;
+        soil_seedling += cv::mean(f.bgr, f.mask == 0)[1];
+        const Frame late = make(Preset::late, 7, i);
+        soil_late += cv::mean(late.bgr, late.mask == 0)[1];
+    }
+    EXPECT_LT(soil_seedling, 0.8 * soil_late);
+    EXPECT_TRUE(same_bytes(make(Preset::seedling, 7, 2).bgr, make(Preset::seedling, 7, 2).bgr));
 }

@@ -22,8 +22,12 @@ namespace stemd::synth {
 
 // Echo the paper's datasets: early = B (small crops, tiny weeds),
 // late = A (few medium crops, scattered weeds), dense = C (many crops,
-// weeds, grass tufts, fragmented masks).
-enum class Preset { early, late, dense };
+// weeds, grass tufts, fragmented masks). seedling: what real frames at
+// weeding time look like (BoniRob, sugar beet at two to four leaves): about
+// 1 % vegetation on dark, cloddy soil with bright clods, seen by a camera
+// with an exposure and a colour cast of its own, vignetting, gain noise and
+// colour fringes (its red and blue planes one pixel off the green one).
+enum class Preset { early, late, dense, seedling };
 
 std::optional<Preset> parse_preset(std::string_view name);
 std::string_view to_string(Preset preset);
