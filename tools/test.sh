@@ -27,7 +27,7 @@ ctest --test-dir build/release --output-on-failure -j "$jobs"
 
 if [ "${STEMD_TEST_SKIP_SANITIZE:-0}" != 1 ]; then
   step "ASan+UBSan build"
-  cmake -S . -B build/asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g" \
+  cmake -S . -B build/asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O2 -g -fno-omit-frame-pointer" \
     -DSTEMD_SANITIZE=address -DSTEMD_BUILD_BENCH=OFF >/dev/null
   cmake --build build/asan -j "$jobs"
   step "ASan+UBSan tests"

@@ -54,14 +54,18 @@ double contour_length_px(const std::vector<cv::Point>& contour)
     return straight + std::numbers::sqrt2 * diagonal;
 }
 
-// Dilating both pieces by half the gap joins them when the gap is at most
-// the gap (to the pixel).
-int group_radius_px(const Params& params)
+// Pieces are grouped on a mask of kGroupCellPx x kGroupCellPx cells, where
+// a dilation by half the gap is cheap: pieces at most the gap apart always
+// join, pieces up to about two cells farther may.
+constexpr int kGroupCellPx = 4;
+
+// The dilation radius in cells, 0 when grouping is off.
+int group_radius_cells(const Params& params)
 {
     if (params.group_gap_mm <= 0 || params.gsd_mm_per_px <= 0)
         return 0;
-    return std::clamp(static_cast<int>(std::ceil(params.group_gap_mm / (2.0 * params.gsd_mm_per_px))), 0,
-                      kMaxClosingRadiusPx);
+    const double radius_px = params.group_gap_mm / (2.0 * params.gsd_mm_per_px);
+    return std::clamp(static_cast<int>(std::ceil(radius_px / kGroupCellPx)), 1, kMaxClosingRadiusPx);
 }
 
 // The contour point nearest `target`: where a leaf that is a piece of its
@@ -93,6 +97,7 @@ Workspace::Workspace(cv::Size frame_size, const Params& params)
     smooth_row_.resize(static_cast<std::size_t>(width));
     vegetation_.reset(width, height);
     thresholded_.reset(width, height);
+    opened_.reset(width, height);
     closed_.reset(width, height);
     reserved_radius_px_ = std::clamp(params.closing_radius_px, 0, kMaxClosingRadiusPx);
     closing_.reserve(width, height, kMaxClosingRadiusPx);
@@ -105,7 +110,10 @@ Workspace::Workspace(cv::Size frame_size, const Params& params)
     piece_group_.reserve(max_components);
     piece_order_.reserve(max_components);
     group_rank_.reserve(max_components);
-    grouped_.reset(width, height);
+    keep_.reserve(max_components);
+    cells_.reset(width / kGroupCellPx + 1, height / kGroupCellPx + 1);
+    grouped_.reset(cells_.width(), cells_.height());
+    group_labels_.reserve(cells_.width(), cells_.height());
     // Room for ordinary plants; longer (comb-like) contours are truncated,
     // counted, and the plant falls back to its centre of mass.
     contour_.reserve(static_cast<std::size_t>(2 * (width + height)) * 8);
@@ -115,9 +123,8 @@ Workspace::Workspace(cv::Size frame_size, const Params& params)
     // Set the kernels up once so the first frame allocates nothing either.
     if (width > 0 && height > 0) {
         close_mask(vegetation_, reserved_radius_px_, closed_, closing_);
-        open_mask(thresholded_, std::clamp(params.opening_radius_px, 0, kMaxClosingRadiusPx), vegetation_,
-                  opening_);
-        dilate_mask(closed_, group_radius_px(params), grouped_, grouping_);
+        open_mask(thresholded_, std::clamp(params.opening_radius_px, 0, kMaxClosingRadiusPx), opened_, opening_);
+        dilate_mask(cells_, group_radius_cells(params), grouped_, grouping_);
     }
 }
 
@@ -155,8 +162,16 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
         // No second class: an empty mask (index > 255 never holds), so the
         // rest of the pipeline runs as usual and finds nothing.
         threshold_to_bits(ws.index_, out.stats.no_vegetation ? 255 : out.stats.threshold, ws.thresholded_);
-        open_mask(ws.thresholded_, std::clamp(params.opening_radius_px, 0, kMaxClosingRadiusPx), ws.vegetation_,
-                  ws.opening_);
+        // Specks and fringes vanish under the opening; whatever survives it
+        // keeps its whole component, thin petioles and grass blades included.
+        const int opening_radius = std::clamp(params.opening_radius_px, 0, kMaxClosingRadiusPx);
+        if (opening_radius > 0) {
+            open_mask(ws.thresholded_, opening_radius, ws.opened_, ws.opening_);
+            label_components(ws.thresholded_, ws.labels_, ws.components_);
+            keep_seeded_components(ws.labels_, ws.opened_, ws.keep_, ws.vegetation_);
+        } else {
+            std::swap(ws.thresholded_, ws.vegetation_);
+        }
     }
     const std::int64_t t_threshold = now_ns();
     out.stats.vegetation_px = static_cast<int>(ws.vegetation_.count());
@@ -173,16 +188,18 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
     out.stats.components = pieces;
     ws.piece_group_.resize(static_cast<std::size_t>(pieces));
     ws.piece_order_.resize(static_cast<std::size_t>(pieces));
-    const int group_radius = group_radius_px(params);
+    const int group_radius = group_radius_cells(params);
     if (group_radius > 0 && pieces > 1) {
-        dilate_mask(ws.closed_, group_radius, ws.grouped_, ws.grouping_);
-        label_components(ws.grouped_, ws.labels_, ws.groups_);
+        reduce_labelled_mask(ws.labels_, kGroupCellPx, ws.cells_);
+        dilate_mask(ws.cells_, group_radius, ws.grouped_, ws.grouping_);
+        label_components(ws.grouped_, ws.group_labels_, ws.groups_);
         // Groups numbered in the order of their first piece, so plants keep
         // the raster order of their top-most pixel.
         ws.group_rank_.assign(ws.groups_.size(), -1);
         int ranked = 0;
         for (int i = 0; i < pieces; ++i) {
-            const int g = component_at(ws.labels_, ws.components_[static_cast<std::size_t>(i)].first_pixel);
+            const cv::Point first = ws.components_[static_cast<std::size_t>(i)].first_pixel;
+            const int g = component_at(ws.group_labels_, {first.x / kGroupCellPx, first.y / kGroupCellPx});
             int& rank = ws.group_rank_[static_cast<std::size_t>(g)];
             if (rank < 0)
                 rank = ranked++;
@@ -326,9 +343,9 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
 std::size_t Workspace::reserved_bytes() const
 {
     return (raw_index_.total() + index_.total()) * index_.elemSize() + smooth_row_.capacity() * sizeof(std::uint16_t) +
-           vegetation_.reserved_bytes() + thresholded_.reserved_bytes() + closed_.reserved_bytes() +
-           opening_.reserved_bytes() + closing_.reserved_bytes() + grouped_.reserved_bytes() +
-           grouping_.reserved_bytes() + (groups_.capacity()) * sizeof(Component) +
+           vegetation_.reserved_bytes() + thresholded_.reserved_bytes() + opened_.reserved_bytes() + keep_.capacity() + closed_.reserved_bytes() +
+           opening_.reserved_bytes() + closing_.reserved_bytes() + cells_.reserved_bytes() +
+           grouped_.reserved_bytes() + grouping_.reserved_bytes() + group_labels_.reserved_bytes() + (groups_.capacity()) * sizeof(Component) +
            (piece_group_.capacity() + piece_order_.capacity() + group_rank_.capacity()) * sizeof(int) + labels_.reserved_bytes() + components_.capacity() * sizeof(Component) +
            contour_.capacity() * sizeof(cv::Point) + (hull_.capacity() + hull_order_.capacity()) * sizeof(int) +
            defects_.capacity() * sizeof(Defect) + sizeof(NdviTable);

@@ -129,4 +129,76 @@ int component_at(const LabelScratch& scratch, cv::Point p)
     return scratch.root_slot_[static_cast<std::size_t>(i)];
 }
 
+void reduce_labelled_mask(const LabelScratch& scratch, int cell_px, BitMask& out)
+{
+    out.clear();
+    for (const LabelScratch::Run& run : scratch.runs_) {
+        const int y = run.y / cell_px;
+        if (y >= out.height())
+            continue;
+        const int last = std::min(run.x1 / cell_px, out.width() - 1);
+        for (int x = run.x0 / cell_px; x <= last; ++x)
+            out.set(x, y);
+    }
+}
+
+namespace {
+
+// Whether any bit x0..x1 (inclusive) of a row is set, or sets them all.
+bool any_in_range(const std::uint64_t* row, int x0, int x1)
+{
+    for (int w = x0 >> 6; w <= (x1 >> 6); ++w) {
+        std::uint64_t bits = row[w];
+        if (w == (x0 >> 6))
+            bits &= ~std::uint64_t{0} << (x0 & 63);
+        if (w == (x1 >> 6) && (x1 & 63) != 63)
+            bits &= (std::uint64_t{1} << ((x1 & 63) + 1)) - 1;
+        if (bits)
+            return true;
+    }
+    return false;
+}
+
+void set_range(std::uint64_t* row, int x0, int x1)
+{
+    for (int w = x0 >> 6; w <= (x1 >> 6); ++w) {
+        std::uint64_t bits = ~std::uint64_t{0};
+        if (w == (x0 >> 6))
+            bits &= ~std::uint64_t{0} << (x0 & 63);
+        if (w == (x1 >> 6) && (x1 & 63) != 63)
+            bits &= (std::uint64_t{1} << ((x1 & 63) + 1)) - 1;
+        row[w] |= bits;
+    }
+}
+
+int root_of(const std::vector<int>& parent, int i)
+{
+    while (parent[static_cast<std::size_t>(i)] != i)
+        i = parent[static_cast<std::size_t>(i)];
+    return i;
+}
+
+}  // namespace
+
+void keep_seeded_components(const LabelScratch& scratch, const BitMask& seeds, std::vector<std::uint8_t>& keep,
+                            BitMask& out)
+{
+    const auto& runs = scratch.runs_;
+    std::size_t components = 0;
+    for (const int slot : scratch.root_slot_)
+        components = std::max(components, static_cast<std::size_t>(slot + 1));
+    keep.assign(components, 0);
+    for (std::size_t i = 0; i < runs.size(); ++i) {
+        const LabelScratch::Run& run = runs[i];
+        if (any_in_range(seeds.row(run.y), run.x0, run.x1))
+            keep[static_cast<std::size_t>(scratch.root_slot_[static_cast<std::size_t>(root_of(scratch.parent_, static_cast<int>(i)))])] = 1;
+    }
+    out.clear();
+    for (std::size_t i = 0; i < runs.size(); ++i) {
+        const LabelScratch::Run& run = runs[i];
+        if (keep[static_cast<std::size_t>(scratch.root_slot_[static_cast<std::size_t>(root_of(scratch.parent_, static_cast<int>(i)))])])
+            set_range(out.row(run.y), run.x0, run.x1);
+    }
+}
+
 }  // namespace stemd::vision

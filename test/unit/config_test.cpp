@@ -747,3 +747,15 @@ TEST(VisionConfig, EveryKeyMapsToItsParamsField)
 
 }  // namespace
 }  // namespace stemd::config
+
+TEST(ConfigSchema, ReadmeTableIsTheSchemas)
+{
+    // The README's configuration table is schema_markdown() verbatim: a key
+    // added, removed or changed in the schema must show there too.
+    std::ifstream readme(std::string(STEMD_SOURCE_DIR) + "/README.md");
+    ASSERT_TRUE(readme) << "README.md";
+    const std::string text((std::istreambuf_iterator<char>(readme)), std::istreambuf_iterator<char>());
+    const std::string table = stemd::config::schema_markdown();
+    EXPECT_NE(text.find(table), std::string::npos) << "README.md's table differs from the schema; it should read:\n"
+                                                   << table;
+}

@@ -199,21 +199,6 @@ TEST(RealFrames, BoniRobRgbAndNirFindsEveryAnnotatedStemWithin5mm)
     EXPECT_EQ(match.true_positives, static_cast<int>(truth.size())) << stems.size() << " stems reported";
 }
 
-TEST(RealFrames, BoniRobSoilWithoutPlantsHasNoPlantWithNir)
-{
-    // The right-hand 60 % of every frame holds no plant (stems.csv: all
-    // stems are at x < 420), only clods, straw and husks.
-    REQUIRE_REAL_SET("bonirob");
-    const auto params = shipped_params({"camera.gsd_mm_per_px=0.395", "segment.method=ndvi"});
-    for (const BoniRobFrame& frame : bonirob_frames()) {
-        const cv::Rect soil(520, 0, frame.bgr.cols - 520, frame.bgr.rows);
-        const cv::Mat bgr = frame.bgr(soil).clone(), nir = frame.nir(soil).clone();
-        const vision::Detections d = vision::detect({.bgr = bgr, .nir = nir}, params);
-        ASSERT_EQ(d.status, vision::DetectStatus::ok);
-        EXPECT_EQ(d.plants.size(), 0u) << frame.name;
-    }
-}
-
 TEST(RealFrames, CwfidMaskIouBeatsPlainExcessGreenWithOtsu)
 {
     REQUIRE_REAL_SET("cwfid-train");

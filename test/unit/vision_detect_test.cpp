@@ -457,15 +457,16 @@ TEST(Detect, LeavesCutOffFromTheirStemAreOnePlant)
 TEST(Detect, PlantsFartherApartThanTheGroupGapStayApart)
 {
     // Two four-leaf plants whose leaf tips are 39 background pixels
-    // (12.9 mm at 0.33 mm/px) apart.
+    // (12.9 mm at 0.33 mm/px) apart. Grouping works on 4 px cells: pieces
+    // within the gap always join, pieces up to about 8 px farther may.
     cv::Mat mask = draw_plant({400, 300}, {100, 150}, {{0, 20, 60, 16}, {90, 20, 60, 16}, {180, 20, 60, 16}, {270, 20, 60, 16}}, 4);
     mask |= draw_plant({400, 300}, {300, 150}, {{0, 20, 60, 16}, {90, 20, 60, 16}, {180, 20, 60, 16}, {270, 20, 60, 16}}, 4);
     Params params = mask_params();
-    params.group_gap_mm = 12;
+    params.group_gap_mm = 10;  // 30 px: more than 8 px short of the 39
     const Detections apart = detect({.mask = mask}, params);
     ASSERT_EQ(apart.plants.size(), 2u);
     EXPECT_LT(distance(apart.plants[0].stem, {100, 150}), 0.5);
     EXPECT_LT(distance(apart.plants[1].stem, {300, 150}), 0.5);
-    params.group_gap_mm = 14;
+    params.group_gap_mm = 13;  // at least the 12.9 mm between them
     EXPECT_EQ(detect({.mask = mask}, params).plants.size(), 1u);
 }

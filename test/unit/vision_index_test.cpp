@@ -84,17 +84,17 @@ int chromatic_index_at_leaf(cv::Vec3b soil, cv::Vec3b leaf)
 
 TEST(ChromaticExcessGreen, GreyIsNeutralAndGreenIsHigh)
 {
-    cv::Mat bgr(1, 3, CV_8UC3);
-    bgr.at<cv::Vec3b>(0, 0) = {100, 100, 100};
+    // Grey everywhere but at x = 1 (green) and x = 2 (black): the mean
+    // brightness, taken at every 4th pixel (x = 0 and 4), is 300.
+    cv::Mat bgr(1, 8, CV_8UC3, cv::Scalar(100, 100, 100));
     bgr.at<cv::Vec3b>(0, 1) = {30, 90, 50};
     bgr.at<cv::Vec3b>(0, 2) = {0, 0, 0};
     cv::Mat index;
     chromatic_excess_green(bgr, index);
     ASSERT_EQ(index.type(), CV_8UC1);
-    // Mean brightness (300 + 170 + 0) / 3; the value is 128 + 160 e / (s + mean).
-    const double mean = 470.0 / 3;
+    // 128 + 160 e / (s + mean)
     EXPECT_EQ(index.at<std::uint8_t>(0, 0), 128);
-    EXPECT_EQ(index.at<std::uint8_t>(0, 1), std::lround(128 + 160 * 100 / (170 + mean)));
+    EXPECT_EQ(index.at<std::uint8_t>(0, 1), std::lround(128 + 160 * 100 / (170 + 300.0)));
     EXPECT_EQ(index.at<std::uint8_t>(0, 2), 128);  // black is neutral, not a division by zero
 }
 

@@ -48,15 +48,19 @@ private:
     cv::Mat index_;                         // what the threshold sees
     std::vector<std::uint16_t> smooth_row_;
     Histogram histogram_{};
-    BitMask vegetation_;                    // after the threshold and the opening
+    BitMask vegetation_;                    // thresholded components the opening left a seed in
     BitMask thresholded_;
+    BitMask opened_;                        // seeds: what survives the opening
+    std::vector<std::uint8_t> keep_;        // per thresholded component: seeded
     BitMask closed_;
     ClosingScratch opening_;
     ClosingScratch closing_;
     LabelScratch labels_;
     std::vector<Component> components_;     // pieces of the closed mask
-    BitMask grouped_;                       // the closed mask dilated by half the group gap
+    BitMask cells_;                         // the closed mask in grouping cells
+    BitMask grouped_;                       // cells_ dilated by half the group gap
     ClosingScratch grouping_;
+    LabelScratch group_labels_;
     std::vector<Component> groups_;         // components of grouped_
     std::vector<int> piece_group_;          // per piece: its group
     std::vector<int> piece_order_;          // pieces sorted by group

@@ -14,7 +14,8 @@ namespace stemd::vision {
 void excess_green(const cv::Mat& bgr, cv::Mat& index_u8);
 
 // Chromatic Excess Green e / (s + mean_s), where e = 2G - R - B, s = R + G + B
-// and mean_s is the frame's mean of s: exposure and gain scale e, s and
+// and mean_s is the frame's mean of s (sampled at every 4th pixel of every
+// 4th row, from (0, 0)): exposure and gain scale e, s and
 // mean_s alike and cancel, shadows keep their leaves, and in dark pixels
 // (s << mean_s) the noisy chromaticity is damped. Mapped to
 // round(128 + 160 * value), clamped to [0, 255]: neutral soil sits near 128.

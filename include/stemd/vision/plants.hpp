@@ -31,6 +31,8 @@ public:
 private:
     friend void label_components(const BitMask&, LabelScratch&, std::vector<Component>&);
     friend int component_at(const LabelScratch&, cv::Point);
+    friend void reduce_labelled_mask(const LabelScratch&, int, BitMask&);
+    friend void keep_seeded_components(const LabelScratch&, const BitMask&, std::vector<std::uint8_t>&, BitMask&);
     struct Run { int y, x0, x1; };
     std::vector<Run> runs_;
     std::vector<int> parent_;
@@ -40,6 +42,19 @@ private:
 // Components in raster order of their first pixel. `out` is cleared and
 // refilled; reserve it (one entry per possible run) to avoid allocations.
 void label_components(const BitMask& mask, LabelScratch& scratch, std::vector<Component>& out);
+
+// After label_components: the labelled mask reduced by `cell_px` in both
+// directions (a cell is set when any of its pixels is), drawn from the runs
+// alone. `out` must be at least (width / cell_px + 1) x (height / cell_px +
+// 1); it is cleared first.
+void reduce_labelled_mask(const LabelScratch& scratch, int cell_px, BitMask& out);
+
+// After label_components: `out` = the labelled components that hold at
+// least one set pixel of `seeds` (same size), whole and unchanged (a
+// reconstruction by dilation). `keep` is scratch with room for one entry
+// per component.
+void keep_seeded_components(const LabelScratch& scratch, const BitMask& seeds, std::vector<std::uint8_t>& keep,
+                            BitMask& out);
 
 // After label_components: the index (into its `out`) of the component
 // holding pixel `p`, or -1 if `p` is background. O(log runs), no allocation.

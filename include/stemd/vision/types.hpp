@@ -107,10 +107,12 @@ struct Params {
     int closing_radius_px = 5;          // paper's m
     double gsd_mm_per_px = 0.33;        // ground sampling distance
     double min_plant_area_mm2 = 10.0;   // smaller plants are noise
-    // Pieces of the closed mask less than this far apart are one plant: a
+    // Pieces of the closed mask at most this far apart are one plant: a
     // seedling's petioles and shaded centre often fall below the threshold
     // and leave its leaves apart. Each piece then adds its leaves (a piece
-    // without cuts is one leaf) to the plant's. 0: every piece is a plant.
+    // without cuts is one leaf) to the plant's. Grouping works on 4 px
+    // cells, so pieces up to about 8 px farther apart may join too.
+    // 0: every piece is a plant.
     double group_gap_mm = 6.0;
     double defect_depth_mm = 1.0;       // the paper used 3.3 (10 px at 0.33 mm/px)
     // Scale-aware cut: a defect must also be deeper than this fraction of
