@@ -813,6 +813,17 @@ void apply_real_camera(cv::Mat& bgr, cv::Mat& nir, Rng& rng)
     add_sensor_noise(nir, 2.0 / std::sqrt(exposure), rng);
 }
 
+// The preset's camera: a real one, or only sensor noise.
+void apply_camera(const PresetSpec& spec, cv::Mat& bgr, cv::Mat& nir, Rng camera, Rng sensor)
+{
+    if (spec.real_camera) {
+        apply_real_camera(bgr, nir, camera);
+        return;
+    }
+    add_sensor_noise(bgr, 2.5, sensor);
+    add_sensor_noise(nir, 2.0, sensor);
+}
+
 void validate(const Options& options, int frame_index)
 {
     if (options.width_px < 16 || options.height_px < 16 || options.width_px > 32768 || options.height_px > 32768)
@@ -876,14 +887,8 @@ Frame generate_frame(const Options& options, int frame_index)
     // GaussianBlur on 8-bit with the 3x3 [1 2 1] kernel is fixed-point.
     cv::GaussianBlur(canvas.bgr, canvas.bgr, cv::Size(3, 3), 0);
     cv::GaussianBlur(canvas.nir, canvas.nir, cv::Size(3, 3), 0);
-    if (spec.real_camera) {
-        Rng camera = make_stream(options, frame_index, Stream::camera);
-        apply_real_camera(canvas.bgr, canvas.nir, camera);
-    } else {
-        Rng sensor = make_stream(options, frame_index, Stream::sensor);
-        add_sensor_noise(canvas.bgr, 2.5, sensor);
-        add_sensor_noise(canvas.nir, 2.0, sensor);
-    }
+    apply_camera(spec, canvas.bgr, canvas.nir, make_stream(options, frame_index, Stream::camera),
+                 make_stream(options, frame_index, Stream::sensor));
 
     frame.bgr = canvas.bgr;
     frame.nir = canvas.nir;
@@ -1118,14 +1123,8 @@ StripFrame render_strip_frame(const Strip& strip, int k)
     frame.nir = strip.nir(view).clone();
     frame.mask = strip.mask(view).clone();
     frame.plant_class = strip.plant_class(view).clone();
-    if (preset_spec(o.preset).real_camera) {
-        Rng camera = make_strip_stream(o, k, Stream::camera);
-        apply_real_camera(frame.bgr, frame.nir, camera);
-    } else {
-        Rng sensor = make_strip_stream(o, k, Stream::sensor);
-        add_sensor_noise(frame.bgr, 2.5, sensor);
-        add_sensor_noise(frame.nir, 2.0, sensor);
-    }
+    apply_camera(preset_spec(o.preset), frame.bgr, frame.nir, make_strip_stream(o, k, Stream::camera),
+                 make_strip_stream(o, k, Stream::sensor));
 
     for (const StripPlant& p : strip.plants) {
         const cv::Point2d px = strip_pixel(o, p.s_mm, p.y_mm, frame.odom_mm);
