@@ -31,6 +31,7 @@
 #include "stemd/runtime/signals.hpp"
 #include "stemd/runtime/source_factory.hpp"
 #include "stemd/runtime/status.hpp"
+#include "stemd/base/clock.hpp"
 
 using namespace stemd;
 using namespace std::chrono_literals;
@@ -185,7 +186,7 @@ int main(int argc, char** argv)
         return 1;
 
     const auto interval = std::chrono::nanoseconds(static_cast<std::int64_t>(daemon_config.status_interval_s * 1e9));
-    const std::int64_t t_start_ns = runtime::monotonic_ns();
+    const std::int64_t t_start_ns = base::monotonic_ns();
     runtime::StatusSnapshot last = daemon->snapshot(false);
     last.t_ns = t_start_ns;
     std::int64_t next_status_ns = t_start_ns + interval.count();
@@ -209,7 +210,7 @@ int main(int argc, char** argv)
             log->info("{}: stopping", *sig == SIGTERM ? "SIGTERM" : "SIGINT");
             break;
         }
-        const std::int64_t now_ns = runtime::monotonic_ns();
+        const std::int64_t now_ns = base::monotonic_ns();
         if (!ready && daemon->snapshot(false).frames_in > 0) {
             ready = true;
             notify("READY=1");
@@ -244,7 +245,7 @@ int main(int argc, char** argv)
         exit_code = 1;
     if (daemon->source_failed())
         exit_code = 1;
-    const double run_s = static_cast<double>(runtime::monotonic_ns() - t_start_ns) / 1e9;
+    const double run_s = static_cast<double>(base::monotonic_ns() - t_start_ns) / 1e9;
     status_log->info("total: {}", runtime::format_summary(daemon->snapshot(true), run_s));
     return exit_code;
 }

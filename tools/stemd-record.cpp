@@ -51,6 +51,7 @@
 #include "stemd/io/recording.hpp"
 #include "stemd/runtime/command_line.hpp"
 #include "tool_config.hpp"
+#include "stemd/base/clock.hpp"
 
 using namespace stemd;
 using namespace std::chrono_literals;
@@ -348,7 +349,7 @@ int main(int argc, char** argv)
         }
     });
 
-    const std::int64_t t_start_ns = runtime::monotonic_ns();
+    const std::int64_t t_start_ns = base::monotonic_ns();
     const std::int64_t t_end_ns =
         args->seconds > 0 ? t_start_ns + static_cast<std::int64_t>(args->seconds * 1e9) : INT64_MAX;
     bool stop_signalled = false;
@@ -367,7 +368,7 @@ int main(int argc, char** argv)
     while (!stop_requested()) {
         if (args->frames > 0 && queued >= static_cast<std::uint64_t>(args->frames))
             break;
-        const std::int64_t now_ns = runtime::monotonic_ns();
+        const std::int64_t now_ns = base::monotonic_ns();
         if (now_ns >= t_end_ns)
             break;
         const auto timeout = std::chrono::nanoseconds(std::min<std::int64_t>(t_end_ns - now_ns, 100'000'000));
@@ -402,7 +403,7 @@ int main(int argc, char** argv)
     if (!writer.close() || writer_failed.load(std::memory_order_acquire))
         exit_code = 1;
 
-    const double run_s = static_cast<double>(runtime::monotonic_ns() - t_start_ns) / 1e9;
+    const double run_s = static_cast<double>(base::monotonic_ns() - t_start_ns) / 1e9;
     const drivers::SourceCounters c = source->counters();
     if (writer_behind > 0)
         log->warn("{} frames dropped: the PNG writer could not keep up (try --slots or a faster disk)", writer_behind);

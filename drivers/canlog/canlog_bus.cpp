@@ -7,6 +7,7 @@
 #include <cstring>
 
 #include "stemd/actuation/candump_format.hpp"
+#include "stemd/base/clock.hpp"
 
 namespace stemd::drivers {
 
@@ -57,7 +58,7 @@ bool CanLogBus::open()
 
 SendResult CanLogBus::send(const actuation::CanFrame& frame, std::int64_t deadline_ns)
 {
-    if (can_monotonic_ns() >= deadline_ns) {
+    if (base::monotonic_ns() >= deadline_ns) {
         deadline_misses_.fetch_add(1, std::memory_order_relaxed);
         return SendResult::deadline_passed;
     }
@@ -107,7 +108,7 @@ bool CanLogBus::flush()
 bool CanLogBus::receive(actuation::CanFrame& /*out*/, std::int64_t timeout_ns)
 {
     if (timeout_ns > 0) {
-        const std::int64_t end = can_monotonic_ns() + timeout_ns;
+        const std::int64_t end = base::monotonic_ns() + timeout_ns;
         const timespec ts{static_cast<time_t>(end / 1'000'000'000), static_cast<long>(end % 1'000'000'000)};
         while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
         }

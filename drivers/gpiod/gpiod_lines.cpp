@@ -10,6 +10,7 @@
 #include <cstring>
 
 #include <spdlog/fmt/fmt.h>
+#include "stemd/base/clock.hpp"
 
 namespace stemd::drivers {
 
@@ -165,7 +166,7 @@ bool GpiodLines::try_open()
         return false;
     }
     chip_ = std::move(c);
-    debouncer_.reset(level != 0, gpio_monotonic_ns());
+    debouncer_.reset(level != 0, base::monotonic_ns());
     if (quad) {
         const int a = gpiod_line_get_value(chip_->enc_a);
         const int b = gpiod_line_get_value(chip_->enc_b);
@@ -195,7 +196,7 @@ bool GpiodLines::open()
             backoff_.on_success();
         } else {
             backoff_.reset();  // an explicit open(): the schedule starts at reopen_min
-            backoff_.on_failure(gpio_monotonic_ns());
+            backoff_.on_failure(base::monotonic_ns());
             set_state(GpiodState::down);
         }
     }
@@ -218,7 +219,7 @@ void GpiodLines::go_down(const char* what, int line, int err)
     fail(what, line, err);
     log_->warn("{}: lines lost, enable forced off; reopening with backoff ({} ms .. {} ms)", name_,
                options_.reopen_min_ns / 1'000'000, options_.reopen_max_ns / 1'000'000);
-    backoff_.on_failure(gpio_monotonic_ns());  // it was up: the delay is back at reopen_min
+    backoff_.on_failure(base::monotonic_ns());  // it was up: the delay is back at reopen_min
     set_state(GpiodState::down);
 }
 
@@ -371,7 +372,7 @@ bool GpiodLines::handle_events(int which, std::int64_t now_ns)
 void GpiodLines::run()
 {
     for (;;) {
-        std::int64_t now = gpio_monotonic_ns();
+        std::int64_t now = base::monotonic_ns();
         if (state() != GpiodState::up && backoff_.due(now)) {
             bool ok = false;
             {
@@ -439,7 +440,7 @@ void GpiodLines::run()
         }
         if ((fds[0].revents & POLLIN) != 0)
             return;
-        now = gpio_monotonic_ns();
+        now = base::monotonic_ns();
         for (nfds_t i = 1; i < nfds && chip_; ++i) {
             const short re = fds[i].revents;
             if (re == 0)
@@ -454,7 +455,7 @@ void GpiodLines::run()
             if (!handle_events(which[i], now))
                 break;
         }
-        now = gpio_monotonic_ns();
+        now = base::monotonic_ns();
         if (chip_ && now >= next_health_ns_) {
             next_health_ns_ = now + options_.health_check_ns;
             const int level = gpiod_line_get_value(chip_->enable);

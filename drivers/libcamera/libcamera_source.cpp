@@ -21,17 +21,11 @@
 #include <opencv2/imgproc.hpp>
 
 #include "stemd/runtime/spsc_ring.hpp"
+#include "stemd/base/clock.hpp"
 
 namespace stemd::drivers {
 
 namespace {
-
-std::int64_t monotonic_now_ns()
-{
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 
 // libcamera returns -errno.
@@ -457,7 +451,7 @@ bool LibcameraSource::start_camera()
         }
     }
     state_ = State::streaming;
-    watchdog_.started(monotonic_now_ns());
+    watchdog_.started(base::monotonic_ns());
     return true;
 }
 
@@ -470,8 +464,8 @@ void LibcameraSource::close_camera()
     // can be stopped only once every request is back: the kernel's queue
     // release normally returns them all (as errors) soon after the unplug.
     if (m.started && m.in_camera.load(std::memory_order_acquire) > 0 && media_nodes_unregistered()) {
-        const std::int64_t give_up = monotonic_now_ns() + kDrainNs;
-        while (m.in_camera.load(std::memory_order_acquire) > 0 && monotonic_now_ns() < give_up) {
+        const std::int64_t give_up = base::monotonic_ns() + kDrainNs;
+        while (m.in_camera.load(std::memory_order_acquire) > 0 && base::monotonic_ns() < give_up) {
             pollfd pfd{m.event_fd, POLLIN, 0};
             if (::poll(&pfd, 1, 10) > 0) {
                 std::uint64_t count = 0;
@@ -525,7 +519,7 @@ NextStatus LibcameraSource::lose(const std::string& why)
         state_ = State::failed;
         return NextStatus::failed;
     }
-    const std::int64_t now = monotonic_now_ns();
+    const std::int64_t now = base::monotonic_ns();
     backoff_.reset();
     backoff_.on_failure(now);
     log_->warn("{}: camera '{}' lost ({}); released, looking for it again in {} ms (backoff up to {} ms)", name_,
@@ -537,10 +531,10 @@ NextStatus LibcameraSource::lose(const std::string& why)
 
 NextStatus LibcameraSource::try_reopen(std::chrono::nanoseconds timeout)
 {
-    const std::int64_t now = monotonic_now_ns();
+    const std::int64_t now = base::monotonic_ns();
     if (!backoff_.due(now)) {
         sleep_for_ns(std::min<std::int64_t>(backoff_.wait_ns(now), timeout.count()));
-        if (!backoff_.due(monotonic_now_ns())) {
+        if (!backoff_.due(base::monotonic_ns())) {
             timeouts_.fetch_add(1, std::memory_order_relaxed);
             return NextStatus::timeout;
         }
@@ -551,7 +545,7 @@ NextStatus LibcameraSource::try_reopen(std::chrono::nanoseconds timeout)
     reopening_ = false;
     if (!ok) {
         close_camera();
-        backoff_.on_failure(monotonic_now_ns());
+        backoff_.on_failure(base::monotonic_ns());
         // Attempts fail the same way while the camera is away: log the reason when it changes.
         if (attempt_error_ != logged_attempt_error_) {
             log_->warn("{}: camera '{}' not back: {}; retrying with backoff", name_, camera_id_, attempt_error_);
@@ -578,12 +572,12 @@ NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
     if (state_ != State::streaming)
         return NextStatus::failed;
     Impl& m = *impl_;
-    const std::int64_t deadline = monotonic_now_ns() + timeout.count();
+    const std::int64_t deadline = base::monotonic_ns() + timeout.count();
     std::uint64_t index = 0;
     while (!m.ring->try_pop(index)) {
         if (m.disconnected.load(std::memory_order_acquire))
             return lose("the camera was disconnected");
-        const std::int64_t now = monotonic_now_ns();
+        const std::int64_t now = base::monotonic_ns();
         if (const StreamLoss loss = watchdog_.check(now); loss != StreamLoss::none)
             return lose(fmt::format("{} within {} ms", to_string(loss), watchdog_.limit_ns() / 1'000'000));
         const std::int64_t left = deadline - now;
@@ -600,7 +594,7 @@ NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
             [[maybe_unused]] const ssize_t n = ::read(m.event_fd, &count, sizeof count);  // EAGAIN: already drained
         }
     }
-    const std::int64_t dequeued_ns = monotonic_now_ns();
+    const std::int64_t dequeued_ns = base::monotonic_ns();
     if (index >= m.requests.size())
         return lose(fmt::format("completed request has an unknown index {}", index));
     libcamera::Request* request = m.requests[index].get();

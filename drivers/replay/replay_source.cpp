@@ -15,17 +15,11 @@
 
 #include "stemd/io/csv.hpp"
 #include "stemd/io/recording.hpp"
+#include "stemd/base/clock.hpp"
 
 namespace stemd::drivers {
 
 namespace {
-
-std::int64_t monotonic_ns()
-{
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 void sleep_until_ns(std::int64_t t_ns)
 {
@@ -184,7 +178,7 @@ bool ReplaySource::start()
     }
     index_ = 0;
     loop_offset_ns_ = 0;
-    start_mono_ns_ = monotonic_ns();
+    start_mono_ns_ = base::monotonic_ns();
     state_ = State::streaming;
     return true;
 }
@@ -219,7 +213,7 @@ NextStatus ReplaySource::next(Frame& into, std::chrono::nanoseconds timeout)
     const Entry& entry = entries_[index_];
     if (options_.pacing == ReplayOptions::Pacing::recorded) {
         const std::int64_t due = due_ns(entry);
-        const std::int64_t now = monotonic_ns();
+        const std::int64_t now = base::monotonic_ns();
         if (due - now > timeout.count()) {
             sleep_until_ns(now + timeout.count());
             return NextStatus::timeout;
@@ -231,7 +225,7 @@ NextStatus ReplaySource::next(Frame& into, std::chrono::nanoseconds timeout)
     if (!fill(entry, into))
         return NextStatus::skipped;
     into.odom_mm = entry.odom_mm;
-    into.t_capture_ns = monotonic_ns();
+    into.t_capture_ns = base::monotonic_ns();
     into.t_recorded_ns = entry.t_ns;
     into.source_seq = delivered_.fetch_add(1, std::memory_order_relaxed);
     into.name.assign(entry.name);

@@ -15,6 +15,7 @@
 #include <cstring>
 
 #include <spdlog/fmt/fmt.h>
+#include "stemd/base/clock.hpp"
 
 namespace stemd::drivers {
 
@@ -161,7 +162,7 @@ bool SocketCanBus::open()
     if (fd_.valid())
         return true;
     backoff_.retry_now();
-    return ensure_open(can_monotonic_ns());
+    return ensure_open(base::monotonic_ns());
 }
 
 bool SocketCanBus::ensure_open(std::int64_t now_ns)
@@ -196,7 +197,7 @@ void SocketCanBus::go_down(const char* what, int err)
     fail(what, err);
     log_->warn("{}: interface down; reopening with backoff ({} ms .. {} ms)", name_, options_.reopen_min_ns / 1'000'000,
                options_.reopen_max_ns / 1'000'000);
-    backoff_.on_failure(can_monotonic_ns());  // it was up: the delay is back at reopen_min
+    backoff_.on_failure(base::monotonic_ns());  // it was up: the delay is back at reopen_min
     set_state(SocketCanState::down);
 }
 
@@ -214,7 +215,7 @@ SendResult SocketCanBus::send(const actuation::CanFrame& frame, std::int64_t dea
     std::memcpy(cf.data, frame.data.data(), frame.dlc);
 
     for (;;) {
-        const std::int64_t now = can_monotonic_ns();
+        const std::int64_t now = base::monotonic_ns();
         if (now >= deadline_ns) {
             deadline_misses_.fetch_add(1, std::memory_order_relaxed);
             log_->debug("{}: deadline passed, frame 0x{:03X} not sent", name_, frame.id);
@@ -239,7 +240,7 @@ SendResult SocketCanBus::send(const actuation::CanFrame& frame, std::int64_t dea
             continue;
         if (e == ENOBUFS || e == EAGAIN) {
             retries_.fetch_add(1, std::memory_order_relaxed);
-            const std::int64_t left = deadline_ns - can_monotonic_ns();
+            const std::int64_t left = deadline_ns - base::monotonic_ns();
             if (e == ENOBUFS)
                 sleep_for_ns(std::min(left, kEnobufsPauseNs));
             else if (left > 0 && wait_fd(fd_.get(), POLLOUT, left) < 0 && errno != EINTR) {
@@ -260,9 +261,9 @@ SendResult SocketCanBus::send(const actuation::CanFrame& frame, std::int64_t dea
 
 bool SocketCanBus::receive(actuation::CanFrame& out, std::int64_t timeout_ns)
 {
-    const std::int64_t end = can_monotonic_ns() + std::max<std::int64_t>(timeout_ns, 0);
+    const std::int64_t end = base::monotonic_ns() + std::max<std::int64_t>(timeout_ns, 0);
     for (;;) {
-        const std::int64_t now = can_monotonic_ns();
+        const std::int64_t now = base::monotonic_ns();
         if (!ensure_open(now)) {
             if (now >= end)
                 return false;

@@ -7,17 +7,11 @@
 #include <utility>
 
 #include <opencv2/core.hpp>
+#include "stemd/base/clock.hpp"
 
 namespace stemd::drivers {
 
 namespace {
-
-std::int64_t real_monotonic_ns()
-{
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 }  // namespace
 
@@ -58,7 +52,7 @@ PairedNirSource::~PairedNirSource()
 
 std::int64_t PairedNirSource::now_ns() const
 {
-    return options_.rgb.clock ? options_.rgb.clock() : real_monotonic_ns();
+    return options_.rgb.clock ? options_.rgb.clock() : base::monotonic_ns();
 }
 
 bool PairedNirSource::open()

@@ -15,17 +15,11 @@
 #include <utility>
 
 #include <opencv2/imgproc.hpp>
+#include "stemd/base/clock.hpp"
 
 namespace stemd::drivers {
 
 namespace {
-
-std::int64_t real_monotonic_ns()
-{
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 void sleep_for_ns(std::int64_t ns)
 {
@@ -159,7 +153,7 @@ V4l2Source::~V4l2Source()
 
 std::int64_t V4l2Source::now_ns() const
 {
-    return options_.clock ? options_.clock() : real_monotonic_ns();
+    return options_.clock ? options_.clock() : base::monotonic_ns();
 }
 
 void V4l2Source::log_errno(const char* what, int err)

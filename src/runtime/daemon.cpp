@@ -10,6 +10,7 @@
 #include "stemd/runtime/logging.hpp"
 #include "stemd/runtime/thread_settings.hpp"
 #include "stemd/runtime/trigger_clock.hpp"
+#include "stemd/base/clock.hpp"
 
 namespace stemd::runtime {
 
@@ -115,7 +116,7 @@ bool Daemon::start()
         note(lock_all_memory());
     // Stamped now, so a thread not yet scheduled does not look stuck.
     for (auto& stamp : alive_ns_)
-        stamp.store(monotonic_ns(), std::memory_order_relaxed);
+        stamp.store(base::monotonic_ns(), std::memory_order_relaxed);
     actuator_ = std::thread([this] { actuator_loop(); });
     processing_ = std::thread([this] { processing_loop(); });
     capture_ = std::thread([this] { capture_loop(); });
@@ -148,7 +149,7 @@ bool Daemon::join()
 
 void Daemon::beat(Thread thread)
 {
-    alive_ns_[thread].store(monotonic_ns(), std::memory_order_relaxed);
+    alive_ns_[thread].store(base::monotonic_ns(), std::memory_order_relaxed);
 }
 
 const char* Daemon::stalled_thread(std::int64_t now_ns, std::int64_t max_age_ns) const
@@ -179,7 +180,7 @@ void Daemon::capture_loop()
         beat(kCapture);
         auto timeout = std::chrono::nanoseconds(kSourceTimeout);
         if (trigger != nullptr) {
-            const std::int64_t now_ns = monotonic_ns();
+            const std::int64_t now_ns = base::monotonic_ns();
             if (trigger_clock.due(now_ns)) {
                 const std::uint64_t late_before = trigger_clock.late();
                 if (trigger->pulse(actuation_->trigger_pulse_us()))
@@ -187,7 +188,7 @@ void Daemon::capture_loop()
                 trigger_clock.fired(now_ns);
                 bump(counters_->capture.trigger_late, trigger_clock.late() - late_before);
             }
-            timeout = std::min(timeout, std::chrono::nanoseconds(trigger_clock.wait_ns(monotonic_ns())));
+            timeout = std::min(timeout, std::chrono::nanoseconds(trigger_clock.wait_ns(base::monotonic_ns())));
         }
         if (hand == nullptr && !free_slots_.try_pop(hand)) {
             // The pool is sized so that this cannot happen; count it if it does.
@@ -276,7 +277,7 @@ void Daemon::processing_loop()
             result->seq = frame->seq;
             result->t_capture_ns = frame->t_capture_ns;
             result->t_recorded_ns = frame->t_recorded_ns;
-            result->t_result_ns = monotonic_ns();
+            result->t_result_ns = base::monotonic_ns();
             result->pipeline_ns = times.total_ns;
             result->name = frame->name;
             result->odom_mm = frame->odom_mm;
@@ -313,7 +314,7 @@ void Daemon::actuator_loop()
         beat(kActuator);
         if (actuation_) {
             // Received frames, encoder samples, the heartbeat: every ms is enough.
-            const std::int64_t now_ns = monotonic_ns();
+            const std::int64_t now_ns = base::monotonic_ns();
             if (now_ns >= next_poll_ns) {
                 actuation_->poll(now_ns);
                 next_poll_ns = now_ns + 1'000'000;
@@ -327,12 +328,12 @@ void Daemon::actuator_loop()
             continue;
         }
         idle.reset();
-        const std::int64_t latency_ns = monotonic_ns() - result->t_capture_ns;
+        const std::int64_t latency_ns = base::monotonic_ns() - result->t_capture_ns;
         counters_->actuator.latency.record(latency_ns);
         if (!sink_->consume(*result, latency_ns))
             bump(counters_->actuator.sink_errors);
         if (actuation_)
-            actuation_->on_frame(*result, monotonic_ns());
+            actuation_->on_frame(*result, base::monotonic_ns());
         bump(counters_->actuator.stems, result->detections.plants.size() - static_cast<std::size_t>(result->detections.stats.stemless));
         bump(counters_->actuator.frames);
         results_.pop();
@@ -346,7 +347,7 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
 {
     const drivers::SourceCounters source = source_->counters();
     StatusSnapshot s;
-    s.t_ns = monotonic_ns();
+    s.t_ns = base::monotonic_ns();
     s.frames_in = counters_->capture.frames.load(std::memory_order_relaxed);
     s.frames_out = counters_->actuator.frames.load(std::memory_order_relaxed);
     s.stems_out = counters_->actuator.stems.load(std::memory_order_relaxed);

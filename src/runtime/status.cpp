@@ -7,13 +7,6 @@
 
 namespace stemd::runtime {
 
-std::int64_t monotonic_ns()
-{
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 void DurationHistogram::add(Buckets& b, std::int64_t ns, std::size_t bucket)
 {
     b.counts[bucket].fetch_add(1, std::memory_order_relaxed);

@@ -1,25 +1,18 @@
 #include "stemd/vision/detect.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <numbers>
 #include <span>
 
+#include "stemd/base/clock.hpp"
 #include "stemd/vision/contour.hpp"
 #include "stemd/vision/stem.hpp"
 
 namespace stemd::vision {
 
 namespace {
-
-std::int64_t now_ns()
-{
-    // steady_clock is CLOCK_MONOTONIC on Linux.
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
-        .count();
-}
 
 DetectStatus check_frame(const FrameView& frame, const Params& params, cv::Size expected)
 {
@@ -136,13 +129,13 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
     if (out.status != DetectStatus::ok)
         return;
     StageTimes t;
-    const std::int64_t t0 = now_ns();
+    const std::int64_t t0 = base::monotonic_ns();
 
     // 1. Vegetation index and threshold (or the external mask).
     std::int64_t t_index = t0;
     if (params.segmentation == Segmentation::mask) {
         pack_mask(frame.mask, params.mask_vegetation, ws.vegetation_);
-        t_index = now_ns();
+        t_index = base::monotonic_ns();
     } else {
         cv::Mat& index = params.smooth_index ? ws.raw_index_ : ws.index_;
         if (params.segmentation == Segmentation::ndvi)
@@ -153,7 +146,7 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
             excess_green(frame.bgr, index);
         if (params.smooth_index)
             smooth_binomial3(ws.raw_index_, ws.smooth_row_.data(), ws.index_);
-        t_index = now_ns();
+        t_index = base::monotonic_ns();
         compute_histogram(ws.index_, ws.histogram_);
         out.stats.threshold = auto_threshold(ws.histogram_, params.threshold, params.soil_sigmas);
         const double separation = class_separation(ws.histogram_, out.stats.threshold);
@@ -173,13 +166,13 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
             std::swap(ws.thresholded_, ws.vegetation_);
         }
     }
-    const std::int64_t t_threshold = now_ns();
+    const std::int64_t t_threshold = base::monotonic_ns();
     out.stats.vegetation_px = static_cast<int>(ws.vegetation_.count());
 
     // 2. Closing.
     close_mask(ws.vegetation_, std::clamp(params.closing_radius_px, 0, kMaxClosingRadiusPx), ws.closed_,
                ws.closing_);
-    const std::int64_t t_closing = now_ns();
+    const std::int64_t t_closing = base::monotonic_ns();
 
     // 3. Plants: pieces of the closed mask, grouped when they lie closer
     // than the group gap.
@@ -218,7 +211,7 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
         const int group_b = ws.piece_group_[static_cast<std::size_t>(b)];
         return group_a != group_b ? group_a < group_b : a < b;
     });
-    const std::int64_t t_plants = now_ns();
+    const std::int64_t t_plants = base::monotonic_ns();
 
     // 4. Leaves and stems, plant by plant.
     const double pixel_area_mm2 = params.gsd_mm_per_px * params.gsd_mm_per_px;
@@ -328,7 +321,7 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
         }
         out.plants.push_back(plant);
     }
-    const std::int64_t t_leaves = now_ns();
+    const std::int64_t t_leaves = base::monotonic_ns();
     if (times) {
         t.index_ns = t_index - t0;
         t.threshold_ns = t_threshold - t_index;

@@ -16,6 +16,7 @@
 #include "canlog/canlog_bus.hpp"
 #include "stemd/actuation/candump_format.hpp"
 #include "stemd/actuation/messages.hpp"
+#include "stemd/base/clock.hpp"
 
 namespace fs = std::filesystem;
 using namespace stemd;
@@ -98,7 +99,7 @@ TEST_F(CanLogTest, SentFramesReadBackExactlyWithTheCandumpParser)
         ASSERT_TRUE(bus.open());
         EXPECT_EQ(bus.name(), "canlog:" + path.string());
         for (const auto& f : frames)
-            EXPECT_EQ(bus.send(f, can_monotonic_ns() + kSecond), SendResult::sent);
+            EXPECT_EQ(bus.send(f, stemd::base::monotonic_ns() + kSecond), SendResult::sent);
         EXPECT_EQ(bus.counters().sent, frames.size());
         EXPECT_EQ(bus.counters().errors, 0U);
     }  // destroyed: flushed
@@ -130,7 +131,7 @@ TEST_F(CanLogTest, DefaultInterfaceIsCan0AndMonotonicClockIsAvailable)
     {
         CanLogBus bus(to(path, "can0", 64, CanLogOptions::Clock::monotonic), quiet_logger());
         ASSERT_TRUE(bus.open());
-        ASSERT_EQ(bus.send(sample_frames()[0], can_monotonic_ns() + kSecond), SendResult::sent);
+        ASSERT_EQ(bus.send(sample_frames()[0], stemd::base::monotonic_ns() + kSecond), SendResult::sent);
     }
     const std::uint64_t t1 = now_us(CLOCK_MONOTONIC);
     const auto lines = read_lines(path);
@@ -149,8 +150,8 @@ TEST_F(CanLogTest, DeadlineAlreadyPassedIsNotWrittenAndCounted)
     {
         CanLogBus bus(to(path, "can0", 1), quiet_logger());
         ASSERT_TRUE(bus.open());
-        EXPECT_EQ(bus.send(sample_frames()[0], can_monotonic_ns() - 1), SendResult::deadline_passed);
-        EXPECT_EQ(bus.send(sample_frames()[0], can_monotonic_ns()), SendResult::deadline_passed);
+        EXPECT_EQ(bus.send(sample_frames()[0], stemd::base::monotonic_ns() - 1), SendResult::deadline_passed);
+        EXPECT_EQ(bus.send(sample_frames()[0], stemd::base::monotonic_ns()), SendResult::deadline_passed);
         const auto c = bus.counters();
         EXPECT_EQ(c.deadline_misses, 2U);
         EXPECT_EQ(c.sent, 0U);
@@ -166,11 +167,11 @@ TEST_F(CanLogTest, FlushesEveryNLines)
     ASSERT_TRUE(bus.open());
     const auto f = sample_frames()[0];
     for (int i = 0; i < 2; ++i)
-        ASSERT_EQ(bus.send(f, can_monotonic_ns() + kSecond), SendResult::sent);
+        ASSERT_EQ(bus.send(f, stemd::base::monotonic_ns() + kSecond), SendResult::sent);
     EXPECT_EQ(read_lines(path).size(), 0U);  // still in the stdio buffer
-    ASSERT_EQ(bus.send(f, can_monotonic_ns() + kSecond), SendResult::sent);
+    ASSERT_EQ(bus.send(f, stemd::base::monotonic_ns() + kSecond), SendResult::sent);
     EXPECT_EQ(read_lines(path).size(), 3U);
-    ASSERT_EQ(bus.send(f, can_monotonic_ns() + kSecond), SendResult::sent);
+    ASSERT_EQ(bus.send(f, stemd::base::monotonic_ns() + kSecond), SendResult::sent);
     EXPECT_TRUE(bus.flush());
     EXPECT_EQ(read_lines(path).size(), 4U);
 }
@@ -181,9 +182,9 @@ TEST_F(CanLogTest, ReceiveWaitsOutItsTimeoutAndReturnsFalse)
     ASSERT_TRUE(bus.open());
     actuation::CanFrame f{.id = 0x123, .extended = false, .dlc = 1, .data = {0x42}};
     const auto before = f;
-    const std::int64_t t0 = can_monotonic_ns();
+    const std::int64_t t0 = stemd::base::monotonic_ns();
     EXPECT_FALSE(bus.receive(f, 20'000'000));
-    EXPECT_GE(can_monotonic_ns() - t0, 20'000'000);
+    EXPECT_GE(stemd::base::monotonic_ns() - t0, 20'000'000);
     EXPECT_EQ(f, before);
     EXPECT_EQ(bus.counters().rx, 0U);
 }
@@ -192,7 +193,7 @@ TEST_F(CanLogTest, OpenFailuresAndInvalidFramesAreErrorsNotCrashes)
 {
     CanLogBus no_dir(to(dir_ / "missing" / "can.log"), quiet_logger());
     EXPECT_FALSE(no_dir.open());
-    EXPECT_EQ(no_dir.send(sample_frames()[0], can_monotonic_ns() + kSecond), SendResult::error);
+    EXPECT_EQ(no_dir.send(sample_frames()[0], stemd::base::monotonic_ns() + kSecond), SendResult::error);
     EXPECT_EQ(no_dir.counters().errors, 1U);
 
     CanLogBus bad_name(to(dir_ / "x.log", "can 0"), quiet_logger());
@@ -200,9 +201,9 @@ TEST_F(CanLogTest, OpenFailuresAndInvalidFramesAreErrorsNotCrashes)
 
     CanLogBus bus(to(dir_ / "y.log"), quiet_logger());
     ASSERT_TRUE(bus.open());
-    EXPECT_EQ(bus.send({.id = 0x800, .extended = false, .dlc = 8, .data = {}}, can_monotonic_ns() + kSecond),
+    EXPECT_EQ(bus.send({.id = 0x800, .extended = false, .dlc = 8, .data = {}}, stemd::base::monotonic_ns() + kSecond),
               SendResult::error);
-    EXPECT_EQ(bus.send({.id = 0x100, .extended = false, .dlc = 9, .data = {}}, can_monotonic_ns() + kSecond),
+    EXPECT_EQ(bus.send({.id = 0x100, .extended = false, .dlc = 9, .data = {}}, stemd::base::monotonic_ns() + kSecond),
               SendResult::error);
     EXPECT_EQ(bus.counters().errors, 2U);
     EXPECT_EQ(bus.counters().sent, 0U);

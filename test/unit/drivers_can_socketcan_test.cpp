@@ -15,6 +15,7 @@
 #include <spdlog/spdlog.h>
 
 #include "socketcan/socketcan_bus.hpp"
+#include "stemd/base/clock.hpp"
 
 using namespace stemd;
 using namespace stemd::drivers;
@@ -56,7 +57,7 @@ TEST(SocketCan, NonexistentInterfaceIsAClearErrorNamingIt)
     EXPECT_NE(bus.last_error().find("errno"), std::string::npos) << bus.last_error();
     EXPECT_NE(log.out.str().find("stemdnocan9"), std::string::npos) << log.out.str();
 
-    EXPECT_EQ(bus.send(kFrame, can_monotonic_ns() + kSecond), SendResult::error);
+    EXPECT_EQ(bus.send(kFrame, stemd::base::monotonic_ns() + kSecond), SendResult::error);
     actuation::CanFrame got;
     EXPECT_FALSE(bus.receive(got, 5'000'000));
     const auto c = bus.counters();
@@ -75,7 +76,7 @@ TEST(SocketCan, RepeatedReopenFailuresAreLoggedOnce)
     actuation::CanFrame got;
     EXPECT_FALSE(bus.receive(got, 30'000'000));  // several reopen attempts on the backoff schedule
     for (int i = 0; i < 20; ++i)
-        EXPECT_EQ(bus.send(kFrame, can_monotonic_ns() + kSecond), SendResult::error);
+        EXPECT_EQ(bus.send(kFrame, stemd::base::monotonic_ns() + kSecond), SendResult::error);
     const std::string text = log.out.str();
     EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << text;
 }
@@ -84,7 +85,7 @@ TEST(SocketCan, DeadlineAlreadyPassedIsNotSentAndCounted)
 {
     CapturedLog log;
     SocketCanBus bus(on("stemdnocan9"), log.logger);
-    EXPECT_EQ(bus.send(kFrame, can_monotonic_ns() - 1), SendResult::deadline_passed);
+    EXPECT_EQ(bus.send(kFrame, stemd::base::monotonic_ns() - 1), SendResult::deadline_passed);
     EXPECT_EQ(bus.send(kFrame, 0), SendResult::deadline_passed);
     const auto c = bus.counters();
     EXPECT_EQ(c.deadline_misses, 2U);
@@ -96,9 +97,9 @@ TEST(SocketCan, InvalidFramesAndNamesAreErrors)
 {
     CapturedLog log;
     SocketCanBus bus(on("stemdnocan9"), log.logger);
-    EXPECT_EQ(bus.send({.id = 0x800, .extended = false, .dlc = 8, .data = {}}, can_monotonic_ns() + kSecond),
+    EXPECT_EQ(bus.send({.id = 0x800, .extended = false, .dlc = 8, .data = {}}, stemd::base::monotonic_ns() + kSecond),
               SendResult::error);
-    EXPECT_EQ(bus.send({.id = 0x100, .extended = false, .dlc = 9, .data = {}}, can_monotonic_ns() + kSecond),
+    EXPECT_EQ(bus.send({.id = 0x100, .extended = false, .dlc = 9, .data = {}}, stemd::base::monotonic_ns() + kSecond),
               SendResult::error);
     EXPECT_EQ(bus.counters().errors, 2U);
 

@@ -14,6 +14,7 @@
 #include "fake_can_bus.hpp"
 #include "fake_gpio_lines.hpp"
 #include "stemd/runtime/logging.hpp"
+#include "stemd/base/clock.hpp"
 
 using namespace stemd;
 using namespace std::chrono_literals;
@@ -32,7 +33,7 @@ public:
     {
         if (frames_ >= 0 && next_ >= frames_)
             return drivers::NextStatus::end_of_stream;
-        into.t_capture_ns = runtime::monotonic_ns();
+        into.t_capture_ns = stemd::base::monotonic_ns();
         into.t_recorded_ns = next_;
         into.source_seq = static_cast<std::uint64_t>(next_);
         ++next_;
@@ -148,7 +149,7 @@ public:
             while (hang_.load())
                 std::this_thread::yield();
         }
-        into.t_capture_ns = runtime::monotonic_ns();
+        into.t_capture_ns = stemd::base::monotonic_ns();
         return drivers::NextStatus::end_of_stream;
     }
     void stop() override {}
@@ -176,13 +177,13 @@ TEST(Daemon, AStuckThreadIsReportedForTheWatchdog)
     // The other two threads keep stamping while they idle; capture does not.
     const char* stalled = nullptr;
     EXPECT_TRUE(test::wait_for(
-        [&] { return (stalled = daemon.stalled_thread(runtime::monotonic_ns(), kMaxAgeNs)) != nullptr; }, 10s));
+        [&] { return (stalled = daemon.stalled_thread(stemd::base::monotonic_ns(), kMaxAgeNs)) != nullptr; }, 10s));
     ASSERT_NE(stalled, nullptr);
     EXPECT_STREQ(stalled, "capture");
     hanging->release();
     ASSERT_TRUE(test::wait_for([&] { return daemon.finished(); }, 10s));
     // Finished threads are not stuck.
-    EXPECT_EQ(daemon.stalled_thread(runtime::monotonic_ns() + 10 * kMaxAgeNs, kMaxAgeNs), nullptr);
+    EXPECT_EQ(daemon.stalled_thread(stemd::base::monotonic_ns() + 10 * kMaxAgeNs, kMaxAgeNs), nullptr);
     EXPECT_TRUE(daemon.join());
 }
 
@@ -193,7 +194,7 @@ TEST(Daemon, NoThreadIsStalledWhileFramesFlow)
                            std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator")));
     ASSERT_TRUE(daemon.start());
     ASSERT_TRUE(test::wait_for([&] { return daemon.snapshot(false).frames_out >= 5; }, 60s));
-    EXPECT_EQ(daemon.stalled_thread(runtime::monotonic_ns(), 1'000'000'000), nullptr);
+    EXPECT_EQ(daemon.stalled_thread(stemd::base::monotonic_ns(), 1'000'000'000), nullptr);
     daemon.request_stop();
     EXPECT_TRUE(daemon.join());
 }

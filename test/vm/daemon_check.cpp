@@ -38,6 +38,7 @@
 #include "stemd/actuation/candump_format.hpp"
 #include "stemd/actuation/messages.hpp"
 #include "vivid_loopback.hpp"
+#include "stemd/base/clock.hpp"
 
 namespace {
 
@@ -115,11 +116,7 @@ extern "C" void on_signal(int sig) {
   else g_stop = 1;
 }
 
-double monotonic_s() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec) * 1e-9;
-}
+double monotonic_s() { return static_cast<double>(stemd::base::monotonic_ns()) * 1e-9; }
 
 // The field as one tall BGR strip; row k shows s = kStripTopMm - k * gsd.
 constexpr double kStripTopMm = kEndAtMm + kHalfViewMm + 1;

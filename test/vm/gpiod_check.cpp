@@ -32,6 +32,7 @@
 
 #include "gpiod/gpiod_lines.hpp"
 #include "probe_util.hpp"
+#include "stemd/base/clock.hpp"
 
 namespace {
 
@@ -103,12 +104,12 @@ void open_or_fail(GpiodLines& lines)
 // Waits up to ns for enabled() == want; the time it took, or -1.
 std::int64_t wait_enabled(GpiodLines& lines, bool want, std::int64_t ns)
 {
-    const std::int64_t t0 = gpio_monotonic_ns();
+    const std::int64_t t0 = stemd::base::monotonic_ns();
     if (lines.enabled() != want)
         lines.wait_change(!want, ns);
     if (lines.enabled() != want)
         return -1;
-    return gpio_monotonic_ns() - t0;
+    return stemd::base::monotonic_ns() - t0;
 }
 
 void enable_check(const std::map<std::string, std::string>& kv, const std::vector<std::string>& pull)
@@ -200,9 +201,9 @@ void encoder_check(const std::map<std::string, std::string>& kv, const std::vect
         line ^= 1;
         want += forward ? 1 : -1;
         run_with(toggle, {toggle_a ? "a" : "b", line != 0 ? "up" : "down"}, "toggle");
-        const std::int64_t t0 = gpio_monotonic_ns();
+        const std::int64_t t0 = stemd::base::monotonic_ns();
         while (lines.encoder().ticks != want) {
-            if (gpio_monotonic_ns() - t0 > 1000 * kMs)
+            if (stemd::base::monotonic_ns() - t0 > 1000 * kMs)
                 fail("encoder: ticks " + std::to_string(lines.encoder().ticks) + " 1 s after edge, want " +
                      std::to_string(want) + " (invalid " + std::to_string(lines.encoder().invalid) + ")");
             const timespec ts{0, 1'000'000};
@@ -228,9 +229,9 @@ void encoder_check(const std::map<std::string, std::string>& kv, const std::vect
 
 bool wait_state(GpiodLines& lines, GpiodState want, std::int64_t ns)
 {
-    const std::int64_t t0 = gpio_monotonic_ns();
+    const std::int64_t t0 = stemd::base::monotonic_ns();
     while (lines.state() != want) {
-        if (gpio_monotonic_ns() - t0 > ns)
+        if (stemd::base::monotonic_ns() - t0 > ns)
             return false;
         const timespec ts{0, 2'000'000};
         nanosleep(&ts, nullptr);

@@ -46,6 +46,7 @@
 
 #include "libcamera/libcamera_source.hpp"
 #include "probe_util.hpp"
+#include "stemd/base/clock.hpp"
 
 namespace {
 
@@ -75,11 +76,7 @@ constexpr std::array<Bar, 8> kBars{Bar{"white", true, true, true},   Bar{"yellow
                                    Bar{"magenta", true, false, true}, Bar{"red", false, false, true},
                                    Bar{"blue", true, false, false},  Bar{"black", false, false, false}};
 
-std::int64_t monotonic_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
+using stemd::base::monotonic_ns;
 
 std::string bgr_text(const cv::Scalar& s) {
   return "BGR(" + std::to_string(std::lround(s[0])) + "," + std::to_string(std::lround(s[1])) + "," +

@@ -30,6 +30,7 @@
 #include "socketcan/socketcan_bus.hpp"
 #include "stemd/actuation/e2e.hpp"
 #include "stemd/actuation/messages.hpp"
+#include "stemd/base/clock.hpp"
 
 namespace {
 
@@ -126,7 +127,7 @@ void send(const std::string& iface)
     SocketCanBus bus(options(iface), logger());
     open_or_fail(bus);
     const auto frame = target_frame(kTargetCounter);
-    const auto r = bus.send(frame, drivers::can_monotonic_ns() + 1000 * kMs);
+    const auto r = bus.send(frame, stemd::base::monotonic_ns() + 1000 * kMs);
     if (r != SendResult::sent)
         fail("send " + text(frame) + " on " + iface + ": " + std::string(to_string(r)) + " " + bus.last_error());
     info("sent TARGET " + text(frame) + " on " + iface);
@@ -185,7 +186,7 @@ void downup(const std::string& iface, const std::vector<std::string>& trigger)
     open_or_fail(bus);
     std::uint8_t counter = 0;
     for (int i = 0; i < 3; ++i) {
-        const auto r = bus.send(target_frame(counter++), drivers::can_monotonic_ns() + 100 * kMs);
+        const auto r = bus.send(target_frame(counter++), stemd::base::monotonic_ns() + 100 * kMs);
         if (r != SendResult::sent)
             fail("before down: send " + std::string(to_string(r)));
     }
@@ -193,7 +194,7 @@ void downup(const std::string& iface, const std::vector<std::string>& trigger)
     run_trigger(trigger, "down");
     int errors = 0;
     for (int i = 0; i < 20; ++i) {
-        const auto r = bus.send(target_frame(counter), drivers::can_monotonic_ns() + 50 * kMs);
+        const auto r = bus.send(target_frame(counter), stemd::base::monotonic_ns() + 50 * kMs);
         if (r == SendResult::sent)
             fail("a frame was sent while " + iface + " is down");
         errors += r == SendResult::error;
@@ -216,17 +217,17 @@ void downup(const std::string& iface, const std::vector<std::string>& trigger)
     actuation::TargetCommand resumed_msg = kTarget;
     resumed_msg.target_id = 4000;
     const auto resumed = target_frame(counter, resumed_msg);
-    const std::int64_t t0 = drivers::can_monotonic_ns();
+    const std::int64_t t0 = stemd::base::monotonic_ns();
     SendResult r = SendResult::error;
-    while (drivers::can_monotonic_ns() - t0 < 3000 * kMs) {
-        r = bus.send(resumed, drivers::can_monotonic_ns() + 50 * kMs);
+    while (stemd::base::monotonic_ns() - t0 < 3000 * kMs) {
+        r = bus.send(resumed, stemd::base::monotonic_ns() + 50 * kMs);
         if (r == SendResult::sent)
             break;
         sleep_ms(5);
     }
     if (r != SendResult::sent)
         fail("sending did not resume within 3 s after " + iface + " came up: " + bus.last_error());
-    info("sending resumed " + std::to_string((drivers::can_monotonic_ns() - t0) / kMs) + " ms after up: " +
+    info("sending resumed " + std::to_string((stemd::base::monotonic_ns() - t0) / kMs) + " ms after up: " +
          text(resumed));
     counters(bus);
     if (bus.reopens() < 1)

@@ -39,6 +39,7 @@
 #include "vivid_loopback.hpp"
 #include "stemd/vision/detect.hpp"
 #include "v4l2/v4l2_source.hpp"
+#include "stemd/base/clock.hpp"
 
 namespace {
 
@@ -68,11 +69,7 @@ const cv::Rect kSoilPatch{8, 8, 24, 24};
 using stemd::vmprobe::Rosette;
 const std::array kRosettes{Rosette{{180, 200}, 5, 70, 10}, Rosette{{450, 300}, 6, 60, 35}};
 
-std::int64_t monotonic_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
+using stemd::base::monotonic_ns;
 
 // Leaves are ellipses radiating from the stem, each from the stem outwards.
 cv::Mat draw_scene() {

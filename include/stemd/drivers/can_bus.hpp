@@ -4,7 +4,7 @@
 // scheduler that calls it.
 //
 // Time: deadlines and timeouts are CLOCK_MONOTONIC nanoseconds
-// (can_monotonic_ns()). A frame is never handed to the bus after its
+// (base::monotonic_ns()). A frame is never handed to the bus after its
 // deadline: send() checks the clock before every attempt and, once the
 // deadline has passed, gives up and counts a deadline miss.
 //
@@ -19,6 +19,7 @@
 #include <string_view>
 
 #include "stemd/actuation/can_frame.hpp"
+#include "stemd/base/clock.hpp"
 
 namespace stemd::drivers {
 
@@ -48,14 +49,6 @@ struct CanBusCounters {
     std::uint64_t error_passive = 0;          // error-passive events reported by the controller
     std::uint64_t rx = 0;                     // data frames delivered by receive()
 };
-
-// CLOCK_MONOTONIC in nanoseconds: the clock of every deadline and timeout.
-inline std::int64_t can_monotonic_ns()
-{
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 class CanBus {
 public:

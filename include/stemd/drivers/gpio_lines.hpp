@@ -14,7 +14,7 @@
 // again as soon as the line is lost (chip gone, read error); only a
 // debounced, stably active line enables (see EnableDebouncer).
 //
-// Time: CLOCK_MONOTONIC nanoseconds (gpio_monotonic_ns()).
+// Time: CLOCK_MONOTONIC nanoseconds (base::monotonic_ns()).
 //
 // The pure logic (quadrature decoding, debouncing) is here, header-only, so
 // it is tested without a chip (test/unit/drivers_gpiod_*.cpp).
@@ -24,15 +24,9 @@
 
 #include <cstdint>
 #include <string_view>
+#include "stemd/base/clock.hpp"
 
 namespace stemd::drivers {
-
-inline std::int64_t gpio_monotonic_ns()
-{
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 // ---------------------------------------------------------------------------
 // Quadrature decoding (x4: every edge of A or B is one tick).

@@ -105,7 +105,4 @@ std::string format_status(const StatusSnapshot& now, const StatusSnapshot& befor
 // The run's totals for the last line: frames, drops, whole-run percentiles.
 std::string format_summary(const StatusSnapshot& end, double run_s);
 
-// CLOCK_MONOTONIC in nanoseconds.
-std::int64_t monotonic_ns();
-
 }  // namespace stemd::runtime
