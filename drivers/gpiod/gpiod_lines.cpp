@@ -297,8 +297,8 @@ void GpiodLines::start()
 {
     if (thread_.joinable())
         return;
-    stop_fd_ = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
-    if (stop_fd_ < 0) {
+    stop_fd_.reset(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
+    if (!stop_fd_.valid()) {
         fail("eventfd", -1, errno);
         return;
     }
@@ -309,14 +309,11 @@ void GpiodLines::stop()
 {
     if (thread_.joinable()) {
         const std::uint64_t one = 1;
-        if (::write(stop_fd_, &one, sizeof one) < 0)
+        if (::write(stop_fd_.get(), &one, sizeof one) < 0)
             fail("eventfd write", -1, errno);
         thread_.join();
     }
-    if (stop_fd_ >= 0) {
-        ::close(stop_fd_);
-        stop_fd_ = -1;
-    }
+    stop_fd_.reset();
 }
 
 void GpiodLines::sample_encoder()
@@ -404,7 +401,7 @@ void GpiodLines::run()
         pollfd fds[4];
         int which[4] = {-1, -1, -1, -1};
         nfds_t nfds = 0;
-        fds[nfds++] = {stop_fd_, POLLIN, 0};
+        fds[nfds++] = {stop_fd_.get(), POLLIN, 0};
         if (chip_) {
             gpiod_line* lines[3] = {chip_->enable, chip_->enc_a, chip_->enc_b};
             for (int i = 0; i < 3; ++i) {

@@ -36,6 +36,7 @@
 
 #include "stemd/drivers/gpio_lines.hpp"
 #include "stemd/drivers/reopen_backoff.hpp"
+#include "stemd/base/unique_fd.hpp"
 
 struct gpiod_chip;
 struct gpiod_line;
@@ -126,7 +127,7 @@ private:
     mutable std::mutex error_mutex_;
     std::string last_error_;
 
-    int stop_fd_ = -1;  // eventfd that wakes the thread for stop()
+    base::UniqueFd stop_fd_;  // eventfd that wakes the thread for stop()
     std::thread thread_;
 
     std::atomic<std::uint64_t> edges_{0};

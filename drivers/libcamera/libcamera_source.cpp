@@ -22,6 +22,7 @@
 
 #include "stemd/runtime/spsc_ring.hpp"
 #include "stemd/base/clock.hpp"
+#include "stemd/base/unique_fd.hpp"
 
 namespace stemd::drivers {
 
@@ -244,13 +245,7 @@ struct LibcameraSource::Impl {
     void wake() const
     {
         const std::uint64_t one = 1;
-        [[maybe_unused]] const ssize_t n = ::write(event_fd, &one, sizeof one);  // only fails if the counter is saturated
-    }
-
-    ~Impl()
-    {
-        if (event_fd >= 0)
-            ::close(event_fd);
+        [[maybe_unused]] const ssize_t n = ::write(event_fd.get(), &one, sizeof one);  // only fails if the counter is saturated
     }
 
     std::unique_ptr<libcamera::CameraManager, ManagerStopper> manager;
@@ -266,7 +261,7 @@ struct LibcameraSource::Impl {
     std::vector<std::unique_ptr<libcamera::Request>> requests;  // index = cookie
     std::vector<MappedPlane> planes;                           // index = cookie
     std::unique_ptr<runtime::SpscRing<std::uint64_t>> ring;
-    int event_fd = -1;
+    base::UniqueFd event_fd;
     std::atomic<bool> disconnected{false};
     std::atomic<std::uint64_t> ring_full{0};
     std::atomic<int> in_camera{0};  // requests queued and not completed yet
@@ -400,8 +395,8 @@ bool LibcameraSource::open_camera(const std::string& selector)
     // Every request is in at most one place (camera, ring, next()): the ring
     // never overflows.
     m.ring = std::make_unique<runtime::SpscRing<std::uint64_t>>(m.requests.size());
-    m.event_fd = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
-    if (m.event_fd < 0)
+    m.event_fd.reset(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC));
+    if (!m.event_fd.valid())
         return error("eventfd: " + errno_text(errno));
     m.camera->requestCompleted.connect(&m, &Impl::completed);
     m.camera->disconnected.connect(&m, &Impl::unplugged);
@@ -466,10 +461,10 @@ void LibcameraSource::close_camera()
     if (m.started && m.in_camera.load(std::memory_order_acquire) > 0 && media_nodes_unregistered()) {
         const std::int64_t give_up = base::monotonic_ns() + kDrainNs;
         while (m.in_camera.load(std::memory_order_acquire) > 0 && base::monotonic_ns() < give_up) {
-            pollfd pfd{m.event_fd, POLLIN, 0};
+            pollfd pfd{m.event_fd.get(), POLLIN, 0};
             if (::poll(&pfd, 1, 10) > 0) {
                 std::uint64_t count = 0;
-                [[maybe_unused]] const ssize_t n = ::read(m.event_fd, &count, sizeof count);
+                [[maybe_unused]] const ssize_t n = ::read(m.event_fd.get(), &count, sizeof count);
             }
         }
         if (const int stuck = m.in_camera.load(std::memory_order_acquire); stuck > 0) {
@@ -585,13 +580,13 @@ NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
             timeouts_.fetch_add(1, std::memory_order_relaxed);
             return NextStatus::timeout;
         }
-        pollfd pfd{m.event_fd, POLLIN, 0};
+        pollfd pfd{m.event_fd.get(), POLLIN, 0};
         const int r = ::poll(&pfd, 1, static_cast<int>((left + 999'999) / 1'000'000));
         if (r < 0 && errno != EINTR)
             return lose("poll on the completion eventfd: " + errno_text(errno));
         if (r > 0) {
             std::uint64_t count = 0;
-            [[maybe_unused]] const ssize_t n = ::read(m.event_fd, &count, sizeof count);  // EAGAIN: already drained
+            [[maybe_unused]] const ssize_t n = ::read(m.event_fd.get(), &count, sizeof count);  // EAGAIN: already drained
         }
     }
     const std::int64_t dequeued_ns = base::monotonic_ns();

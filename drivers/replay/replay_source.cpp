@@ -16,6 +16,7 @@
 #include "stemd/io/csv.hpp"
 #include "stemd/io/recording.hpp"
 #include "stemd/base/clock.hpp"
+#include "stemd/base/unique_fd.hpp"
 
 namespace stemd::drivers {
 
@@ -282,7 +283,8 @@ bool ReplaySource::fill(const Entry& entry, Frame& into)
 
 bool ReplaySource::read_file(const std::filesystem::path& path)
 {
-    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    const base::UniqueFd file(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
+    const int fd = file.get();
     if (fd < 0) {
         log_->warn("{}: cannot open: {} (errno {})", path.string(), std::strerror(errno), errno);
         return false;
@@ -305,7 +307,6 @@ bool ReplaySource::read_file(const std::filesystem::path& path)
     }
     if (!ok)
         log_->warn("{}: cannot read: {} (errno {})", path.string(), std::strerror(errno), errno);
-    ::close(fd);
     return ok;
 }
 

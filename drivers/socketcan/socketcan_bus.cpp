@@ -77,13 +77,6 @@ CanErrorInfo decode_error_frame(std::uint32_t can_id, const std::uint8_t (&data)
     return info;
 }
 
-void SocketCanBus::Fd::reset(int fd)
-{
-    if (fd_ >= 0)
-        ::close(fd_);
-    fd_ = fd;
-}
-
 SocketCanBus::SocketCanBus(SocketCanOptions options, std::shared_ptr<spdlog::logger> log)
     : options_(std::move(options)),
       log_(std::move(log)),
@@ -110,7 +103,7 @@ bool SocketCanBus::try_open()
         fail("interface name must be 1..15 characters", EINVAL);
         return false;
     }
-    Fd sock(::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW));
+    base::UniqueFd sock(::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW));
     if (!sock.valid()) {
         fail("socket(PF_CAN, SOCK_RAW, CAN_RAW)", errno);
         return false;

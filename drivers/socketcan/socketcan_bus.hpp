@@ -36,6 +36,7 @@
 
 #include "stemd/drivers/can_bus.hpp"
 #include "stemd/drivers/reopen_backoff.hpp"
+#include "stemd/base/unique_fd.hpp"
 
 namespace stemd::drivers {
 
@@ -81,26 +82,6 @@ public:
     const std::string& last_error() const { return last_error_; }
 
 private:
-    class Fd {
-    public:
-        Fd() = default;
-        explicit Fd(int fd) : fd_(fd) {}
-        Fd(const Fd&) = delete;
-        Fd& operator=(const Fd&) = delete;
-        ~Fd() { reset(); }
-        void reset(int fd = -1);
-        int release()
-        {
-            const int fd = fd_;
-            fd_ = -1;
-            return fd;
-        }
-        int get() const { return fd_; }
-        bool valid() const { return fd_ >= 0; }
-
-    private:
-        int fd_ = -1;
-    };
 
     bool try_open();
     // Opens when down and the next attempt is due; true if there is a socket.
@@ -113,7 +94,7 @@ private:
     const SocketCanOptions options_;
     const std::shared_ptr<spdlog::logger> log_;
     const std::string name_;
-    Fd fd_;
+    base::UniqueFd fd_;
     std::atomic<SocketCanState> state_{SocketCanState::closed};
     ReopenBackoff backoff_;  // when the next open is due (reopen_min..reopen_max)
     bool was_up_ = false;  // for the "up again" log line

@@ -166,7 +166,7 @@ bool V4l2Source::ioctl_retry(unsigned long request, void* arg) const
 {
     int r = 0;
     do
-        r = ::ioctl(fd_, request, arg);
+        r = ::ioctl(fd_.get(), request, arg);
     while (r < 0 && errno == EINTR);
     return r == 0;
 }
@@ -191,8 +191,8 @@ bool V4l2Source::open()
 bool V4l2Source::open_device()
 {
     state_ = State::opening;
-    fd_ = ::open(options_.device.c_str(), O_RDWR | O_NONBLOCK | O_CLOEXEC);
-    if (fd_ < 0) {
+    fd_.reset(::open(options_.device.c_str(), O_RDWR | O_NONBLOCK | O_CLOEXEC));
+    if (!fd_.valid()) {
         log_errno("cannot open", errno);
         return false;
     }
@@ -275,7 +275,7 @@ bool V4l2Source::open_device()
             log_errno("VIDIOC_QUERYBUF", errno);
             return false;
         }
-        void* data = ::mmap(nullptr, buf.length, PROT_READ | PROT_WRITE, MAP_SHARED, fd_, buf.m.offset);
+        void* data = ::mmap(nullptr, buf.length, PROT_READ | PROT_WRITE, MAP_SHARED, fd_.get(), buf.m.offset);
         if (data == MAP_FAILED) {
             log_errno("mmap", errno);
             return false;
@@ -329,14 +329,12 @@ bool V4l2Source::requeue(unsigned index)
 
 void V4l2Source::close_device()
 {
-    if (fd_ >= 0 && state_ == State::streaming) {
+    if (fd_.valid() && state_ == State::streaming) {
         int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
         ioctl_retry(VIDIOC_STREAMOFF, &type);  // a vanished device fails here; closing is all that is left
     }
     buffers_.clear();  // unmaps
-    if (fd_ >= 0)
-        ::close(fd_);
-    fd_ = -1;
+    fd_.reset();
     state_ = State::closed;
 }
 
@@ -384,7 +382,7 @@ NextStatus V4l2Source::next(Frame& into, std::chrono::nanoseconds timeout)
     if (state_ != State::streaming)
         return NextStatus::failed;
 
-    pollfd pfd{fd_, POLLIN, 0};
+    pollfd pfd{fd_.get(), POLLIN, 0};
     const int timeout_ms = static_cast<int>(std::chrono::ceil<std::chrono::milliseconds>(timeout).count());
     int ready = 0;
     do

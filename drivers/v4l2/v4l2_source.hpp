@@ -48,6 +48,7 @@
 
 #include "stemd/drivers/frame_source.hpp"
 #include "stemd/drivers/reopen_backoff.hpp"
+#include "stemd/base/unique_fd.hpp"
 
 struct v4l2_buffer;
 
@@ -156,7 +157,7 @@ private:
     const std::shared_ptr<spdlog::logger> log_;
     const std::string name_;
     State state_ = State::closed;
-    int fd_ = -1;
+    base::UniqueFd fd_;
     std::vector<MappedBuffer> buffers_;
     std::size_t bytesperline_ = 0;
     std::size_t sizeimage_ = 0;

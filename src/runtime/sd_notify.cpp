@@ -20,8 +20,8 @@ SystemdNotifier::SystemdNotifier()
         error_ = "NOTIFY_SOCKET '" + address_ + "' is not a socket path";
         return;
     }
-    fd_ = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-    if (fd_ < 0) {
+    fd_.reset(::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0));
+    if (!fd_.valid()) {
         error_ = std::string("socket(AF_UNIX): ") + std::strerror(errno);
         return;
     }
@@ -32,15 +32,11 @@ SystemdNotifier::SystemdNotifier()
         watchdog_ = std::chrono::microseconds(std::atoll(usec));
 }
 
-SystemdNotifier::~SystemdNotifier()
-{
-    if (fd_ >= 0)
-        ::close(fd_);
-}
+SystemdNotifier::~SystemdNotifier() = default;
 
 bool SystemdNotifier::notify(std::string_view state)
 {
-    if (fd_ < 0)
+    if (!fd_.valid())
         return false;
     sockaddr_un addr{};
     addr.sun_family = AF_UNIX;
@@ -50,7 +46,7 @@ bool SystemdNotifier::notify(std::string_view state)
         addr.sun_path[0] = '\0';  // abstract namespace: no terminating NUL counted
     else
         length += 1;
-    const ssize_t sent = ::sendto(fd_, state.data(), state.size(), MSG_NOSIGNAL,
+    const ssize_t sent = ::sendto(fd_.get(), state.data(), state.size(), MSG_NOSIGNAL,
                                   reinterpret_cast<const sockaddr*>(&addr), length);
     if (sent < 0) {
         error_ = address_ + ": sendto: " + std::strerror(errno);

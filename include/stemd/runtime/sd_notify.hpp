@@ -6,6 +6,7 @@
 #include <chrono>
 #include <string>
 #include <string_view>
+#include "stemd/base/unique_fd.hpp"
 
 namespace stemd::runtime {
 
@@ -17,7 +18,7 @@ public:
     SystemdNotifier(const SystemdNotifier&) = delete;
     SystemdNotifier& operator=(const SystemdNotifier&) = delete;
 
-    bool enabled() const { return fd_ >= 0; }
+    bool enabled() const { return fd_.valid(); }
     // The service's WatchdogSec= when it applies to this process, else zero.
     std::chrono::microseconds watchdog_interval() const { return watchdog_; }
 
@@ -27,7 +28,7 @@ public:
     const std::string& error() const { return error_; }
 
 private:
-    int fd_ = -1;
+    base::UniqueFd fd_;
     std::string address_;   // the socket path; a leading '@' is the abstract namespace
     std::chrono::microseconds watchdog_{0};
     std::string error_;
