@@ -23,6 +23,7 @@
 #include "stemd/runtime/spsc_ring.hpp"
 #include "stemd/base/clock.hpp"
 #include "stemd/base/unique_fd.hpp"
+#include "stemd/base/mapped_memory.hpp"
 
 namespace stemd::drivers {
 
@@ -194,34 +195,6 @@ struct LibcameraSource::Impl {
         }
     };
 
-    // One mmapped plane of a frame buffer, unmapped exactly once.
-    class MappedPlane {
-    public:
-        MappedPlane(void* map, std::size_t map_length, std::size_t offset)
-            : map_(map), map_length_(map_length), offset_(offset)
-        {
-        }
-        MappedPlane(MappedPlane&& other) noexcept
-            : map_(std::exchange(other.map_, MAP_FAILED)), map_length_(other.map_length_), offset_(other.offset_)
-        {
-        }
-        MappedPlane& operator=(MappedPlane&&) = delete;
-        MappedPlane(const MappedPlane&) = delete;
-        MappedPlane& operator=(const MappedPlane&) = delete;
-        ~MappedPlane()
-        {
-            if (map_ != MAP_FAILED)
-                ::munmap(map_, map_length_);
-        }
-        const std::uint8_t* bytes() const { return static_cast<const std::uint8_t*>(map_) + offset_; }
-        std::size_t length() const { return map_length_ - offset_; }
-
-    private:
-        void* map_;
-        std::size_t map_length_;
-        std::size_t offset_;
-    };
-
     // libcamera's thread: hand the request's index over, wake next(). No
     // locks, no allocation, no logging here.
     void completed(libcamera::Request* request)
@@ -259,7 +232,7 @@ struct LibcameraSource::Impl {
     std::size_t stride = 0;
     std::unique_ptr<libcamera::FrameBufferAllocator> allocator;
     std::vector<std::unique_ptr<libcamera::Request>> requests;  // index = cookie
-    std::vector<MappedPlane> planes;                           // index = cookie
+    std::vector<base::MappedMemory> planes;                           // index = cookie
     std::unique_ptr<runtime::SpscRing<std::uint64_t>> ring;
     base::UniqueFd event_fd;
     std::atomic<bool> disconnected{false};

@@ -127,17 +127,6 @@ std::int64_t v4l2_capture_time_ns(const v4l2_buffer& buf, std::int64_t now_ns)
 
 // --- V4l2Source ------------------------------------------------------------------
 
-V4l2Source::MappedBuffer::MappedBuffer(MappedBuffer&& other) noexcept
-    : data_(std::exchange(other.data_, MAP_FAILED)), length_(other.length_)
-{
-}
-
-V4l2Source::MappedBuffer::~MappedBuffer()
-{
-    if (data_ != MAP_FAILED)
-        ::munmap(data_, length_);
-}
-
 V4l2Source::V4l2Source(V4l2Options options, std::shared_ptr<spdlog::logger> log)
     : options_(std::move(options)),
       log_(std::move(log)),

@@ -49,6 +49,7 @@
 #include "stemd/drivers/frame_source.hpp"
 #include "stemd/drivers/reopen_backoff.hpp"
 #include "stemd/base/unique_fd.hpp"
+#include "stemd/base/mapped_memory.hpp"
 
 struct v4l2_buffer;
 
@@ -123,22 +124,6 @@ public:
     double granted_fps() const { return granted_fps_; }
 
 private:
-    class MappedBuffer {
-    public:
-        MappedBuffer(void* data, std::size_t length) : data_(data), length_(length) {}
-        MappedBuffer(MappedBuffer&& other) noexcept;
-        MappedBuffer& operator=(MappedBuffer&&) = delete;
-        MappedBuffer(const MappedBuffer&) = delete;
-        MappedBuffer& operator=(const MappedBuffer&) = delete;
-        ~MappedBuffer();
-        const std::uint8_t* bytes() const { return static_cast<const std::uint8_t*>(data_); }
-        std::size_t length() const { return length_; }
-
-    private:
-        void* data_;
-        std::size_t length_;
-    };
-
     std::int64_t now_ns() const;
     // Opens and configures the device, maps its buffers (state opening).
     bool open_device();
@@ -158,7 +143,7 @@ private:
     const std::string name_;
     State state_ = State::closed;
     base::UniqueFd fd_;
-    std::vector<MappedBuffer> buffers_;
+    std::vector<base::MappedMemory> buffers_;
     std::size_t bytesperline_ = 0;
     std::size_t sizeimage_ = 0;
     double granted_fps_ = 0;
