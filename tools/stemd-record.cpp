@@ -46,7 +46,7 @@
 #include "stemd/runtime/logging.hpp"
 #include "stemd/runtime/signals.hpp"
 #include "stemd/runtime/source_factory.hpp"
-#include "stemd/runtime/spsc_ring.hpp"
+#include "stemd/base/spsc_ring.hpp"
 #include "stemd/runtime/status.hpp"
 #include "stemd/io/recording.hpp"
 #include "stemd/runtime/command_line.hpp"
@@ -308,8 +308,8 @@ int main(int argc, char** argv)
     }
     // Both rings hold every slot, so a push never fails: free slots go
     // writer -> capture, full ones capture -> writer.
-    runtime::SpscRing<drivers::Frame*> free_slots(slot_count);
-    runtime::SpscRing<drivers::Frame*> full_slots(slot_count);
+    base::SpscRing<drivers::Frame*> free_slots(slot_count);
+    base::SpscRing<drivers::Frame*> full_slots(slot_count);
     for (std::size_t i = 1; i < slot_count; ++i)
         free_slots.try_push(&(*pool)[i]);
     drivers::Frame* hand = &(*pool)[0];

@@ -20,7 +20,7 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "stemd/runtime/spsc_ring.hpp"
+#include "stemd/base/spsc_ring.hpp"
 #include "stemd/base/clock.hpp"
 #include "stemd/base/unique_fd.hpp"
 #include "stemd/base/mapped_memory.hpp"
@@ -233,7 +233,7 @@ struct LibcameraSource::Impl {
     std::unique_ptr<libcamera::FrameBufferAllocator> allocator;
     std::vector<std::unique_ptr<libcamera::Request>> requests;  // index = cookie
     std::vector<base::MappedMemory> planes;                           // index = cookie
-    std::unique_ptr<runtime::SpscRing<std::uint64_t>> ring;
+    std::unique_ptr<base::SpscRing<std::uint64_t>> ring;
     base::UniqueFd event_fd;
     std::atomic<bool> disconnected{false};
     std::atomic<std::uint64_t> ring_full{0};
@@ -367,7 +367,7 @@ bool LibcameraSource::open_camera(const std::string& selector)
     }
     // Every request is in at most one place (camera, ring, next()): the ring
     // never overflows.
-    m.ring = std::make_unique<runtime::SpscRing<std::uint64_t>>(m.requests.size());
+    m.ring = std::make_unique<base::SpscRing<std::uint64_t>>(m.requests.size());
     m.event_fd.reset(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC));
     if (!m.event_fd.valid())
         return error("eventfd: " + errno_text(errno));

@@ -8,9 +8,9 @@
 #include <thread>
 #include <vector>
 
-#include "stemd/runtime/spsc_ring.hpp"
+#include "stemd/base/spsc_ring.hpp"
 
-using stemd::runtime::SpscRing;
+using stemd::base::SpscRing;
 
 namespace {
 
@@ -133,8 +133,8 @@ TEST(SpscRing, OverwriteHandsBackTheOldest)
 TEST(SpscRing, HeadAndTailAreOnSeparateCacheLines)
 {
     // The point of the padding: producer and consumer never share a line.
-    EXPECT_GE(sizeof(SpscRing<int>), 2 * stemd::runtime::kCacheLineBytes);
-    EXPECT_EQ(alignof(SpscRing<int>), stemd::runtime::kCacheLineBytes);
+    EXPECT_GE(sizeof(SpscRing<int>), 2 * stemd::base::kCacheLineBytes);
+    EXPECT_EQ(alignof(SpscRing<int>), stemd::base::kCacheLineBytes);
 }
 
 // --- two threads -------------------------------------------------------------

@@ -35,7 +35,7 @@
 #include "stemd/runtime/daemon_config.hpp"
 #include "stemd/runtime/detection_sink.hpp"
 #include "stemd/runtime/frame_pool.hpp"
-#include "stemd/runtime/spsc_ring.hpp"
+#include "stemd/base/spsc_ring.hpp"
 #include "stemd/runtime/status.hpp"
 #include "stemd/vision/detect.hpp"
 
@@ -96,9 +96,9 @@ private:
     const std::unique_ptr<ActuationStage> actuation_;
 
     FramePool pool_;
-    SpscRing<drivers::Frame*> free_slots_;   // processing -> capture
-    SpscRing<drivers::Frame*> frames_;       // capture -> processing
-    SpscRing<FrameResult> results_;          // processing -> actuator, built in place
+    base::SpscRing<drivers::Frame*> free_slots_;   // processing -> capture
+    base::SpscRing<drivers::Frame*> frames_;       // capture -> processing
+    base::SpscRing<FrameResult> results_;          // processing -> actuator, built in place
     const std::unique_ptr<vision::Workspace> workspace_;   // the processing thread's
 
     std::atomic<bool> stop_{false};

@@ -33,7 +33,7 @@
 #include <type_traits>
 #include <utility>
 
-namespace stemd::runtime {
+namespace stemd::base {
 
 // std::hardware_destructive_interference_size is 64 on every target we build
 // for; GCC warns when the constant appears in a header (ABI can differ with
@@ -202,4 +202,4 @@ private:
     std::atomic<std::uint64_t> overwritten_{0};
 };
 
-}  // namespace stemd::runtime
+}  // namespace stemd::base
