@@ -108,10 +108,7 @@ bool CanLogBus::flush()
 bool CanLogBus::receive(actuation::CanFrame& /*out*/, std::int64_t timeout_ns)
 {
     if (timeout_ns > 0) {
-        const std::int64_t end = base::monotonic_ns() + timeout_ns;
-        const timespec ts{static_cast<time_t>(end / 1'000'000'000), static_cast<long>(end % 1'000'000'000)};
-        while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-        }
+        base::sleep_until_ns(base::monotonic_ns() + timeout_ns);
     }
     return false;
 }

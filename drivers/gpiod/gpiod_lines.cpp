@@ -264,9 +264,7 @@ bool GpiodLines::pulse(std::uint32_t width_us)
 {
     if (!set_trigger(true))
         return false;
-    const timespec ts = to_timespec(static_cast<std::int64_t>(width_us) * 1000);
-    while (clock_nanosleep(CLOCK_MONOTONIC, 0, &ts, nullptr) == EINTR) {
-    }
+    base::sleep_for_ns(static_cast<std::int64_t>(width_us) * 1000);
     const bool ok = set_trigger(false);
     if (ok)
         pulses_.fetch_add(1, std::memory_order_relaxed);

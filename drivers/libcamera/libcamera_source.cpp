@@ -52,15 +52,6 @@ std::string list_ids(const std::vector<std::string>& ids)
     return out;
 }
 
-void sleep_for_ns(std::int64_t ns)
-{
-    if (ns <= 0)
-        return;
-    timespec ts{static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
-    while (clock_nanosleep(CLOCK_MONOTONIC, 0, &ts, &ts) == EINTR) {
-    }
-}
-
 // True if a V4L2 or media-controller node this process has open (libcamera's
 // own fds) was unregistered: the kernel then reports POLLHUP on it (v4l2_poll,
 // media_poll), which a live node never does. libcamera 0.0.3 cannot stop a
@@ -501,7 +492,7 @@ NextStatus LibcameraSource::try_reopen(std::chrono::nanoseconds timeout)
 {
     const std::int64_t now = base::monotonic_ns();
     if (!backoff_.due(now)) {
-        sleep_for_ns(std::min<std::int64_t>(backoff_.wait_ns(now), timeout.count()));
+        base::sleep_for_ns(std::min<std::int64_t>(backoff_.wait_ns(now), timeout.count()));
         if (!backoff_.due(base::monotonic_ns())) {
             timeouts_.fetch_add(1, std::memory_order_relaxed);
             return NextStatus::timeout;

@@ -22,13 +22,6 @@ namespace stemd::drivers {
 
 namespace {
 
-void sleep_until_ns(std::int64_t t_ns)
-{
-    const timespec ts{static_cast<time_t>(t_ns / 1'000'000'000), static_cast<long>(t_ns % 1'000'000'000)};
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-    }
-}
-
 // IGNORE_ORIENTATION: frames are stored as the camera delivered them; an
 // EXIF rotation must not turn them (nor change their size).
 constexpr int kColorFlags = cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION;
@@ -216,11 +209,11 @@ NextStatus ReplaySource::next(Frame& into, std::chrono::nanoseconds timeout)
         const std::int64_t due = due_ns(entry);
         const std::int64_t now = base::monotonic_ns();
         if (due - now > timeout.count()) {
-            sleep_until_ns(now + timeout.count());
+            base::sleep_until_ns(now + timeout.count());
             return NextStatus::timeout;
         }
         if (due > now)
-            sleep_until_ns(due);
+            base::sleep_until_ns(due);
     }
     ++index_;
     if (!fill(entry, into))

@@ -21,15 +21,6 @@ namespace stemd::drivers {
 
 namespace {
 
-void sleep_for_ns(std::int64_t ns)
-{
-    if (ns <= 0)
-        return;
-    timespec ts{static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
-    while (clock_nanosleep(CLOCK_MONOTONIC, 0, &ts, &ts) == EINTR) {
-    }
-}
-
 const char* state_name(V4l2Source::State s)
 {
     switch (s) {
@@ -349,7 +340,7 @@ NextStatus V4l2Source::next(Frame& into, std::chrono::nanoseconds timeout)
         const std::int64_t now = now_ns();
         if (!backoff_.due(now)) {
             const std::int64_t wait = std::min<std::int64_t>(backoff_.wait_ns(now), timeout.count());
-            sleep_for_ns(wait);
+            base::sleep_for_ns(wait);
             if (!backoff_.due(now_ns())) {
                 timeouts_.fetch_add(1, std::memory_order_relaxed);
                 return NextStatus::timeout;

@@ -32,8 +32,7 @@ public:
             std::this_thread::yield();
             return;
         }
-        const timespec ts{0, 100'000};
-        nanosleep(&ts, nullptr);
+        base::sleep_for_ns(100'000);
     }
     void reset() { rounds_ = 0; }
 
