@@ -21,7 +21,6 @@ cmake --build build/release -j "$jobs"
 step "VM preparation"
 tools/vm/prepare.sh build/release/vm-cache ||
   echo "test.sh: VM preparation FAILED: the vm tests will be SKIPPED" >&2
-# --- end VM driver tests ---------------------------------------------------
 step "Release tests"
 ctest --test-dir build/release --output-on-failure -j "$jobs"
 
@@ -46,5 +45,4 @@ if [ "${STEMD_TEST_SKIP_SANITIZE:-0}" != 1 ]; then
   TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$PWD/tools/tsan.supp" \
     ctest --test-dir build/tsan --output-on-failure -j "$jobs" -L unit -R '^(SpscRing|Daemon|ReplayTest)'
 fi
-# --- end TSan --------------------------------------------------------------
 step "all tests passed"

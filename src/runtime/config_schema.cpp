@@ -21,12 +21,12 @@ std::string cat(const Parts&... parts)
 
 using enum ValueType;
 
-// Later issues add capture/CAN/actuator sections: append rows, keep each
-// section's rows together.
+// One row per key; keep each section's rows together (the README table and
+// config/stemd.yaml follow this order).
 constexpr std::array kSchema{
     KeySpec{"camera.gsd_mm_per_px", real, "mm/px", 0.01, 10, "0.33", "",
             "ground sampling distance: millimetres of ground per image pixel"},
-    // --- camera geometry (issue 5): machine frame x forward, y left, mm ---
+    // Camera geometry: machine frame x forward, y left, mm.
     KeySpec{"camera.model", choice, "", 0, 0, "nadir", "nadir|calibrated",
             "nadir: straight down at camera.gsd_mm_per_px; calibrated: OpenCV calibration file plus the pose below"},
     KeySpec{"camera.forward", choice, "", 0, 0, "up", "up|down|left|right",
@@ -45,7 +45,6 @@ constexpr std::array kSchema{
             "machine-frame x (forward) of the principal point's ground position (where the optical axis meets the ground)"},
     KeySpec{"camera.y_mm", real, "mm", -5000, 5000, "0", "",
             "machine-frame y (left) of the principal point's ground position"},
-    // --- end camera geometry ---
 
     KeySpec{"segment.method", choice, "", 0, 0, "chromatic_exg", "chromatic_exg|exg|ndvi|mask",
             "vegetation index: chromatic Excess Green (RGB, exposure-invariant), Excess Green, NDVI (RGB+NIR) or an external mask"},
@@ -120,7 +119,6 @@ constexpr std::array kSchema{
     // --- libcamera source (drivers/libcamera) ---
     KeySpec{"source.libcamera_camera", text, "", 0, 0, "0", "",
             "libcamera: the camera, by index in libcamera's list, by id, or by a part of the id matching one camera"},
-    // --- end libcamera source
 
     KeySpec{"ring.capacity", integer, "frames", 1, 64, "4", "",
             "captured frames waiting for the processing thread (slots: capacity + 2)"},

@@ -11,7 +11,6 @@
 #if STEMD_HAVE_LIBCAMERA
 #include "libcamera/libcamera_source.hpp"
 #endif
-// --- end libcamera source
 #include "stemd/io/recording.hpp"
 #include "stemd/runtime/logging.hpp"
 
@@ -30,7 +29,6 @@ std::optional<std::string> check_source_config(const DaemonConfig& d, const conf
     if (d.source_kind == "libcamera" && !STEMD_HAVE_LIBCAMERA)
         return config.origin_of("source.kind") +
                ": key 'source.kind': libcamera: this stemd was built without libcamera (install libcamera-dev and rebuild)";
-    // --- end libcamera source
     // NIR: a second V4L2 camera, or none (then NDVI needs a recording with nir).
     const bool ndvi = d.vision.segmentation == vision::Segmentation::ndvi;
     if (d.source_kind == "v4l2" && ndvi && d.nir_device.empty())

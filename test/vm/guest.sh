@@ -149,7 +149,6 @@ check_v4l2_source() {
   done
 }
 extra_checks="$extra_checks v4l2_source"
-# --- end v4l2_source ---
 
 # --- socketcan: the project's SocketCAN driver (drivers/socketcan) on vcan0 ---
 # KEY socketcan: host path of stemd-vm-socketcan-check. Each step has its own
@@ -201,7 +200,6 @@ check_socketcan() {
   ip link set vcan0 up
 }
 extra_checks="$extra_checks socketcan"
-# --- end socketcan ---
 
 # --- libcamera_source: the project's libcamera source (drivers/libcamera) on vimc ---
 # KEY libcamera_source: host path of stemd-vm-libcamera-source-check.
@@ -221,7 +219,6 @@ check_libcamera_source() {
   hostrun env LIBCAMERA_LOG_LEVELS='*:ERROR' "$libcamera_source" capture vimc "$out" || die "LibcameraSource on vimc"
 }
 extra_checks="$extra_checks libcamera_source"
-# --- end libcamera_source ---
 
 # --- gpiod: the project's GPIO lines (drivers/gpiod) on gpio-sim ---
 # KEY gpiod: host path of stemd-vm-gpiod-check. Its own gpio-sim chip
@@ -288,7 +285,6 @@ check_gpiod() {
     esac' sh "$c" || die "lost chip"
 }
 extra_checks="$extra_checks gpiod"
-# --- end gpiod ---
 
 # --- libcamera_reopen: LibcameraSource recovers when vimc is unbound and bound again ---
 # Same binary as libcamera_source (KEY libcamera_source). Last of the vimc
@@ -318,7 +314,6 @@ check_libcamera_reopen() {
   [ $rc -eq 0 ] || die "LibcameraSource unplug/plug"
 }
 extra_checks="$extra_checks libcamera_reopen"
-# --- end libcamera_reopen ---
 
 # --- paired_nir: PairedNirSource (drivers/v4l2/paired_nir_source) on two vivid instances ---
 # KEY paired_nir: host path of stemd-vm-paired-nir-check. Instance 000 loops the
@@ -341,7 +336,6 @@ check_paired_nir() {
   hostrun "$paired_nir" loop "$rgb_cap" "$rgb_out" "$nir_cap" "$nir_out" "$out" || die "PairedNirSource on two vivid loopbacks"
 }
 extra_checks="$extra_checks paired_nir"
-# --- end paired_nir ---
 
 # --- daemon: the real stemd binary on vivid, vcan0 and gpio-sim ---
 # KEYs daemon (stemd-vm-daemon-check: feeds frames, judges the bus) and stemd
@@ -453,7 +447,6 @@ check_daemon() {
   hostrun "$daemon" verify "$out/daemon.candump" "$out/daemon-map.jsonl" || die "the daemon's CAN frames"
 }
 extra_checks="$extra_checks daemon"
-# --- end daemon ---
 
 if [ "$mode" = one ]; then
   "check_$check"
