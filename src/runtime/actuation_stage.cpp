@@ -396,14 +396,16 @@ void ActuationStage::heartbeat(std::int64_t now_ns) noexcept
                          counters_.bus_errors.load(std::memory_order_relaxed);
     hb.rx_rejected = counters_.rx_rejected.load(std::memory_order_relaxed);
     actuation::CanFrame frame;
+    // Heartbeat failures have their own counter: bus_errors goes out inside
+    // targets_dropped and must count TARGETs only.
     if (!actuation::encode(hb, heartbeat_counter_.next(), ids_, frame)) {
-        bump(counters_.bus_errors);
+        bump(counters_.heartbeat_errors);
         return;
     }
     if (parts_.bus->send(frame, now_ns + config_.heartbeat_interval_ns) == drivers::SendResult::sent)
         bump(counters_.heartbeats);
     else
-        bump(counters_.bus_errors);
+        bump(counters_.heartbeat_errors);
 }
 
 bool ActuationStage::finish() noexcept

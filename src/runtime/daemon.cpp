@@ -367,6 +367,7 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
         s.not_treated = get(a.policy) + get(a.no_tool) + get(a.disabled);
         s.no_odometry = get(a.no_odometry);
         s.bus_errors = get(a.bus_errors);
+        s.heartbeat_errors = get(a.heartbeat_errors);
     }
     s.latency = whole_run ? counters_->actuator.latency.total() : counters_->actuator.latency.take_interval();
     s.pipeline = whole_run ? counters_->processing.pipeline.total() : counters_->processing.pipeline.take_interval();

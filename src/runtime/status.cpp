@@ -89,15 +89,17 @@ std::string actuation(const StatusSnapshot& now, const StatusSnapshot& before)
 {
     if (!now.actuation)
         return "";
-    char buf[200];
+    char buf[240];
     std::snprintf(buf, sizeof buf,
-                  " | targets %llu, sent %llu, deadline_misses %llu, not_treated %llu, no_odometry %llu, bus_errors %llu",
+                  " | targets %llu, sent %llu, deadline_misses %llu, not_treated %llu, no_odometry %llu, bus_errors %llu, "
+                  "heartbeat_errors %llu",
                   static_cast<unsigned long long>(now.targets - before.targets),
                   static_cast<unsigned long long>(now.sent - before.sent),
                   static_cast<unsigned long long>(now.deadline_misses - before.deadline_misses),
                   static_cast<unsigned long long>(now.not_treated - before.not_treated),
                   static_cast<unsigned long long>(now.no_odometry - before.no_odometry),
-                  static_cast<unsigned long long>(now.bus_errors - before.bus_errors));
+                  static_cast<unsigned long long>(now.bus_errors - before.bus_errors),
+                  static_cast<unsigned long long>(now.heartbeat_errors - before.heartbeat_errors));
     return buf;
 }
 

@@ -3,7 +3,9 @@
 // driving it has been joined.
 #pragma once
 
+#include <cstdint>
 #include <deque>
+#include <optional>
 #include <vector>
 
 #include "stemd/drivers/can_bus.hpp"
@@ -15,6 +17,8 @@ public:
     std::string_view name() const override { return "fake"; }
     drivers::SendResult send(const actuation::CanFrame& frame, std::int64_t deadline_ns) override
     {
+        if (fail_id && frame.id == *fail_id)
+            return drivers::SendResult::error;
         sent.push_back(frame);
         deadlines.push_back(deadline_ns);
         return drivers::SendResult::sent;
@@ -32,6 +36,7 @@ public:
     std::vector<actuation::CanFrame> sent;
     std::vector<std::int64_t> deadlines;
     std::deque<actuation::CanFrame> inbox;
+    std::optional<std::uint32_t> fail_id;   // sends of this identifier fail (not recorded)
 };
 
 }  // namespace stemd::test

@@ -475,6 +475,30 @@ TEST(ActuationStage, PlantsCutByTheAlongTrackBordersAreNotTrackedButLateralOnesA
 namespace stemd::runtime {
 namespace {
 
+TEST(ActuationStage, FailedHeartbeatsAreNotCountedAsDroppedTargets)
+{
+    // The first heartbeats fail on the bus; the ones after must still say
+    // no TARGET was dropped (targets_dropped counts TARGETs only), and the
+    // failures have their own counter.
+    Stage run = make_stage(base_config());
+    run.bus->fail_id = actuation::CanIds{}.id(actuation::MessageKind::Heartbeat);
+    for (std::int64_t t = kT0; t < kT0 + 300'000'000; t += 1'000'000)
+        run.stage->poll(t);
+    EXPECT_EQ(run.stage->counters().heartbeat_errors.load(), 3u);
+    EXPECT_EQ(run.stage->counters().bus_errors.load(), 0u);
+    EXPECT_TRUE(run.bus->sent.empty());
+    run.bus->fail_id.reset();
+    for (std::int64_t t = kT0 + 300'000'000; t < kT0 + 500'000'000; t += 1'000'000)
+        run.stage->poll(t);
+    ASSERT_EQ(run.bus->sent.size(), 2u);
+    for (const CanFrame& f : run.bus->sent) {
+        actuation::Heartbeat hb;
+        ASSERT_TRUE(actuation::decode(f, {}, hb));
+        EXPECT_EQ(hb.targets_dropped, 0u);
+    }
+    EXPECT_EQ(run.stage->counters().heartbeats.load(), 2u);
+}
+
 TEST(ActuationStage, HeartbeatKeepsItsCadenceWhenPollsComeLate)
 {
     // Polls every 3 ms against a 100 ms heartbeat: each heartbeat goes out

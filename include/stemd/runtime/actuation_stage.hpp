@@ -66,8 +66,9 @@ struct ActuationCounters {
     std::atomic<std::uint64_t> disabled{0};         // the enable input was inactive
     std::atomic<std::uint64_t> deadline_misses{0};  // could not be on time: never sent
     std::atomic<std::uint64_t> bus_deadline{0};     // the bus could not take it before its deadline: never sent
-    std::atomic<std::uint64_t> bus_errors{0};       // TARGET or HEARTBEAT sends that failed
+    std::atomic<std::uint64_t> bus_errors{0};       // TARGETs that could not be encoded or sent
     std::atomic<std::uint64_t> heartbeats{0};
+    std::atomic<std::uint64_t> heartbeat_errors{0}; // HEARTBEATs that could not be encoded or sent
     std::atomic<std::uint64_t> rx_odometry{0};      // ODOMETRY frames accepted
     std::atomic<std::uint64_t> rx_tool_status{0};   // TOOL_STATUS frames accepted
     std::atomic<std::uint64_t> rx_rejected{0};      // received frames rejected: E2E (CRC, counter) or decode

@@ -94,7 +94,8 @@ struct StatusSnapshot {
     std::uint64_t no_vegetation = 0;   // bare-soil frames (not a drop: nothing to see)
     // Actuation (when a CAN side is configured).
     bool actuation = false;
-    std::uint64_t targets = 0, sent = 0, deadline_misses = 0, no_odometry = 0, not_treated = 0, bus_errors = 0;
+    std::uint64_t targets = 0, sent = 0, deadline_misses = 0, no_odometry = 0, not_treated = 0, bus_errors = 0,
+                  heartbeat_errors = 0;
     DurationHistogram::Summary latency;    // interval, or whole run for the final line
     DurationHistogram::Summary pipeline;
 };
