@@ -133,28 +133,33 @@ bool ActuationStage::odometer_at(std::int64_t t_ns, double& odom_mm) const noexc
     return true;
 }
 
-void ActuationStage::add_frame_odometry(const FrameResult& r) noexcept
+void ActuationStage::on_capture(std::int64_t t_capture_ns, double odom_mm) noexcept
 {
-    const bool frame_has_odom = std::isfinite(r.odom_mm);
-    geometry::OdomSample sample{r.t_capture_ns, 0};
+    add_frame_odometry(t_capture_ns, odom_mm);
+}
+
+void ActuationStage::add_frame_odometry(std::int64_t t_capture_ns, double odom_mm) noexcept
+{
+    const bool frame_has_odom = std::isfinite(odom_mm);
+    geometry::OdomSample sample{t_capture_ns, 0};
     constant_now_ = false;
     switch (config_.odometry) {
     case OdometrySource::recording:
         if (!frame_has_odom)
             return;
-        sample.odom_mm = r.odom_mm;
+        sample.odom_mm = odom_mm;
         break;
     case OdometrySource::automatic:
         if (frame_has_odom) {
-            sample.odom_mm = r.odom_mm;
+            sample.odom_mm = odom_mm;
             break;
         }
         [[fallthrough]];
     case OdometrySource::constant:
         if (constant_t0_ns_ < 0)
-            constant_t0_ns_ = r.t_capture_ns;
+            constant_t0_ns_ = t_capture_ns;
         constant_now_ = true;
-        sample = geometry::ConstantSpeedOdometer(config_.speed_mm_per_s, constant_t0_ns_).sample(r.t_capture_ns);
+        sample = geometry::ConstantSpeedOdometer(config_.speed_mm_per_s, constant_t0_ns_).sample(t_capture_ns);
         break;
     case OdometrySource::encoder:
     case OdometrySource::can:
@@ -171,7 +176,7 @@ void ActuationStage::add_frame_odometry(const FrameResult& r) noexcept
 void ActuationStage::on_frame(const FrameResult& r, std::int64_t now_ns) noexcept
 {
     last_frame_ns_ = now_ns;
-    add_frame_odometry(r);
+    add_frame_odometry(r.t_capture_ns, r.odom_mm);
     double odom_at_capture = 0;
     if (!odometer_at(r.t_capture_ns, odom_at_capture)) {
         bump(counters_.no_odometry);

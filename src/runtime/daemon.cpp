@@ -81,6 +81,8 @@ Daemon::Daemon(const DaemonConfig& config, std::unique_ptr<drivers::FrameSource>
       free_slots_(config.ring_capacity + 2),
       frames_(config.ring_capacity),
       results_(config.results_capacity),
+      // One sample per frame between capture and the actuator, and room to spare.
+      captured_odometry_(config.ring_capacity + config.results_capacity + 4),
       workspace_(std::make_unique<vision::Workspace>(config.frame_size, config.vision))
 {
     for (std::size_t i = 0; i < pool_.size(); ++i)
@@ -213,6 +215,11 @@ void Daemon::capture_loop()
         }
         hand->seq = seq++;
         bump(counters_->capture.frames);
+        // The recording's odometer reaches the actuator now, not after the
+        // pipeline: a slow frame must not make the odometer look stale. A
+        // full ring loses nothing, the frame carries the same sample.
+        if (actuation_ && std::isfinite(hand->odom_mm))
+            captured_odometry_.try_push({hand->t_capture_ns, hand->odom_mm});
         if (can_wait) {
             // Back-pressure: only this thread fills the ring, so once there
             // is room the push cannot fail.
@@ -309,9 +316,15 @@ void Daemon::actuator_loop()
 {
     Idle idle;
     std::int64_t next_poll_ns = 0;
+    auto take_captured_odometry = [this] {
+        geometry::OdomSample sample;
+        while (captured_odometry_.try_pop(sample))
+            actuation_->on_capture(sample.t_ns, sample.odom_mm);
+    };
     while (!stopping()) {
         beat(kActuator);
         if (actuation_) {
+            take_captured_odometry();
             // Received frames, encoder samples, the heartbeat: every ms is enough.
             const std::int64_t now_ns = base::monotonic_ns();
             if (now_ns >= next_poll_ns) {
@@ -331,8 +344,11 @@ void Daemon::actuator_loop()
         counters_->actuator.latency.record(latency_ns);
         if (!sink_->consume(*result, latency_ns))
             bump(counters_->actuator.sink_errors);
-        if (actuation_)
+        if (actuation_) {
+            // Published after the frame's sample: drained here, it is in.
+            take_captured_odometry();
             actuation_->on_frame(*result, base::monotonic_ns());
+        }
         bump(counters_->actuator.stems, result->detections.plants.size() - static_cast<std::size_t>(result->detections.stats.stemless));
         bump(counters_->actuator.frames);
         results_.pop();

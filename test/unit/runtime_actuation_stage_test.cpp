@@ -522,3 +522,47 @@ TEST(ActuationStage, HeartbeatKeepsItsCadenceWhenPollsComeLate)
 
 }  // namespace
 }  // namespace stemd::runtime
+
+namespace stemd::runtime {
+namespace {
+
+// The recording's odometer handed over at capture (the daemon's capture
+// thread does) keeps the actuator's odometer as fresh as the camera, so a
+// pipeline 200 ms late (beyond the 100 ms extrapolation limit) still
+// actuates every plant; with the odometer only inside the late results the
+// same run has nothing fresh to fire by.
+TEST(ActuationStage, RecordingOdometerGivenAtCaptureOutlivesASlowPipeline)
+{
+    const auto plants = strip(6);
+    constexpr std::int64_t kLateNs = 200'000'000;
+    constexpr int kFramesInFlight = 6;   // 200 ms / 33 ms: captured, not yet out
+    ActuationConfig config = base_config();
+    config.max_extrapolation_ns = 100'000'000;
+
+    Stage at_capture = make_stage(config);
+    Stage with_result = make_stage(config);
+    const int n = frames_for(plants);
+    for (int k = 0; k < n; ++k) {
+        const auto r = frame(plants, k);
+        const std::int64_t now_ns = r->t_capture_ns + kLateNs;
+        for (int j = k; j <= std::min(k + kFramesInFlight, n - 1); ++j) {
+            const auto captured = frame(plants, j);
+            at_capture.stage->on_capture(captured->t_capture_ns, captured->odom_mm);
+        }
+        at_capture.stage->on_frame(*r, now_ns);
+        with_result.stage->on_frame(*r, now_ns);
+    }
+    EXPECT_EQ(at_capture.stage->counters().no_odometry.load(), 0u);
+    EXPECT_EQ(targets(*at_capture.bus).size(), plants.size());
+    for (const auto& t : targets(*at_capture.bus)) {
+        bool found = false;
+        for (const Plant& p : plants)
+            found = found || std::abs(t.fire_odom_mm - (p.s_mm + 600.0)) <= 1.0;
+        EXPECT_TRUE(found) << t.fire_odom_mm;
+    }
+    EXPECT_TRUE(targets(*with_result.bus).empty());
+    EXPECT_EQ(with_result.stage->counters().no_odometry.load(), plants.size());
+}
+
+}  // namespace
+}  // namespace stemd::runtime

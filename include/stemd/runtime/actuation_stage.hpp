@@ -97,6 +97,11 @@ public:
     ActuationStage& operator=(const ActuationStage&) = delete;
 
     void on_frame(const FrameResult& result, std::int64_t now_ns) noexcept;
+    // A frame's own odometer (a recording's odom_mm) as soon as it is
+    // captured, ahead of its detections: the odometer then stays as fresh as
+    // the capture, not as late as the pipeline. on_frame() adds the same
+    // sample if this was not called.
+    void on_capture(std::int64_t t_capture_ns, double odom_mm) noexcept;
     void poll(std::int64_t now_ns) noexcept;
     // End of the run: the tracks still open go to the plant map; the map is
     // closed. False if the map lost lines.
@@ -124,7 +129,7 @@ private:
                    actuation::Scheduler scheduler, actuation::CanIds ids, std::shared_ptr<spdlog::logger> log);
 
     bool odometer_at(std::int64_t t_ns, double& odom_mm) const noexcept;
-    void add_frame_odometry(const FrameResult& result) noexcept;
+    void add_frame_odometry(std::int64_t t_capture_ns, double odom_mm) noexcept;
     void schedule(const actuation::Target& target, std::int64_t now_ns, bool class_map) noexcept;
     void write_retired(std::span<const actuation::RetiredTrack> retired) noexcept;
     void receive(std::int64_t now_ns) noexcept;

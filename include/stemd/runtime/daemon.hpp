@@ -3,6 +3,7 @@
 //   capture ──SpscRing<Frame*> (ring.capacity)──► processing ──SpscRing<FrameResult>──► actuator
 //      ▲                                              │        (ring.results_capacity)
 //      └──────────── SpscRing<Frame*> (free slots) ◄──┘
+//   capture ──SpscRing<OdomSample> (a recording's odom_mm, at capture)──► actuator
 //
 // Frame slots (FramePool, ring.capacity + 2 of them) circulate as pointers:
 // capture fills one from the source, processing runs vision::detect() on it
@@ -31,6 +32,7 @@
 #include <spdlog/logger.h>
 
 #include "stemd/drivers/frame_source.hpp"
+#include "stemd/geometry/odometry.hpp"
 #include "stemd/runtime/actuation_stage.hpp"
 #include "stemd/runtime/daemon_config.hpp"
 #include "stemd/runtime/detection_sink.hpp"
@@ -99,6 +101,7 @@ private:
     base::SpscRing<drivers::Frame*> free_slots_;   // processing -> capture
     base::SpscRing<drivers::Frame*> frames_;       // capture -> processing
     base::SpscRing<FrameResult> results_;          // processing -> actuator, built in place
+    base::SpscRing<geometry::OdomSample> captured_odometry_;   // capture -> actuator: frames' own odom_mm
     const std::unique_ptr<vision::Workspace> workspace_;   // the processing thread's
 
     std::atomic<bool> stop_{false};
