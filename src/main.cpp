@@ -18,14 +18,12 @@
 
 #include <spdlog/spdlog.h>
 
-#include "stemd/runtime/actuation_config.hpp"
 #include "stemd/runtime/actuation_factory.hpp"
 #include "stemd/runtime/camera_config.hpp"
-#include "stemd/runtime/command_line.hpp"
-#include "stemd/runtime/config.hpp"
+#include "stemd/config/command_line.hpp"
+#include "stemd/config/config.hpp"
 #include "stemd/runtime/daemon.hpp"
 #include "stemd/runtime/sd_notify.hpp"
-#include "stemd/runtime/daemon_config.hpp"
 #include "stemd/runtime/detection_sink.hpp"
 #include "stemd/runtime/logging.hpp"
 #include "stemd/runtime/signals.hpp"
@@ -124,7 +122,8 @@ int main(int argc, char** argv)
         std::cerr << "stemd: " << config_error->to_string() << "\n";
         return kUsageError;
     }
-    runtime::DaemonConfig daemon_config = runtime::daemon_config(config);
+    config::Settings settings = config.settings();
+    runtime::DaemonConfig& daemon_config = settings.daemon;
     if (!args->replay_dir.empty()) {
         daemon_config.source_kind = "replay";
         daemon_config.replay_dir = args->replay_dir;
@@ -133,17 +132,22 @@ int main(int argc, char** argv)
         daemon_config.replay_loop = false;
     // Recordings may carry class maps (the scheduler's policy reads them).
     daemon_config.class_maps = daemon_config.source_kind == "replay";
-    runtime::ActuationConfig actuation_config = runtime::actuation_config(config);
+    runtime::ActuationConfig& actuation_config = settings.actuation;
     if (!args->can_log.empty()) {
         actuation_config.can_interface.clear();
         actuation_config.can_log_file = args->can_log;
     }
     if (!args->map.empty())
         actuation_config.map_file = args->map;
-    std::string camera_error;
-    const auto camera = runtime::camera_model(config, daemon_config.frame_size, camera_error);
+    runtime::CameraError camera_error;
+    const auto camera = runtime::camera_model(settings.camera, daemon_config.vision.gsd_mm_per_px,
+                                              daemon_config.frame_size, camera_error);
     if (!camera) {
-        std::cerr << "stemd: " << camera_error << "\n";
+        const std::string origin = config.origin_of(camera_error.key);
+        // "FILE:LINE: key 'k': why" like a load error; "key 'k' (default): why" else.
+        const bool in_file = origin != "default" && origin != "--set";
+        std::cerr << "stemd: " << (in_file ? origin + ": " : "") << "key '" << camera_error.key << "'"
+                  << (in_file ? "" : " (" + origin + ")") << ": " << camera_error.message << "\n";
         return kUsageError;
     }
     if (const auto problem =

@@ -17,11 +17,10 @@
 
 #include "stemd/io/csv.hpp"
 #include "stemd/io/recording.hpp"
-#include "stemd/runtime/config.hpp"
-#include "stemd/runtime/vision_config.hpp"
+#include "stemd/config/config.hpp"
 #include "stemd/vision/detect.hpp"
 #include "stemd/viz/overlay.hpp"
-#include "stemd/runtime/command_line.hpp"
+#include "stemd/config/command_line.hpp"
 #include "tool_config.hpp"
 #include "tool_frames.hpp"
 
@@ -136,7 +135,7 @@ int main(int argc, char** argv)
         std::cerr << "stemd-detect: " << config_error->to_string() << "\n";
         return kUsageError;
     }
-    const vision::Params params = config::vision_params(config);
+    const vision::Params params = config.settings().daemon.vision;
 
     std::vector<tools::FrameJob> jobs;
     if (!tools::collect_frames(args->inputs, params.segmentation, jobs, error)) {

@@ -30,10 +30,9 @@
 #include "stemd/eval/targets.hpp"
 #include "stemd/runtime/actuation_config.hpp"
 #include "stemd/io/recording.hpp"
-#include "stemd/runtime/config.hpp"
-#include "stemd/runtime/vision_config.hpp"
+#include "stemd/config/config.hpp"
 #include "stemd/vision/detect.hpp"
-#include "stemd/runtime/command_line.hpp"
+#include "stemd/config/command_line.hpp"
 #include "tool_config.hpp"
 #include "tool_frames.hpp"
 
@@ -403,7 +402,7 @@ int run_sweep(const Args& args)
     config::Config config;
     if (const auto config_error = config::build_config(args.config, config))
         return fail(config_error->to_string());
-    const vision::Params base = config::vision_params(config);
+    const vision::Params base = config.settings().daemon.vision;
     std::string error;
     const auto gt = eval::read_stem_points(args.positional[0], error);
     if (!gt)
@@ -497,7 +496,7 @@ int run_targets(const Args& args)
     config::Config config;
     if (const auto config_error = config::build_config(args.config, config))
         return fail(config_error->to_string());
-    const runtime::ActuationConfig actuation = runtime::actuation_config(config);
+    const runtime::ActuationConfig actuation = config.settings().actuation;
     std::array<double, 16> offsets;
     offsets.fill(std::numeric_limits<double>::quiet_NaN());
     for (const auto& tool : actuation.tools)

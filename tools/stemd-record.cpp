@@ -40,7 +40,7 @@
 #include <spdlog/spdlog.h>
 
 #include "stemd/drivers/frame_source.hpp"
-#include "stemd/runtime/config.hpp"
+#include "stemd/config/config.hpp"
 #include "stemd/runtime/daemon_config.hpp"
 #include "stemd/runtime/frame_pool.hpp"
 #include "stemd/runtime/logging.hpp"
@@ -49,7 +49,7 @@
 #include "stemd/base/spsc_ring.hpp"
 #include "stemd/runtime/status.hpp"
 #include "stemd/io/recording.hpp"
-#include "stemd/runtime/command_line.hpp"
+#include "stemd/config/command_line.hpp"
 #include "tool_config.hpp"
 #include "stemd/base/clock.hpp"
 
@@ -275,7 +275,7 @@ int main(int argc, char** argv)
         std::cerr << "stemd-record: " << config_error->to_string() << "\n";
         return kUsageError;
     }
-    runtime::DaemonConfig daemon_config = runtime::daemon_config(config);
+    runtime::DaemonConfig daemon_config = config.settings().daemon;
     if (!args->replay_dir.empty()) {
         daemon_config.source_kind = "replay";
         daemon_config.replay_dir = args->replay_dir;

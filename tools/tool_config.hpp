@@ -1,5 +1,5 @@
 // Number parsing the tools share (--config/--set live in
-// stemd/runtime/command_line.hpp, shared with stemd).
+// stemd/config/command_line.hpp, shared with stemd).
 #pragma once
 
 #include <string>

@@ -1,9 +1,11 @@
 // The command-line helpers stemd and its tools share.
 #include <gtest/gtest.h>
 
+#include "config_test_util.hpp"
+
 #include <vector>
 
-#include "stemd/runtime/command_line.hpp"
+#include "stemd/config/command_line.hpp"
 
 using namespace stemd::config;
 
@@ -77,9 +79,9 @@ TEST(CommandLine, BuildConfigAppliesSetsAfterTheFileAndStopsAtTheFirstError)
 {
     Config config;
     EXPECT_FALSE(build_config({"", {"closing.radius_px=7"}}, config));
-    EXPECT_EQ(config.get_int("closing.radius_px"), 7);
+    EXPECT_EQ(test::int_of(config, "closing.radius_px"), 7);
     const auto error = build_config({"", {"closing.radius_px=abc"}}, config);
     ASSERT_TRUE(error.has_value());
     EXPECT_NE(error->to_string().find("closing.radius_px"), std::string::npos);
-    EXPECT_EQ(config.get_int("closing.radius_px"), 7);
+    EXPECT_EQ(test::int_of(config, "closing.radius_px"), 7);
 }

@@ -12,9 +12,11 @@
 
 #include <gtest/gtest.h>
 
+#include "config_test_util.hpp"
+
 #include "stemd/runtime/actuation_config.hpp"
-#include "stemd/runtime/config.hpp"
-#include "stemd/runtime/config_schema.hpp"
+#include "stemd/config/config.hpp"
+#include "stemd/config/schema.hpp"
 
 namespace stemd::config {
 namespace {
@@ -45,9 +47,9 @@ std::vector<Tool> tools_of(const Config& config)
 {
     std::vector<Tool> out;
     for (std::size_t i = 0; i < config.list_size("tools"); ++i)
-        out.push_back({config.get_item_int("tools", i, "id"), config.get_item_real("tools", i, "offset_mm"),
-                       config.get_item_real("tools", i, "y_min_mm"), config.get_item_real("tools", i, "y_max_mm"),
-                       config.get_item_int("tools", i, "lanes")});
+        out.push_back({test::item_int_of(config, "tools", i, "id"), test::item_real_of(config, "tools", i, "offset_mm"),
+                       test::item_real_of(config, "tools", i, "y_min_mm"), test::item_real_of(config, "tools", i, "y_max_mm"),
+                       test::item_int_of(config, "tools", i, "lanes")});
     return out;
 }
 
@@ -208,16 +210,16 @@ TEST(ConfigListSchema, ActuationScalarKeys)
     Config config;
     ASSERT_FALSE(config.set_override("can.log_file=out.log"));
     ASSERT_FALSE(config.set_override("can.log_file=-"));
-    EXPECT_EQ(config.get_text("can.log_file"), "-");
+    EXPECT_EQ(test::text_of(config, "can.log_file"), "-");
     EXPECT_EQ(config.load_text("can:\n  log_file: -\n", "x")->to_string(),
               "x:2: key 'can.log_file': invalid YAML: a bare '-' starts a list item, not a value; "
               "write \"-\" (double-quoted) for a dash");
     ASSERT_FALSE(config.set_override("can.log_file=out.log"));
     const auto quoted = config.load_text("can:\n  log_file: \"-\"  # standard output\n", "x");
     ASSERT_FALSE(quoted) << quoted->to_string();
-    EXPECT_EQ(config.get_text("can.log_file"), "-");
+    EXPECT_EQ(test::text_of(config, "can.log_file"), "-");
     ASSERT_FALSE(config.load_text("can:\n  log_file: '-'\n", "x"));
-    EXPECT_EQ(config.get_text("can.log_file"), "-");
+    EXPECT_EQ(test::text_of(config, "can.log_file"), "-");
 }
 
 // --- defaults and parsing ---------------------------------------------------------
@@ -255,8 +257,8 @@ TEST_F(ConfigListTest, ReadsItemsOmittedKeysTakeTheDefaults)
     EXPECT_EQ(config.item_origin_of("tools", 0, "y_max_mm"), "default");
     EXPECT_EQ(config.item_origin_of("tools", 1, "offset_mm"), path.string() + ":9");
     EXPECT_EQ(config.item_origin_of("tools", 1, "lanes"), path.string() + ":12");
-    EXPECT_EQ(config.get_int("closing.radius_px"), 6);
-    EXPECT_EQ(config.get_int("stem.min_leaves"), 4);
+    EXPECT_EQ(test::int_of(config, "closing.radius_px"), 6);
+    EXPECT_EQ(test::int_of(config, "stem.min_leaves"), 4);
 }
 
 TEST_F(ConfigListTest, ItemsMayStartAtTheSectionsIndentAndKeysAlignWithTheFirst)
@@ -265,7 +267,7 @@ TEST_F(ConfigListTest, ItemsMayStartAtTheSectionsIndentAndKeysAlignWithTheFirst)
     const auto error = config.load_file(write("tools:\n- id: 1\n  lanes: 2\n-   id: 2\n    lanes: 3\nlog:\n  level: warn\n"));
     ASSERT_FALSE(error) << error->to_string();
     EXPECT_EQ(tools_of(config), (std::vector<Tool>{{1, 600, -220, 220, 2}, {2, 600, -220, 220, 3}}));
-    EXPECT_EQ(config.get_text("log.level"), "warn");
+    EXPECT_EQ(test::text_of(config, "log.level"), "warn");
 }
 
 TEST_F(ConfigListTest, AFileListReplacesTheWholeList)
@@ -289,7 +291,7 @@ TEST_F(ConfigListTest, SixteenItemsAreAllowed)
     const auto error = config.load_file(write(text));
     ASSERT_FALSE(error) << error->to_string();
     EXPECT_EQ(config.list_size("tools"), 16u);
-    EXPECT_EQ(config.get_item_int("tools", 15, "id"), 15);
+    EXPECT_EQ(test::item_int_of(config, "tools", 15, "id"), 15);
 }
 
 // --- file errors: file, line and key ----------------------------------------------
@@ -426,8 +428,8 @@ TEST(ConfigListSet, OverridesAndAppends)
               (std::vector<Tool>{{0, 650, -220, 220, 1}, {1, 900, -220, 220, 1}, {2, 600, -220, 220, 4}}));
     ASSERT_FALSE(config.set_override("tools.0.id=15"));
     ASSERT_FALSE(config.set_override("tools.3.y_min_mm=0"));
-    EXPECT_EQ(config.get_item_int("tools", 3, "id"), 0);
-    EXPECT_EQ(config.get_item_real("tools", 3, "y_min_mm"), 0.0);
+    EXPECT_EQ(test::item_int_of(config, "tools", 3, "id"), 0);
+    EXPECT_EQ(test::item_real_of(config, "tools", 3, "y_min_mm"), 0.0);
 }
 
 TEST(ConfigListSet, ErrorsNameTheItemKeyAndChangeNothing)
@@ -462,7 +464,7 @@ TEST(ConfigListSet, ErrorsNameTheItemKeyAndChangeNothing)
     EXPECT_EQ(error->to_string(), "--set tools.1.id=0: key 'tools[1].id': duplicate id 0; tools[0] has it already");
     for (int i = 2; i < 16; ++i)
         ASSERT_FALSE(config.set_override("tools." + std::to_string(i) + ".lanes=2")) << i;
-    EXPECT_EQ(config.get_item_int("tools", 15, "id"), 15);
+    EXPECT_EQ(test::item_int_of(config, "tools", 15, "id"), 15);
     error = config.set_override("tools.16.lanes=2");
     ASSERT_TRUE(error);
     EXPECT_EQ(error->to_string(), "--set tools.16.lanes=2: key 'tools[16].lanes': more than 16 items; 'tools' holds at most 16");
@@ -492,7 +494,7 @@ TEST_F(ConfigListTest, ToYamlWritesTheListAndRoundTrips)
     EXPECT_EQ(tools_of(reloaded), tools_of(config));
     EXPECT_EQ(tools_of(reloaded),
               (std::vector<Tool>{{3, 900.25, -220, 220, 1}, {1, 600, -220, 220, 8}, {0, 600, -2047, 220, 1}}));
-    EXPECT_EQ(reloaded.get_int("tracker.capacity"), 17);
+    EXPECT_EQ(test::int_of(reloaded, "tracker.capacity"), 17);
     EXPECT_EQ(reloaded.item_origin_of("tools", 2, "lanes").rfind("dumped:", 0), 0u);
     const std::string again = reloaded.to_yaml();
     EXPECT_EQ(std::count(again.begin(), again.end(), '\n'), std::count(yaml.begin(), yaml.end(), '\n'));
@@ -501,23 +503,6 @@ TEST_F(ConfigListTest, ToYamlWritesTheListAndRoundTrips)
     Config defaults;
     ASSERT_FALSE(defaults.load_text(Config{}.to_yaml(), "defaults"));
     EXPECT_EQ(tools_of(defaults), std::vector<Tool>{kDefaultTool});
-}
-
-// --- typed access -----------------------------------------------------------------------
-
-TEST(ConfigList, WrongSectionKeyIndexOrTypeIsALogicError)
-{
-    const Config config;
-    EXPECT_THROW((void)config.list_size("tracker"), std::logic_error);
-    EXPECT_THROW((void)config.get_item_int("tools", 1, "id"), std::logic_error);
-    EXPECT_THROW((void)config.get_item_int("tools", 0, "offset_mm"), std::logic_error);
-    EXPECT_THROW((void)config.get_item_real("tools", 0, "id"), std::logic_error);
-    EXPECT_THROW((void)config.get_item_real("tools", 0, "offset"), std::logic_error);
-    EXPECT_THROW((void)config.get_item_text("tools", 0, "id"), std::logic_error);
-    EXPECT_THROW((void)config.get_item_bool("nope", 0, "id"), std::logic_error);
-    EXPECT_THROW((void)config.item_origin_of("tools", 0, "nope"), std::logic_error);
-    EXPECT_THROW((void)config.get_int("tools.0.id"), std::logic_error);
-    EXPECT_NO_THROW((void)config.get_item_real("tools", 0, "offset_mm"));
 }
 
 }  // namespace
@@ -530,7 +515,7 @@ namespace {
 
 TEST(ActuationConfig, DefaultsMatchTheStructsDefaults)
 {
-    const ActuationConfig a = actuation_config(config::Config{});
+    const ActuationConfig a = config::Config{}.settings().actuation;
     const ActuationConfig d;
     ASSERT_EQ(a.tools.size(), 1u);
     EXPECT_EQ(a.tools[0].id, 0);
@@ -596,7 +581,7 @@ TEST(ActuationConfig, EveryKeyMapsToItsField)
           "gpio.encoder=quadrature", "gpio.encoder_a_line=5", "gpio.encoder_b_line=6",
           "map.file=plants.jsonl"})
         ASSERT_FALSE(config.set_override(set)) << set;
-    const ActuationConfig a = actuation_config(config);
+    const ActuationConfig a = config.settings().actuation;
     ASSERT_EQ(a.tools.size(), 2u);
     EXPECT_EQ(a.tools[0].id, 4);
     EXPECT_EQ(a.tools[0].offset_mm, 650.5);
@@ -612,7 +597,6 @@ TEST(ActuationConfig, EveryKeyMapsToItsField)
     EXPECT_EQ(a.tracker.max_missed_frames, 7u);
     EXPECT_EQ(a.tracker.capacity, 1024u);
     EXPECT_EQ(a.policy, PolicyChoice::all);
-    EXPECT_EQ(a.scheduler.policy, actuation::TreatPolicy::all);
     EXPECT_EQ(a.scheduler.lead_ms, 15.5);
     EXPECT_EQ(a.scheduler.send_budget_ms, 1.25);
     EXPECT_EQ(a.scheduler.standing_speed_mm_per_s, 3.0);
@@ -646,10 +630,9 @@ TEST(ActuationConfig, ChoicesMap)
     const auto with = [](const std::string& set) {
         config::Config config;
         EXPECT_FALSE(config.set_override(set)) << set;
-        return actuation_config(config);
+        return config.settings().actuation;
     };
     EXPECT_EQ(with("scheduler.policy=weeds_only").policy, PolicyChoice::weeds_only);
-    EXPECT_EQ(with("scheduler.policy=weeds_only").scheduler.policy, actuation::TreatPolicy::weeds_only);
     EXPECT_EQ(with("scheduler.policy=auto").policy, PolicyChoice::automatic);
     EXPECT_EQ(with("odometry.source=auto").odometry, OdometrySource::automatic);
     EXPECT_EQ(with("odometry.source=recording").odometry, OdometrySource::recording);

@@ -1,4 +1,4 @@
-// Configuration: schema, file loader, --set overrides, to_yaml, vision_params.
+// Configuration: schema, file loader, --set overrides, to_yaml, the typed settings.
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -14,9 +14,10 @@
 
 #include <gtest/gtest.h>
 
-#include "stemd/runtime/config.hpp"
-#include "stemd/runtime/config_schema.hpp"
-#include "stemd/runtime/vision_config.hpp"
+#include "config_test_util.hpp"
+
+#include "stemd/config/config.hpp"
+#include "stemd/config/schema.hpp"
 #include "stemd/vision/types.hpp"
 
 namespace stemd::config {
@@ -42,11 +43,11 @@ void expect_same_values(const Config& a, const Config& b)
     for (const KeySpec& spec : schema()) {
         SCOPED_TRACE(std::string(spec.key));
         switch (spec.type) {
-        case ValueType::integer: EXPECT_EQ(a.get_int(spec.key), b.get_int(spec.key)); break;
-        case ValueType::real: EXPECT_EQ(a.get_real(spec.key), b.get_real(spec.key)); break;
-        case ValueType::boolean: EXPECT_EQ(a.get_bool(spec.key), b.get_bool(spec.key)); break;
+        case ValueType::integer: EXPECT_EQ(test::int_of(a, spec.key), test::int_of(b, spec.key)); break;
+        case ValueType::real: EXPECT_EQ(test::real_of(a, spec.key), test::real_of(b, spec.key)); break;
+        case ValueType::boolean: EXPECT_EQ(test::bool_of(a, spec.key), test::bool_of(b, spec.key)); break;
         case ValueType::choice:
-        case ValueType::text: EXPECT_EQ(a.get_text(spec.key), b.get_text(spec.key)); break;
+        case ValueType::text: EXPECT_EQ(test::text_of(a, spec.key), test::text_of(b, spec.key)); break;
         }
     }
 }
@@ -57,12 +58,12 @@ void expect_schema_defaults(const Config& config)
         SCOPED_TRACE(std::string(spec.key));
         switch (spec.type) {
         case ValueType::integer:
-            EXPECT_EQ(config.get_int(spec.key), std::stol(std::string(spec.default_value)));
+            EXPECT_EQ(test::int_of(config, spec.key), std::stol(std::string(spec.default_value)));
             break;
-        case ValueType::real: EXPECT_EQ(config.get_real(spec.key), to_double(spec.default_value)); break;
-        case ValueType::boolean: EXPECT_EQ(config.get_bool(spec.key), spec.default_value == "true"); break;
+        case ValueType::real: EXPECT_EQ(test::real_of(config, spec.key), to_double(spec.default_value)); break;
+        case ValueType::boolean: EXPECT_EQ(test::bool_of(config, spec.key), spec.default_value == "true"); break;
         case ValueType::choice:
-        case ValueType::text: EXPECT_EQ(config.get_text(spec.key), spec.default_value); break;
+        case ValueType::text: EXPECT_EQ(test::text_of(config, spec.key), spec.default_value); break;
         }
     }
 }
@@ -189,7 +190,7 @@ TEST(ConfigSchema, ProductKeysHaveTheirUnitsRangesAndChoices)
         for (std::string choice; std::getline(stream, choice, '|');) {
             Config config;
             ASSERT_FALSE(config.set_override(std::string(key) + "=" + choice)) << key << "=" << choice;
-            const vision::Params p = vision_params(config);
+            const vision::Params p = config.settings().daemon.vision;
             std::string_view mapped;
             if (spec->key == "segment.method") mapped = vision::to_string(p.segmentation);
             if (spec->key == "segment.threshold") mapped = vision::to_string(p.threshold);
@@ -249,7 +250,7 @@ TEST(Config, DefaultsAreTheSchemaDefaults)
 
 TEST(Config, DefaultsAreTheVisionLibraryDefaults)
 {
-    const vision::Params p = vision_params(Config{});
+    const vision::Params p = Config{}.settings().daemon.vision;
     const vision::Params expected;
     EXPECT_EQ(p.segmentation, expected.segmentation);
     EXPECT_EQ(p.threshold, expected.threshold);
@@ -286,9 +287,9 @@ TEST(Config, DocumentedDefaultFileLoadsAndEqualsTheDefaults)
             EXPECT_EQ(config.item_origin_of(list.section, 0, leaf).rfind(kDefaultConfig.string() + ":", 0), 0u)
                 << config.item_origin_of(list.section, 0, leaf);
             if (spec.type == ValueType::integer) {
-                EXPECT_EQ(config.get_item_int(list.section, 0, leaf), std::stol(std::string(spec.default_value)));
+                EXPECT_EQ(test::item_int_of(config, list.section, 0, leaf), std::stol(std::string(spec.default_value)));
             } else if (spec.type == ValueType::real) {
-                EXPECT_EQ(config.get_item_real(list.section, 0, leaf), to_double(spec.default_value));
+                EXPECT_EQ(test::item_real_of(config, list.section, 0, leaf), to_double(spec.default_value));
             }
         }
     }
@@ -342,16 +343,16 @@ TEST_F(ConfigFileTest, ReadsSectionsKeysCommentsAndBlankLines)
     Config config;
     const auto error = config.load_file(path);
     ASSERT_FALSE(error) << error->to_string();
-    EXPECT_EQ(config.get_int("closing.radius_px"), 6);
+    EXPECT_EQ(test::int_of(config, "closing.radius_px"), 6);
     EXPECT_EQ(config.origin_of("closing.radius_px"), path.string() + ":6");
-    EXPECT_EQ(config.get_text("segment.method"), "ndvi");
+    EXPECT_EQ(test::text_of(config, "segment.method"), "ndvi");
     EXPECT_EQ(config.origin_of("segment.method"), path.string() + ":9");
-    EXPECT_EQ(config.get_text("segment.threshold"), "triangle");
-    EXPECT_EQ(config.get_real("camera.gsd_mm_per_px"), 0.15);
-    EXPECT_EQ(config.get_int("stem.min_leaves"), 4);
-    EXPECT_EQ(config.get_real("stem.min_angle_deg"), 0.0);
+    EXPECT_EQ(test::text_of(config, "segment.threshold"), "triangle");
+    EXPECT_EQ(test::real_of(config, "camera.gsd_mm_per_px"), 0.15);
+    EXPECT_EQ(test::int_of(config, "stem.min_leaves"), 4);
+    EXPECT_EQ(test::real_of(config, "stem.min_angle_deg"), 0.0);
     // Keys the file leaves out keep their values.
-    EXPECT_EQ(config.get_text("stem.method"), "robust");
+    EXPECT_EQ(test::text_of(config, "stem.method"), "robust");
     EXPECT_EQ(config.origin_of("stem.method"), "default");
 }
 
@@ -360,7 +361,7 @@ TEST_F(ConfigFileTest, AcceptsCrlfLineEndingsAndAByteOrderMark)
     Config config;
     const auto error = config.load_file(write("\xEF\xBB\xBF" "closing:\r\n  radius_px: 7\r\n"));
     ASSERT_FALSE(error) << error->to_string();
-    EXPECT_EQ(config.get_int("closing.radius_px"), 7);
+    EXPECT_EQ(test::int_of(config, "closing.radius_px"), 7);
 }
 
 TEST_F(ConfigFileTest, HashInsideAValueIsNotAComment)
@@ -376,7 +377,7 @@ TEST_F(ConfigFileTest, AnEmptyFileChangesNothing)
     ASSERT_FALSE(config.set_override("closing.radius_px=3"));
     const auto error = config.load_file(write("# only a comment\n\n"));
     ASSERT_FALSE(error) << error->to_string();
-    EXPECT_EQ(config.get_int("closing.radius_px"), 3);
+    EXPECT_EQ(test::int_of(config, "closing.radius_px"), 3);
 }
 
 // --- file errors: file, line and key ------------------------------------------
@@ -389,7 +390,7 @@ TEST_F(ConfigFileTest, OutOfRangeNamesFileLineKeyRangeAndUnit)
     ASSERT_TRUE(error);
     EXPECT_EQ(error->to_string(),
               path.string() + ":3: key 'closing.radius_px': 6000 is out of range [0, 50] px");
-    EXPECT_EQ(config.get_int("closing.radius_px"), 5);
+    EXPECT_EQ(test::int_of(config, "closing.radius_px"), 5);
 }
 
 TEST_F(ConfigFileTest, TabIndentation)
@@ -525,12 +526,12 @@ TEST_F(ConfigFileTest, AnyYamlLayoutOfTheSameShapeReads)
     Config config;
     const auto error = config.load_file(path);
     ASSERT_FALSE(error) << error->to_string();
-    EXPECT_EQ(config.get_int("closing.radius_px"), 7);
+    EXPECT_EQ(test::int_of(config, "closing.radius_px"), 7);
     EXPECT_EQ(config.origin_of("closing.radius_px"), path.string() + ":2");
-    EXPECT_EQ(config.get_text("segment.method"), "ndvi");
-    EXPECT_EQ(config.get_text("map.file"), "it's \"here\"");
-    EXPECT_EQ(config.get_text("can.interface"), "can'0");
-    EXPECT_EQ(config.get_text("can.log_file"), "null");
+    EXPECT_EQ(test::text_of(config, "segment.method"), "ndvi");
+    EXPECT_EQ(test::text_of(config, "map.file"), "it's \"here\"");
+    EXPECT_EQ(test::text_of(config, "can.interface"), "can'0");
+    EXPECT_EQ(test::text_of(config, "can.log_file"), "null");
 }
 
 TEST_F(ConfigFileTest, AnErrorLeavesEarlierValuesUntouched)
@@ -540,9 +541,9 @@ TEST_F(ConfigFileTest, AnErrorLeavesEarlierValuesUntouched)
     const auto error = config.load_file(write("closing:\n  radius_px: 6\nstem:\n  min_leaves: 99\n"));
     ASSERT_TRUE(error);
     EXPECT_EQ(error->line, 4);
-    EXPECT_EQ(config.get_int("closing.radius_px"), 5);
+    EXPECT_EQ(test::int_of(config, "closing.radius_px"), 5);
     EXPECT_EQ(config.origin_of("closing.radius_px"), "default");
-    EXPECT_EQ(config.get_int("stem.min_leaves"), 5);
+    EXPECT_EQ(test::int_of(config, "stem.min_leaves"), 5);
     EXPECT_EQ(config.origin_of("stem.min_leaves"), "--set");
 }
 
@@ -571,15 +572,15 @@ TEST(ConfigSet, GoodValuesOverride)
     EXPECT_FALSE(config.set_override("camera.gsd_mm_per_px=0.5"));
     EXPECT_FALSE(config.set_override("segment.method=mask"));
     EXPECT_FALSE(config.set_override("stem.method=\"com\""));
-    EXPECT_EQ(config.get_int("closing.radius_px"), 6);
-    EXPECT_EQ(config.get_real("camera.gsd_mm_per_px"), 0.5);
-    EXPECT_EQ(config.get_text("segment.method"), "mask");
-    EXPECT_EQ(config.get_text("stem.method"), "com");
+    EXPECT_EQ(test::int_of(config, "closing.radius_px"), 6);
+    EXPECT_EQ(test::real_of(config, "camera.gsd_mm_per_px"), 0.5);
+    EXPECT_EQ(test::text_of(config, "segment.method"), "mask");
+    EXPECT_EQ(test::text_of(config, "stem.method"), "com");
     EXPECT_EQ(config.origin_of("closing.radius_px"), "--set");
     EXPECT_EQ(config.origin_of("stem.min_leaves"), "default");
     // The last --set of a key wins.
     EXPECT_FALSE(config.set_override("closing.radius_px=0"));
-    EXPECT_EQ(config.get_int("closing.radius_px"), 0);
+    EXPECT_EQ(test::int_of(config, "closing.radius_px"), 0);
 }
 
 TEST(ConfigSet, BadValuesGiveOneLineAndChangeNothing)
@@ -613,11 +614,11 @@ TEST_F(ConfigFileTest, LaterSetOverridesTheFile)
     const fs::path path = write("closing:\n  radius_px: 6\nstem:\n  min_leaves: 4\n");
     Config config;
     ASSERT_FALSE(config.load_file(path));
-    EXPECT_EQ(config.get_int("closing.radius_px"), 6);
+    EXPECT_EQ(test::int_of(config, "closing.radius_px"), 6);
     ASSERT_FALSE(config.set_override("closing.radius_px=8"));
-    EXPECT_EQ(config.get_int("closing.radius_px"), 8);
+    EXPECT_EQ(test::int_of(config, "closing.radius_px"), 8);
     EXPECT_EQ(config.origin_of("closing.radius_px"), "--set");
-    EXPECT_EQ(config.get_int("stem.min_leaves"), 4);
+    EXPECT_EQ(test::int_of(config, "stem.min_leaves"), 4);
     EXPECT_EQ(config.origin_of("stem.min_leaves"), path.string() + ":4");
 }
 
@@ -632,7 +633,7 @@ TEST(ConfigRange, MinAndMaxAcceptedJustOutsideRejected)
         const std::string key(spec.key);
         const bool integer = spec.type == ValueType::integer;
         const auto value_of = [&](const Config& c) {
-            return integer ? static_cast<double>(c.get_int(key)) : c.get_real(key);
+            return integer ? static_cast<double>(test::int_of(c, key)) : test::real_of(c, key);
         };
         const double below = integer ? spec.min - 1 : std::nextafter(spec.min, -1e300);
         const double above = integer ? spec.max + 1 : std::nextafter(spec.max, 1e300);
@@ -657,11 +658,11 @@ TEST_F(ConfigFileTest, RangeBoundariesInAFile)
 {
     Config config;
     ASSERT_FALSE(config.load_file(write("closing:\n  radius_px: 0\nleaves:\n  defect_depth_mm: 100\n")));
-    EXPECT_EQ(config.get_int("closing.radius_px"), 0);
-    EXPECT_EQ(config.get_real("leaves.defect_depth_mm"), 100.0);
+    EXPECT_EQ(test::int_of(config, "closing.radius_px"), 0);
+    EXPECT_EQ(test::real_of(config, "leaves.defect_depth_mm"), 100.0);
     ASSERT_FALSE(config.load_file(write("closing:\n  radius_px: 50\nleaves:\n  defect_depth_mm: 0.1\n")));
-    EXPECT_EQ(config.get_int("closing.radius_px"), 50);
-    EXPECT_EQ(config.get_real("leaves.defect_depth_mm"), 0.1);
+    EXPECT_EQ(test::int_of(config, "closing.radius_px"), 50);
+    EXPECT_EQ(test::real_of(config, "leaves.defect_depth_mm"), 0.1);
     expect_error("closing:\n  radius_px: -1\n", 2, "closing.radius_px", "-1 is out of range [0, 50] px");
     expect_error("closing:\n  radius_px: 51\n", 2, "closing.radius_px", "51 is out of range [0, 50] px");
     expect_error("leaves:\n  defect_depth_mm: 0.09999\n", 2, "leaves.defect_depth_mm",
@@ -683,7 +684,7 @@ TEST_F(ConfigFileTest, ToYamlRoundTrips)
                             // Text YAML must quote and escape: quotes, '#', a tab, a newline, a control byte.
                             "map.file=\"a \\\"b\\\" # c\\td\\n: - e\\\\\"", "can.interface=x\x01y"})
         ASSERT_FALSE(config.set_override(set)) << set;
-    EXPECT_EQ(config.get_text("map.file"), "a \"b\" # c\td\n: - e\\");
+    EXPECT_EQ(test::text_of(config, "map.file"), "a \"b\" # c\td\n: - e\\");
     const std::string yaml = config.to_yaml();
     EXPECT_NE(yaml.find("closing:\n  radius_px: 7  # [0, 50] px; " + (dir_ / "test.yaml").string() + ":2\n"),
               std::string::npos)
@@ -705,21 +706,7 @@ TEST_F(ConfigFileTest, ToYamlRoundTrips)
     EXPECT_EQ(defaults.origin_of("closing.radius_px").rfind("defaults:", 0), 0u);
 }
 
-// --- typed access --------------------------------------------------------------
-
-TEST(Config, WrongKeyOrTypeIsALogicError)
-{
-    const Config config;
-    EXPECT_THROW((void)config.get_int("closing.radius"), std::logic_error);
-    EXPECT_THROW((void)config.get_int("camera.gsd_mm_per_px"), std::logic_error);
-    EXPECT_THROW((void)config.get_real("closing.radius_px"), std::logic_error);
-    EXPECT_THROW((void)config.get_bool("stem.method"), std::logic_error);
-    EXPECT_THROW((void)config.get_text("stem.min_leaves"), std::logic_error);
-    EXPECT_THROW((void)config.origin_of("nope.nope"), std::logic_error);
-    EXPECT_NO_THROW((void)config.get_text("stem.method"));
-}
-
-// --- vision_params -------------------------------------------------------------
+// --- the pipeline's settings -------------------------------------------------------------
 
 TEST(VisionConfig, EveryKeyMapsToItsParamsField)
 {
@@ -729,7 +716,7 @@ TEST(VisionConfig, EveryKeyMapsToItsParamsField)
                             "leaves.defect_depth_mm=2.5", "stem.method=com", "stem.min_leaves=5",
                             "stem.min_angle_deg=20"})
         ASSERT_FALSE(config.set_override(set)) << set;
-    const vision::Params p = vision_params(config);
+    const vision::Params p = config.settings().daemon.vision;
     EXPECT_EQ(p.gsd_mm_per_px, 0.5);
     EXPECT_EQ(p.segmentation, vision::Segmentation::ndvi);
     EXPECT_EQ(p.threshold, vision::ThresholdMethod::triangle);
@@ -742,7 +729,7 @@ TEST(VisionConfig, EveryKeyMapsToItsParamsField)
     EXPECT_EQ(p.min_intersection_angle_deg, 20.0);
 
     ASSERT_FALSE(config.set_override("segment.method=mask"));
-    EXPECT_EQ(vision_params(config).segmentation, vision::Segmentation::mask);
+    EXPECT_EQ(config.settings().daemon.vision.segmentation, vision::Segmentation::mask);
 }
 
 }  // namespace
@@ -759,3 +746,84 @@ TEST(ConfigSchema, ReadmeTableIsTheSchemas)
     EXPECT_NE(text.find(table), std::string::npos) << "README.md's table differs from the schema; it should read:\n"
                                                    << table;
 }
+
+namespace stemd::config {
+namespace {
+
+// The value a row's default means, as its binding loads it.
+bool equals_default(const KeySpec& spec, const detail::ConfigValue& v)
+{
+    const std::string d(spec.default_value);
+    switch (spec.type) {
+    case ValueType::integer: return v.integer == std::stol(d);
+    case ValueType::real: return v.real == std::strtod(d.c_str(), nullptr);
+    case ValueType::boolean: return v.boolean == (d == "true");
+    case ValueType::choice:
+    case ValueType::text: return v.text == d;
+    }
+    return false;
+}
+
+// The struct defaults (Settings{}) are the schema's defaults, key by key:
+// neither can change without the other.
+TEST(ConfigSettings, StructDefaultsAreTheSchemaDefaults)
+{
+    const Settings defaults{};
+    for (const KeySpec& spec : schema()) {
+        detail::ConfigValue v;
+        spec.load(spec, defaults, 0, v);
+        EXPECT_TRUE(equals_default(spec, v)) << spec.key << " = " << v.integer << " / " << v.real << " / "
+                                             << v.boolean << " / '" << v.text << "'";
+    }
+    for (const ListSpec& list : list_schema()) {
+        ASSERT_EQ(list.size(defaults), 1u) << list.section;
+        for (const KeySpec& spec : item_keys(list.section)) {
+            detail::ConfigValue v;
+            spec.load(spec, defaults, 0, v);
+            EXPECT_TRUE(equals_default(spec, v)) << spec.key;
+        }
+    }
+}
+
+// A value other than the default for `spec`, as --set writes it.
+std::string other_value(const KeySpec& spec)
+{
+    switch (spec.type) {
+    case ValueType::integer:
+    case ValueType::real:
+        return format_number(std::strtod(std::string(spec.default_value).c_str(), nullptr) == spec.max ? spec.min
+                                                                                                        : spec.max);
+    case ValueType::boolean: return spec.default_value == "true" ? "false" : "true";
+    case ValueType::choice: {
+        const std::string all = list_choices(spec, "|");
+        const std::string first = all.substr(0, all.find('|'));
+        return first == spec.default_value ? all.substr(all.find('|') + 1, all.find('|', all.find('|') + 1) - all.find('|') - 1)
+                                           : first;
+    }
+    case ValueType::text: return "x";
+    }
+    return "";
+}
+
+// Each key sets its own member: changing one key changes what that key
+// loads back and nothing else (two rows bound to one member would show).
+TEST(ConfigSettings, EveryKeySetsItsOwnMember)
+{
+    for (const KeySpec& changed : schema()) {
+        Config config;
+        const std::string value = other_value(changed);
+        ASSERT_FALSE(config.set_override(std::string(changed.key) + "=" + value)) << changed.key << "=" << value;
+        const Settings settings = config.settings();
+        for (const KeySpec& spec : schema()) {
+            detail::ConfigValue v;
+            spec.load(spec, settings, 0, v);
+            if (&spec == &changed)
+                EXPECT_FALSE(equals_default(spec, v)) << spec.key << " did not change with --set " << value;
+            else
+                EXPECT_TRUE(equals_default(spec, v)) << spec.key << " changed with --set " << changed.key << "=" << value;
+        }
+    }
+}
+
+}  // namespace
+}  // namespace stemd::config

@@ -14,8 +14,7 @@
 
 #include "stemd/eval/eval.hpp"
 #include "stemd/io/recording.hpp"
-#include "stemd/runtime/config.hpp"
-#include "stemd/runtime/vision_config.hpp"
+#include "stemd/config/config.hpp"
 #include "stemd/vision/detect.hpp"
 
 namespace fs = std::filesystem;
@@ -49,7 +48,7 @@ vision::Params shipped_params(const std::vector<std::string>& overrides)
         const auto bad = config.set_override(set);
         EXPECT_FALSE(bad) << set;
     }
-    return config::vision_params(config);
+    return config.settings().daemon.vision;
 }
 
 cv::Mat read(const fs::path& path, int flags)

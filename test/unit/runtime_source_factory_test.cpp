@@ -7,7 +7,7 @@
 #include <string>
 
 #include "runtime_test_util.hpp"
-#include "stemd/runtime/config.hpp"
+#include "stemd/config/config.hpp"
 #include "stemd/runtime/daemon_config.hpp"
 #include "stemd/runtime/source_factory.hpp"
 
@@ -19,7 +19,7 @@ TEST(SourceFactory, ReplayNeedsARecordingDirectory)
 {
     config::Config config;
     ASSERT_FALSE(config.load_text("source:\n  kind: replay\n  replay_dir: /nonexistent/rec\n", "test.yaml"));
-    const runtime::DaemonConfig d = runtime::daemon_config(config);
+    const runtime::DaemonConfig d = config.settings().daemon;
     const auto problem = runtime::check_source_config(d, config, false);
     ASSERT_TRUE(problem);
     EXPECT_NE(problem->find("test.yaml:3: key 'source.replay_dir'"), std::string::npos) << *problem;
@@ -33,7 +33,7 @@ TEST(SourceFactory, ReplayNeedsARecordingDirectory)
 TEST(SourceFactory, ReplayWithoutDirectoryIsAnErrorUnlessOnlyChecking)
 {
     config::Config config;
-    const runtime::DaemonConfig d = runtime::daemon_config(config);
+    const runtime::DaemonConfig d = config.settings().daemon;
     ASSERT_EQ(d.source_kind, "replay");
     const auto problem = runtime::check_source_config(d, config, false);
     ASSERT_TRUE(problem);
@@ -46,7 +46,7 @@ TEST(SourceFactory, BuildsTheConfiguredSource)
     const auto dir = test::scratch_dir("source_factory");
     std::ofstream(dir / "frames.csv") << "t_ns,rgb,nir,mask\n";
     config::Config config;
-    runtime::DaemonConfig d = runtime::daemon_config(config);
+    runtime::DaemonConfig d = config.settings().daemon;
     d.replay_dir = dir.string();
     EXPECT_FALSE(runtime::check_source_config(d, config, true));
     auto replay = runtime::make_frame_source(d);
@@ -55,7 +55,7 @@ TEST(SourceFactory, BuildsTheConfiguredSource)
 
     ASSERT_FALSE(config.set_override("source.kind=v4l2"));
     ASSERT_FALSE(config.set_override("source.v4l2_device=/dev/video7"));
-    d = runtime::daemon_config(config);
+    d = config.settings().daemon;
     EXPECT_FALSE(runtime::check_source_config(d, config, false));
     auto v4l2 = runtime::make_frame_source(d);
     ASSERT_TRUE(v4l2);
@@ -72,7 +72,7 @@ std::optional<std::string> problem_with(const std::string& yaml)
     config::Config config;
     if (const auto e = config.load_text(yaml, "nir.yaml"))
         return "load: " + e->to_string();
-    return runtime::check_source_config(runtime::daemon_config(config), config, false, /*check_only=*/true);
+    return runtime::check_source_config(config.settings().daemon, config, false, /*check_only=*/true);
 }
 
 }  // namespace
@@ -108,7 +108,7 @@ TEST(SourceFactory, ANirDeviceBuildsThePairedSource)
     config::Config config;
     ASSERT_FALSE(config.load_text("source:\n  kind: v4l2\n  v4l2_device: /dev/video7\n  nir_device: /dev/video8\n",
                                   "nir.yaml"));
-    const auto source = runtime::make_frame_source(runtime::daemon_config(config));
+    const auto source = runtime::make_frame_source(config.settings().daemon);
     ASSERT_TRUE(source);
     EXPECT_NE(source->name().find("/dev/video7"), std::string::npos) << source->name();
     EXPECT_NE(source->name().find("/dev/video8"), std::string::npos) << source->name();

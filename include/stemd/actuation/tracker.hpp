@@ -75,7 +75,7 @@ namespace stemd::actuation {
 struct TrackerParams {
     double association_radius_mm = 10.0;
     std::uint32_t confirm_frames = 3;   // >= 1
-    double exit_margin_mm = 40.0;       // >= 0; at least the travel between frames
+    double exit_margin_mm = 60.0;       // >= 0; at least the travel between frames (46 mm at 5 km/h, 30 fps)
     std::uint32_t max_missed_frames = 3;  // >= 1
     std::size_t capacity = 256;         // tracks, preallocated (>= 1)
     std::size_t max_detections = 256;   // per frame; beyond this they are dropped and counted

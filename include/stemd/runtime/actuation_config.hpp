@@ -1,6 +1,6 @@
 // The actuation side of the configuration, typed: the tools list and the
-// tracker.*, scheduler.*, odometry.*, can.*, gpio.* and map.* keys
-// (config::Config, checked against the schema already).
+// tracker.*, scheduler.*, odometry.*, can.*, gpio.* and map.* keys, filled
+// by config::Config.
 #pragma once
 
 #include <cstdint>
@@ -9,7 +9,6 @@
 
 #include "stemd/actuation/scheduler.hpp"
 #include "stemd/actuation/tracker.hpp"
-#include "stemd/runtime/config.hpp"
 
 namespace stemd::runtime {
 
@@ -26,9 +25,9 @@ enum class PolicyChoice : std::uint8_t { automatic, weeds_only, all };
 
 struct ActuationConfig {
     // tools: the list (1..16 entries, ids unique: checked by the loader).
-    std::vector<actuation::ToolSpec> tools;
+    std::vector<actuation::ToolSpec> tools{{.id = 0, .offset_mm = 600, .y_min_mm = -220, .y_max_mm = 220, .lanes = 1}};
     actuation::TrackerParams tracker;
-    actuation::SchedulerParams scheduler;   // .policy: the resolved one is chosen at start (PolicyChoice)
+    actuation::SchedulerParams scheduler;   // .policy is not configured: ActuationStage::make resolves `policy`
     PolicyChoice policy = PolicyChoice::automatic;
 
     // odometry.*
@@ -42,16 +41,16 @@ struct ActuationConfig {
     std::string can_interface;                // empty: none configured (log sink)
     std::uint32_t can_base_id = 0x300;
     std::string can_log_file = "-";           // log sink: "-" = stdout
-    bool can_log_monotonic = false;           // can.log_clock: monotonic
+    bool can_log_monotonic = false;           // can.log_clock: monotonic (true) or realtime
     std::int64_t heartbeat_interval_ns = 100'000'000;
 
     // gpio.* (chip empty: no GPIO; the enable input is then taken as active)
     std::string gpio_chip;
     int enable_line = -1;
-    bool enable_active_low = false;
+    bool enable_active_low = false;           // gpio.enable_active: low (true) or high
     std::int64_t enable_debounce_ns = 20'000'000;
     int trigger_line = -1;
-    bool trigger_active_low = false;
+    bool trigger_active_low = false;          // gpio.trigger_active: low (true) or high
     std::uint32_t trigger_pulse_us = 100;
     std::string encoder_mode = "none";        // none | quadrature | single
     int encoder_a_line = -1;
@@ -60,8 +59,5 @@ struct ActuationConfig {
     // map.file (empty: none); --map FILE sets it
     std::string map_file;
 };
-
-// The schema has checked every value already, so this cannot fail.
-ActuationConfig actuation_config(const config::Config& config);
 
 }  // namespace stemd::runtime

@@ -9,14 +9,26 @@
 #include <opencv2/core/types.hpp>
 
 #include "stemd/geometry/camera_model.hpp"
-#include "stemd/runtime/config.hpp"
 
 namespace stemd::runtime {
 
-// nullopt with `error` set (naming the key, its origin and the reason) when
-// the calibration file cannot be read, its image size differs from the
-// frames', or the pose does not see the ground.
-std::optional<geometry::CameraModel> camera_model(const config::Config& config, cv::Size frame_size,
-                                                  std::string& error);
+// camera.* (camera.gsd_mm_per_px is the pipeline's: vision::Params).
+struct CameraSettings {
+    geometry::ModelKind model = geometry::ModelKind::nadir;
+    std::string calibration_file;   // empty: not set (none)
+    geometry::Pose pose;            // calibrated: height and tilts
+    geometry::Mount mount;          // forward direction, principal point's ground position
+};
+
+// Why no model could be made, and the key to blame.
+struct CameraError {
+    std::string key;       // "camera.calibration_file"
+    std::string message;
+};
+
+// nullopt with `error` set when the calibration file cannot be read, its
+// image size differs from the frames', or the pose does not see the ground.
+std::optional<geometry::CameraModel> camera_model(const CameraSettings& camera, double gsd_mm_per_px,
+                                                  cv::Size frame_size, CameraError& error);
 
 }  // namespace stemd::runtime

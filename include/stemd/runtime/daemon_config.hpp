@@ -1,5 +1,5 @@
 // The daemon's configuration: the source.*, ring.*, threads.*, status.*
-// and log.* keys (and the pipeline's keys) from config::Config, typed.
+// and log.* keys (and the pipeline's keys), filled by config::Config.
 #pragma once
 
 #include <cstddef>
@@ -8,7 +8,6 @@
 
 #include <opencv2/core/types.hpp>
 
-#include "stemd/runtime/config.hpp"
 #include "stemd/vision/types.hpp"
 
 namespace stemd::runtime {
@@ -27,14 +26,14 @@ struct ThreadSettings {
 struct DaemonConfig {
     // source.*
     std::string source_kind = "replay";
-    std::string replay_dir;          // empty: not set
-    bool replay_fast = false;        // source.replay_pacing: fast
+    std::string replay_dir;          // empty: not set (none)
+    bool replay_fast = false;        // source.replay_pacing: fast (true) or recorded
     bool replay_loop = true;
     bool replay_preload = false;
     std::string v4l2_device = "/dev/video0";
     std::string v4l2_pixel_format = "yuyv";   // yuyv | bgr24 | grey
     unsigned v4l2_buffers = 4;
-    std::string nir_device;                   // empty: no NIR camera
+    std::string nir_device;                   // empty: no NIR camera (none)
     double nir_tolerance_ms = 8;
     std::string libcamera_camera = "0";       // libcamera: index, id, or unique part of the id
     double fps = 30;
@@ -55,8 +54,5 @@ struct DaemonConfig {
     // The pipeline's keys (camera.*, segment.*, closing.*, ...).
     vision::Params vision;
 };
-
-// The schema has checked every value already, so this cannot fail.
-DaemonConfig daemon_config(const config::Config& config);
 
 }  // namespace stemd::runtime

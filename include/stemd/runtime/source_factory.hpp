@@ -8,7 +8,7 @@
 #include <string>
 
 #include "stemd/drivers/frame_source.hpp"
-#include "stemd/runtime/config.hpp"
+#include "stemd/config/config.hpp"
 #include "stemd/runtime/daemon_config.hpp"
 
 namespace stemd::runtime {

@@ -84,7 +84,7 @@ std::optional<MaskVegetation> parse_mask_vegetation(std::string_view s);
 std::optional<StemEstimator> parse_stem_estimator(std::string_view s);
 
 // The pipeline's parameters, in the units their names carry. Ranges are
-// enforced by the config schema (runtime/config_schema), not here.
+// enforced by the config schema (config/schema), not here.
 struct Params {
     Segmentation segmentation = Segmentation::chromatic_exg;
     ThresholdMethod threshold = ThresholdMethod::above_soil;

@@ -1,6 +1,7 @@
 // The configuration schema: every key the daemon and the tools read, with
-// its type, unit, range, default and meaning. One table, so the loader, the
-// documented config/stemd.yaml and the README's table cannot drift apart.
+// its type, unit, range, default, meaning and the Settings member it sets.
+// One table, so the loader, the typed settings, the documented
+// config/stemd.yaml and the README's table cannot drift apart.
 #pragma once
 
 #include <cstddef>
@@ -11,6 +12,11 @@
 namespace stemd::config {
 
 enum class ValueType { integer, real, choice, boolean, text };
+
+struct Settings;
+namespace detail {
+struct ConfigValue;
+}
 
 std::string_view to_string(ValueType type);
 
@@ -23,6 +29,11 @@ struct KeySpec {
     std::string_view default_value;  // as written in a config file
     std::string_view choices;        // choice only: "exg|ndvi|mask"
     std::string_view help;           // one line: what the value means
+
+    // The member of Settings the key sets (for list item keys, of item
+    // `item`): store a checked value into it, load it back.
+    void (*store)(const KeySpec& spec, Settings& settings, std::size_t item, const detail::ConfigValue& value) = nullptr;
+    void (*load)(const KeySpec& spec, const Settings& settings, std::size_t item, detail::ConfigValue& value) = nullptr;
 };
 
 // Every key, grouped by section; sections in the order config files list them.
@@ -50,6 +61,9 @@ struct ListSpec {
     std::string_view lower_key;   // if both set: the upper key's value must be > the lower key's
     std::string_view upper_key;
     std::string_view help;
+    // The Settings member holding the list.
+    std::size_t (*size)(const Settings& settings);
+    void (*resize)(Settings& settings, std::size_t items);
 };
 
 // Every list section, in the order config files list them (after the

@@ -1,4 +1,4 @@
-#include "stemd/runtime/command_line.hpp"
+#include "stemd/config/command_line.hpp"
 
 namespace stemd::config {
 

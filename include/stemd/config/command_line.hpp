@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "stemd/runtime/config.hpp"
+#include "stemd/config/config.hpp"
 
 namespace stemd::config {
 

@@ -20,7 +20,7 @@
 // section, a wrong type or range, a tab in the indentation, a YAML syntax
 // error ("invalid YAML: ..."), more than one YAML document.
 //
-// List sections (config_schema.hpp, ListSpec; "tools") hold a list of maps
+// List sections (schema.hpp, ListSpec; "tools") hold a list of maps
 // of scalars:
 //
 //   tools:
@@ -43,7 +43,8 @@
 #include <string_view>
 #include <vector>
 
-#include "stemd/runtime/config_schema.hpp"
+#include "stemd/config/schema.hpp"
+#include "stemd/config/settings.hpp"
 
 namespace stemd::config {
 
@@ -92,25 +93,21 @@ public:
     // defaults, its unique key (id) the lowest value no other item has.
     std::optional<ConfigError> set_override(std::string_view key_equals_value);
 
-    // Typed access. An unknown key or the wrong type is a programming error:
-    // these throw std::logic_error.
-    long get_int(std::string_view key) const;
-    double get_real(std::string_view key) const;   // real keys only
-    bool get_bool(std::string_view key) const;
-    const std::string& get_text(std::string_view key) const;  // text and choice keys
+    // The values, typed: every key stored into the Settings member its
+    // schema row is bound to.
+    Settings settings() const;
 
-    // Where the value came from: "default", "FILE:LINE" or "--set".
-    // Throws std::logic_error on an unknown key.
+    // Where a key's value came from: "default", "FILE:LINE" or "--set"
+    // ("" for a key the schema does not have).
     std::string origin_of(std::string_view key) const;
 
-    // List sections ("tools"): items 0 .. list_size() - 1, and the item key
-    // ("offset_mm") of one item. An unknown section or key, an index out of
-    // range or the wrong type is a programming error: std::logic_error.
+    // A key's value as a config file writes it ("6", "ndvi", "\"a b\"");
+    // list item keys as "tools.1.offset_mm". nullopt for an unknown key.
+    std::optional<std::string> value_text(std::string_view key) const;
+
+    // Items in a list section ("tools"); 0 for an unknown section.
     std::size_t list_size(std::string_view section) const;
-    long get_item_int(std::string_view section, std::size_t index, std::string_view key) const;
-    double get_item_real(std::string_view section, std::size_t index, std::string_view key) const;
-    bool get_item_bool(std::string_view section, std::size_t index, std::string_view key) const;
-    const std::string& get_item_text(std::string_view section, std::size_t index, std::string_view key) const;
+    // Where item `index`'s key came from ("" for an unknown key or item).
     std::string item_origin_of(std::string_view section, std::size_t index, std::string_view key) const;
 
     // The effective configuration as a config file (every key, with its unit,
@@ -118,13 +115,8 @@ public:
     std::string to_yaml() const;
 
 private:
-    const detail::ConfigValue& value_for(std::string_view key, std::string_view getter,
-                                         ValueType type, ValueType or_type) const;
-
     std::optional<ConfigError> set_item_override(const ListSpec& list, std::string_view key,
                                                  std::string_view raw_value, const std::string& origin);
-    const detail::ConfigValue& item_value_for(std::string_view section, std::size_t index, std::string_view key,
-                                              std::string_view getter, ValueType type, ValueType or_type) const;
 
     std::vector<detail::ConfigValue> values_;  // parallel to schema()
     std::vector<detail::ListValue> lists_;     // parallel to list_schema()

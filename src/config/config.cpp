@@ -1,4 +1,4 @@
-#include "stemd/runtime/config.hpp"
+#include "stemd/config/config.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -1077,98 +1077,57 @@ std::optional<ConfigError> Config::set_item_override(const ListSpec& list, std::
     return std::nullopt;
 }
 
-const ConfigValue& Config::value_for(std::string_view key, std::string_view getter, ValueType type,
-                                     ValueType or_type) const
+Settings Config::settings() const
 {
-    const KeySpec* spec = find_key(key);
-    if (spec == nullptr)
-        throw std::logic_error(cat("Config::", getter, ": unknown key ", quote(key)));
-    if (spec->type != type && spec->type != or_type)
-        throw std::logic_error(cat("Config::", getter, ": key ", quote(key), " is ", to_string(spec->type)));
-    return values_[index_of(*spec)];
-}
-
-long Config::get_int(std::string_view key) const
-{
-    return value_for(key, "get_int", ValueType::integer, ValueType::integer).integer;
-}
-
-double Config::get_real(std::string_view key) const
-{
-    return value_for(key, "get_real", ValueType::real, ValueType::real).real;
-}
-
-bool Config::get_bool(std::string_view key) const
-{
-    return value_for(key, "get_bool", ValueType::boolean, ValueType::boolean).boolean;
-}
-
-const std::string& Config::get_text(std::string_view key) const
-{
-    return value_for(key, "get_text", ValueType::text, ValueType::choice).text;
+    Settings settings;
+    for (const KeySpec& spec : schema())
+        spec.store(spec, settings, 0, values_[index_of(spec)]);
+    for (const ListSpec& list : list_schema()) {
+        const detail::ListValue& value = lists_[list_index(list)];
+        list.resize(settings, value.items.size());
+        const std::span<const KeySpec> keys = item_keys(list.section);
+        for (std::size_t i = 0; i < value.items.size(); ++i)
+            for (std::size_t k = 0; k < keys.size(); ++k)
+                keys[k].store(keys[k], settings, i, value.items[i][k]);
+    }
+    return settings;
 }
 
 std::string Config::origin_of(std::string_view key) const
 {
     const KeySpec* spec = find_key(key);
-    if (spec == nullptr)
-        throw std::logic_error(cat("Config::origin_of: unknown key ", quote(key)));
-    return values_[index_of(*spec)].origin;
+    return spec == nullptr ? std::string() : values_[index_of(*spec)].origin;
 }
 
-const ConfigValue& Config::item_value_for(std::string_view section, std::size_t index, std::string_view key,
-                                          std::string_view getter, ValueType type, ValueType or_type) const
+std::optional<std::string> Config::value_text(std::string_view key) const
 {
-    const ListSpec* list = find_list(section);
-    if (list == nullptr)
-        throw std::logic_error(cat("Config::", getter, ": unknown list section ", quote(section)));
-    const KeySpec* spec = find_item_key(section, key);
-    if (spec == nullptr)
-        throw std::logic_error(cat("Config::", getter, ": unknown key ", quote(cat(section, "[].", key))));
-    if (spec->type != type && spec->type != or_type)
-        throw std::logic_error(cat("Config::", getter, ": key ", quote(spec->key), " is ", to_string(spec->type)));
+    if (const KeySpec* spec = find_key(key))
+        return config::value_text(*spec, values_[index_of(*spec)]);
+    const ListSpec* list = find_list(key.substr(0, key.find_first_of(".[")));
+    std::size_t index = 0;
+    std::string_view leaf;
+    if (list == nullptr || !parse_item_key(key, list->section, index, leaf))
+        return std::nullopt;
+    const KeySpec* spec = find_item_key(list->section, leaf);
     const detail::ListValue& value = lists_[list_index(*list)];
-    if (index >= value.items.size())
-        throw std::logic_error(cat("Config::", getter, ": no item ", quote(item_key_name(section, index, key)),
-                                   "; the list has ", std::to_string(value.items.size())));
-    return value.items[index][item_key_index(*list, *spec)];
+    if (spec == nullptr || index >= value.items.size())
+        return std::nullopt;
+    return config::value_text(*spec, value.items[index][item_key_index(*list, *spec)]);
 }
 
 std::size_t Config::list_size(std::string_view section) const
 {
     const ListSpec* list = find_list(section);
-    if (list == nullptr)
-        throw std::logic_error(cat("Config::list_size: unknown list section ", quote(section)));
-    return lists_[list_index(*list)].items.size();
-}
-
-long Config::get_item_int(std::string_view section, std::size_t index, std::string_view key) const
-{
-    return item_value_for(section, index, key, "get_item_int", ValueType::integer, ValueType::integer).integer;
-}
-
-double Config::get_item_real(std::string_view section, std::size_t index, std::string_view key) const
-{
-    return item_value_for(section, index, key, "get_item_real", ValueType::real, ValueType::real).real;
-}
-
-bool Config::get_item_bool(std::string_view section, std::size_t index, std::string_view key) const
-{
-    return item_value_for(section, index, key, "get_item_bool", ValueType::boolean, ValueType::boolean).boolean;
-}
-
-const std::string& Config::get_item_text(std::string_view section, std::size_t index, std::string_view key) const
-{
-    return item_value_for(section, index, key, "get_item_text", ValueType::text, ValueType::choice).text;
+    return list == nullptr ? 0 : lists_[list_index(*list)].items.size();
 }
 
 std::string Config::item_origin_of(std::string_view section, std::size_t index, std::string_view key) const
 {
     const ListSpec* list = find_list(section);
     const KeySpec* spec = find_item_key(section, key);
-    if (list == nullptr || spec == nullptr)
-        throw std::logic_error(cat("Config::item_origin_of: unknown key ", quote(cat(section, "[].", key))));
-    return item_value_for(section, index, key, "item_origin_of", spec->type, spec->type).origin;
+    if (list == nullptr || spec == nullptr || index >= lists_[list_index(*list)].items.size())
+        return "";
+    return lists_[list_index(*list)].items[index][item_key_index(*list, *spec)].origin;
 }
 
 std::string Config::to_yaml() const
@@ -1181,7 +1140,7 @@ std::string Config::to_yaml() const
             section = section_of(spec.key);
             out += cat(section, ":\n");
         }
-        out += cat("  ", leaf_of(spec.key), ": ", value_text(spec, value), "  # ", about_text(spec), "; ",
+        out += cat("  ", leaf_of(spec.key), ": ", config::value_text(spec, value), "  # ", about_text(spec), "; ",
                    printable(value.origin), "\n");
     }
     // List sections: "- " before each item's first key.
@@ -1190,7 +1149,7 @@ std::string Config::to_yaml() const
         for (const std::vector<ConfigValue>& item : lists_[list_index(list)].items) {
             const std::span<const KeySpec> keys = item_keys(list.section);
             for (std::size_t k = 0; k < keys.size(); ++k)
-                out += cat(k == 0 ? "  - " : "    ", item_leaf_of(keys[k]), ": ", value_text(keys[k], item[k]),
+                out += cat(k == 0 ? "  - " : "    ", item_leaf_of(keys[k]), ": ", config::value_text(keys[k], item[k]),
                            "  # ", about_text(keys[k]), "; ", printable(item[k].origin), "\n");
         }
     }
