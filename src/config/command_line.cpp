@@ -44,7 +44,9 @@ bool ArgReader::value(std::string& out)
 bool ArgReader::config_option(ConfigArgs& config)
 {
     if (arg_ == "--config") {
-        value(config.file);
+        // An empty name would silently mean the defaults.
+        if (value(config.file) && config.file.empty())
+            error_ = "--config needs a file name, got ''";
         return true;
     }
     if (arg_ == "--set") {

@@ -1,6 +1,7 @@
 #include "stemd/config/config.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
@@ -9,16 +10,25 @@
 #include <iterator>
 #include <map>
 #include <span>
+#include <sstream>
 #include <stdexcept>
 #include <system_error>
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
+
+#include "stemd/base/unique_fd.hpp"
 
 namespace stemd::config {
 
 namespace {
 
 using detail::ConfigValue;
+
+constexpr std::size_t kMaxConfigBytes = 1024 * 1024;
 
 constexpr std::string_view kWhitespace = " \t";
 
@@ -417,6 +427,35 @@ LineParts split_line(std::string_view line)
     return p;
 }
 
+// Where each YAML document of a text starts, for at most two documents.
+// YAML::LoadAll cannot be used: yaml-cpp 0.7 reads a stray ',' as an
+// endless run of empty documents, and LoadAll allocates until it aborts.
+class DocumentStarts : public YAML::EventHandler {
+public:
+    static std::vector<YAML::Mark> of(const std::string& text)
+    {
+        std::istringstream in(text);
+        YAML::Parser parser(in);
+        DocumentStarts starts;
+        while (starts.marks_.size() < 2 && parser.HandleNextDocument(starts)) {
+        }
+        return starts.marks_;
+    }
+
+    void OnDocumentStart(const YAML::Mark& mark) override { marks_.push_back(mark); }
+    void OnDocumentEnd() override {}
+    void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+    void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+    void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t, const std::string&) override {}
+    void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+    void OnSequenceEnd() override {}
+    void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+    void OnMapEnd() override {}
+
+private:
+    std::vector<YAML::Mark> marks_;
+};
+
 // The YAML tree of a configuration file, checked against the schema, into
 // `values` and `lists` (copies the caller commits).
 class YamlLoader {
@@ -441,27 +480,27 @@ public:
             if (p.content && p.tab)
                 return error(static_cast<int>(i) + 1, key_at_line(i), "tab in the indentation; indent with spaces");
         }
-        std::vector<YAML::Node> documents;
+        YAML::Node root;
         try {
-            documents = YAML::LoadAll(text_);
+            const std::vector<YAML::Mark> starts = DocumentStarts::of(text_);
+            if (starts.size() > 1) {
+                // The second document's "---" line, at or above its first node.
+                int line = line_of(starts[1]);
+                for (int l = line; l >= 1; --l)
+                    if (static_cast<std::size_t>(l) <= lines_.size() && lines_[l - 1].starts_with("---")) {
+                        line = l;
+                        break;
+                    }
+                return error(line, "",
+                             "more than one YAML document ('---'); a config file holds one map of sections (a ',' "
+                             "outside [ ] or { } starts a document too)");
+            }
+            root = YAML::Load(text_);
         } catch (const YAML::ParserException& e) {
             return syntax_error(e.mark, e.msg);
         } catch (const YAML::Exception& e) {
             return syntax_error(e.mark, e.msg);
         }
-        if (documents.empty())
-            return std::nullopt;  // nothing but comments
-        if (documents.size() > 1) {
-            // The second document's "---" line, above its first node.
-            int line = line_of(documents[1]);
-            for (int l = line; l >= 1; --l)
-                if (static_cast<std::size_t>(l) <= lines_.size() && lines_[l - 1].starts_with("---")) {
-                    line = l;
-                    break;
-                }
-            return error(line, "", "more than one YAML document ('---'); a config file holds one map of sections");
-        }
-        const YAML::Node& root = documents.front();
         if (root.IsNull())
             return std::nullopt;
         if (!root.IsMap())
@@ -982,19 +1021,32 @@ std::optional<ConfigError> Config::load_text(std::string_view text, std::string_
 std::optional<ConfigError> Config::load_file(const std::filesystem::path& path)
 {
     const std::string origin = path.string();
+    if (origin.empty())
+        return ConfigError{"--config", 0, "", "empty file name"};
+    base::UniqueFd fd(::open(origin.c_str(), O_RDONLY | O_CLOEXEC));
+    if (!fd.valid())
+        return ConfigError{origin, 0, "", cat("cannot read file: ", std::strerror(errno))};
     std::error_code ec;
     if (std::filesystem::is_directory(path, ec))
         return ConfigError{origin, 0, "", "cannot read file: it is a directory"};
-    errno = 0;
-    std::ifstream in(path, std::ios::binary);
-    if (!in) {
-        const int saved = errno;
-        return ConfigError{origin, 0, "",
-                           cat("cannot read file: ", saved != 0 ? std::strerror(saved) : "open failed")};
+    // Read with a cap: a config is a few kB, and /dev/zero or a FIFO that
+    // never ends must not fill the memory.
+    std::string text;
+    std::array<char, 4096> chunk;
+    for (;;) {
+        const ssize_t n = ::read(fd.get(), chunk.data(), chunk.size());
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n < 0)
+            return ConfigError{origin, 0, "", cat("cannot read file: read error: ", std::strerror(errno))};
+        if (n == 0)
+            break;
+        if (text.size() + static_cast<std::size_t>(n) > kMaxConfigBytes)
+            return ConfigError{origin, 0, "",
+                               cat("cannot read file: larger than ", std::to_string(kMaxConfigBytes / 1024),
+                                   " KiB; is it a configuration file?")};
+        text.append(chunk.data(), static_cast<std::size_t>(n));
     }
-    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (in.bad())
-        return ConfigError{origin, 0, "", "cannot read file: read error"};
     return load_text(text, origin);
 }
 

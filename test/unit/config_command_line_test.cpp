@@ -55,6 +55,18 @@ TEST(CommandLine, AMissingValueNamesTheOption)
     EXPECT_FALSE(in.next());
 }
 
+TEST(CommandLine, AnEmptyConfigFileNameIsAnError)
+{
+    // It used to mean "no file": the defaults, without a word.
+    Argv a({"--config", ""});
+    ArgReader in(a.argc(), a.argv());
+    ConfigArgs config;
+    ASSERT_TRUE(in.next());
+    EXPECT_TRUE(in.config_option(config));
+    EXPECT_TRUE(in.failed());
+    EXPECT_EQ(in.error(), "--config needs a file name, got ''");
+}
+
 TEST(CommandLine, ValueTakesTheNextArgument)
 {
     Argv a({"--out", "dir", "input"});

@@ -563,6 +563,34 @@ TEST_F(ConfigFileTest, UnreadableFile)
     expect_same_values(config, Config{});
 }
 
+TEST_F(ConfigFileTest, EndlessAndFailingReadsAreErrorsNotAborts)
+{
+    Config config;
+    // A device that never ends: the read stops at the cap.
+    auto error = config.load_file("/dev/zero");
+    ASSERT_TRUE(error);
+    EXPECT_EQ(error->to_string(), "/dev/zero: cannot read file: larger than 1024 KiB; is it a configuration file?");
+    // A read that fails with EIO (offset 0 of this process's memory is unmapped).
+    error = config.load_file("/proc/self/mem");
+    ASSERT_TRUE(error);
+    EXPECT_EQ(error->to_string(), "/proc/self/mem: cannot read file: read error: Input/output error");
+    error = config.load_file("");
+    ASSERT_TRUE(error);
+    EXPECT_NE(error->to_string().find("empty file name"), std::string::npos) << error->to_string();
+    expect_same_values(config, Config{});
+}
+
+TEST_F(ConfigFileTest, AStrayCommaIsOneClearErrorNotAnEndlessLoad)
+{
+    // yaml-cpp 0.7 reads a ',' outside a flow collection as endless empty
+    // documents; loading them all used to allocate until std::bad_alloc.
+    const std::string message = "(a ',' outside [ ] or { } starts a document too)";
+    expect_error(",", 1, "", message);
+    expect_error(",\nclosing:\n  radius_px: 6\n", 1, "", message);
+    expect_error("closing:\n  radius_px: 6\n---\n,\n", 3, "", message);
+    expect_error("closing:\n  radius_px: 6\n...\n,\n", 4, "", message);
+}
+
 // --- --set ---------------------------------------------------------------------
 
 TEST(ConfigSet, GoodValuesOverride)
