@@ -7,7 +7,7 @@
 #include <string>
 #include <string_view>
 
-#include "stemd/actuation/dbc_writer.hpp"
+#include "stemd/protocol/dbc_writer.hpp"
 
 namespace {
 
@@ -39,7 +39,7 @@ int check(const std::string& path, const std::string& expected, const char* self
     const std::string actual{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
     if (actual == expected)
         return 0;
-    std::cerr << "stemd-dbc: " << path << " differs from the message table (src/actuation/messages.cpp) from line "
+    std::cerr << "stemd-dbc: " << path << " differs from the message table (src/protocol/messages.cpp) from line "
               << first_different_line(actual, expected) << ".\nRegenerate it, and commit it with the table:\n  "
               << self << " --out " << path << '\n';
     return kFailed;
@@ -59,7 +59,7 @@ int main(int argc, char** argv)
         return kUsageError;
     }
     std::ostringstream text;
-    stemd::actuation::write_dbc(text);
+    stemd::protocol::write_dbc(text);
     if (argc == 1) {
         std::cout << text.str();
         return std::cout.flush() ? 0 : kFailed;

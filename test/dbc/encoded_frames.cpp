@@ -17,11 +17,11 @@
 #include <random>
 #include <string>
 
-#include "stemd/actuation/candump_format.hpp"
-#include "stemd/actuation/e2e.hpp"
-#include "stemd/actuation/messages.hpp"
+#include "stemd/protocol/candump_format.hpp"
+#include "stemd/protocol/e2e.hpp"
+#include "stemd/protocol/messages.hpp"
 
-using namespace stemd::actuation;
+using namespace stemd::protocol;
 
 namespace {
 

@@ -69,9 +69,9 @@
 #include <span>
 #include <string_view>
 
-#include "stemd/actuation/can_frame.hpp"
+#include "stemd/protocol/can_frame.hpp"
 
-namespace stemd::actuation {
+namespace stemd::protocol {
 
 enum class MessageKind : std::uint8_t { Odometry = 0, Target = 1, ToolStatus = 2, Heartbeat = 3 };
 inline constexpr std::size_t kMessageKindCount = 4;
@@ -253,4 +253,4 @@ CodecResult decode(const CanFrame& frame, const CanIds& ids, TargetCommand& out)
 CodecResult decode(const CanFrame& frame, const CanIds& ids, ToolStatus& out);
 CodecResult decode(const CanFrame& frame, const CanIds& ids, Heartbeat& out);
 
-}  // namespace stemd::actuation
+}  // namespace stemd::protocol

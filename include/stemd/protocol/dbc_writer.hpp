@@ -7,8 +7,8 @@
 
 #include <ostream>
 
-namespace stemd::actuation {
+namespace stemd::protocol {
 
 void write_dbc(std::ostream& out);
 
-}  // namespace stemd::actuation
+}  // namespace stemd::protocol

@@ -1,13 +1,13 @@
-#include "stemd/actuation/dbc_writer.hpp"
+#include "stemd/protocol/dbc_writer.hpp"
 
 #include <cstdint>
 #include <string>
 #include <string_view>
 #include <vector>
 
-#include "stemd/actuation/messages.hpp"
+#include "stemd/protocol/messages.hpp"
 
-namespace stemd::actuation {
+namespace stemd::protocol {
 
 namespace {
 
@@ -93,4 +93,4 @@ void write_dbc(std::ostream& out)
     }
 }
 
-}  // namespace stemd::actuation
+}  // namespace stemd::protocol

@@ -1,10 +1,10 @@
-#include "stemd/actuation/messages.hpp"
+#include "stemd/protocol/messages.hpp"
 
 #include <algorithm>
 
-#include "stemd/actuation/e2e.hpp"
+#include "stemd/protocol/e2e.hpp"
 
-namespace stemd::actuation {
+namespace stemd::protocol {
 
 namespace {
 
@@ -399,4 +399,4 @@ CodecResult decode(const CanFrame& frame, const CanIds& ids, Heartbeat& out)
     return {};
 }
 
-}  // namespace stemd::actuation
+}  // namespace stemd::protocol
