@@ -44,12 +44,12 @@ Setup* g_setup = nullptr;  // benchmark callbacks are plain functions
 class NullBus final : public drivers::CanBus {
 public:
     std::string_view name() const override { return "null"; }
-    drivers::SendResult send(const actuation::CanFrame&, std::int64_t) override
+    drivers::SendResult send(const protocol::CanFrame&, std::int64_t) override
     {
         ++sent;
         return drivers::SendResult::sent;
     }
-    bool receive(actuation::CanFrame&, std::int64_t) override { return false; }
+    bool receive(protocol::CanFrame&, std::int64_t) override { return false; }
     drivers::CanBusCounters counters() const override { return {.sent = sent}; }
     std::uint64_t sent = 0;
 };

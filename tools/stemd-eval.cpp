@@ -501,7 +501,7 @@ int run_targets(const Args& args)
     offsets.fill(std::numeric_limits<double>::quiet_NaN());
     for (const auto& tool : actuation.tools)
         offsets[tool.id & 15U] = tool.offset_mm;
-    const auto ids = stemd::actuation::CanIds::make(actuation.can_base_id);
+    const auto ids = stemd::protocol::CanIds::make(actuation.can_base_id);
     if (!ids)
         return fail("can.base_id " + std::to_string(actuation.can_base_id) + " is too large");
     std::string error;
@@ -521,9 +521,9 @@ int run_targets(const Args& args)
     const auto log = eval::read_target_log(args.positional[1], *ids, error);
     if (!log)
         return fail(error);
-    std::vector<stemd::actuation::TargetCommand> commands;
+    std::vector<stemd::protocol::TargetCommand> commands;
     for (const auto& c : log->targets) {
-        const std::array<stemd::actuation::TargetCommand, 1> one{c};
+        const std::array<stemd::protocol::TargetCommand, 1> one{c};
         if (eval::score_targets(too_small, one, offsets, args.tol_mm).matched == 0)
             commands.push_back(c);
     }

@@ -6,7 +6,7 @@
 #include <cerrno>
 #include <cstring>
 
-#include "stemd/actuation/candump_format.hpp"
+#include "stemd/protocol/candump_format.hpp"
 #include "stemd/base/clock.hpp"
 
 namespace stemd::drivers {
@@ -37,7 +37,7 @@ bool CanLogBus::open()
 {
     if (file_)
         return true;
-    if (!actuation::valid_interface_name(options_.interface)) {
+    if (!protocol::valid_interface_name(options_.interface)) {
         log_->error("{}: interface name '{}' cannot be written in a candump line (1..15 characters, no "
                     "whitespace, '(', ')' or '#')",
                     name_, options_.interface);
@@ -56,7 +56,7 @@ bool CanLogBus::open()
     return true;
 }
 
-SendResult CanLogBus::send(const actuation::CanFrame& frame, std::int64_t deadline_ns)
+SendResult CanLogBus::send(const protocol::CanFrame& frame, std::int64_t deadline_ns)
 {
     if (base::monotonic_ns() >= deadline_ns) {
         deadline_misses_.fetch_add(1, std::memory_order_relaxed);
@@ -66,10 +66,10 @@ SendResult CanLogBus::send(const actuation::CanFrame& frame, std::int64_t deadli
         errors_.fetch_add(1, std::memory_order_relaxed);
         return SendResult::error;
     }
-    std::array<char, actuation::kCandumpLineMax + 1> line{};
+    std::array<char, protocol::kCandumpLineMax + 1> line{};
     const std::uint64_t t_us =
         clock_us(options_.clock == CanLogOptions::Clock::realtime ? CLOCK_REALTIME : CLOCK_MONOTONIC);
-    const std::size_t n = actuation::format_candump_line(std::span<char>(line.data(), actuation::kCandumpLineMax),
+    const std::size_t n = protocol::format_candump_line(std::span<char>(line.data(), protocol::kCandumpLineMax),
                                                          t_us, options_.interface, frame);
     if (n == 0) {
         errors_.fetch_add(1, std::memory_order_relaxed);
@@ -105,7 +105,7 @@ bool CanLogBus::flush()
     return true;
 }
 
-bool CanLogBus::receive(actuation::CanFrame& /*out*/, std::int64_t timeout_ns)
+bool CanLogBus::receive(protocol::CanFrame& /*out*/, std::int64_t timeout_ns)
 {
     if (timeout_ns > 0) {
         base::sleep_until_ns(base::monotonic_ns() + timeout_ns);

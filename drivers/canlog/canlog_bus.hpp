@@ -1,5 +1,5 @@
 // canlog: a CanBus that writes every sent frame as a `candump -L` line
-// (actuation::format_candump_line) to a file, for canplayer, log2asc and
+// (protocol::format_candump_line) to a file, for canplayer, log2asc and
 // cantools. The default sink when no CAN interface is configured.
 //
 //   (1700000000.123456) can0 301#1A2B3C4D5E6F7081
@@ -49,8 +49,8 @@ public:
 
     std::string_view name() const override { return name_; }
     // error if not open, if the frame cannot be formatted, or if the write fails.
-    SendResult send(const actuation::CanFrame& frame, std::int64_t deadline_ns) override;
-    bool receive(actuation::CanFrame& out, std::int64_t timeout_ns) override;
+    SendResult send(const protocol::CanFrame& frame, std::int64_t deadline_ns) override;
+    bool receive(protocol::CanFrame& out, std::int64_t timeout_ns) override;
     CanBusCounters counters() const override;
 
     bool flush();

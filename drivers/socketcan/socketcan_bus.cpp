@@ -194,9 +194,9 @@ void SocketCanBus::go_down(const char* what, int err)
     set_state(SocketCanState::down);
 }
 
-SendResult SocketCanBus::send(const actuation::CanFrame& frame, std::int64_t deadline_ns)
+SendResult SocketCanBus::send(const protocol::CanFrame& frame, std::int64_t deadline_ns)
 {
-    const std::uint32_t max_id = frame.extended ? actuation::kMaxExtendedId : actuation::kMaxStandardId;
+    const std::uint32_t max_id = frame.extended ? protocol::kMaxExtendedId : protocol::kMaxStandardId;
     if (frame.dlc > CAN_MAX_DLEN || frame.id > max_id) {
         errors_.fetch_add(1, std::memory_order_relaxed);
         log_->error("{}: invalid frame (id 0x{:X}, dlc {}) not sent", name_, frame.id, frame.dlc);
@@ -252,7 +252,7 @@ SendResult SocketCanBus::send(const actuation::CanFrame& frame, std::int64_t dea
     }
 }
 
-bool SocketCanBus::receive(actuation::CanFrame& out, std::int64_t timeout_ns)
+bool SocketCanBus::receive(protocol::CanFrame& out, std::int64_t timeout_ns)
 {
     const std::int64_t end = base::monotonic_ns() + std::max<std::int64_t>(timeout_ns, 0);
     for (;;) {

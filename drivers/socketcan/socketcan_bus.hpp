@@ -72,8 +72,8 @@ public:
     bool open();
 
     std::string_view name() const override { return name_; }
-    SendResult send(const actuation::CanFrame& frame, std::int64_t deadline_ns) override;
-    bool receive(actuation::CanFrame& out, std::int64_t timeout_ns) override;
+    SendResult send(const protocol::CanFrame& frame, std::int64_t deadline_ns) override;
+    bool receive(protocol::CanFrame& out, std::int64_t timeout_ns) override;
     CanBusCounters counters() const override;
 
     SocketCanState state() const { return state_.load(std::memory_order_relaxed); }

@@ -50,7 +50,7 @@ std::optional<Scheduler> Scheduler::make(std::span<const ToolSpec> tools, const 
         return fail("more than 16 tools");
     for (std::size_t i = 0; i < tools.size(); ++i) {
         const ToolSpec& t = tools[i];
-        if (t.id > kMaxToolId)
+        if (t.id > protocol::kMaxToolId)
             return fail("tool id above 15");
         for (std::size_t j = 0; j < i; ++j)
             if (tools[j].id == t.id)
@@ -59,7 +59,7 @@ std::optional<Scheduler> Scheduler::make(std::span<const ToolSpec> tools, const 
             return fail("tool offset_mm not finite");
         if (!std::isfinite(t.y_min_mm) || !std::isfinite(t.y_max_mm) || !(t.y_min_mm < t.y_max_mm))
             return fail("tool span empty or not finite (y_min_mm < y_max_mm)");
-        if (t.lanes < 1 || t.lanes > kMaxLane + 1)
+        if (t.lanes < 1 || t.lanes > protocol::kMaxLane + 1)
             return fail("tool lanes outside 1..16");
     }
     const auto finite_nonneg = [](double v) { return std::isfinite(v) && v >= 0; };
@@ -82,11 +82,11 @@ ScheduleDecision Scheduler::schedule(const Target& target, const ScheduleNow& no
 {
     ++counters_.scheduled;
     ScheduleDecision dec;
-    dec.command.target_id = static_cast<std::uint16_t>(target.target_id & kMaxTargetId);
+    dec.command.target_id = static_cast<std::uint16_t>(target.target_id & protocol::kMaxTargetId);
     dec.command.plant_class = target.plant_class;
 
     // 1. Policy.
-    if (params_.policy == TreatPolicy::weeds_only && target.plant_class != PlantClass::Weed) {
+    if (params_.policy == TreatPolicy::weeds_only && target.plant_class != protocol::PlantClass::Weed) {
         dec.outcome = ScheduleOutcome::policy;
         ++counters_.policy;
         return dec;
@@ -94,8 +94,8 @@ ScheduleDecision Scheduler::schedule(const Target& target, const ScheduleNow& no
 
     // 2. A tool covering y (the first in table order; see 4 for the rest).
     const double y = target.y_mm;
-    const bool position_ok = std::isfinite(y) && std::isfinite(target.s_mm) && std::abs(y) <= kMaxLateralMm + 0.5 &&
-                             std::isfinite(now.odom_mm);
+    const bool position_ok = std::isfinite(y) && std::isfinite(target.s_mm) &&
+                             std::abs(y) <= protocol::kMaxLateralMm + 0.5 && std::isfinite(now.odom_mm);
     std::size_t first = n_tools_;
     if (position_ok)
         for (std::size_t i = 0; i < n_tools_; ++i)
@@ -109,7 +109,7 @@ ScheduleDecision Scheduler::schedule(const Target& target, const ScheduleNow& no
         return dec;
     }
     dec.command.lateral_mm = static_cast<std::int16_t>(
-        std::clamp<long>(std::lround(y), -static_cast<long>(kMaxLateralMm), kMaxLateralMm));
+        std::clamp<long>(std::lround(y), -static_cast<long>(protocol::kMaxLateralMm), protocol::kMaxLateralMm));
 
     const auto fill = [&](const ToolSpec& t) {
         dec.command.tool_id = t.id;

@@ -5,7 +5,7 @@
 #include <fstream>
 #include <limits>
 
-#include "stemd/actuation/candump_format.hpp"
+#include "stemd/protocol/candump_format.hpp"
 #include "stemd/eval/eval.hpp"
 #include "stemd/io/csv.hpp"
 
@@ -56,7 +56,7 @@ std::optional<std::vector<TruthPlant>> read_truth_plants(const std::filesystem::
     return plants;
 }
 
-std::optional<TargetLog> read_target_log(const std::filesystem::path& log, const actuation::CanIds& ids,
+std::optional<TargetLog> read_target_log(const std::filesystem::path& log, const protocol::CanIds& ids,
                                          std::string& error)
 {
     std::ifstream in(log);
@@ -69,18 +69,18 @@ std::optional<TargetLog> read_target_log(const std::filesystem::path& log, const
     for (int n = 1; std::getline(in, line); ++n) {
         if (line.empty())
             continue;
-        actuation::CandumpRecord record;
+        protocol::CandumpRecord record;
         std::string why;
-        if (!actuation::parse_candump_line(line, record, why)) {
+        if (!protocol::parse_candump_line(line, record, why)) {
             error = log.string() + ":" + std::to_string(n) + ": " + why;
             return std::nullopt;
         }
-        if (ids.kind_of(record.frame) != actuation::MessageKind::Target) {
+        if (ids.kind_of(record.frame) != protocol::MessageKind::Target) {
             ++out.other_frames;
             continue;
         }
-        actuation::TargetCommand t;
-        if (!actuation::decode(record.frame, ids, t)) {
+        protocol::TargetCommand t;
+        if (!protocol::decode(record.frame, ids, t)) {
             ++out.bad_targets;
             continue;
         }
@@ -89,7 +89,7 @@ std::optional<TargetLog> read_target_log(const std::filesystem::path& log, const
     return out;
 }
 
-TargetScore score_targets(std::span<const TruthPlant> plants, std::span<const actuation::TargetCommand> commands,
+TargetScore score_targets(std::span<const TruthPlant> plants, std::span<const protocol::TargetCommand> commands,
                           const std::array<double, 16>& tool_offset_mm, double tol_mm)
 {
     TargetScore score;
@@ -103,7 +103,7 @@ TargetScore score_targets(std::span<const TruthPlant> plants, std::span<const ac
     };
     std::vector<Pair> pairs;
     std::vector<bool> known_tool(commands.size(), false);
-    constexpr double kModulo = actuation::kFireOdomModulo;
+    constexpr double kModulo = protocol::kFireOdomModulo;
     for (std::size_t c = 0; c < commands.size(); ++c) {
         const double offset = tool_offset_mm[commands[c].tool_id & 15U];
         if (!std::isfinite(offset)) {

@@ -15,7 +15,7 @@ std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, co
                                                cv::Size frame_size, std::string& error)
 {
     const auto log = make_logger("actuator");
-    const auto ids = actuation::CanIds::make(config.can_base_id);
+    const auto ids = protocol::CanIds::make(config.can_base_id);
     if (!ids) {
         error = "can.base_id " + std::to_string(config.can_base_id) + " is too large";
         return nullptr;
@@ -38,7 +38,7 @@ std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, co
     } else {
         drivers::SocketCanOptions options;
         options.interface = config.can_interface;
-        options.rx_ids = {ids->id(actuation::MessageKind::Odometry), ids->id(actuation::MessageKind::ToolStatus)};
+        options.rx_ids = {ids->id(protocol::MessageKind::Odometry), ids->id(protocol::MessageKind::ToolStatus)};
         auto bus = std::make_unique<drivers::SocketCanBus>(options, make_logger("socketcan"));
         if (!bus->open())
             log->warn("{}: not up yet; retrying in the background", bus->name());

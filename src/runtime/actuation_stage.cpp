@@ -11,7 +11,7 @@ namespace stemd::runtime {
 
 namespace {
 
-using actuation::PlantClass;
+using protocol::PlantClass;
 
 // Speed over this window: smooths encoder ticks and frame-rate odometry.
 constexpr std::int64_t kSpeedWindowNs = 200'000'000;
@@ -79,7 +79,7 @@ std::unique_ptr<ActuationStage> ActuationStage::make(const ActuationConfig& conf
         error = "tools / scheduler: " + std::string(why);
         return nullptr;
     }
-    const auto ids = actuation::CanIds::make(config.can_base_id);
+    const auto ids = protocol::CanIds::make(config.can_base_id);
     if (!ids) {
         error = "can.base_id " + std::to_string(config.can_base_id) + " leaves no room for the four identifiers";
         return nullptr;
@@ -98,7 +98,7 @@ std::unique_ptr<ActuationStage> ActuationStage::make(const ActuationConfig& conf
 
 ActuationStage::ActuationStage(const ActuationConfig& config, const geometry::CameraModel& camera,
                                cv::Size frame_size, Parts parts,
-                               actuation::Scheduler scheduler, actuation::CanIds ids,
+                               actuation::Scheduler scheduler, protocol::CanIds ids,
                                std::shared_ptr<spdlog::logger> log)
     : config_(config),
       camera_(camera),
@@ -109,8 +109,8 @@ ActuationStage::ActuationStage(const ActuationConfig& config, const geometry::Ca
       scheduler_(scheduler),
       ids_(ids),
       odometry_({.capacity = 1024, .max_extrapolation_ns = config.max_extrapolation_ns}),
-      odometry_checker_(ids.id(actuation::MessageKind::Odometry), 3),
-      tool_status_checker_(ids.id(actuation::MessageKind::ToolStatus), 3)
+      odometry_checker_(ids.id(protocol::MessageKind::Odometry), 3),
+      tool_status_checker_(ids.id(protocol::MessageKind::ToolStatus), 3)
 {
 }
 
@@ -280,8 +280,8 @@ void ActuationStage::schedule(const actuation::Target& target, std::int64_t now_
     case actuation::ScheduleOutcome::deadline_miss: bump(counters_.deadline_misses); return;
     case actuation::ScheduleOutcome::send: break;
     }
-    actuation::CanFrame frame;
-    if (!actuation::encode(d.command, target_counter_.next(), ids_, frame)) {
+    protocol::CanFrame frame;
+    if (!protocol::encode(d.command, target_counter_.next(), ids_, frame)) {
         // The scheduler keeps every field in range; count it if not.
         entry.reason = MapReason::bus_error;
         bump(counters_.bus_errors);
@@ -332,7 +332,7 @@ void ActuationStage::poll(std::int64_t now_ns) noexcept
 
 void ActuationStage::receive(std::int64_t now_ns) noexcept
 {
-    actuation::CanFrame frame;
+    protocol::CanFrame frame;
     // Whatever is queued, without waiting; bounded so a flooded bus cannot
     // starve the frames.
     for (int i = 0; i < 64 && parts_.bus->receive(frame, 0); ++i) {
@@ -340,10 +340,10 @@ void ActuationStage::receive(std::int64_t now_ns) noexcept
         if (!kind)
             continue;   // not one of ours (the socket filter normally keeps these out)
         const std::span<const std::uint8_t, 8> data(frame.data.data(), 8);
-        if (*kind == actuation::MessageKind::Odometry) {
-            actuation::Odometry m;
-            if (frame.dlc != 8 || !actuation::e2e_accepted(odometry_checker_.check(data)) ||
-                !actuation::decode(frame, ids_, m)) {
+        if (*kind == protocol::MessageKind::Odometry) {
+            protocol::Odometry m;
+            if (frame.dlc != 8 || !protocol::e2e_accepted(odometry_checker_.check(data)) ||
+                !protocol::decode(frame, ids_, m)) {
                 bump(counters_.rx_rejected);
                 continue;
             }
@@ -360,10 +360,10 @@ void ActuationStage::receive(std::int64_t now_ns) noexcept
             last_can_odom_raw_ = m.odom_mm;
             if (!odometry_.push({now_ns, can_odom_mm_}))
                 bump(counters_.odometry_rejected);
-        } else if (*kind == actuation::MessageKind::ToolStatus) {
-            actuation::ToolStatus m;
-            if (frame.dlc != 8 || !actuation::e2e_accepted(tool_status_checker_.check(data)) ||
-                !actuation::decode(frame, ids_, m)) {
+        } else if (*kind == protocol::MessageKind::ToolStatus) {
+            protocol::ToolStatus m;
+            if (frame.dlc != 8 || !protocol::e2e_accepted(tool_status_checker_.check(data)) ||
+                !protocol::decode(frame, ids_, m)) {
                 bump(counters_.rx_rejected);
                 continue;
             }
@@ -382,17 +382,17 @@ void ActuationStage::heartbeat(std::int64_t now_ns) noexcept
         : next_heartbeat_ns_ + config_.heartbeat_interval_ns;
     const std::uint64_t misses = counters_.deadline_misses.load(std::memory_order_relaxed) +
                                  counters_.bus_deadline.load(std::memory_order_relaxed);
-    actuation::Heartbeat hb;
+    protocol::Heartbeat hb;
     double odom = 0;
     const bool enabled = parts_.gpio ? parts_.gpio->enabled() : true;
     if (last_frame_ns_ < 0)
-        hb.state = actuation::DaemonState::Starting;
+        hb.state = protocol::DaemonState::Starting;
     else if (!enabled || !odometer_at(now_ns, odom))
-        hb.state = actuation::DaemonState::Idle;
+        hb.state = protocol::DaemonState::Idle;
     else if (misses != misses_at_last_heartbeat_)
-        hb.state = actuation::DaemonState::Degraded;
+        hb.state = protocol::DaemonState::Degraded;
     else
-        hb.state = actuation::DaemonState::Active;
+        hb.state = protocol::DaemonState::Active;
     misses_at_last_heartbeat_ = misses;
     hb.targets_sent = counters_.sent.load(std::memory_order_relaxed);
     hb.deadline_misses = misses;
@@ -400,10 +400,10 @@ void ActuationStage::heartbeat(std::int64_t now_ns) noexcept
                          counters_.disabled.load(std::memory_order_relaxed) +
                          counters_.bus_errors.load(std::memory_order_relaxed);
     hb.rx_rejected = counters_.rx_rejected.load(std::memory_order_relaxed);
-    actuation::CanFrame frame;
+    protocol::CanFrame frame;
     // Heartbeat failures have their own counter: bus_errors goes out inside
     // targets_dropped and must count TARGETs only.
-    if (!actuation::encode(hb, heartbeat_counter_.next(), ids_, frame)) {
+    if (!protocol::encode(hb, heartbeat_counter_.next(), ids_, frame)) {
         bump(counters_.heartbeat_errors);
         return;
     }

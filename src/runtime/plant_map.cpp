@@ -9,12 +9,12 @@ namespace {
 
 constexpr std::size_t kBufferBytes = 1 << 20;
 
-std::string_view class_name(actuation::PlantClass c)
+std::string_view class_name(protocol::PlantClass c)
 {
     switch (c) {
-    case actuation::PlantClass::Crop: return "crop";
-    case actuation::PlantClass::Weed: return "weed";
-    case actuation::PlantClass::Unknown: break;
+    case protocol::PlantClass::Crop: return "crop";
+    case protocol::PlantClass::Weed: return "weed";
+    case protocol::PlantClass::Unknown: break;
     }
     return "unknown";
 }

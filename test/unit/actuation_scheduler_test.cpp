@@ -10,11 +10,12 @@
 #include <cstdint>
 #include <vector>
 
-#include "stemd/actuation/messages.hpp"
+#include "stemd/protocol/messages.hpp"
 #include "stemd/actuation/scheduler.hpp"
 #include "stemd/actuation/tracker.hpp"
 
 using namespace stemd::actuation;
+using namespace stemd::protocol;
 
 namespace {
 

@@ -11,6 +11,7 @@
 #include "stemd/actuation/tracker.hpp"
 
 using namespace stemd::actuation;
+using namespace stemd::protocol;
 
 namespace {
 

@@ -14,8 +14,8 @@
 #include <spdlog/spdlog.h>
 
 #include "canlog/canlog_bus.hpp"
-#include "stemd/actuation/candump_format.hpp"
-#include "stemd/actuation/messages.hpp"
+#include "stemd/protocol/candump_format.hpp"
+#include "stemd/protocol/messages.hpp"
 #include "stemd/base/clock.hpp"
 
 namespace fs = std::filesystem;
@@ -48,16 +48,16 @@ std::vector<std::string> read_lines(const fs::path& path)
 }
 
 // A mix of stemd messages (E2E-protected) and foreign frames: 29-bit, short, empty.
-std::vector<actuation::CanFrame> sample_frames()
+std::vector<protocol::CanFrame> sample_frames()
 {
-    const actuation::CanIds ids;
-    std::vector<actuation::CanFrame> frames;
-    actuation::CanFrame f;
-    actuation::TargetCommand target{.target_id = 4095, .tool_id = 3, .lane = 7, .fire_odom_mm = 123456,
-                                    .lateral_mm = -2047, .plant_class = actuation::PlantClass::Weed};
-    EXPECT_TRUE(actuation::encode(target, 5, ids, f));
+    const protocol::CanIds ids;
+    std::vector<protocol::CanFrame> frames;
+    protocol::CanFrame f;
+    protocol::TargetCommand target{.target_id = 4095, .tool_id = 3, .lane = 7, .fire_odom_mm = 123456,
+                                    .lateral_mm = -2047, .plant_class = protocol::PlantClass::Weed};
+    EXPECT_TRUE(protocol::encode(target, 5, ids, f));
     frames.push_back(f);
-    EXPECT_TRUE(actuation::encode(actuation::Odometry{.odom_mm = 0xFFFFFFFF, .speed_mm_per_s = -32767}, 14, ids, f));
+    EXPECT_TRUE(protocol::encode(protocol::Odometry{.odom_mm = 0xFFFFFFFF, .speed_mm_per_s = -32767}, 14, ids, f));
     frames.push_back(f);
     frames.push_back({.id = 0x1ABCDEF0, .extended = true, .dlc = 3, .data = {0xDE, 0xAD, 0x01}});
     frames.push_back({.id = 0x7FF, .extended = false, .dlc = 0, .data = {}});
@@ -109,9 +109,9 @@ TEST_F(CanLogTest, SentFramesReadBackExactlyWithTheCandumpParser)
     std::uint64_t last_t = 0;
     for (std::size_t i = 0; i < lines.size(); ++i) {
         SCOPED_TRACE(lines[i]);
-        actuation::CandumpRecord rec;
+        protocol::CandumpRecord rec;
         std::string error;
-        ASSERT_TRUE(actuation::parse_candump_line(lines[i], rec, error)) << error;
+        ASSERT_TRUE(protocol::parse_candump_line(lines[i], rec, error)) << error;
         EXPECT_EQ(rec.frame, frames[i]);
         EXPECT_EQ(rec.interface, "vcan7");
         // CLOCK_REALTIME by default, as candump writes.
@@ -120,7 +120,7 @@ TEST_F(CanLogTest, SentFramesReadBackExactlyWithTheCandumpParser)
         EXPECT_GE(rec.time_us, last_t);
         last_t = rec.time_us;
         // And byte for byte what the formatter writes for that time.
-        EXPECT_EQ(lines[i], actuation::format_candump_line(rec.time_us, "vcan7", frames[i]));
+        EXPECT_EQ(lines[i], protocol::format_candump_line(rec.time_us, "vcan7", frames[i]));
     }
 }
 
@@ -136,9 +136,9 @@ TEST_F(CanLogTest, DefaultInterfaceIsCan0AndMonotonicClockIsAvailable)
     const std::uint64_t t1 = now_us(CLOCK_MONOTONIC);
     const auto lines = read_lines(path);
     ASSERT_EQ(lines.size(), 1U);
-    actuation::CandumpRecord rec;
+    protocol::CandumpRecord rec;
     std::string error;
-    ASSERT_TRUE(actuation::parse_candump_line(lines[0], rec, error)) << error;
+    ASSERT_TRUE(protocol::parse_candump_line(lines[0], rec, error)) << error;
     EXPECT_EQ(rec.interface, "can0");
     EXPECT_GE(rec.time_us, t0);
     EXPECT_LE(rec.time_us, t1);
@@ -180,7 +180,7 @@ TEST_F(CanLogTest, ReceiveWaitsOutItsTimeoutAndReturnsFalse)
 {
     CanLogBus bus(to(dir_ / "rx.log"), quiet_logger());
     ASSERT_TRUE(bus.open());
-    actuation::CanFrame f{.id = 0x123, .extended = false, .dlc = 1, .data = {0x42}};
+    protocol::CanFrame f{.id = 0x123, .extended = false, .dlc = 1, .data = {0x42}};
     const auto before = f;
     const std::int64_t t0 = stemd::base::monotonic_ns();
     EXPECT_FALSE(bus.receive(f, 20'000'000));

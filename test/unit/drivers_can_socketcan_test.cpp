@@ -40,7 +40,7 @@ SocketCanOptions on(const char* interface, std::int64_t reopen_min_ns = 10'000'0
     return o;
 }
 
-const actuation::CanFrame kFrame{.id = 0x301, .extended = false, .dlc = 8, .data = {1, 2, 3, 4, 5, 6, 7, 8}};
+const protocol::CanFrame kFrame{.id = 0x301, .extended = false, .dlc = 8, .data = {1, 2, 3, 4, 5, 6, 7, 8}};
 
 }  // namespace
 
@@ -58,7 +58,7 @@ TEST(SocketCan, NonexistentInterfaceIsAClearErrorNamingIt)
     EXPECT_NE(log.out.str().find("stemdnocan9"), std::string::npos) << log.out.str();
 
     EXPECT_EQ(bus.send(kFrame, stemd::base::monotonic_ns() + kSecond), SendResult::error);
-    actuation::CanFrame got;
+    protocol::CanFrame got;
     EXPECT_FALSE(bus.receive(got, 5'000'000));
     const auto c = bus.counters();
     EXPECT_EQ(c.sent, 0U);
@@ -73,7 +73,7 @@ TEST(SocketCan, RepeatedReopenFailuresAreLoggedOnce)
     SocketCanBus bus(on("stemdnocan9", 1'000'000, 2'000'000),
                      log.logger);
     EXPECT_FALSE(bus.open());
-    actuation::CanFrame got;
+    protocol::CanFrame got;
     EXPECT_FALSE(bus.receive(got, 30'000'000));  // several reopen attempts on the backoff schedule
     for (int i = 0; i < 20; ++i)
         EXPECT_EQ(bus.send(kFrame, stemd::base::monotonic_ns() + kSecond), SendResult::error);

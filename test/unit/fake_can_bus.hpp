@@ -15,7 +15,7 @@ namespace stemd::test {
 class FakeCanBus final : public drivers::CanBus {
 public:
     std::string_view name() const override { return "fake"; }
-    drivers::SendResult send(const actuation::CanFrame& frame, std::int64_t deadline_ns) override
+    drivers::SendResult send(const protocol::CanFrame& frame, std::int64_t deadline_ns) override
     {
         if (fail_id && frame.id == *fail_id)
             return drivers::SendResult::error;
@@ -23,7 +23,7 @@ public:
         deadlines.push_back(deadline_ns);
         return drivers::SendResult::sent;
     }
-    bool receive(actuation::CanFrame& out, std::int64_t) override
+    bool receive(protocol::CanFrame& out, std::int64_t) override
     {
         if (inbox.empty())
             return false;
@@ -33,9 +33,9 @@ public:
     }
     drivers::CanBusCounters counters() const override { return {}; }
 
-    std::vector<actuation::CanFrame> sent;
+    std::vector<protocol::CanFrame> sent;
     std::vector<std::int64_t> deadlines;
-    std::deque<actuation::CanFrame> inbox;
+    std::deque<protocol::CanFrame> inbox;
     std::optional<std::uint32_t> fail_id;   // sends of this identifier fail (not recorded)
 };
 

@@ -10,7 +10,7 @@
 #include <memory>
 #include <vector>
 
-#include "stemd/actuation/messages.hpp"
+#include "stemd/protocol/messages.hpp"
 #include "stemd/runtime/actuation_stage.hpp"
 #include "stemd/runtime/logging.hpp"
 #include "fake_can_bus.hpp"
@@ -19,9 +19,9 @@
 namespace stemd::runtime {
 namespace {
 
-using actuation::CanFrame;
-using actuation::MessageKind;
-using actuation::PlantClass;
+using protocol::CanFrame;
+using protocol::MessageKind;
+using protocol::PlantClass;
 
 using FakeBus = test::FakeCanBus;
 
@@ -120,13 +120,13 @@ Stage make_stage(const ActuationConfig& config, bool with_gpio = false)
     return run;
 }
 
-std::vector<actuation::TargetCommand> targets(const FakeBus& bus, const actuation::CanIds& ids = {})
+std::vector<protocol::TargetCommand> targets(const FakeBus& bus, const protocol::CanIds& ids = {})
 {
-    std::vector<actuation::TargetCommand> out;
+    std::vector<protocol::TargetCommand> out;
     for (const CanFrame& f : bus.sent)
         if (ids.kind_of(f) == MessageKind::Target) {
-            actuation::TargetCommand t;
-            EXPECT_TRUE(actuation::decode(f, ids, t));
+            protocol::TargetCommand t;
+            EXPECT_TRUE(protocol::decode(f, ids, t));
             out.push_back(t);
         }
     return out;
@@ -231,8 +231,8 @@ TEST(ActuationStage, DeadlineGivenToTheBusLeavesTheLeadTime)
         const std::int64_t now = r->t_capture_ns + 3'000'000;
         run.stage->on_frame(*r, now);
         for (std::size_t i = before; i < run.bus->sent.size(); ++i) {
-            actuation::TargetCommand t;
-            ASSERT_TRUE(actuation::decode(run.bus->sent[i], {}, t));
+            protocol::TargetCommand t;
+            ASSERT_TRUE(protocol::decode(run.bus->sent[i], {}, t));
             // Odometer now (interpolated at constant speed) and arrival.
             const double odom_now = k * kSpeed / 30.0 + kSpeed * 0.003;
             const double arrival_ms = (t.fire_odom_mm - odom_now) / kSpeed * 1000.0;
@@ -289,16 +289,16 @@ TEST(ActuationStage, CanOdometryDrivesTheFramesAndCorruptFramesAreRejected)
     ActuationConfig config = base_config();
     config.odometry = OdometrySource::can;
     Stage run = make_stage(config);
-    const actuation::CanIds ids;
-    actuation::E2eCounter counter;
+    const protocol::CanIds ids;
+    protocol::E2eCounter counter;
     std::size_t corrupted = 0;
     // The drive sends ODOMETRY every 10 ms; the frames carry no odometer.
     const int n = frames_for(plants);
     for (std::int64_t t = kT0 - 50'000'000, k = 0; k < n; t += 10'000'000) {
         CanFrame f;
         const double odom = static_cast<double>(t - kT0) * 1e-9 * kSpeed;
-        ASSERT_TRUE(actuation::encode(
-            actuation::Odometry{static_cast<std::uint32_t>(std::llround(odom + 100000.0)), 1389}, counter.next(), ids,
+        ASSERT_TRUE(protocol::encode(
+            protocol::Odometry{static_cast<std::uint32_t>(std::llround(odom + 100000.0)), 1389}, counter.next(), ids,
             f));
         if ((t / 10'000'000) % 37 == 0) {
             f.data[5] ^= 0x10;   // a flipped bit: the CRC no longer matches
@@ -331,14 +331,14 @@ TEST(ActuationStage, HeartbeatEveryIntervalWithState)
     Stage run = make_stage(base_config());
     for (std::int64_t t = kT0; t < kT0 + 1'000'000'000; t += 1'000'000)
         run.stage->poll(t);
-    std::vector<actuation::Heartbeat> beats;
+    std::vector<protocol::Heartbeat> beats;
     for (const CanFrame& f : run.bus->sent) {
-        actuation::Heartbeat hb;
-        ASSERT_TRUE(actuation::decode(f, {}, hb));
+        protocol::Heartbeat hb;
+        ASSERT_TRUE(protocol::decode(f, {}, hb));
         beats.push_back(hb);
     }
     ASSERT_EQ(beats.size(), 10u);   // t = 0, 100, ..., 900 ms
-    EXPECT_EQ(beats[0].state, actuation::DaemonState::Starting);
+    EXPECT_EQ(beats[0].state, protocol::DaemonState::Starting);
     EXPECT_EQ(run.stage->counters().heartbeats.load(), 10u);
 }
 
@@ -481,7 +481,7 @@ TEST(ActuationStage, FailedHeartbeatsAreNotCountedAsDroppedTargets)
     // no TARGET was dropped (targets_dropped counts TARGETs only), and the
     // failures have their own counter.
     Stage run = make_stage(base_config());
-    run.bus->fail_id = actuation::CanIds{}.id(actuation::MessageKind::Heartbeat);
+    run.bus->fail_id = protocol::CanIds{}.id(protocol::MessageKind::Heartbeat);
     for (std::int64_t t = kT0; t < kT0 + 300'000'000; t += 1'000'000)
         run.stage->poll(t);
     EXPECT_EQ(run.stage->counters().heartbeat_errors.load(), 3u);
@@ -492,8 +492,8 @@ TEST(ActuationStage, FailedHeartbeatsAreNotCountedAsDroppedTargets)
         run.stage->poll(t);
     ASSERT_EQ(run.bus->sent.size(), 2u);
     for (const CanFrame& f : run.bus->sent) {
-        actuation::Heartbeat hb;
-        ASSERT_TRUE(actuation::decode(f, {}, hb));
+        protocol::Heartbeat hb;
+        ASSERT_TRUE(protocol::decode(f, {}, hb));
         EXPECT_EQ(hb.targets_dropped, 0u);
     }
     EXPECT_EQ(run.stage->counters().heartbeats.load(), 2u);

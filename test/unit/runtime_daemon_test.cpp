@@ -10,7 +10,7 @@
 #include "runtime_test_util.hpp"
 #include "stemd/runtime/daemon.hpp"
 #include "stemd/runtime/actuation_stage.hpp"
-#include "stemd/actuation/messages.hpp"
+#include "stemd/protocol/messages.hpp"
 #include "fake_can_bus.hpp"
 #include "fake_gpio_lines.hpp"
 #include "stemd/runtime/logging.hpp"
@@ -236,8 +236,8 @@ TEST(Daemon, ActuatorThreadDrivesTheActuationStage)
     EXPECT_EQ(end.no_odometry, 0u);
     std::uint64_t targets = 0, heartbeats = 0;
     for (const auto& frame : sent.sent) {
-        targets += actuation::CanIds{}.kind_of(frame) == actuation::MessageKind::Target;
-        heartbeats += actuation::CanIds{}.kind_of(frame) == actuation::MessageKind::Heartbeat;
+        targets += protocol::CanIds{}.kind_of(frame) == protocol::MessageKind::Target;
+        heartbeats += protocol::CanIds{}.kind_of(frame) == protocol::MessageKind::Heartbeat;
     }
     EXPECT_EQ(targets, end.sent);
     EXPECT_GE(heartbeats, 1u);

@@ -35,8 +35,8 @@
 
 #include "plant_scene.hpp"
 #include "probe_util.hpp"
-#include "stemd/actuation/candump_format.hpp"
-#include "stemd/actuation/messages.hpp"
+#include "stemd/protocol/candump_format.hpp"
+#include "stemd/protocol/messages.hpp"
 #include "vivid_loopback.hpp"
 #include "stemd/base/clock.hpp"
 
@@ -45,7 +45,7 @@ namespace {
 using stemd::vmprobe::fail;
 using stemd::vmprobe::info;
 using stemd::vmprobe::Rosette;
-namespace act = stemd::actuation;
+namespace proto = stemd::protocol;
 
 constexpr int kWidth = 640;
 constexpr int kHeight = 480;
@@ -250,38 +250,38 @@ std::vector<double> verify_map(const std::string& path) {
 
 struct Rec {
   std::uint64_t t_us;
-  act::CanFrame frame;
+  proto::CanFrame frame;
 };
 
 void verify(const std::string& path, const std::string& map_path) {
   std::ifstream in(path);
   if (!in) fail("cannot read " + path);
-  const act::CanIds ids;
+  const proto::CanIds ids;
   std::vector<Rec> recs;
   std::string line, error;
   int lineno = 0;
   while (std::getline(in, line)) {
     ++lineno;
     if (line.empty()) continue;
-    act::CandumpRecord r;
-    if (!act::parse_candump_line(line, r, error)) fail(path + ":" + std::to_string(lineno) + ": " + error);
+    proto::CandumpRecord r;
+    if (!proto::parse_candump_line(line, r, error)) fail(path + ":" + std::to_string(lineno) + ": " + error);
     recs.push_back({r.time_us, r.frame});
   }
   info(std::to_string(recs.size()) + " frames in " + path);
 
   struct Hb {
     std::uint64_t t_us;
-    act::Heartbeat m;
+    proto::Heartbeat m;
   };
   struct Tg {
     std::uint64_t t_us;
-    act::TargetCommand m;
+    proto::TargetCommand m;
     std::size_t heartbeats_before;
   };
   std::vector<Hb> hbs;
   std::vector<Tg> tgs;
   int last_hb_counter = -1, last_tg_counter = -1;
-  auto check_counter = [](int& last, const act::CanFrame& f, const char* what) {
+  auto check_counter = [](int& last, const proto::CanFrame& f, const char* what) {
     const int c = f.data[1] & 0x0F;
     if (last >= 0 && c != (last + 1) % 15)
       fail(std::string(what) + " alive counter " + std::to_string(c) + " after " + std::to_string(last) +
@@ -291,16 +291,16 @@ void verify(const std::string& path, const std::string& map_path) {
   for (const Rec& r : recs) {
     const auto kind = ids.kind_of(r.frame);
     if (!kind) fail("a frame that is not stemd's: id " + std::to_string(r.frame.id));
-    if (*kind == act::MessageKind::Heartbeat) {
-      act::Heartbeat m;
-      if (const auto res = act::decode(r.frame, ids, m); !res)
-        fail("HEARTBEAT does not decode: " + std::string(act::to_string(res.error)));
+    if (*kind == proto::MessageKind::Heartbeat) {
+      proto::Heartbeat m;
+      if (const auto res = proto::decode(r.frame, ids, m); !res)
+        fail("HEARTBEAT does not decode: " + std::string(proto::to_string(res.error)));
       check_counter(last_hb_counter, r.frame, "HEARTBEAT");
       hbs.push_back({r.t_us, m});
-    } else if (*kind == act::MessageKind::Target) {
-      act::TargetCommand m;
-      if (const auto res = act::decode(r.frame, ids, m); !res)
-        fail("TARGET does not decode (E2E CRC or range): " + std::string(act::to_string(res.error)));
+    } else if (*kind == proto::MessageKind::Target) {
+      proto::TargetCommand m;
+      if (const auto res = proto::decode(r.frame, ids, m); !res)
+        fail("TARGET does not decode (E2E CRC or range): " + std::string(proto::to_string(res.error)));
       check_counter(last_tg_counter, r.frame, "TARGET");
       tgs.push_back({r.t_us, m, hbs.size()});
       info("TARGET id " + std::to_string(m.target_id) + " tool " + std::to_string(m.tool_id) + " lane " +
@@ -308,7 +308,7 @@ void verify(const std::string& path, const std::string& map_path) {
            std::to_string(m.lateral_mm) + " mm class " + std::to_string(static_cast<int>(m.plant_class)) +
            " (after heartbeat " + std::to_string(hbs.size()) + ")");
     } else {
-      fail("stemd sent a " + std::string(act::to_string(*kind)) + " frame");
+      fail("stemd sent a " + std::string(proto::to_string(*kind)) + " frame");
     }
   }
 
@@ -332,24 +332,24 @@ void verify(const std::string& path, const std::string& map_path) {
   auto state = [&](std::size_t i) { return hbs[i].m.state; };
   std::size_t first_active = hbs.size();
   for (std::size_t i = 0; i < hbs.size(); ++i)
-    if (state(i) == act::DaemonState::Active || state(i) == act::DaemonState::Degraded) {
+    if (state(i) == proto::DaemonState::Active || state(i) == proto::DaemonState::Degraded) {
       first_active = i;
       break;
     }
   if (first_active == hbs.size()) fail("no heartbeat with state active");
   for (std::size_t i = 0; i < first_active; ++i)
-    if (state(i) != act::DaemonState::Starting) fail("heartbeat " + std::to_string(i) + " before active is not starting");
+    if (state(i) != proto::DaemonState::Starting) fail("heartbeat " + std::to_string(i) + " before active is not starting");
   std::size_t first_idle = hbs.size();
   for (std::size_t i = first_active; i < hbs.size(); ++i)
-    if (state(i) == act::DaemonState::Idle) {
+    if (state(i) == proto::DaemonState::Idle) {
       first_idle = i;
       break;
     }
   if (first_idle == hbs.size()) fail("no heartbeat with state idle after the enable line went inactive");
   for (std::size_t i = first_active; i < first_idle; ++i)
-    if (state(i) != act::DaemonState::Active) fail("heartbeat " + std::to_string(i) + " in phase 1 is not active (state " + std::to_string(static_cast<int>(state(i))) + ")");
+    if (state(i) != proto::DaemonState::Active) fail("heartbeat " + std::to_string(i) + " in phase 1 is not active (state " + std::to_string(static_cast<int>(state(i))) + ")");
   for (std::size_t i = first_idle; i < hbs.size(); ++i)
-    if (state(i) != act::DaemonState::Idle) fail("heartbeat " + std::to_string(i) + " after the switch is not idle");
+    if (state(i) != proto::DaemonState::Idle) fail("heartbeat " + std::to_string(i) + " after the switch is not idle");
   const std::size_t idle_count = hbs.size() - first_idle;
   info("heartbeats: " + std::to_string(first_active) + " starting, " + std::to_string(first_idle - first_active) +
        " active, " + std::to_string(idle_count) + " idle");
@@ -361,12 +361,12 @@ void verify(const std::string& path, const std::string& map_path) {
   // partly in view has its stem estimated off the true one).
   for (const Tg& t : tgs)
     if (t.heartbeats_before > first_idle) fail("a TARGET after the enable line went inactive (state idle)");
-  std::array<std::vector<act::TargetCommand>, kPhase1.size()> per_plant;
+  std::array<std::vector<proto::TargetCommand>, kPhase1.size()> per_plant;
   std::vector<std::uint16_t> ids_seen;
   for (const Tg& t : tgs) {  // in emission order
-    const act::TargetCommand& m = t.m;
+    const proto::TargetCommand& m = t.m;
     if (m.tool_id != 0 || m.lane != 0) fail("TARGET for tool " + std::to_string(m.tool_id) + " lane " + std::to_string(m.lane));
-    if (m.plant_class != act::PlantClass::Unknown) fail("TARGET with a plant class (no class map here)");
+    if (m.plant_class != proto::PlantClass::Unknown) fail("TARGET with a plant class (no class map here)");
     std::size_t best = 0;
     for (std::size_t i = 1; i < kPhase1.size(); ++i)
       if (std::abs(m.lateral_mm - kPhase1[i].y_mm) < std::abs(m.lateral_mm - kPhase1[best].y_mm)) best = i;
@@ -381,10 +381,10 @@ void verify(const std::string& path, const std::string& map_path) {
   for (std::size_t i = 0; i < kPhase1.size(); ++i) {
     const Plant& p = kPhase1[i];
     if (per_plant[i].empty()) fail("no TARGET for plant " + std::to_string(i) + " (y " + std::to_string(p.y_mm) + " mm)");
-    const act::TargetCommand& first = per_plant[i].front();
+    const proto::TargetCommand& first = per_plant[i].front();
     std::string dups;
     for (std::size_t k = 1; k < per_plant[i].size(); ++k)
-      dups += " " + std::to_string(act::fire_distance_mm(per_plant[i][k].fire_odom_mm, first.fire_odom_mm)) + "/" +
+      dups += " " + std::to_string(proto::fire_distance_mm(per_plant[i][k].fire_odom_mm, first.fire_odom_mm)) + "/" +
               std::to_string(per_plant[i][k].lateral_mm - first.lateral_mm);
     extra += per_plant[i].size() - 1;
     info("plant " + std::to_string(i) + " (s " + std::to_string(static_cast<int>(p.s_mm)) + ", y " +
@@ -392,7 +392,7 @@ void verify(const std::string& path, const std::string& map_path) {
          " TARGET(s); first: fire_odom " + std::to_string(first.fire_odom_mm) + " lateral " +
          std::to_string(first.lateral_mm) + (dups.empty() ? "" : "; more at +fire/+lateral mm:" + dups));
     if (i > 0) {
-      const int d = act::fire_distance_mm(first.fire_odom_mm, per_plant[i - 1].front().fire_odom_mm);
+      const int d = proto::fire_distance_mm(first.fire_odom_mm, per_plant[i - 1].front().fire_odom_mm);
       const double want = p.s_mm - kPhase1[i - 1].s_mm;
       if (std::abs(d - want) > 12)
         fail("first TARGETs of plants " + std::to_string(i - 1) + " and " + std::to_string(i) + " " +
@@ -406,8 +406,8 @@ void verify(const std::string& path, const std::string& map_path) {
 
   // Heartbeat counters: targets_sent = the TARGET frames on the bus; in
   // phase 2 every plant is dropped (disabled), none sent.
-  const act::Heartbeat& last = hbs.back().m;
-  const act::Heartbeat& at_switch = hbs[first_idle].m;
+  const proto::Heartbeat& last = hbs.back().m;
+  const proto::Heartbeat& at_switch = hbs[first_idle].m;
   info("last heartbeat: targets_sent " + std::to_string(last.targets_sent) + " targets_dropped " +
        std::to_string(last.targets_dropped) + " deadline_misses " + std::to_string(last.deadline_misses) +
        " rx_rejected " + std::to_string(last.rx_rejected) + "; at the switch targets_dropped " +
@@ -426,7 +426,7 @@ void verify(const std::string& path, const std::string& map_path) {
     const std::vector<double> fused = verify_map(map_path);
     for (std::size_t i = 0; i < kPhase1.size(); ++i) {
       const double want = fused[i] + kToolOffsetMm;
-      const double bias = act::fire_distance_mm(per_plant[i].front().fire_odom_mm,
+      const double bias = proto::fire_distance_mm(per_plant[i].front().fire_odom_mm,
                                                 static_cast<std::uint32_t>(std::lround(want)));
       info("plant " + std::to_string(i) + ": first TARGET fires " + std::to_string(bias) +
            " mm from the plant's fused position + tool offset");

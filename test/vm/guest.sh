@@ -161,7 +161,7 @@ socketcan_timeout=20
 check_socketcan() {
   [ -n "$socketcan" ] || skip "socketcan check not built"
   sc() { timeout -s KILL "$socketcan_timeout" hostrun "$socketcan" "$@"; }
-  # Precomputed with the actuation encoder (E2E CRC + counter): a change in
+  # Precomputed with the protocol encoder (E2E CRC + counter): a change in
   # the encoder or the driver shows up as a mismatch.
   target=301#3223D254400DFFBA    # TARGET id 1234, tool 2, lane 5, fire 200000 mm, -321 mm, weed; counter 3
   odometry=300#3D0706120F0024FA  # ODOMETRY 987654 mm, -1500 mm/s; counter 7
@@ -170,7 +170,7 @@ check_socketcan() {
   ip link show vcan0 > /dev/null 2>&1 || ip link add dev vcan0 type vcan || die "creating vcan0"
   ip link set vcan0 up || die "vcan0 up"
 
-  echo "== the actuation encoder gives the precomputed frames"
+  echo "== the protocol encoder gives the precomputed frames"
   sc frames > /tmp/sc_frames.out 2>&1 || die "socketcan-check frames ($(cat /tmp/sc_frames.out))"
   cat /tmp/sc_frames.out
   grep -qx "target $target" /tmp/sc_frames.out || die "TARGET encodes differently from $target"

@@ -28,8 +28,8 @@
 
 #include "probe_util.hpp"
 #include "socketcan/socketcan_bus.hpp"
-#include "stemd/actuation/e2e.hpp"
-#include "stemd/actuation/messages.hpp"
+#include "stemd/protocol/e2e.hpp"
+#include "stemd/protocol/messages.hpp"
 #include "stemd/base/clock.hpp"
 
 namespace {
@@ -43,14 +43,14 @@ using stemd::vmprobe::info;
 
 constexpr std::int64_t kMs = 1'000'000;
 
-const actuation::CanIds kIds;  // base 0x300
-const actuation::TargetCommand kTarget{.target_id = 1234, .tool_id = 2, .lane = 5, .fire_odom_mm = 200000,
-                                       .lateral_mm = -321, .plant_class = actuation::PlantClass::Weed};
+const protocol::CanIds kIds;  // base 0x300
+const protocol::TargetCommand kTarget{.target_id = 1234, .tool_id = 2, .lane = 5, .fire_odom_mm = 200000,
+                                       .lateral_mm = -321, .plant_class = protocol::PlantClass::Weed};
 constexpr std::uint8_t kTargetCounter = 3;
-const actuation::Odometry kOdometry{.odom_mm = 987654, .speed_mm_per_s = -1500};
+const protocol::Odometry kOdometry{.odom_mm = 987654, .speed_mm_per_s = -1500};
 constexpr std::uint8_t kOdometryCounter = 7;
 
-std::string text(const actuation::CanFrame& f)
+std::string text(const protocol::CanFrame& f)
 {
     char buf[8];
     std::string s;
@@ -63,21 +63,21 @@ std::string text(const actuation::CanFrame& f)
     return s;
 }
 
-actuation::CanFrame target_frame(std::uint8_t counter, const actuation::TargetCommand& msg = kTarget)
+protocol::CanFrame target_frame(std::uint8_t counter, const protocol::TargetCommand& msg = kTarget)
 {
-    actuation::CanFrame f;
-    const auto r = actuation::encode(msg, counter, kIds, f);
+    protocol::CanFrame f;
+    const auto r = protocol::encode(msg, counter, kIds, f);
     if (!r)
-        fail("encode TARGET: " + std::string(actuation::to_string(r.error)));
+        fail("encode TARGET: " + std::string(protocol::to_string(r.error)));
     return f;
 }
 
-actuation::CanFrame odometry_frame()
+protocol::CanFrame odometry_frame()
 {
-    actuation::CanFrame f;
-    const auto r = actuation::encode(kOdometry, kOdometryCounter, kIds, f);
+    protocol::CanFrame f;
+    const auto r = protocol::encode(kOdometry, kOdometryCounter, kIds, f);
     if (!r)
-        fail("encode ODOMETRY: " + std::string(actuation::to_string(r.error)));
+        fail("encode ODOMETRY: " + std::string(protocol::to_string(r.error)));
     return f;
 }
 
@@ -138,7 +138,7 @@ void send(const std::string& iface)
 
 void receive(const std::string& iface, int timeout_ms, const std::vector<std::string>& trigger)
 {
-    const std::uint16_t id = kIds.id(actuation::MessageKind::Odometry);
+    const std::uint16_t id = kIds.id(protocol::MessageKind::Odometry);
     SocketCanBus bus(options(iface, {id}), logger());
     open_or_fail(bus);
     info("listening on " + iface + " for ODOMETRY (id " + std::to_string(id) + ")");
@@ -147,25 +147,25 @@ void receive(const std::string& iface, int timeout_ms, const std::vector<std::st
         if (status != 0)
             fail("trigger " + trigger[0] + " exited " + std::to_string(status));
     }
-    actuation::CanFrame frame;
+    protocol::CanFrame frame;
     if (!bus.receive(frame, timeout_ms * kMs))
         fail("no ODOMETRY frame on " + iface + " within " + std::to_string(timeout_ms) + " ms");
     info("received " + text(frame));
     if (frame.id != id)
         fail("the receive filter let through " + text(frame));
-    actuation::E2eChecker checker(id);
+    protocol::E2eChecker checker(id);
     const auto status = checker.check(std::span<const std::uint8_t, 8>(frame.data));
-    info("E2E: " + std::string(actuation::to_string(status)));
-    if (!actuation::e2e_accepted(status))
+    info("E2E: " + std::string(protocol::to_string(status)));
+    if (!protocol::e2e_accepted(status))
         fail("E2E check rejected " + text(frame));
-    actuation::Odometry odo;
-    const auto r = actuation::decode(frame, kIds, odo);
+    protocol::Odometry odo;
+    const auto r = protocol::decode(frame, kIds, odo);
     if (!r)
-        fail("decode ODOMETRY: " + std::string(actuation::to_string(r.error)));
+        fail("decode ODOMETRY: " + std::string(protocol::to_string(r.error)));
     info("ODOMETRY odom_mm " + std::to_string(odo.odom_mm) + ", speed_mm_per_s " + std::to_string(odo.speed_mm_per_s));
     if (!(odo == kOdometry))
         fail("decoded values differ from the ones sent");
-    if (actuation::e2e_counter_of(std::span<const std::uint8_t, 8>(frame.data)) != kOdometryCounter)
+    if (protocol::e2e_counter_of(std::span<const std::uint8_t, 8>(frame.data)) != kOdometryCounter)
         fail("alive counter differs");
     counters(bus);
 }
@@ -211,10 +211,10 @@ void downup(const std::string& iface, const std::vector<std::string>& trigger)
 
     info("== bringing " + iface + " up");
     run_trigger(trigger, "up");
-    const std::uint16_t target_id = kIds.id(actuation::MessageKind::Target);
+    const std::uint16_t target_id = kIds.id(protocol::MessageKind::Target);
     SocketCanBus rx(options(iface, {target_id}), logger());
     open_or_fail(rx);
-    actuation::TargetCommand resumed_msg = kTarget;
+    protocol::TargetCommand resumed_msg = kTarget;
     resumed_msg.target_id = 4000;
     const auto resumed = target_frame(counter, resumed_msg);
     const std::int64_t t0 = stemd::base::monotonic_ns();
@@ -234,7 +234,7 @@ void downup(const std::string& iface, const std::vector<std::string>& trigger)
         fail("the driver did not reopen its socket");
     if (bus.state() != drivers::SocketCanState::up)
         fail("state is " + std::string(to_string(bus.state())) + " after resuming");
-    actuation::CanFrame got;
+    protocol::CanFrame got;
     if (!rx.receive(got, 1000 * kMs))
         fail("a second bus on " + iface + " did not receive the frame sent after the resume");
     info("second bus received " + text(got));

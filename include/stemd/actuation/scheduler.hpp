@@ -44,7 +44,7 @@
 #include <span>
 #include <string_view>
 
-#include "stemd/actuation/messages.hpp"
+#include "stemd/protocol/messages.hpp"
 #include "stemd/actuation/tracker.hpp"
 
 namespace stemd::actuation {
@@ -82,9 +82,9 @@ struct ScheduleNow {
 
 struct ScheduleDecision {
     ScheduleOutcome outcome = ScheduleOutcome::policy;
-    // send: ready for actuation::encode. Other outcomes: tool, lane and
+    // send: ready for protocol::encode. Other outcomes: tool, lane and
     // fire position as far as they were determined (for logs).
-    TargetCommand command;
+    protocol::TargetCommand command;
     double fire_odom_mm = 0;         // s_mm + offset_mm, unrounded
     double time_to_arrival_ms = 0;   // +inf when standing
     std::int64_t deadline_ns = 0;    // send: on the bus by then (CanBus::send)
@@ -102,7 +102,7 @@ struct SchedulerCounters {
 
 class Scheduler {
 public:
-    static constexpr std::size_t kMaxTools = kMaxToolId + 1;
+    static constexpr std::size_t kMaxTools = protocol::kMaxToolId + 1;
 
     // nullopt with `error` set when the table or the parameters are invalid:
     // no tools, more than 16, an id > 15 or repeated, an empty or non-finite

@@ -1,6 +1,6 @@
 // The CAN bus interface: every CAN backend (drivers/socketcan, drivers/canlog)
-// sends and receives actuation::CanFrame values. It knows nothing of the
-// messages' meaning (include/stemd/actuation/messages.hpp) nor of the
+// sends and receives protocol::CanFrame values. It knows nothing of the
+// messages' meaning (include/stemd/protocol/messages.hpp) nor of the
 // scheduler that calls it.
 //
 // Time: deadlines and timeouts are CLOCK_MONOTONIC nanoseconds
@@ -18,7 +18,7 @@
 #include <cstdint>
 #include <string_view>
 
-#include "stemd/actuation/can_frame.hpp"
+#include "stemd/protocol/can_frame.hpp"
 #include "stemd/base/clock.hpp"
 
 namespace stemd::drivers {
@@ -59,12 +59,12 @@ public:
 
     // Sends one frame unless deadline_ns (CLOCK_MONOTONIC) passes first.
     // Never blocks past the deadline.
-    virtual SendResult send(const actuation::CanFrame& frame, std::int64_t deadline_ns) = 0;
+    virtual SendResult send(const protocol::CanFrame& frame, std::int64_t deadline_ns) = 0;
 
     // Waits at most timeout_ns for the next data frame that passes the bus's
     // receive filter and writes it into `out`. False on timeout (or when the
     // bus cannot receive), leaving `out` as it was.
-    virtual bool receive(actuation::CanFrame& out, std::int64_t timeout_ns) = 0;
+    virtual bool receive(protocol::CanFrame& out, std::int64_t timeout_ns) = 0;
 
     virtual CanBusCounters counters() const = 0;
 };

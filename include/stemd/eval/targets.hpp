@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "stemd/actuation/messages.hpp"
+#include "stemd/protocol/messages.hpp"
 
 namespace stemd::eval {
 
@@ -36,12 +36,12 @@ struct TruthPlant {
 std::optional<std::vector<TruthPlant>> read_truth_plants(const std::filesystem::path& csv, std::string& error);
 
 struct TargetLog {
-    std::vector<actuation::TargetCommand> targets;   // in log order
+    std::vector<protocol::TargetCommand> targets;   // in log order
     std::size_t other_frames = 0;    // HEARTBEAT and frames that are not stemd's
     std::size_t bad_targets = 0;     // TARGET identifier but failed decode (CRC, range)
 };
 // A candump -L log; errors (an unparsable line) name the file and line.
-std::optional<TargetLog> read_target_log(const std::filesystem::path& log, const actuation::CanIds& ids,
+std::optional<TargetLog> read_target_log(const std::filesystem::path& log, const protocol::CanIds& ids,
                                          std::string& error);
 
 struct TargetScore {
@@ -59,7 +59,7 @@ struct TargetScore {
 };
 
 // tool_offset_mm[tool_id]: NaN for tools that do not exist.
-TargetScore score_targets(std::span<const TruthPlant> plants, std::span<const actuation::TargetCommand> commands,
+TargetScore score_targets(std::span<const TruthPlant> plants, std::span<const protocol::TargetCommand> commands,
                           const std::array<double, 16>& tool_offset_mm, double tol_mm);
 
 }  // namespace stemd::eval

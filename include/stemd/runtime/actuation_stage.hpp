@@ -39,8 +39,8 @@
 #include <opencv2/core/types.hpp>
 #include <spdlog/logger.h>
 
-#include "stemd/actuation/e2e.hpp"
-#include "stemd/actuation/messages.hpp"
+#include "stemd/protocol/e2e.hpp"
+#include "stemd/protocol/messages.hpp"
 #include "stemd/actuation/scheduler.hpp"
 #include "stemd/actuation/tracker.hpp"
 #include "stemd/drivers/can_bus.hpp"
@@ -126,7 +126,7 @@ private:
     double extent_mm(const vision::Plant& plant, double odom_mm) const noexcept;
 
     ActuationStage(const ActuationConfig& config, const geometry::CameraModel& camera, cv::Size frame_size, Parts parts,
-                   actuation::Scheduler scheduler, actuation::CanIds ids, std::shared_ptr<spdlog::logger> log);
+                   actuation::Scheduler scheduler, protocol::CanIds ids, std::shared_ptr<spdlog::logger> log);
 
     bool odometer_at(std::int64_t t_ns, double& odom_mm) const noexcept;
     void add_frame_odometry(std::int64_t t_capture_ns, double odom_mm) noexcept;
@@ -143,15 +143,15 @@ private:
     actuation::Tracker tracker_;
     actuation::Scheduler scheduler_;
     std::optional<actuation::Scheduler> scheduler_all_;        // policy auto: frames without a class map
-    const actuation::CanIds ids_;
+    const protocol::CanIds ids_;
     geometry::OdometryRing odometry_;
     double view_min_mm_ = 0, view_max_mm_ = 0;
 
     std::array<actuation::TrackDetection, vision::kMaxPlants> detections_{};
-    std::array<MapEntry, actuation::kMaxTargetId + 1> outcomes_{};   // by target_id, for the map
+    std::array<MapEntry, protocol::kMaxTargetId + 1> outcomes_{};   // by target_id, for the map
 
-    actuation::E2eCounter target_counter_, heartbeat_counter_;
-    actuation::E2eChecker odometry_checker_, tool_status_checker_;
+    protocol::E2eCounter target_counter_, heartbeat_counter_;
+    protocol::E2eChecker odometry_checker_, tool_status_checker_;
     bool have_odometry_frame_ = false;
     std::uint32_t last_can_odom_raw_ = 0;
     double can_odom_mm_ = 0;          // unwrapped

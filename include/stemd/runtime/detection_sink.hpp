@@ -32,7 +32,7 @@ struct FrameResult {
     vision::Detections detections;
     // Per plant (parallel to detections.plants): the class map's value at
     // its stem (majority of crop/weed pixels around it), as
-    // actuation::PlantClass: 0 unknown, 1 crop, 2 weed.
+    // protocol::PlantClass: 0 unknown, 1 crop, 2 weed.
     std::array<std::uint8_t, vision::kMaxPlants> plant_class{};
 };
 

@@ -125,7 +125,7 @@ struct StripOptions {
     double fragmentation = -1;     // < 0: the preset's default; else 0..1
 };
 
-// Plant classes in class maps (values as actuation::PlantClass).
+// Plant classes in class maps (values as protocol::PlantClass).
 enum class PixelClass : std::uint8_t { soil = 0, crop = 1, weed = 2 };
 
 // A stemmed plant (crop or weed) of the strip, in field coordinates.

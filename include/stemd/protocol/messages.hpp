@@ -1,6 +1,7 @@
 // stemd's CAN messages: identifiers, signal layout, encode and decode.
 // config/stemd.dbc describes the same layout for other tools (cantools,
-// SavvyCAN, canmatrix); test/unit/actuation_dbc_test.cpp checks that the two agree.
+// SavvyCAN, canmatrix); it is written from the tables below by stemd-dbc
+// (dbc_writer.hpp), and a test decodes the encoder's frames with canmatrix.
 //
 // Every message is a classic CAN frame with an 11-bit identifier and DLC 8,
 // protected as described in e2e.hpp (byte 0 CRC, byte 1 low nibble alive
@@ -68,9 +69,9 @@
 #include <span>
 #include <string_view>
 
-#include "stemd/actuation/can_frame.hpp"
+#include "stemd/protocol/can_frame.hpp"
 
-namespace stemd::actuation {
+namespace stemd::protocol {
 
 enum class MessageKind : std::uint8_t { Odometry = 0, Target = 1, ToolStatus = 2, Heartbeat = 3 };
 inline constexpr std::size_t kMessageKindCount = 4;
@@ -80,7 +81,7 @@ inline constexpr std::array<MessageKind, kMessageKindCount> kAllMessageKinds{
 inline constexpr std::uint16_t kDefaultBaseId = 0x300;
 inline constexpr std::uint8_t kFrameDlc = 8;
 
-// ---- layout description (one source of truth for encode, decode and the DBC test) ----
+// ---- layout description (one source of truth for encode, decode and the DBC) ----
 
 struct ValueName {
     std::int64_t value;
@@ -95,6 +96,7 @@ struct SignalDef {
     std::int64_t min;        // valid range (raw = physical)
     std::int64_t max;
     std::string_view unit;   // "" for none
+    std::string_view comment;  // the DBC's CM_ SG_
     std::span<const ValueName> values = {};  // named values (enums), as the DBC's VAL_
 };
 
@@ -105,10 +107,22 @@ struct MessageDef {
     std::string_view transmitter;  // DBC node
     std::span<const std::string_view> receivers;
     std::span<const SignalDef> signals;  // including e2e_crc and e2e_counter
+    std::string_view comment;  // the DBC's CM_ BO_ (the reserved bits are added from the layout)
 };
+
+// A node of the network (the DBC's BU_), which transmitters and receivers name.
+struct NodeDef {
+    std::string_view name;
+    std::string_view comment;
+};
+
+inline constexpr std::string_view kProtocolVersion = "stemd-can-1";  // the DBC's VERSION
 
 const MessageDef& message_def(MessageKind kind);
 std::string_view to_string(MessageKind kind);
+std::span<const NodeDef> node_defs();
+// The whole protocol in a paragraph (the DBC's network comment).
+std::string_view protocol_comment();
 
 // The identifiers for one base ID.
 class CanIds {
@@ -239,4 +253,4 @@ CodecResult decode(const CanFrame& frame, const CanIds& ids, TargetCommand& out)
 CodecResult decode(const CanFrame& frame, const CanIds& ids, ToolStatus& out);
 CodecResult decode(const CanFrame& frame, const CanIds& ids, Heartbeat& out);
 
-}  // namespace stemd::actuation
+}  // namespace stemd::protocol

@@ -1,9 +1,9 @@
-#include "stemd/actuation/candump_format.hpp"
+#include "stemd/protocol/candump_format.hpp"
 
 #include <array>
 #include <limits>
 
-namespace stemd::actuation {
+namespace stemd::protocol {
 
 namespace {
 
@@ -218,4 +218,4 @@ bool parse_candump_line(std::string_view line, CandumpRecord& out, std::string& 
     return true;
 }
 
-}  // namespace stemd::actuation
+}  // namespace stemd::protocol

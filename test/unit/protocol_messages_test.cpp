@@ -4,10 +4,10 @@
 #include <limits>
 #include <random>
 
-#include "stemd/actuation/e2e.hpp"
-#include "stemd/actuation/messages.hpp"
+#include "stemd/protocol/e2e.hpp"
+#include "stemd/protocol/messages.hpp"
 
-using namespace stemd::actuation;
+using namespace stemd::protocol;
 
 namespace {
 

@@ -12,10 +12,10 @@
 #include <sstream>
 #include <string>
 
-#include "stemd/actuation/candump_format.hpp"
-#include "stemd/actuation/messages.hpp"
+#include "stemd/protocol/candump_format.hpp"
+#include "stemd/protocol/messages.hpp"
 
-using namespace stemd::actuation;
+using namespace stemd::protocol;
 
 namespace {
 

@@ -18,9 +18,9 @@
 #include <string>
 #include <string_view>
 
-#include "stemd/actuation/can_frame.hpp"
+#include "stemd/protocol/can_frame.hpp"
 
-namespace stemd::actuation {
+namespace stemd::protocol {
 
 // Longest line format_candump_line() writes, without a terminator: "(" 14
 // digits (the seconds of a 64-bit microsecond count) "." 6 ") " 15-character
@@ -52,4 +52,4 @@ struct CandumpRecord {
 // `error` to a one-line reason.
 bool parse_candump_line(std::string_view line, CandumpRecord& out, std::string& error);
 
-}  // namespace stemd::actuation
+}  // namespace stemd::protocol

@@ -40,7 +40,7 @@
 #include <span>
 #include <string_view>
 
-namespace stemd::actuation {
+namespace stemd::protocol {
 
 inline constexpr std::uint8_t kE2eMaxCounter = 14;  // counters run 0..14
 inline constexpr std::uint8_t kE2eCounterModulo = kE2eMaxCounter + 1;
@@ -122,4 +122,4 @@ private:
     std::uint64_t lost_ = 0;
 };
 
-}  // namespace stemd::actuation
+}  // namespace stemd::protocol

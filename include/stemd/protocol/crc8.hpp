@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <span>
 
-namespace stemd::actuation {
+namespace stemd::protocol {
 
 // Same contract as AUTOSAR Crc_CalculateCRC8(data, length, start_value, is_first_call):
 // - is_first_call: start from 0xFF and ignore start_value;
@@ -16,4 +16,4 @@ namespace stemd::actuation {
 std::uint8_t crc8_sae_j1850(std::span<const std::uint8_t> data, std::uint8_t start_value = 0,
                             bool is_first_call = true);
 
-}  // namespace stemd::actuation
+}  // namespace stemd::protocol

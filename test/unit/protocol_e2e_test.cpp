@@ -4,10 +4,10 @@
 #include <cstdint>
 #include <vector>
 
-#include "stemd/actuation/crc8.hpp"
-#include "stemd/actuation/e2e.hpp"
+#include "stemd/protocol/crc8.hpp"
+#include "stemd/protocol/e2e.hpp"
 
-using namespace stemd::actuation;
+using namespace stemd::protocol;
 
 namespace {
 

@@ -1,11 +1,11 @@
-// A classic CAN 2.0 frame (at most 8 data bytes), as sent and received by the
-// actuation layer and written to candump logs. Header-only: a plain value type.
+// A classic CAN 2.0 frame (at most 8 data bytes), as the CAN buses send and
+// receive it and candump logs hold it. Header-only: a plain value type.
 #pragma once
 
 #include <array>
 #include <cstdint>
 
-namespace stemd::actuation {
+namespace stemd::protocol {
 
 inline constexpr std::uint32_t kMaxStandardId = 0x7FF;       // 11-bit identifier
 inline constexpr std::uint32_t kMaxExtendedId = 0x1FFFFFFF;  // 29-bit identifier
@@ -19,4 +19,4 @@ struct CanFrame {
     friend bool operator==(const CanFrame&, const CanFrame&) = default;
 };
 
-}  // namespace stemd::actuation
+}  // namespace stemd::protocol

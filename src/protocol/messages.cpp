@@ -1,29 +1,39 @@
-#include "stemd/actuation/messages.hpp"
+#include "stemd/protocol/messages.hpp"
 
 #include <algorithm>
 
-#include "stemd/actuation/e2e.hpp"
+#include "stemd/protocol/e2e.hpp"
 
-namespace stemd::actuation {
+namespace stemd::protocol {
 
 namespace {
 
 // ---- the layout (see the table in messages.hpp) ----
+// Units and comments are the DBC's (dbc_writer.hpp writes config/stemd.dbc
+// from these tables); comments must not contain '"'.
 
-constexpr SignalDef kCrc{"e2e_crc", 0, 8, false, 0, 255, ""};
-constexpr SignalDef kCounter{"e2e_counter", 8, 4, false, 0, kE2eMaxCounter, ""};
+constexpr SignalDef kCrc{"e2e_crc", 0, 8, false, 0, 255, "",
+                         "E2E profile 11 CRC-8 SAE J1850 over Data ID (= CAN id, low byte then high byte) and bytes 1..7."};
+constexpr SignalDef kCounter{"e2e_counter", 8, 4, false, 0, kE2eMaxCounter, "",
+                             "E2E profile 11 alive counter 0..14, +1 per frame, wraps 14 -> 0."};
 
-constexpr SignalDef kOdomMm{"odom_mm", 16, 32, false, 0, 0xFFFFFFFF, "mm"};
-constexpr SignalDef kSpeed{"speed_mm_per_s", 48, 16, true, -kMaxSpeedMmPerS, kMaxSpeedMmPerS, "mm/s"};
+constexpr SignalDef kOdomMm{"odom_mm", 16, 32, false, 0, 0xFFFFFFFF, "mm",
+                            "Distance driven since power-up; wraps modulo 2^32 mm."};
+constexpr SignalDef kSpeed{"speed_mm_per_s", 48, 16, true, -kMaxSpeedMmPerS, kMaxSpeedMmPerS, "mm/s",
+                           "Ground speed, forward positive."};
 constexpr std::array kOdometrySignals{kCrc, kCounter, kOdomMm, kSpeed};
 
 constexpr std::array kPlantClassNames{ValueName{0, "UNKNOWN"}, ValueName{1, "CROP"}, ValueName{2, "WEED"}};
-constexpr SignalDef kToolId{"tool_id", 12, 4, false, 0, kMaxToolId, ""};
-constexpr SignalDef kTargetId{"target_id", 16, 12, false, 0, kMaxTargetId, ""};
-constexpr SignalDef kLane{"lane", 28, 4, false, 0, kMaxLane, ""};
-constexpr SignalDef kFireOdom{"fire_odom_mm", 32, kFireOdomBits, false, 0, kFireOdomModulo - 1, "mm"};
-constexpr SignalDef kLateral{"lateral_mm", 50, 12, true, -kMaxLateralMm, kMaxLateralMm, "mm"};
-constexpr SignalDef kPlantClass{"plant_class", 62, 2, false, 0, 2, "", kPlantClassNames};
+constexpr SignalDef kToolId{"tool_id", 12, 4, false, 0, kMaxToolId, "", "The tool that is to fire."};
+constexpr SignalDef kTargetId{"target_id", 16, 12, false, 0, kMaxTargetId, "",
+                              "Target number assigned by stemd, modulo 4096; echoed in TOOL_STATUS.last_target_id."};
+constexpr SignalDef kLane{"lane", 28, 4, false, 0, kMaxLane, "", "Crop row (lane) of the target."};
+constexpr SignalDef kFireOdom{"fire_odom_mm", 32, kFireOdomBits, false, 0, kFireOdomModulo - 1, "mm",
+                              "ODOMETRY.odom_mm reading at which to fire, modulo 2^18 mm. Compare with odom_mm "
+                              "modulo 2^18 as a signed difference in [-131072, 131071] mm."};
+constexpr SignalDef kLateral{"lateral_mm", 50, 12, true, -kMaxLateralMm, kMaxLateralMm, "mm",
+                             "Lateral position of the target across the direction of travel."};
+constexpr SignalDef kPlantClass{"plant_class", 62, 2, false, 0, 2, "", "What the target is.", kPlantClassNames};
 constexpr std::array kTargetSignals{kCrc, kCounter, kToolId, kTargetId, kLane, kFireOdom, kLateral, kPlantClass};
 
 constexpr std::array kToolErrorNames{
@@ -35,23 +45,34 @@ constexpr std::array kToolErrorNames{
     ValueName{tool_error::kBadCommand, "BAD_COMMAND"},
     ValueName{tool_error::kOther, "OTHER"},
 };
-constexpr SignalDef kReadyMask{"tools_ready_mask", 16, 16, false, 0, 0xFFFF, ""};
-constexpr SignalDef kLastTargetId{"last_target_id", 32, 12, false, 0, kMaxTargetId, ""};
-constexpr SignalDef kLastTargetValid{"last_target_valid", 44, 1, false, 0, 1, ""};
-constexpr SignalDef kErrorCode{"error_code", 48, 8, false, 0, 255, "", kToolErrorNames};
-constexpr SignalDef kExecuted{"targets_executed", 56, 8, false, 0, 255, ""};
+constexpr SignalDef kReadyMask{"tools_ready_mask", 16, 16, false, 0, 0xFFFF, "", "Bit n set: tool n is ready to fire."};
+constexpr SignalDef kLastTargetId{"last_target_id", 32, 12, false, 0, kMaxTargetId, "",
+                                  "target_id of the last executed TARGET; valid if last_target_valid."};
+constexpr SignalDef kLastTargetValid{"last_target_valid", 44, 1, false, 0, 1, "", "0 until the tool has executed a target."};
+constexpr SignalDef kErrorCode{"error_code", 48, 8, false, 0, 255, "",
+                               "Tool error; codes other than those listed pass through.", kToolErrorNames};
+constexpr SignalDef kExecuted{"targets_executed", 56, 8, false, 0, 255, "", "Targets executed, modulo 256."};
 constexpr std::array kToolStatusSignals{kCrc, kCounter, kReadyMask, kLastTargetId, kLastTargetValid, kErrorCode, kExecuted};
 
 constexpr std::array kStateNames{
     ValueName{0, "STARTING"}, ValueName{1, "IDLE"}, ValueName{2, "ACTIVE"},
     ValueName{3, "DEGRADED"}, ValueName{4, "FAULT"},
 };
-constexpr SignalDef kState{"state", 12, 4, false, 0, 4, "", kStateNames};
-constexpr SignalDef kSent{"targets_sent", 16, 16, false, 0, 0xFFFF, ""};
-constexpr SignalDef kDeadlineMisses{"deadline_misses", 32, 12, false, 0, 4095, ""};
-constexpr SignalDef kDropped{"targets_dropped", 44, 12, false, 0, 4095, ""};
-constexpr SignalDef kRxRejected{"rx_rejected", 56, 8, false, 0, 255, ""};
+constexpr SignalDef kState{"state", 12, 4, false, 0, 4, "", "Daemon state.", kStateNames};
+constexpr SignalDef kSent{"targets_sent", 16, 16, false, 0, 0xFFFF, "", "TARGET frames sent, modulo 2^16."};
+constexpr SignalDef kDeadlineMisses{"deadline_misses", 32, 12, false, 0, 4095, "",
+                                    "Targets that missed their deadline; saturates at 4095."};
+constexpr SignalDef kDropped{"targets_dropped", 44, 12, false, 0, 4095, "",
+                             "Targets dropped (queue full, encode error); saturates at 4095."};
+constexpr SignalDef kRxRejected{"rx_rejected", 56, 8, false, 0, 255, "",
+                                "Received frames rejected (E2E or decode); saturates at 255."};
 constexpr std::array kHeartbeatSignals{kCrc, kCounter, kState, kSent, kDeadlineMisses, kDropped, kRxRejected};
+
+constexpr std::array kNodes{
+    NodeDef{"STEMD", "The stem-detection daemon: sends weeding targets and its heartbeat."},
+    NodeDef{"DRIVE", "The drive controller: sends odometry."},
+    NodeDef{"TOOL", "The weeding tool controller: executes targets, reports its status."},
+};
 
 constexpr std::array<std::string_view, 2> kToStemdAndTool{"STEMD", "TOOL"};
 constexpr std::array<std::string_view, 1> kToTool{"TOOL"};
@@ -59,13 +80,39 @@ constexpr std::array<std::string_view, 1> kToStemd{"STEMD"};
 constexpr std::array<std::string_view, 2> kToDriveAndTool{"DRIVE", "TOOL"};
 
 constexpr std::array<MessageDef, kMessageKindCount> kMessages{
-    MessageDef{MessageKind::Odometry, "ODOMETRY", 0, "DRIVE", kToStemdAndTool, kOdometrySignals},
-    MessageDef{MessageKind::Target, "TARGET", 1, "STEMD", kToTool, kTargetSignals},
-    MessageDef{MessageKind::ToolStatus, "TOOL_STATUS", 2, "TOOL", kToStemd, kToolStatusSignals},
-    MessageDef{MessageKind::Heartbeat, "HEARTBEAT", 3, "STEMD", kToDriveAndTool, kHeartbeatSignals},
+    MessageDef{MessageKind::Odometry, "ODOMETRY", 0, "DRIVE", kToStemdAndTool, kOdometrySignals,
+               "Odometry from the drive: the time base of every fire decision, hence the highest priority."},
+    MessageDef{MessageKind::Target, "TARGET", 1, "STEMD", kToTool, kTargetSignals,
+               "A weeding command from stemd: fire tool tool_id when the odometer reaches fire_odom_mm."},
+    MessageDef{MessageKind::ToolStatus, "TOOL_STATUS", 2, "TOOL", kToStemd, kToolStatusSignals,
+               "Status of the weeding tool controller."},
+    MessageDef{MessageKind::Heartbeat, "HEARTBEAT", 3, "STEMD", kToDriveAndTool, kHeartbeatSignals,
+               "Heartbeat of stemd."},
 };
 
-// The layout is sound: every signal fits, none overlaps, ranges fit their bits.
+constexpr std::string_view kProtocolComment =
+    "stemd weeding-robot CAN protocol. Classic CAN, 11-bit identifiers, DLC 8, little-endian (Intel) signals, "
+    "factor 1. Identifiers are base + offset: ODOMETRY +0, TARGET +1, TOOL_STATUS +2, HEARTBEAT +3. This file is "
+    "written for the default base 0x300; stemd's base is configurable (at most 0x7FC). Every message is protected "
+    "like AUTOSAR E2E profile 11 (DataIDMode BOTH): byte 0 is a CRC-8 SAE J1850 (poly 0x1D, init 0xFF, xor-out "
+    "0xFF) over the Data ID low byte, the Data ID high byte and data bytes 1..7; the Data ID is the message's CAN "
+    "identifier and is not transmitted. The low nibble of byte 1 is an alive counter 0..14, +1 per frame, 14 -> 0 "
+    "(15 is never sent). A receiver rejects and counts frames with a bad CRC, a repeated counter or a counter jump "
+    "beyond its tolerance. Reserved bits are sent as 0 and ignored on receive.";
+
+constexpr bool is_node(std::string_view name)
+{
+    for (const NodeDef& n : kNodes)
+        if (n.name == name)
+            return true;
+    return false;
+}
+
+// A DBC string cannot hold a double quote.
+constexpr bool dbc_string_ok(std::string_view text) { return text.find('"') == std::string_view::npos; }
+
+// The layout is sound: every signal fits, none overlaps, ranges fit their bits,
+// every node named is declared, and every text can be a DBC string.
 constexpr bool layout_ok()
 {
     for (std::size_t k = 0; k < kMessages.size(); ++k) {
@@ -88,8 +135,19 @@ constexpr bool layout_ok()
         }
         if (m.signals.size() < 2 || m.signals[0].name != "e2e_crc" || m.signals[1].name != "e2e_counter")
             return false;
+        if (!is_node(m.transmitter) || !dbc_string_ok(m.comment))
+            return false;
+        for (std::string_view r : m.receivers)
+            if (!is_node(r))
+                return false;
+        for (const SignalDef& s : m.signals)
+            if (!dbc_string_ok(s.unit) || !dbc_string_ok(s.comment))
+                return false;
     }
-    return true;
+    for (const NodeDef& n : kNodes)
+        if (!dbc_string_ok(n.comment))
+            return false;
+    return dbc_string_ok(kProtocolComment);
 }
 static_assert(layout_ok(), "CAN message layout");
 
@@ -191,6 +249,10 @@ std::int64_t saturate(std::uint64_t v, const SignalDef& s)
 }  // namespace
 
 const MessageDef& message_def(MessageKind kind) { return kMessages[static_cast<std::size_t>(kind)]; }
+
+std::span<const NodeDef> node_defs() { return kNodes; }
+
+std::string_view protocol_comment() { return kProtocolComment; }
 
 std::string_view to_string(MessageKind kind) { return message_def(kind).name; }
 
@@ -337,4 +399,4 @@ CodecResult decode(const CanFrame& frame, const CanIds& ids, Heartbeat& out)
     return {};
 }
 
-}  // namespace stemd::actuation
+}  // namespace stemd::protocol

@@ -5,9 +5,9 @@
 #include <string_view>
 #include <vector>
 
-#include "stemd/actuation/crc8.hpp"
+#include "stemd/protocol/crc8.hpp"
 
-using stemd::actuation::crc8_sae_j1850;
+using stemd::protocol::crc8_sae_j1850;
 
 namespace {
 

@@ -1,8 +1,8 @@
-#include "stemd/actuation/crc8.hpp"
+#include "stemd/protocol/crc8.hpp"
 
 #include <array>
 
-namespace stemd::actuation {
+namespace stemd::protocol {
 
 namespace {
 
@@ -47,4 +47,4 @@ std::uint8_t crc8_sae_j1850(std::span<const std::uint8_t> data, std::uint8_t sta
     return static_cast<std::uint8_t>(update(crc, data) ^ kXorOut);
 }
 
-}  // namespace stemd::actuation
+}  // namespace stemd::protocol

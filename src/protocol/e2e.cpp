@@ -1,10 +1,10 @@
-#include "stemd/actuation/e2e.hpp"
+#include "stemd/protocol/e2e.hpp"
 
 #include <algorithm>
 
-#include "stemd/actuation/crc8.hpp"
+#include "stemd/protocol/crc8.hpp"
 
-namespace stemd::actuation {
+namespace stemd::protocol {
 
 std::uint8_t e2e_crc(std::uint16_t data_id, std::span<const std::uint8_t, 8> data)
 {
@@ -87,4 +87,4 @@ std::uint64_t E2eChecker::rejected() const
     return count(E2eStatus::Repeated) + count(E2eStatus::WrongSequence) + count(E2eStatus::WrongCrc);
 }
 
-}  // namespace stemd::actuation
+}  // namespace stemd::protocol
