@@ -976,6 +976,59 @@ bool parse_item_key(std::string_view key, std::string_view section, std::size_t&
     return is_valid_name(leaf) && leaf.find('.') == std::string_view::npos;
 }
 
+// "Real, mm, range [0, 50]." and the like: what a documented key accepts.
+std::string type_text(const KeySpec& spec)
+{
+    switch (spec.type) {
+    case ValueType::integer:
+    case ValueType::real:
+        return cat(spec.type == ValueType::integer ? "Integer, " : "Real, ", spec.unit, spec.unit.empty() ? "" : ", ",
+                   "range [", format_number(spec.min), ", ", format_number(spec.max), "].");
+    case ValueType::boolean: return "Boolean.";
+    case ValueType::choice: return cat("Choice: ", list_choices(spec, " | "), ".");
+    case ValueType::text: return "Text.";
+    }
+    return "";
+}
+
+// `text` as "# " comment lines of at most 79 columns after `indent`.
+std::string wrapped_comment(std::string_view indent, std::string_view text)
+{
+    constexpr std::size_t kWidth = 79;
+    std::string out;
+    std::string line = cat(indent, "#");
+    for (std::size_t at = 0; at < text.size();) {
+        const std::size_t end = std::min(text.find(' ', at), text.size());
+        const std::string_view word = text.substr(at, end - at);
+        at = end + 1;
+        if (word.empty())
+            continue;
+        if (line.size() + 1 + word.size() > kWidth && line.size() > indent.size() + 1) {
+            out += cat(line, "\n");
+            line = cat(indent, "#");
+        }
+        line += cat(" ", word);
+    }
+    return out + line + "\n";
+}
+
+constexpr std::string_view kDocumentedHeader =
+    "# stemd configuration: every key at its default.\n"
+    "#\n"
+    "# Format: YAML (read with yaml-cpp) in one shape: top-level \"section:\" lines,\n"
+    "# then \"key: value\" lines indented by spaces (never tabs), one level deep;\n"
+    "# the list section \"tools\" holds \"- key: value\" items instead. Values are\n"
+    "# integers, reals, bare words, true/false or quoted strings (\"-\" for a dash:\n"
+    "# a bare - starts a YAML list item); '#' starts a comment on its own line or\n"
+    "# after a value (preceded by a space). Unknown or duplicate keys, deeper\n"
+    "# nesting and out-of-range values are errors. A file need not list every\n"
+    "# key: keys it leaves out keep their defaults. stemd and the tools take\n"
+    "# --config FILE and --set section.key=value (e.g. --set closing.radius_px=6);\n"
+    "# a --set given later wins over the file.\n"
+    "#\n"
+    "# Generated from the schema (src/config/schema.cpp), like the README's table:\n"
+    "#   stemd-config yaml --out config/stemd.yaml\n";
+
 }  // namespace
 
 std::string ConfigError::to_string() const
@@ -1182,27 +1235,49 @@ std::string Config::item_origin_of(std::string_view section, std::size_t index, 
     return lists_[list_index(*list)].items[index][item_key_index(*list, *spec)].origin;
 }
 
-std::string Config::to_yaml() const
+std::string Config::to_yaml(YamlComments comments) const
 {
-    std::string out = "# stemd effective configuration: value  # unit, range or choices; origin\n";
+    const bool documented = comments == YamlComments::documentation;
+    std::string out = documented ? std::string(kDocumentedHeader)
+                                 : "# stemd effective configuration: value  # unit, range or choices; origin\n";
+    const auto section_heading = [&](std::string_view name, std::string_view list_help) {
+        if (!documented) {
+            out += cat(name, ":\n");
+            return;
+        }
+        for (const SectionSpec& section : section_schema())
+            if (section.name == name && !section.group.empty())
+                out += cat("\n# --- ", section.group, " ---\n");
+        out += "\n";
+        for (const SectionSpec& section : section_schema())
+            if (section.name == name)
+                out += wrapped_comment("", section.help.empty() ? cat(list_help, ".") : std::string(section.help));
+        out += cat(name, ":\n");
+    };
+    // One key: its documentation above it, or its range and origin after it.
+    const auto key_line = [&](std::string_view indent, std::string_view first, const KeySpec& spec,
+                              const ConfigValue& value) {
+        if (documented)
+            out += cat(wrapped_comment(indent, cat(spec.help, ".")), indent, "# ", type_text(spec), "\n");
+        out += cat(first, item_list_of(spec).empty() ? leaf_of(spec.key) : item_leaf_of(spec), ": ",
+                   config::value_text(spec, value));
+        out += documented ? "\n" : cat("  # ", about_text(spec), "; ", printable(value.origin), "\n");
+    };
     std::string_view section;
     for (const KeySpec& spec : schema()) {
-        const ConfigValue& value = values_[index_of(spec)];
         if (section_of(spec.key) != section) {
             section = section_of(spec.key);
-            out += cat(section, ":\n");
+            section_heading(section, "");
         }
-        out += cat("  ", leaf_of(spec.key), ": ", config::value_text(spec, value), "  # ", about_text(spec), "; ",
-                   printable(value.origin), "\n");
+        key_line("  ", "  ", spec, values_[index_of(spec)]);
     }
     // List sections: "- " before each item's first key.
     for (const ListSpec& list : list_schema()) {
-        out += cat(list.section, ":\n");
+        section_heading(list.section, list.help);
         for (const std::vector<ConfigValue>& item : lists_[list_index(list)].items) {
             const std::span<const KeySpec> keys = item_keys(list.section);
             for (std::size_t k = 0; k < keys.size(); ++k)
-                out += cat(k == 0 ? "  - " : "    ", item_leaf_of(keys[k]), ": ", config::value_text(keys[k], item[k]),
-                           "  # ", about_text(keys[k]), "; ", printable(item[k].origin), "\n");
+                key_line("    ", k == 0 ? "  - " : "    ", keys[k], item[k]);
         }
     }
     return out;

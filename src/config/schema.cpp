@@ -398,6 +398,36 @@ constexpr std::array kSchema{
             "plant map written as JSON lines, one per target; none: no map (--map FILE sets it)"}),
 };
 
+constexpr std::array kSections{
+    SectionSpec{"camera", "",
+                "The camera: its ground sampling distance, and its geometry (where a pixel lies on the ground). "
+                "Machine frame: x forward (direction of travel), y to the left, millimetres; the ground is z = 0."},
+    SectionSpec{"segment", "", "Vegetation segmentation: the index, its smoothing, threshold and opening."},
+    SectionSpec{"closing", "", "The morphological closing that joins a plant's leaves."},
+    SectionSpec{"plants", "", "Plants: the blobs of the closed mask, grouped across small gaps."},
+    SectionSpec{"leaves", "", "Leaves: the plant's contour cut at its deep convexity defects."},
+    SectionSpec{"stem", "", "The stem: from the leaf directions, or the centre of mass as the fallback."},
+    SectionSpec{"source", "The daemon (stemd): frames, rings, threads, status, logging",
+                "Where frames come from. Real-time settings (threads.*) are off by default; on the robot, e.g. "
+                "capture_priority: 40, actuator_priority: 45, processing_priority: 30, processing_cpu: 1, "
+                "mlockall: true. Without the privileges (CAP_SYS_NICE, CAP_IPC_LOCK or RLIMIT_MEMLOCK) stemd "
+                "warns once and runs without them."},
+    SectionSpec{"ring", "", "The lock-free rings between the capture, processing and actuator threads."},
+    SectionSpec{"threads", "", "Real-time scheduling, CPU pinning and memory locking of the three threads."},
+    SectionSpec{"status", "", "The status line."},
+    SectionSpec{"log", "", "Logging (standard error, the journal under systemd)."},
+    SectionSpec{"tracker", "Actuation: one target per plant, deadlines, odometry, CAN, GPIO",
+                "One target per plant across overlapping frames. Coordinates: machine frame, x forward, y to the "
+                "left, millimetres; a plant's s_mm is the odometer reading when its stem is under the camera's "
+                "principal point (README, \"Machine frame and field coordinates\")."},
+    SectionSpec{"scheduler", "", "Which plants are treated, and the deadline of each command."},
+    SectionSpec{"odometry", "", "The distance travelled, which turns positions into firing times."},
+    SectionSpec{"can", "", "The CAN bus of the tool controllers (SocketCAN), or a candump log instead."},
+    SectionSpec{"gpio", "", "GPIO lines (libgpiod): the operator's enable input, a camera trigger, a wheel encoder."},
+    SectionSpec{"map", "", "The plant map: one JSON line per plant, with what became of it."},
+    SectionSpec{"tools", "", ""},
+};
+
 // List sections and their item keys ("section[].key"), each list's keys
 // together, in the order config files list them.
 constexpr std::array kLists{
@@ -437,6 +467,11 @@ std::string_view to_string(ValueType type)
     case text: return "text";
     }
     return "?";
+}
+
+std::span<const SectionSpec> section_schema()
+{
+    return kSections;
 }
 
 std::span<const KeySpec> schema()

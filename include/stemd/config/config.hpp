@@ -112,7 +112,10 @@ public:
 
     // The effective configuration as a config file (every key, with its unit,
     // range and origin in a comment); load_text() of it gives the same values.
-    std::string to_yaml() const;
+    // `documentation`: no origins, each key's help, type, unit and range
+    // above it, each section's help (config/stemd.yaml is Config{}'s).
+    enum class YamlComments { origins, documentation };
+    std::string to_yaml(YamlComments comments = YamlComments::origins) const;
 
 private:
     std::optional<ConfigError> set_item_override(const ListSpec& list, std::string_view key,

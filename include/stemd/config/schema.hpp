@@ -42,6 +42,18 @@ std::span<const KeySpec> schema();
 // The key's spec, or nullptr if the schema has no such key.
 const KeySpec* find_key(std::string_view key);
 
+// A section of a config file and what it holds: the comment above it in
+// config/stemd.yaml. `group`, if any, is a heading written above the
+// section (the first section of the daemon's keys, of the actuation's).
+struct SectionSpec {
+    std::string_view name;
+    std::string_view group;
+    std::string_view help;
+};
+
+// Every section of schema() and of list_schema(), in the order files list them.
+std::span<const SectionSpec> section_schema();
+
 // --- List sections --------------------------------------------------------
 // A list section is a top-level section holding a list of maps:
 //
