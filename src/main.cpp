@@ -139,15 +139,15 @@ int main(int argc, char** argv)
     }
     if (!args->map.empty())
         actuation_config.map_file = args->map;
-    runtime::CameraError camera_error;
+    runtime::ConfigProblem problem;
     const auto camera = runtime::camera_model(settings.camera, daemon_config.vision.gsd_mm_per_px,
-                                              daemon_config.frame_size, camera_error);
+                                              daemon_config.frame_size, problem);
     if (!camera) {
-        const std::string origin = config.origin_of(camera_error.key);
-        // "FILE:LINE: key 'k': why" like a load error; "key 'k' (default): why" else.
-        const bool in_file = origin != "default" && origin != "--set";
-        std::cerr << "stemd: " << (in_file ? origin + ": " : "") << "key '" << camera_error.key << "'"
-                  << (in_file ? "" : " (" + origin + ")") << ": " << camera_error.message << "\n";
+        std::cerr << "stemd: " << config.blame(problem.key, problem.message) << "\n";
+        return kUsageError;
+    }
+    if (const auto actuation_problem = runtime::check_actuation_config(actuation_config)) {
+        std::cerr << "stemd: " << config.blame(actuation_problem->key, actuation_problem->message) << "\n";
         return kUsageError;
     }
     if (const auto problem =

@@ -1220,6 +1220,14 @@ std::optional<std::string> Config::value_text(std::string_view key) const
     return config::value_text(*spec, value.items[index][item_key_index(*list, *spec)]);
 }
 
+std::string Config::blame(std::string_view key, std::string_view message) const
+{
+    const std::string origin = origin_of(key);
+    if (origin != "default" && origin != "--set" && !origin.empty())
+        return cat(origin, ": key ", quote(key), ": ", message);
+    return cat("key ", quote(key), " (", origin.empty() ? "unknown" : origin, "): ", message);
+}
+
 std::size_t Config::list_size(std::string_view section) const
 {
     const ListSpec* list = find_list(section);

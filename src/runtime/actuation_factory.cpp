@@ -14,6 +14,10 @@ namespace stemd::runtime {
 std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, const geometry::CameraModel& camera,
                                                cv::Size frame_size, std::string& error)
 {
+    if (const auto problem = check_actuation_config(config)) {
+        error = problem->key + ": " + problem->message;
+        return nullptr;
+    }
     const auto log = make_logger("actuator");
     const auto ids = protocol::CanIds::make(config.can_base_id);
     if (!ids) {
@@ -48,10 +52,6 @@ std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, co
 #if STEMD_HAVE_LIBGPIOD
         drivers::GpiodOptions options;
         options.chip = config.gpio_chip;
-        if (config.enable_line < 0) {
-            error = "gpio.chip is set but gpio.enable_line is -1 (the enable / e-stop input is required with GPIO)";
-            return nullptr;
-        }
         options.enable_line = static_cast<unsigned>(config.enable_line);
         options.enable_active_low = config.enable_active_low;
         options.enable_debounce_ns = config.enable_debounce_ns;

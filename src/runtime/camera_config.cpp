@@ -3,7 +3,7 @@
 namespace stemd::runtime {
 
 std::optional<geometry::CameraModel> camera_model(const CameraSettings& camera, double gsd_mm_per_px,
-                                                  cv::Size frame_size, CameraError& error)
+                                                  cv::Size frame_size, ConfigProblem& error)
 {
     using namespace geometry;
     std::string why;

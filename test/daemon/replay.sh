@@ -66,4 +66,18 @@ grep -q "^stemd: $tmp/bad.yaml:3: key 'ring.overflw': " "$tmp/e1" || fail "bad k
 [ $rc2 -eq 2 ] && grep -q "key 'ring.capacity': 0 is out of range \[1, 64\] frames" "$tmp/e2" ||
   fail "out of range: $rc2 $(cat "$tmp/e2")"
 [ $rc3 -eq 2 ] && grep -q "not a recording directory" "$tmp/e3" || fail "missing recording: $rc3 $(cat "$tmp/e3")"
+# What the daemon would refuse at start, --check-config refuses too, naming
+# the file line of the key to blame.
+printf 'gpio:\n  chip: gpiochip0\n  enable_line: -1\n' >"$tmp/gpio.yaml"
+set +e
+"$stemd" --check-config --config "$tmp/gpio.yaml" >/dev/null 2>"$tmp/e4"; rc4=$?
+"$stemd" --check-config --set odometry.source=can >/dev/null 2>"$tmp/e5"; rc5=$?
+"$stemd" --check-config --set odometry.source=encoder >/dev/null 2>"$tmp/e6"; rc6=$?
+set -e
+[ $rc4 -eq 2 ] && grep -q "^stemd: $tmp/gpio.yaml:3: key 'gpio.enable_line': " "$tmp/e4" ||
+  fail "GPIO chip without an enable line: $rc4 $(cat "$tmp/e4")"
+[ $rc5 -eq 2 ] && grep -q "key 'odometry.source' (--set): can, but can.interface is none" "$tmp/e5" ||
+  fail "CAN odometry without a bus: $rc5 $(cat "$tmp/e5")"
+[ $rc6 -eq 2 ] && grep -q "key 'odometry.source' (--set): encoder, but gpio.encoder is none" "$tmp/e6" ||
+  fail "encoder odometry without an encoder: $rc6 $(cat "$tmp/e6")"
 echo "daemon replay: ok ($rows detections)"

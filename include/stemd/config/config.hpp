@@ -105,6 +105,10 @@ public:
     // list item keys as "tools.1.offset_mm". nullopt for an unknown key.
     std::optional<std::string> value_text(std::string_view key) const;
 
+    // A problem with a key's value as errors name it: "FILE:LINE: key 'k':
+    // message" for a key from a file, "key 'k' (default): message" else.
+    std::string blame(std::string_view key, std::string_view message) const;
+
     // Items in a list section ("tools"); 0 for an unknown section.
     std::size_t list_size(std::string_view section) const;
     // Where item `index`'s key came from ("" for an unknown key or item).

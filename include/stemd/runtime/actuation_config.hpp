@@ -4,11 +4,13 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "stemd/actuation/scheduler.hpp"
 #include "stemd/actuation/tracker.hpp"
+#include "stemd/runtime/config_problem.hpp"
 
 namespace stemd::runtime {
 
@@ -59,5 +61,10 @@ struct ActuationConfig {
     // map.file (empty: none); --map FILE sets it
     std::string map_file;
 };
+
+// What the schema cannot check key by key: GPIO lines without a chip, a
+// chip without the enable input, encoder or CAN odometry without an encoder
+// or a bus. The daemon refuses these at start, and --check-config with it.
+std::optional<ConfigProblem> check_actuation_config(const ActuationConfig& config);
 
 }  // namespace stemd::runtime

@@ -9,6 +9,7 @@
 #include <opencv2/core/types.hpp>
 
 #include "stemd/geometry/camera_model.hpp"
+#include "stemd/runtime/config_problem.hpp"
 
 namespace stemd::runtime {
 
@@ -20,15 +21,9 @@ struct CameraSettings {
     geometry::Mount mount;          // forward direction, principal point's ground position
 };
 
-// Why no model could be made, and the key to blame.
-struct CameraError {
-    std::string key;       // "camera.calibration_file"
-    std::string message;
-};
-
 // nullopt with `error` set when the calibration file cannot be read, its
 // image size differs from the frames', or the pose does not see the ground.
 std::optional<geometry::CameraModel> camera_model(const CameraSettings& camera, double gsd_mm_per_px,
-                                                  cv::Size frame_size, CameraError& error);
+                                                  cv::Size frame_size, ConfigProblem& error);
 
 }  // namespace stemd::runtime
