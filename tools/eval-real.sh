@@ -72,9 +72,11 @@ if [ -f "$data/bonirob/frames.csv" ]; then
   b=$data/bonirob
   stems bonirob "$b" "$b/stems.csv" 0.395 rgb
   stems bonirob "$b" "$b/stems.csv" 0.395 rgb+nir --set segment.method=ndvi
+  stems bonirob "$b" "$b/stems.csv" 0.395 "rgb+nir, exg and ndvi" --set segment.method=exg_and_ndvi
   stems bonirob "$b" "$b/stems.csv" 0.395 "rgb, centre of mass" --set stem.method=com
   targets bonirob "$b" "$b/plants.csv" 0.395 rgb
   targets bonirob "$b" "$b/plants.csv" 0.395 rgb+nir --set segment.method=ndvi
+  targets bonirob "$b" "$b/plants.csv" 0.395 "rgb+nir, exg and ndvi" --set segment.method=exg_and_ndvi
 else echo "eval-real: no $data/bonirob: skipped" >&2; fi
 
 python3 - "$rows" <<'PY'

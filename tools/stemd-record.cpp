@@ -289,7 +289,7 @@ int main(int argc, char** argv)
     const vision::Segmentation planes =
         daemon_config.source_kind == "replay" ? daemon_config.vision.segmentation : vision::Segmentation::exg;
     const fs::path out = args->out;
-    if (!prepare_out_dir(out, planes == vision::Segmentation::ndvi, planes == vision::Segmentation::mask, error)) {
+    if (!prepare_out_dir(out, vision::uses_nir(planes), planes == vision::Segmentation::mask, error)) {
         std::cerr << "stemd-record: " << error << "\n";
         return kUsageError;
     }

@@ -28,8 +28,9 @@ bool collect_frames(const std::vector<std::string>& inputs, vision::Segmentation
             error = input + ": a directory without frames.csv is not a recording";
             return false;
         } else {
-            if (segmentation == vision::Segmentation::ndvi) {
-                error = input + ": --segment ndvi needs a recording directory (its nir column)";
+            if (vision::uses_nir(segmentation)) {
+                error = input + ": --segment " + std::string(vision::to_string(segmentation)) +
+                        " needs a recording directory (its nir column)";
                 return false;
             }
             FrameJob job;
@@ -60,9 +61,9 @@ bool load_frame(const FrameJob& job, vision::Segmentation segmentation, bool wan
     }
     if (!io::load_image(job.rgb, cv::IMREAD_COLOR, out.bgr, error))
         return false;
-    if (segmentation == vision::Segmentation::ndvi) {
+    if (vision::uses_nir(segmentation)) {
         if (job.nir.empty()) {
-            error = job.image + ": no nir image for --segment ndvi";
+            error = job.image + ": no nir image for --segment " + std::string(vision::to_string(segmentation));
             return false;
         }
         return io::load_image(job.nir, cv::IMREAD_GRAYSCALE, out.nir, error);

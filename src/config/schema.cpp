@@ -153,9 +153,10 @@ constexpr std::array kSchema{
         {"camera.y_mm", real, "mm", -5000, 5000, "0", "",
             "machine-frame y (left) of the principal point's ground position"}),
 
-    bind_choice<STEMD_KEY(daemon.vision.segmentation), std::array{Segmentation::chromatic_exg, Segmentation::exg, Segmentation::ndvi, Segmentation::mask}>(
-        {"segment.method", choice, "", 0, 0, "chromatic_exg", "chromatic_exg|exg|ndvi|mask",
-            "vegetation index: chromatic Excess Green (RGB, exposure-invariant), Excess Green, NDVI (RGB+NIR) or an external mask"}),
+    bind_choice<STEMD_KEY(daemon.vision.segmentation), std::array{Segmentation::chromatic_exg, Segmentation::exg, Segmentation::ndvi, Segmentation::mask,
+                                                             Segmentation::exg_and_ndvi}>(
+        {"segment.method", choice, "", 0, 0, "chromatic_exg", "chromatic_exg|exg|ndvi|mask|exg_and_ndvi",
+            "vegetation index: chromatic Excess Green (RGB, exposure-invariant), Excess Green, NDVI (RGB+NIR), an external mask, or exg_and_ndvi (RGB+NIR: both chromatic Excess Green and NDVI above the soil; the choice with a NIR camera)"}),
     bind<STEMD_KEY(daemon.vision.smooth_index)>(
         {"segment.smooth", boolean, "", 0, 0, "true", "",
             "smooth the index with a 3x3 binomial kernel before the threshold"}),

@@ -14,7 +14,7 @@ FramePool::FramePool(cv::Size size, vision::Segmentation segmentation, std::size
         // (and locked, with mlockall) rather than on the first frame.
         if (segmentation != Segmentation::mask)
             f.bgr = cv::Mat::zeros(size, CV_8UC3);
-        if (segmentation == Segmentation::ndvi)
+        if (uses_nir(segmentation))
             f.nir = cv::Mat::zeros(size, CV_8UC1);
         if (segmentation == Segmentation::mask)
             f.mask = cv::Mat::zeros(size, CV_8UC1);

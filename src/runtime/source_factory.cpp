@@ -30,10 +30,11 @@ std::optional<std::string> check_source_config(const DaemonConfig& d, const conf
         return config.origin_of("source.kind") +
                ": key 'source.kind': libcamera: this stemd was built without libcamera (install libcamera-dev and rebuild)";
     // NIR: a second V4L2 camera, or none (then NDVI needs a recording with nir).
-    const bool ndvi = d.vision.segmentation == vision::Segmentation::ndvi;
-    if (d.source_kind == "v4l2" && ndvi && d.nir_device.empty())
-        return config.origin_of("segment.method") +
-               ": key 'segment.method': ndvi with source.kind v4l2 needs a NIR camera (source.nir_device)";
+    const bool nir = vision::uses_nir(d.vision.segmentation);
+    if (d.source_kind == "v4l2" && nir && d.nir_device.empty())
+        return config.origin_of("segment.method") + ": key 'segment.method': " +
+               std::string(vision::to_string(d.vision.segmentation)) +
+               " with source.kind v4l2 needs a NIR camera (source.nir_device)";
     if (d.source_kind == "v4l2" && !d.nir_device.empty()) {
         if (d.nir_device == d.v4l2_device)
             return config.origin_of("source.nir_device") + ": key 'source.nir_device': " + d.nir_device +

@@ -25,7 +25,7 @@ DetectStatus check_frame(const FrameView& frame, const Params& params, cv::Size 
         return DetectStatus::bad_format;
     if (primary.size() != expected)
         return DetectStatus::size_mismatch;
-    if (params.segmentation == Segmentation::ndvi) {
+    if (uses_nir(params.segmentation)) {
         if (frame.nir.empty() || frame.nir.size() != expected)
             return DetectStatus::missing_nir;
         if (frame.nir.type() != CV_8UC1)
@@ -51,6 +51,10 @@ double contour_length_px(const std::vector<cv::Point>& contour)
 // a dilation by half the gap is cheap: pieces at most the gap apart always
 // join, pieces up to about two cells farther may.
 constexpr int kGroupCellPx = 4;
+
+// exg_and_ndvi: how far above the soil's chromatic ExG mode (in the soil's
+// standard deviations) a seed must be green; 2 is beyond the soil's noise.
+constexpr double kGreenerThanSoilSigmas = 2.0;
 
 // The dilation radius in cells, 0 when grouping is off.
 int group_radius_cells(const Params& params)
@@ -80,6 +84,36 @@ cv::Point2f nearest_point(std::span<const cv::Point> contour, cv::Point2f target
 
 }  // namespace
 
+// The index `method` computes, smoothed, into ws.index_, and its histogram.
+void compute_index(const FrameView& frame, Segmentation method, const Params& params, Workspace& ws)
+{
+    cv::Mat& index = params.smooth_index ? ws.raw_index_ : ws.index_;
+    if (method == Segmentation::ndvi)
+        ndvi(frame.bgr, frame.nir, ws.ndvi_table_, index);
+    else if (method == Segmentation::chromatic_exg)
+        chromatic_excess_green(frame.bgr, index);
+    else
+        excess_green(frame.bgr, index);
+    if (params.smooth_index)
+        smooth_binomial3(ws.raw_index_, ws.smooth_row_.data(), ws.index_);
+    compute_histogram(ws.index_, ws.histogram_);
+}
+
+// The index `method` computes, thresholded automatically into `bits`; the
+// threshold and the class separation go into `stats`.
+void threshold_index(const FrameView& frame, Segmentation method, const Params& params, Workspace& ws,
+                     DetectStats& stats, BitMask& bits)
+{
+    compute_index(frame, method, params, ws);
+    stats.threshold = auto_threshold(ws.histogram_, params.threshold, params.soil_sigmas);
+    const double separation = class_separation(ws.histogram_, stats.threshold);
+    stats.class_separation = static_cast<float>(separation);
+    stats.no_vegetation = separation < params.min_class_separation;
+    // No second class: an empty mask (index > 255 never holds), so the rest
+    // of the pipeline runs as usual and finds nothing.
+    threshold_to_bits(ws.index_, stats.no_vegetation ? 255 : stats.threshold, bits);
+}
+
 Workspace::Workspace(cv::Size frame_size, const Params& params)
     : frame_size_(frame_size)
 {
@@ -90,6 +124,7 @@ Workspace::Workspace(cv::Size frame_size, const Params& params)
     smooth_row_.resize(static_cast<std::size_t>(width));
     vegetation_.reset(width, height);
     thresholded_.reset(width, height);
+    second_.reset(width, height);
     opened_.reset(width, height);
     closed_.reset(width, height);
     reserved_radius_px_ = std::clamp(params.closing_radius_px, 0, kMaxClosingRadiusPx);
@@ -137,29 +172,30 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
         pack_mask(frame.mask, params.mask_vegetation, ws.vegetation_);
         t_index = base::monotonic_ns();
     } else {
-        cv::Mat& index = params.smooth_index ? ws.raw_index_ : ws.index_;
-        if (params.segmentation == Segmentation::ndvi)
-            ndvi(frame.bgr, frame.nir, ws.ndvi_table_, index);
-        else if (params.segmentation == Segmentation::chromatic_exg)
-            chromatic_excess_green(frame.bgr, index);
-        else
-            excess_green(frame.bgr, index);
-        if (params.smooth_index)
-            smooth_binomial3(ws.raw_index_, ws.smooth_row_.data(), ws.index_);
+        // exg_and_ndvi: NIR outlines the plants, and a piece of it is a plant
+        // only where it is green too (a seed must lie in the ExG mask).
+        const bool green_seeds = params.segmentation == Segmentation::exg_and_ndvi;
+        if (green_seeds) {
+            // Greener than the soil's own spread: a live leaf is, dead straw
+            // and leaves (bright in NIR too) are not. Thin and dark seedlings
+            // are far less green than a sugar-beet leaf, hence the low bar.
+            compute_index(frame, Segmentation::chromatic_exg, params, ws);
+            threshold_to_bits(ws.index_, soil_noise_threshold(ws.histogram_, kGreenerThanSoilSigmas), ws.second_);
+            threshold_index(frame, Segmentation::ndvi, params, ws, out.stats, ws.thresholded_);
+        } else {
+            threshold_index(frame, params.segmentation, params, ws, out.stats, ws.thresholded_);
+        }
         t_index = base::monotonic_ns();
-        compute_histogram(ws.index_, ws.histogram_);
-        out.stats.threshold = auto_threshold(ws.histogram_, params.threshold, params.soil_sigmas);
-        const double separation = class_separation(ws.histogram_, out.stats.threshold);
-        out.stats.class_separation = static_cast<float>(separation);
-        out.stats.no_vegetation = separation < params.min_class_separation;
-        // No second class: an empty mask (index > 255 never holds), so the
-        // rest of the pipeline runs as usual and finds nothing.
-        threshold_to_bits(ws.index_, out.stats.no_vegetation ? 255 : out.stats.threshold, ws.thresholded_);
         // Specks and fringes vanish under the opening; whatever survives it
         // keeps its whole component, thin petioles and grass blades included.
         const int opening_radius = std::clamp(params.opening_radius_px, 0, kMaxClosingRadiusPx);
-        if (opening_radius > 0) {
-            open_mask(ws.thresholded_, opening_radius, ws.opened_, ws.opening_);
+        if (opening_radius > 0 || green_seeds) {
+            if (opening_radius > 0)
+                open_mask(ws.thresholded_, opening_radius, ws.opened_, ws.opening_);
+            else
+                ws.opened_ = ws.thresholded_;   // same size: no allocation
+            if (green_seeds)
+                and_masks(ws.second_, ws.opened_);
             label_components(ws.thresholded_, ws.labels_, ws.components_);
             keep_seeded_components(ws.labels_, ws.opened_, ws.keep_, ws.vegetation_);
         } else {
@@ -336,7 +372,7 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
 std::size_t Workspace::reserved_bytes() const
 {
     return (raw_index_.total() + index_.total()) * index_.elemSize() + smooth_row_.capacity() * sizeof(std::uint16_t) +
-           vegetation_.reserved_bytes() + thresholded_.reserved_bytes() + opened_.reserved_bytes() + keep_.capacity() + closed_.reserved_bytes() +
+           vegetation_.reserved_bytes() + thresholded_.reserved_bytes() + second_.reserved_bytes() + opened_.reserved_bytes() + keep_.capacity() + closed_.reserved_bytes() +
            opening_.reserved_bytes() + closing_.reserved_bytes() + cells_.reserved_bytes() +
            grouped_.reserved_bytes() + grouping_.reserved_bytes() + group_labels_.reserved_bytes() + (groups_.capacity()) * sizeof(Component) +
            (piece_group_.capacity() + piece_order_.capacity() + group_rank_.capacity()) * sizeof(int) + labels_.reserved_bytes() + components_.capacity() * sizeof(Component) +

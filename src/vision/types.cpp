@@ -9,6 +9,7 @@ std::string_view to_string(Segmentation v)
     case Segmentation::chromatic_exg: return "chromatic_exg";
     case Segmentation::ndvi: return "ndvi";
     case Segmentation::mask: return "mask";
+    case Segmentation::exg_and_ndvi: return "exg_and_ndvi";
     }
     return "?";
 }
@@ -85,6 +86,7 @@ std::optional<Segmentation> parse_segmentation(std::string_view s)
     if (s == "chromatic_exg") return Segmentation::chromatic_exg;
     if (s == "ndvi") return Segmentation::ndvi;
     if (s == "mask") return Segmentation::mask;
+    if (s == "exg_and_ndvi") return Segmentation::exg_and_ndvi;
     return std::nullopt;
 }
 

@@ -181,6 +181,41 @@ TEST(RealFrames, BoniRobRgbAndNirFindsEveryAnnotatedStemWithin5mm)
     EXPECT_EQ(match.true_positives, static_cast<int>(truth.size())) << stems.size() << " stems reported";
 }
 
+// Green and bright in NIR together: every annotated stem within 5 mm, and
+// none of the NIR-bright dead matter that NDVI alone reports (checked by eye:
+// reddish in RGB, bright in NIR) in frame 1 at (101, 473) and frame 2 at
+// (191, 502). The weed seedlings NDVI finds (green and NIR-bright, e.g.
+// frame 1 at (858, 703)) stay.
+TEST(RealFrames, BoniRobExgAndNdviFindsTheStemsAndNotDeadMatter)
+{
+    REQUIRE_REAL_SET("bonirob");
+    const auto params = shipped_params({"camera.gsd_mm_per_px=0.395", "segment.method=exg_and_ndvi"});
+    const auto stems = detect_stems(bonirob_frames(), params);
+    const auto truth = bonirob_truth();
+    const auto match = eval::match_stems(truth, stems, 5.0, kBoniRobGsdMmPerPx);
+    EXPECT_EQ(match.true_positives, static_cast<int>(truth.size())) << stems.size() << " stems reported";
+    const std::vector<eval::StemPoint> dead{{"rgb_00001.png", 101, 473}, {"rgb_00002.png", 191, 502}};
+    EXPECT_EQ(eval::match_stems(dead, stems, 5.0, kBoniRobGsdMmPerPx).true_positives, 0);
+    const std::vector<eval::StemPoint> weed{{"rgb_00001.png", 858, 703}};
+    EXPECT_EQ(eval::match_stems(weed, stems, 5.0, kBoniRobGsdMmPerPx).true_positives, 1);
+}
+
+// Bare soil stays bare: a region of frame 0 with no plant in it (checked by
+// eye in RGB and NIR: dark clods, bright clods with colour fringes, a straw).
+// Either index alone finds two "plants" there; both together find none.
+TEST(RealFrames, BoniRobBareSoilHasNoPlantWithExgAndNdvi)
+{
+    REQUIRE_REAL_SET("bonirob");
+    const BoniRobFrame frame = bonirob_frames().front();
+    const cv::Rect bare(600, 300, 696, 400);
+    const cv::Mat bgr = frame.bgr(bare).clone();
+    const cv::Mat nir = frame.nir(bare).clone();
+    const auto d = vision::detect({.bgr = bgr, .nir = nir},
+                                  shipped_params({"camera.gsd_mm_per_px=0.395", "segment.method=exg_and_ndvi"}));
+    ASSERT_EQ(d.status, vision::DetectStatus::ok);
+    EXPECT_EQ(d.plants.size(), 0u);
+}
+
 TEST(RealFrames, CwfidMaskIouBeatsPlainExcessGreenWithOtsu)
 {
     REQUIRE_REAL_SET("cwfid-train");

@@ -36,7 +36,8 @@ TEST(RealTime, DetectAllocatesNothingOnceTheWorkspaceExists)
     auto out = std::make_unique<Detections>();
     EXPECT_GT(ws->reserved_bytes(), 0u);
 
-    for (const Segmentation seg : {Segmentation::exg, Segmentation::ndvi, Segmentation::mask}) {
+    for (const Segmentation seg :
+         {Segmentation::exg, Segmentation::ndvi, Segmentation::mask, Segmentation::exg_and_ndvi}) {
         for (const ThresholdMethod t : {ThresholdMethod::otsu, ThresholdMethod::triangle, ThresholdMethod::min_error}) {
             params.segmentation = seg;
             params.threshold = t;

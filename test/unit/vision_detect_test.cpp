@@ -383,6 +383,33 @@ TEST(Detect, NdviFindsThePlantFromTheNirImage)
     EXPECT_NEAR(d.plants[0].area_px, 2821, 60);  // about pi * 30^2
 }
 
+// A leaf is green and bright in NIR; a greenish clod is green but dark in
+// NIR; dead straw is bright in NIR but no greener than the soil. Each index
+// alone takes one impostor for a plant, the two together take neither.
+TEST(Detect, ExgAndNdviNeedBothSignaturesOfALeaf)
+{
+    cv::Mat bgr(240, 360, CV_8UC3, cv::Scalar(60, 70, 90));   // brown soil ...
+    cv::Mat nir(240, 360, CV_8UC1, cv::Scalar(90));
+    cv::Mat noise(bgr.size(), CV_8UC3);
+    cv::RNG rng(7);
+    rng.fill(noise, cv::RNG::UNIFORM, 0, 6);                   // ... with some texture
+    bgr += noise;
+    cv::circle(bgr, {60, 120}, 25, cv::Scalar(40, 150, 60), cv::FILLED);   // leaf: green ...
+    cv::circle(nir, {60, 120}, 25, 230, cv::FILLED);                        // ... and bright in NIR
+    cv::circle(bgr, {180, 120}, 25, cv::Scalar(50, 140, 90), cv::FILLED);  // clod: greenish, NIR as soil
+    cv::circle(bgr, {300, 120}, 25, cv::Scalar(80, 85, 110), cv::FILLED);  // straw: pale, less green than soil ...
+    cv::circle(nir, {300, 120}, 25, 230, cv::FILLED);                       // ... bright in NIR
+    const auto centres = [&](Segmentation method) {
+        std::vector<int> xs;
+        for (const Plant& p : detect({.bgr = bgr, .nir = nir}, Params{.segmentation = method}).plants)
+            xs.push_back(static_cast<int>(std::lround(p.centre_of_mass.x)));
+        return xs;
+    };
+    EXPECT_EQ(centres(Segmentation::chromatic_exg), (std::vector<int>{60, 180}));
+    EXPECT_EQ(centres(Segmentation::ndvi), (std::vector<int>{60, 300}));
+    EXPECT_EQ(centres(Segmentation::exg_and_ndvi), (std::vector<int>{60}));
+}
+
 TEST(Detect, RandomMasksNeverThrowAndStemsStayInTheirBoxes)
 {
     Params params;

@@ -41,6 +41,8 @@ public:
 
 private:
     friend void detect(const FrameView&, const Params&, Workspace&, Detections&, StageTimes*);
+    friend void compute_index(const FrameView&, Segmentation, const Params&, Workspace&);
+    friend void threshold_index(const FrameView&, Segmentation, const Params&, Workspace&, DetectStats&, BitMask&);
     cv::Size frame_size_;
     int reserved_radius_px_ = 0;
     NdviTable ndvi_table_;
@@ -50,6 +52,7 @@ private:
     Histogram histogram_{};
     BitMask vegetation_;                    // thresholded components the opening left a seed in
     BitMask thresholded_;
+    BitMask second_;                        // exg_and_ndvi: the chromatic ExG mask, where seeds must lie
     BitMask opened_;                        // seeds: what survives the opening
     std::vector<std::uint8_t> keep_;        // per thresholded component: seeded
     BitMask closed_;

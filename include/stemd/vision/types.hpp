@@ -46,8 +46,17 @@ private:
 // exg: 2G - R - B. chromatic_exg: the same divided by the pixel's brightness
 // plus the frame's mean brightness, so that the index does not change with
 // exposure, gain or shadow, and dark pixels (where chromaticity is mostly
-// sensor noise) are pulled towards 0.
-enum class Segmentation : std::uint8_t { exg, chromatic_exg, ndvi, mask };
+// sensor noise) are pulled towards 0. exg_and_ndvi (RGB + NIR): vegetation
+// is where both chromatic_exg and NDVI lie above their soil: chlorophyll
+// makes a leaf green and its cells make it bright in NIR, while a greenish
+// clod or a colour fringe fakes only the first and dead straw only the second.
+enum class Segmentation : std::uint8_t { exg, chromatic_exg, ndvi, mask, exg_and_ndvi };
+
+// The method reads the frame's NIR image.
+constexpr bool uses_nir(Segmentation s)
+{
+    return s == Segmentation::ndvi || s == Segmentation::exg_and_ndvi;
+}
 // above_soil: Otsu, but never inside the soil's own spread: max(Otsu,
 // soil mode + soil_sigmas standard deviations of the soil).
 enum class ThresholdMethod : std::uint8_t { otsu, triangle, min_error, above_soil };
