@@ -157,6 +157,9 @@ constexpr std::array kSchema{
                                                              Segmentation::exg_and_ndvi}>(
         {"segment.method", choice, "", 0, 0, "chromatic_exg", "chromatic_exg|exg|ndvi|mask|exg_and_ndvi",
             "vegetation index: chromatic Excess Green (RGB, exposure-invariant), Excess Green, NDVI (RGB+NIR), an external mask, or exg_and_ndvi (RGB+NIR: both chromatic Excess Green and NDVI above the soil; the choice with a NIR camera)"}),
+    bind<STEMD_KEY(daemon.vision.leaf_colour)>(
+        {"segment.leaf_colour", boolean, "", 0, 0, "true", "",
+            "exg, chromatic_exg: a plant needs a core of pixels more green than red (by 2 % of their brightness), as chlorophyll makes a leaf; yellowish clods and colour fringes are not. Off only for a camera without white balance"}),
     bind<STEMD_KEY(daemon.vision.smooth_index)>(
         {"segment.smooth", boolean, "", 0, 0, "true", "",
             "smooth the index with a 3x3 binomial kernel before the threshold"}),

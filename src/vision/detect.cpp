@@ -56,6 +56,10 @@ constexpr int kGroupCellPx = 4;
 // standard deviations) a seed must be green; 2 is beyond the soil's noise.
 constexpr double kGreenerThanSoilSigmas = 2.0;
 
+// RGB: a seed's G exceeds its R by more than 1/50 of R + G + B (2 % of the
+// pixel's brightness: sensor noise, not a fitted level).
+constexpr int kGreenOverRedParts = 50;
+
 // The dilation radius in cells, 0 when grouping is off.
 int group_radius_cells(const Params& params)
 {
@@ -188,12 +192,25 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
         t_index = base::monotonic_ns();
         // Specks and fringes vanish under the opening; whatever survives it
         // keeps its whole component, thin petioles and grass blades included.
+        // From RGB alone, a seed must also have a leaf's colour: more green
+        // than red (a yellowish clod or a fringe is as green in ExG).
+        const bool leaf_colour_seeds =
+            params.leaf_colour &&
+            (params.segmentation == Segmentation::exg || params.segmentation == Segmentation::chromatic_exg);
         const int opening_radius = std::clamp(params.opening_radius_px, 0, kMaxClosingRadiusPx);
-        if (opening_radius > 0 || green_seeds) {
+        if (opening_radius > 0 || green_seeds || leaf_colour_seeds) {
+            // The seeds: the opening of the pixels that pass every test, so a
+            // seed is a compact core, not one lucky pixel.
+            const BitMask* to_open = &ws.thresholded_;
+            if (leaf_colour_seeds) {
+                ws.second_ = ws.thresholded_;   // same size: no allocation
+                keep_greener_than_red(frame.bgr, kGreenOverRedParts, ws.second_);
+                to_open = &ws.second_;
+            }
             if (opening_radius > 0)
-                open_mask(ws.thresholded_, opening_radius, ws.opened_, ws.opening_);
+                open_mask(*to_open, opening_radius, ws.opened_, ws.opening_);
             else
-                ws.opened_ = ws.thresholded_;   // same size: no allocation
+                ws.opened_ = *to_open;
             if (green_seeds)
                 and_masks(ws.second_, ws.opened_);
             label_components(ws.thresholded_, ws.labels_, ws.components_);

@@ -1,5 +1,6 @@
 #include "stemd/vision/index.hpp"
 
+#include <bit>
 #include <algorithm>
 #include <cmath>
 
@@ -163,6 +164,23 @@ void ndvi(const cv::Mat& bgr, const cv::Mat& nir, const NdviTable& table, cv::Ma
         std::uint8_t* dst = index_u8.ptr<std::uint8_t>(y);
         for (int x = 0; x < width; ++x)
             dst[x] = table(near_infrared[x], src[3 * x + 2]);
+    }
+}
+
+void keep_greener_than_red(const cv::Mat& bgr, int parts, BitMask& mask)
+{
+    for (int y = 0; y < mask.height(); ++y) {
+        const cv::Vec3b* px = bgr.ptr<cv::Vec3b>(y);
+        std::uint64_t* words = mask.row(y);
+        for (int w = 0; w < mask.words_per_row(); ++w) {
+            for (std::uint64_t bits = words[w]; bits != 0; bits &= bits - 1) {
+                const int bit = std::countr_zero(bits);
+                const cv::Vec3b& p = px[w * 64 + bit];
+                const int b = p[0], g = p[1], r = p[2];
+                if (parts * (g - r) <= b + g + r)
+                    words[w] &= ~(std::uint64_t{1} << bit);
+            }
+        }
     }
 }
 

@@ -7,6 +7,8 @@
 
 #include <opencv2/core/mat.hpp>
 
+#include "stemd/vision/bitmask.hpp"
+
 namespace stemd::vision {
 
 // Excess Green 2G - R - B in [-510, 510], mapped linearly to [0, 255]:
@@ -37,5 +39,11 @@ private:
 };
 // `bgr` is CV_8UC3 (its red plane is used), `nir` CV_8UC1 of the same size.
 void ndvi(const cv::Mat& bgr, const cv::Mat& nir, const NdviTable& table, cv::Mat& index_u8);
+
+// Leaf colour: chlorophyll absorbs red, so a leaf in daylight reflects more
+// green than red; brown soil, yellowish clods and straw do not. Clears the
+// bits of `mask` (the size of `bgr`) whose pixel's G does not exceed its R
+// by more than (R + G + B) / `parts`. Only the set bits' pixels are read.
+void keep_greener_than_red(const cv::Mat& bgr, int parts, BitMask& mask);
 
 }  // namespace stemd::vision

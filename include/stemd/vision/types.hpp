@@ -110,6 +110,10 @@ struct Params {
     // 3x3 binomial smoothing of the index before the threshold: single-pixel
     // sensor noise then no longer crosses it.
     bool smooth_index = true;
+    // RGB (exg, chromatic_exg): a plant's seed pixels must be more green than
+    // red, as chlorophyll makes a leaf; yellowish clods and colour fringes,
+    // as green in ExG, are not.
+    bool leaf_colour = true;
     // Opening with a 3x3 square before the closing: removes vegetation
     // specks and colour fringes one or two pixels wide (0 disables).
     int opening_radius_px = 1;
