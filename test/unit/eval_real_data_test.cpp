@@ -216,6 +216,18 @@ TEST(RealFrames, BoniRobBareSoilHasNoPlantWithExgAndNdvi)
     EXPECT_EQ(d.plants.size(), 0u);
 }
 
+// The same bare soil from RGB alone: the clods that look green in ExG there
+// have more red than green (segment.leaf_colour).
+TEST(RealFrames, BoniRobBareSoilHasNoPlantFromRgb)
+{
+    REQUIRE_REAL_SET("bonirob");
+    const BoniRobFrame frame = bonirob_frames().front();
+    const cv::Mat bgr = frame.bgr(cv::Rect(600, 300, 696, 400)).clone();
+    const auto d = vision::detect({.bgr = bgr}, shipped_params({"camera.gsd_mm_per_px=0.395"}));
+    ASSERT_EQ(d.status, vision::DetectStatus::ok);
+    EXPECT_EQ(d.plants.size(), 0u);
+}
+
 TEST(RealFrames, CwfidMaskIouBeatsPlainExcessGreenWithOtsu)
 {
     REQUIRE_REAL_SET("cwfid-train");

@@ -412,6 +412,32 @@ TEST(Detect, ExgAndNdviNeedBothSignaturesOfALeaf)
     EXPECT_EQ(centres(Segmentation::exg_and_ndvi), (std::vector<int>{60}));
 }
 
+// A yellow clod is as green as a leaf in Excess Green (2G - R - B) but has
+// more red than green; chlorophyll leaves have more green than red.
+TEST(Detect, LeafColourTellsALeafFromAYellowClod)
+{
+    cv::Mat bgr(240, 240, CV_8UC3, cv::Scalar(60, 70, 90));   // brown soil
+    cv::Mat noise(bgr.size(), CV_8UC3);
+    cv::RNG rng(11);
+    rng.fill(noise, cv::RNG::UNIFORM, 0, 6);
+    bgr += noise;
+    cv::circle(bgr, {60, 120}, 25, cv::Scalar(40, 150, 60), cv::FILLED);    // leaf: G > R
+    cv::circle(bgr, {180, 120}, 25, cv::Scalar(10, 150, 165), cv::FILLED);  // clod: ExG as high, G < R
+    for (const Segmentation method : {Segmentation::exg, Segmentation::chromatic_exg}) {
+        SCOPED_TRACE(std::string(to_string(method)));
+        Params params{.segmentation = method};
+        const auto centres = [&] {
+            std::vector<int> xs;
+            for (const Plant& p : detect({.bgr = bgr}, params).plants)
+                xs.push_back(static_cast<int>(std::lround(p.centre_of_mass.x)));
+            return xs;
+        };
+        EXPECT_EQ(centres(), (std::vector<int>{60}));
+        params.leaf_colour = false;
+        EXPECT_EQ(centres(), (std::vector<int>{60, 180}));
+    }
+}
+
 TEST(Detect, RandomMasksNeverThrowAndStemsStayInTheirBoxes)
 {
     Params params;
