@@ -11,8 +11,6 @@ namespace stemd::runtime {
 
 namespace {
 
-using protocol::PlantClass;
-
 // Speed over this window: smooths encoder ticks and frame-rate odometry.
 constexpr std::int64_t kSpeedWindowNs = 200'000'000;
 
@@ -201,8 +199,7 @@ void ActuationStage::on_frame(const FrameResult& r, std::int64_t now_ns) noexcep
         d.s_mm = field->s_mm;
         d.y_mm = field->y_mm;
         d.confidence = p.confidence;
-        d.plant_class = r.has_class_map && r.plant_class[i] <= 2 ? static_cast<PlantClass>(r.plant_class[i])
-                                                                : PlantClass::Unknown;
+        d.plant_class = r.has_class_map ? r.plant_class[i] : PlantClass::Unknown;
         d.leaves = static_cast<std::uint8_t>(std::min<std::size_t>(p.leaves.size(), 255));
         d.extent_mm = extent_mm(p, odom_at_capture);
     }

@@ -64,7 +64,7 @@ Frame generate_frame(const Options& options, int frame_index)
     for (const Plant& plant : make_layout(spec, size, px_per_mm, layout)) {
         const GroundTruthStem gt = render_plant(canvas, plant, fragmentation, px_per_mm, fragments);
         const bool inside = gt.x_px >= 0 && gt.y_px >= 0 && gt.x_px <= size.width - 1 && gt.y_px <= size.height - 1;
-        if (plant.kind != PlantKind::grass && inside)
+        if (plant.shape != PlantShape::grass_tuft && inside)
             frame.stems.push_back(gt);
     }
 

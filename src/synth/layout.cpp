@@ -34,24 +34,21 @@ std::vector<double> leaf_lengths_px(int count, double radius_px, Rng& rng)
     return factors;
 }
 
-cv::Vec3d plant_colour_bgr(PlantKind kind, Rng& rng)
+cv::Vec3d plant_colour_bgr(PlantClass plant_class, PlantShape shape, Rng& rng)
 {
-    switch (kind) {
-    case PlantKind::crop:   // sugar beet: medium green
+    if (shape == PlantShape::grass_tuft)
+        return {rng.uniform(40, 60), rng.uniform(130, 165), rng.uniform(95, 125)};
+    if (plant_class == PlantClass::Crop)   // sugar beet: medium green
         return {rng.uniform(35, 60), rng.uniform(110, 145), rng.uniform(55, 85)};
-    case PlantKind::weed:   // yellowish or dark bluish green, to differ from the crop
-        if (rng.chance(0.5))
-            return {rng.uniform(30, 50), rng.uniform(120, 160), rng.uniform(80, 110)};
-        return {rng.uniform(55, 75), rng.uniform(100, 125), rng.uniform(40, 60)};
-    case PlantKind::grass:
-        break;
-    }
-    return {rng.uniform(40, 60), rng.uniform(130, 165), rng.uniform(95, 125)};
+    // Weeds: yellowish or dark bluish green, to differ from the crop.
+    if (rng.chance(0.5))
+        return {rng.uniform(30, 50), rng.uniform(120, 160), rng.uniform(80, 110)};
+    return {rng.uniform(55, 75), rng.uniform(100, 125), rng.uniform(40, 60)};
 }
 
-LeafParams rosette_leaf(PlantKind kind, double angle_rad, double length_px, double px_per_mm, Rng& rng)
+LeafParams rosette_leaf(PlantClass plant_class, double angle_rad, double length_px, double px_per_mm, Rng& rng)
 {
-    const bool crop = kind == PlantKind::crop;
+    const bool crop = plant_class == PlantClass::Crop;
     LeafParams leaf;
     leaf.angle_rad = angle_rad;
     leaf.length_px = length_px;
@@ -71,20 +68,20 @@ LeafParams rosette_leaf(PlantKind kind, double angle_rad, double length_px, doub
 
 }  // namespace
 
-Plant make_rosette(PlantKind kind, const PlantClassSpec& spec, double px_per_mm, Rng& rng)
+Plant make_rosette(PlantClass plant_class, const PlantClassSpec& spec, double px_per_mm, Rng& rng)
 {
     Plant plant;
-    plant.kind = kind;
+    plant.plant_class = plant_class;
     const double radius_px = rng.uniform(spec.radius_mm.lo, spec.radius_mm.hi) * px_per_mm;
     const int count = rng.uniform_int(spec.leaves.lo, spec.leaves.hi);
     const std::vector<double> angles = leaf_angles_rad(count, rng);
     const std::vector<double> lengths = leaf_lengths_px(count, radius_px, rng);
     for (int i = 0; i < count; ++i)
-        plant.leaves.push_back(rosette_leaf(kind, angles[i], lengths[i], px_per_mm, rng));
-    const double crown_mm = kind == PlantKind::crop ? rng.uniform(1.0, 2.0) : rng.uniform(0.4, 0.8);
+        plant.leaves.push_back(rosette_leaf(plant_class, angles[i], lengths[i], px_per_mm, rng));
+    const double crown_mm = plant_class == PlantClass::Crop ? rng.uniform(1.0, 2.0) : rng.uniform(0.4, 0.8);
     plant.crown_radius_px = std::min(crown_mm * px_per_mm, 0.2 * radius_px);
-    plant.bgr = plant_colour_bgr(kind, rng);
-    plant.nir = kind == PlantKind::crop ? rng.uniform(190, 220) : rng.uniform(180, 210);
+    plant.bgr = plant_colour_bgr(plant_class, PlantShape::rosette, rng);
+    plant.nir = plant_class == PlantClass::Crop ? rng.uniform(190, 220) : rng.uniform(180, 210);
     return plant;
 }
 
@@ -92,7 +89,8 @@ Plant make_rosette(PlantKind kind, const PlantClassSpec& spec, double px_per_mm,
 Plant make_grass_tuft(const PlantClassSpec& spec, double px_per_mm, Rng& rng)
 {
     Plant plant;
-    plant.kind = PlantKind::grass;
+    plant.plant_class = PlantClass::Weed;
+    plant.shape = PlantShape::grass_tuft;
     const double length_px = rng.uniform(spec.radius_mm.lo, spec.radius_mm.hi) * px_per_mm;
     const int count = rng.uniform_int(spec.leaves.lo, spec.leaves.hi);
     const double heading = rng.uniform(0, 2 * kPi);
@@ -108,7 +106,7 @@ Plant make_grass_tuft(const PlantClassSpec& spec, double px_per_mm, Rng& rng)
         plant.leaves.push_back(blade);
     }
     plant.crown_radius_px = 0.8 * px_per_mm;
-    plant.bgr = plant_colour_bgr(PlantKind::grass, rng);
+    plant.bgr = plant_colour_bgr(PlantClass::Weed, PlantShape::grass_tuft, rng);
     plant.nir = rng.uniform(175, 200);
     return plant;
 }
@@ -155,8 +153,8 @@ std::vector<Plant> make_layout(const PresetSpec& spec, cv::Size size, double px_
     const double gap_px = 2.0 * px_per_mm;
     // Crops first: the largest find room before the field fills up.
     for (int i = 0; i < crops + weeds + tufts; ++i) {
-        Plant plant = i < crops           ? make_rosette(PlantKind::crop, spec.crop, px_per_mm, rng)
-                      : i < crops + weeds ? make_rosette(PlantKind::weed, spec.weed, px_per_mm, rng)
+        Plant plant = i < crops           ? make_rosette(PlantClass::Crop, spec.crop, px_per_mm, rng)
+                      : i < crops + weeds ? make_rosette(PlantClass::Weed, spec.weed, px_per_mm, rng)
                                           : make_grass_tuft(spec.grass, px_per_mm, rng);
         double extent_px = 0;
         if (place_plant(plant, plants, extents_px, size, gap_px, rng, extent_px)) {

@@ -12,7 +12,7 @@
 namespace stemd::synth {
 
 // A rosette (crop or weed) of spec's radius and leaf count.
-Plant make_rosette(PlantKind kind, const PlantClassSpec& spec, double px_per_mm, Rng& rng);
+Plant make_rosette(PlantClass plant_class, const PlantClassSpec& spec, double px_per_mm, Rng& rng);
 // A tuft: thin tapering blades fanned around one direction, no stem.
 Plant make_grass_tuft(const PlantClassSpec& spec, double px_per_mm, Rng& rng);
 // A frame's plants, their stems inside `size`; see place_plant().

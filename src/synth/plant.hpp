@@ -7,10 +7,13 @@
 #include <opencv2/core.hpp>
 
 #include "polygon.hpp"
+#include "stemd/base/plant_class.hpp"
 
 namespace stemd::synth {
 
-enum class PlantKind { crop, weed, grass };
+// A rosette of petiole + blade leaves around a stem, or a stemless tuft of
+// grass blades (a weed).
+enum class PlantShape { rosette, grass_tuft };
 enum class BladeShape { ovate, linear };
 
 // One leaf in the stem's frame (px). The centreline bends sideways with
@@ -31,7 +34,8 @@ struct LeafParams {
 };
 
 struct Plant {
-    PlantKind kind = PlantKind::crop;
+    PlantClass plant_class = PlantClass::Crop;
+    PlantShape shape = PlantShape::rosette;
     cv::Point2d stem_px;
     double crown_radius_px = 0;
     std::vector<LeafParams> leaves;

@@ -202,8 +202,7 @@ GroundTruthStem render_plant(Canvas& canvas, const Plant& plant, double fragment
     cv::Mat target = canvas.mask(plant_box);
     cv::bitwise_or(target, plant_mask, target);
     if (!canvas.plant_class.empty()) {
-        const PixelClass value = plant.kind == PlantKind::crop ? PixelClass::crop : PixelClass::weed;
-        canvas.plant_class(plant_box).setTo(cv::Scalar(static_cast<int>(value)), plant_mask);
+        canvas.plant_class(plant_box).setTo(cv::Scalar(to_value(plant.plant_class)), plant_mask);
     }
     if (mask_out != nullptr && box_out != nullptr) {
         *mask_out = plant_mask;
@@ -213,7 +212,7 @@ GroundTruthStem render_plant(Canvas& canvas, const Plant& plant, double fragment
     GroundTruthStem gt;
     gt.x_px = plant.stem_px.x;
     gt.y_px = plant.stem_px.y;
-    gt.kind = plant.kind == PlantKind::crop ? "crop" : "weed";
+    gt.kind = plant.plant_class;
     gt.leaves = static_cast<int>(plant.leaves.size());
     gt.radius_mm = extent_px / px_per_mm;
     const cv::Moments m = cv::moments(plant_mask, true);

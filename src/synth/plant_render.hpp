@@ -15,7 +15,7 @@ namespace stemd::synth {
 struct Canvas {
     cv::Mat bgr, nir, mask;
     std::vector<float> leaf_texture;   // per pixel, about -1..1: blotches on the leaves
-    cv::Mat plant_class;               // optional (strips): PixelClass per pixel
+    cv::Mat plant_class;               // optional (strips): PlantClass values
 };
 
 // Draws a plant (longest leaves first: the young short ones sit on top,

@@ -81,8 +81,8 @@ std::vector<StripLayoutPlant> make_strip_layout(const StripOptions& o, const Pre
         const int tufts = rng.uniform_int(spec.grass.count.lo, spec.grass.count.hi);
         for (int i = 0; i < crops + weeds + tufts; ++i) {
             StripLayoutPlant p;
-            p.plant = i < crops           ? make_rosette(PlantKind::crop, spec.crop, px_per_mm, rng)
-                      : i < crops + weeds ? make_rosette(PlantKind::weed, spec.weed, px_per_mm, rng)
+            p.plant = i < crops           ? make_rosette(PlantClass::Crop, spec.crop, px_per_mm, rng)
+                      : i < crops + weeds ? make_rosette(PlantClass::Weed, spec.weed, px_per_mm, rng)
                                           : make_grass_tuft(spec.grass, px_per_mm, rng);
             if (fraction < 1 && !rng.chance(fraction))
                 continue;
@@ -192,7 +192,7 @@ Strip generate_strip(const StripOptions& options)
         StripPlant sp;
         const GroundTruthStem gt =
             render_plant(canvas, plant, fragmentation, px_per_mm, fragments, &sp.canvas_mask, &sp.canvas_box);
-        if (plant.kind == PlantKind::grass) {
+        if (plant.shape == PlantShape::grass_tuft) {
             ++strip.grass_tufts;
             continue;
         }

@@ -90,7 +90,7 @@ std::unique_ptr<FrameResult> frame(const std::vector<Plant>& plants, int k, bool
         vp.bbox = cv::Rect(static_cast<int>(u) - 15, static_cast<int>(v) - 15, 31, 31) & cv::Rect({0, 0}, kSize);
         vp.has_stem = true;
         vp.confidence = 0.8f;
-        r->plant_class[r->detections.plants.size()] = static_cast<std::uint8_t>(p.cls);
+        r->plant_class[r->detections.plants.size()] = p.cls;
         r->detections.plants.push_back(vp);
     }
     return r;
