@@ -49,7 +49,7 @@ public:
         ++sent;
         return drivers::SendResult::sent;
     }
-    bool receive(protocol::CanFrame&, std::int64_t) override { return false; }
+    bool receive(protocol::CanFrame&, std::int64_t, std::int64_t&) override { return false; }
     drivers::CanBusCounters counters() const override { return {.sent = sent}; }
     std::uint64_t sent = 0;
 };

@@ -516,7 +516,7 @@ int run_targets(const Args& args)
         if (p.radius_mm < args.min_radius_mm)
             too_small.push_back(p);
     std::erase_if(*plants, [&](const eval::TruthPlant& p) {
-        return (args.treat_weeds_only && p.kind != "weed") || p.radius_mm < args.min_radius_mm;
+        return (args.treat_weeds_only && p.kind != PlantClass::Weed) || p.radius_mm < args.min_radius_mm;
     });
     const auto log = eval::read_target_log(args.positional[1], *ids, error);
     if (!log)

@@ -234,7 +234,7 @@ std::string stem_row(const std::string& image, const synth::GroundTruthStem& ste
 {
     char xy[64];
     std::snprintf(xy, sizeof xy, "%.2f,%.2f", stem.x_px, stem.y_px);
-    return io::csv_field(image) + "," + xy + "," + io::csv_field(stem.kind) + "," + std::to_string(stem.leaves) + "\n";
+    return io::csv_field(image) + "," + xy + "," + io::csv_field(to_string(stem.kind)) + "," + std::to_string(stem.leaves) + "\n";
 }
 
 struct Totals {
@@ -268,7 +268,7 @@ int run(const Args& args)
                       io::csv_field(mask) + "\n";
         for (const synth::GroundTruthStem& stem : frame.stems) {
             stems_csv += stem_row(rgb, stem);
-            (stem.kind == "crop" ? totals.crops : totals.weeds) += 1;
+            (stem.kind == PlantClass::Crop ? totals.crops : totals.weeds) += 1;
         }
     }
     if (!write_text(args.out / "frames.csv", frames_csv, error) ||
@@ -357,9 +357,9 @@ int run_strip(const Args& args)
     std::string plants_csv = "id,s_mm,y_mm,kind,leaves,radius_mm\n";
     Totals totals;
     for (const synth::StripPlant& p : strip.plants) {
-        plants_csv += std::to_string(p.id) + "," + exact(p.s_mm) + "," + exact(p.y_mm) + "," + p.kind + "," +
+        plants_csv += std::to_string(p.id) + "," + exact(p.s_mm) + "," + exact(p.y_mm) + "," + std::string(to_string(p.kind)) + "," +
                       std::to_string(p.leaves) + "," + fixed(p.radius_mm, 2) + "\n";
-        (p.kind == "crop" ? totals.crops : totals.weeds) += 1;
+        (p.kind == PlantClass::Crop ? totals.crops : totals.weeds) += 1;
     }
     const double last_odom_mm = strip.odom_mm(strip.frame_count - 1);
     std::string strip_txt =

@@ -105,7 +105,7 @@ bool CanLogBus::flush()
     return true;
 }
 
-bool CanLogBus::receive(protocol::CanFrame& /*out*/, std::int64_t timeout_ns)
+bool CanLogBus::receive(protocol::CanFrame& /*out*/, std::int64_t timeout_ns, std::int64_t& /*t_rx_ns*/)
 {
     if (timeout_ns > 0) {
         base::sleep_until_ns(base::monotonic_ns() + timeout_ns);

@@ -21,6 +21,27 @@ namespace stemd::drivers {
 
 namespace {
 
+// The kernel stamps received frames on CLOCK_REALTIME: its age, measured on
+// that clock now, is taken back from the monotonic clock now. Without a
+// stamp, the frame is as old as this read.
+std::int64_t receive_time_ns(msghdr& msg)
+{
+    const std::int64_t now_ns = base::monotonic_ns();
+    for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
+        if (c->cmsg_level != SOL_SOCKET || c->cmsg_type != SCM_TIMESTAMPNS)
+            continue;
+        timespec stamp{};
+        std::memcpy(&stamp, CMSG_DATA(c), sizeof stamp);
+        timespec real{};
+        ::clock_gettime(CLOCK_REALTIME, &real);
+        const std::int64_t age_ns = (static_cast<std::int64_t>(real.tv_sec) - stamp.tv_sec) * 1'000'000'000 +
+                                    (real.tv_nsec - stamp.tv_nsec);
+        // A clock step between the stamp and now could make the age absurd.
+        return age_ns >= 0 && age_ns < 10'000'000'000 ? now_ns - age_ns : now_ns;
+    }
+    return now_ns;
+}
+
 timespec to_timespec(std::int64_t ns)
 {
     if (ns < 0)
@@ -139,6 +160,11 @@ bool SocketCanBus::try_open()
             return false;
         }
     }
+    // Receive stamps are a nicety (the read time stands in): not an error.
+    const int on = 1;
+    if (::setsockopt(sock.get(), SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on) < 0)
+        log_->warn("{}: setsockopt(SO_TIMESTAMPNS): {} (errno {}); frames are stamped when read", name_,
+                   std::strerror(errno), errno);
     sockaddr_can addr{};
     addr.can_family = AF_CAN;
     addr.can_ifindex = ifindex;
@@ -252,7 +278,7 @@ SendResult SocketCanBus::send(const protocol::CanFrame& frame, std::int64_t dead
     }
 }
 
-bool SocketCanBus::receive(protocol::CanFrame& out, std::int64_t timeout_ns)
+bool SocketCanBus::receive(protocol::CanFrame& out, std::int64_t timeout_ns, std::int64_t& t_rx_ns)
 {
     const std::int64_t end = base::monotonic_ns() + std::max<std::int64_t>(timeout_ns, 0);
     for (;;) {
@@ -274,7 +300,14 @@ bool SocketCanBus::receive(protocol::CanFrame& out, std::int64_t timeout_ns)
         if (ready == 0)
             return false;
         can_frame cf{};
-        const ssize_t n = ::read(fd_.get(), &cf, sizeof cf);
+        iovec iov{&cf, sizeof cf};
+        alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec))];
+        msghdr msg{};
+        msg.msg_iov = &iov;
+        msg.msg_iovlen = 1;
+        msg.msg_control = control;
+        msg.msg_controllen = sizeof control;
+        const ssize_t n = ::recvmsg(fd_.get(), &msg, 0);
         if (n < 0) {
             const int e = errno;
             if (e == EINTR || e == EAGAIN)
@@ -302,6 +335,7 @@ bool SocketCanBus::receive(protocol::CanFrame& out, std::int64_t timeout_ns)
         out.dlc = cf.len;
         out.data.fill(0);
         std::memcpy(out.data.data(), cf.data, cf.len);
+        t_rx_ns = receive_time_ns(msg);
         rx_.fetch_add(1, std::memory_order_relaxed);
         return true;
     }

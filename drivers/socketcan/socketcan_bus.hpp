@@ -73,7 +73,10 @@ public:
 
     std::string_view name() const override { return name_; }
     SendResult send(const protocol::CanFrame& frame, std::int64_t deadline_ns) override;
-    bool receive(protocol::CanFrame& out, std::int64_t timeout_ns) override;
+    using CanBus::receive;
+    // t_rx_ns: the kernel's receive stamp (SO_TIMESTAMPNS), moved onto
+    // CLOCK_MONOTONIC; the read time if the socket gave none.
+    bool receive(protocol::CanFrame& out, std::int64_t timeout_ns, std::int64_t& t_rx_ns) override;
     CanBusCounters counters() const override;
 
     SocketCanState state() const { return state_.load(std::memory_order_relaxed); }

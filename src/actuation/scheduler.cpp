@@ -86,7 +86,7 @@ ScheduleDecision Scheduler::schedule(const Target& target, const ScheduleNow& no
     dec.command.plant_class = target.plant_class;
 
     // 1. Policy.
-    if (params_.policy == TreatPolicy::weeds_only && target.plant_class != protocol::PlantClass::Weed) {
+    if (params_.policy == TreatPolicy::weeds_only && target.plant_class != PlantClass::Weed) {
         dec.outcome = ScheduleOutcome::policy;
         ++counters_.policy;
         return dec;

@@ -57,9 +57,9 @@ void Tracker::add_sighting(Track& t, const TrackDetection& d, std::uint64_t seq)
     t.wy_sum += w * d.y_mm;
     t.s_mm = t.ws_sum / t.w_sum;
     t.y_mm = t.wy_sum / t.w_sum;
-    if (d.plant_class == protocol::PlantClass::Crop)
+    if (d.plant_class == PlantClass::Crop)
         t.crop_w += w;
-    else if (d.plant_class == protocol::PlantClass::Weed)
+    else if (d.plant_class == PlantClass::Weed)
         t.weed_w += w;
     t.conf_sum += c;
     t.leaves = std::max(t.leaves, d.leaves);
@@ -79,9 +79,9 @@ void Tracker::emit(Track& t, const TrackFrame& frame, bool by_exit) noexcept
     next_id_ = (next_id_ + 1) % (protocol::kMaxTargetId + 1u);
     o.s_mm = t.s_mm;
     o.y_mm = t.y_mm;
-    o.plant_class = t.weed_w > t.crop_w   ? protocol::PlantClass::Weed
-                    : t.crop_w > t.weed_w ? protocol::PlantClass::Crop
-                                          : protocol::PlantClass::Unknown;
+    o.plant_class = t.weed_w > t.crop_w   ? PlantClass::Weed
+                    : t.crop_w > t.weed_w ? PlantClass::Crop
+                                          : PlantClass::Unknown;
     o.sightings = t.sightings;
     o.leaves = t.leaves;
     o.confidence = t.sightings > 0 ? static_cast<float>(t.conf_sum / t.sightings) : 0.0f;
@@ -107,9 +107,9 @@ void Tracker::retire(std::size_t i) noexcept
     r.target_id = t.target_id;
     r.s_mm = t.s_mm;
     r.y_mm = t.y_mm;
-    r.plant_class = t.weed_w > t.crop_w   ? protocol::PlantClass::Weed
-                    : t.crop_w > t.weed_w ? protocol::PlantClass::Crop
-                                          : protocol::PlantClass::Unknown;
+    r.plant_class = t.weed_w > t.crop_w   ? PlantClass::Weed
+                    : t.crop_w > t.weed_w ? PlantClass::Crop
+                                          : PlantClass::Unknown;
     r.sightings = t.sightings;
     r.leaves = t.leaves;
     r.confidence = t.sightings > 0 ? static_cast<float>(t.conf_sum / t.sightings) : 0.0f;

@@ -50,7 +50,7 @@ std::optional<std::vector<TruthPlant>> read_truth_plants(const std::filesystem::
             return std::nullopt;
         }
         p.id = static_cast<long>(id);
-        p.kind = cell(col_kind);
+        p.kind = parse_plant_class(cell(col_kind)).value_or(PlantClass::Unknown);
         plants.push_back(p);
     }
     return plants;

@@ -317,7 +317,7 @@ CodecResult encode(const TargetCommand& msg, std::uint8_t counter, const CanIds&
     p.put(kLane, msg.lane);
     p.put(kFireOdom, msg.fire_odom_mm & (kFireOdomModulo - 1));  // modulo 2^18 by design
     p.put(kLateral, msg.lateral_mm);
-    p.put(kPlantClass, static_cast<std::int64_t>(msg.plant_class));
+    p.put(kPlantClass, to_value(msg.plant_class));
     return p.finish(ids, MessageKind::Target, counter, out);
 }
 

@@ -42,14 +42,14 @@ private:
 
 // The class of each plant with a stem: the majority of crop and weed pixels
 // of the class map in a 9x9 window around the stem (the stem itself may lie
-// on soil between leaves); unknown (0) when there are none.
+// on soil between leaves); Unknown when there are none.
 void classify_plants(const cv::Mat& class_map, const vision::Detections& detections,
-                     std::array<std::uint8_t, vision::kMaxPlants>& out)
+                     std::array<PlantClass, vision::kMaxPlants>& out)
 {
     constexpr int kHalf = 4;
     for (std::size_t i = 0; i < detections.plants.size(); ++i) {
         const vision::Plant& p = detections.plants[i];
-        out[i] = 0;
+        out[i] = PlantClass::Unknown;
         if (!p.has_stem)
             continue;
         const int cx = static_cast<int>(std::lround(p.stem.x)), cy = static_cast<int>(std::lround(p.stem.y));
@@ -57,11 +57,11 @@ void classify_plants(const cv::Mat& class_map, const vision::Detections& detecti
         for (int y = std::max(cy - kHalf, 0); y <= std::min(cy + kHalf, class_map.rows - 1); ++y) {
             const std::uint8_t* row = class_map.ptr<std::uint8_t>(y);
             for (int x = std::max(cx - kHalf, 0); x <= std::min(cx + kHalf, class_map.cols - 1); ++x) {
-                crop += row[x] == 1;
-                weed += row[x] == 2;
+                crop += plant_class_from_value(row[x]) == PlantClass::Crop;
+                weed += plant_class_from_value(row[x]) == PlantClass::Weed;
             }
         }
-        out[i] = weed > crop ? 2 : crop > weed ? 1 : 0;
+        out[i] = weed > crop ? PlantClass::Weed : crop > weed ? PlantClass::Crop : PlantClass::Unknown;
     }
 }
 

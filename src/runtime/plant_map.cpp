@@ -9,16 +9,6 @@ namespace {
 
 constexpr std::size_t kBufferBytes = 1 << 20;
 
-std::string_view class_name(protocol::PlantClass c)
-{
-    switch (c) {
-    case protocol::PlantClass::Crop: return "crop";
-    case protocol::PlantClass::Weed: return "weed";
-    case protocol::PlantClass::Unknown: break;
-    }
-    return "unknown";
-}
-
 }  // namespace
 
 std::string_view to_string(MapReason r)
@@ -69,7 +59,7 @@ bool PlantMap::write(const actuation::RetiredTrack& t, const MapEntry& e)
                          "{\"id\":%d,\"s_mm\":%.1f,\"y_mm\":%.1f,\"class\":\"%.*s\",\"leaves\":%u,\"sightings\":%u,"
                          "\"first_frame\":%llu,\"last_frame\":%llu,\"treated\":%s,\"reason\":\"%.*s\"",
                          t.emitted ? static_cast<int>(t.target_id) : -1, t.s_mm, t.y_mm,
-                         static_cast<int>(class_name(t.plant_class).size()), class_name(t.plant_class).data(),
+                         static_cast<int>(to_string(t.plant_class).size()), to_string(t.plant_class).data(),
                          static_cast<unsigned>(t.leaves), static_cast<unsigned>(t.sightings),
                          static_cast<unsigned long long>(t.first_seq), static_cast<unsigned long long>(t.last_seq),
                          treated ? "true" : "false", static_cast<int>(to_string(e.reason).size()),

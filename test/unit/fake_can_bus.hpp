@@ -23,12 +23,16 @@ public:
         deadlines.push_back(deadline_ns);
         return drivers::SendResult::sent;
     }
-    bool receive(protocol::CanFrame& out, std::int64_t) override
+    using drivers::CanBus::receive;
+    bool receive(protocol::CanFrame& out, std::int64_t, std::int64_t& t_rx_ns) override
     {
         if (inbox.empty())
             return false;
         out = inbox.front();
         inbox.pop_front();
+        t_rx_ns = inbox_t_rx_ns.empty() ? base::monotonic_ns() : inbox_t_rx_ns.front();
+        if (!inbox_t_rx_ns.empty())
+            inbox_t_rx_ns.pop_front();
         return true;
     }
     drivers::CanBusCounters counters() const override { return {}; }
@@ -36,6 +40,8 @@ public:
     std::vector<protocol::CanFrame> sent;
     std::vector<std::int64_t> deadlines;
     std::deque<protocol::CanFrame> inbox;
+    // Receive times of the inbox's first frames; the others get the read time.
+    std::deque<std::int64_t> inbox_t_rx_ns;
     std::optional<std::uint32_t> fail_id;   // sends of this identifier fail (not recorded)
 };
 

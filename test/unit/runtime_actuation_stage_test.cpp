@@ -90,7 +90,7 @@ std::unique_ptr<FrameResult> frame(const std::vector<Plant>& plants, int k, bool
         vp.bbox = cv::Rect(static_cast<int>(u) - 15, static_cast<int>(v) - 15, 31, 31) & cv::Rect({0, 0}, kSize);
         vp.has_stem = true;
         vp.confidence = 0.8f;
-        r->plant_class[r->detections.plants.size()] = static_cast<std::uint8_t>(p.cls);
+        r->plant_class[r->detections.plants.size()] = p.cls;
         r->detections.plants.push_back(vp);
     }
     return r;
@@ -305,6 +305,7 @@ TEST(ActuationStage, CanOdometryDrivesTheFramesAndCorruptFramesAreRejected)
             ++corrupted;
         }
         run.bus->inbox.push_back(f);
+        run.bus->inbox_t_rx_ns.push_back(t);
         run.stage->poll(t);
         if (t >= kT0 + k * kPeriodNs) {
             auto r = frame(plants, static_cast<int>(k), false, false);
@@ -324,6 +325,36 @@ TEST(ActuationStage, CanOdometryDrivesTheFramesAndCorruptFramesAreRejected)
             found = found || std::abs(sent[i].fire_odom_mm - (p.s_mm + 100000.0 + 600.0)) <= 2.0;
         EXPECT_TRUE(found) << "fire_odom_mm " << sent[i].fire_odom_mm;
     }
+}
+
+// ODOMETRY frames carry the time the bus received them, not the time a
+// later poll read them: a drive sample 100 ms old is the odometer 100 ms ago.
+TEST(ActuationStage, CanOdometryIsStampedWhenReceivedNotWhenPolled)
+{
+    ActuationConfig config = base_config();
+    config.odometry = OdometrySource::can;
+    config.max_extrapolation_ns = 500'000'000;
+    Stage run = make_stage(config);
+    const protocol::CanIds ids;
+    protocol::E2eCounter counter;
+    constexpr std::int64_t kPollNs = kT0;
+    for (const auto& [odom_mm, t_rx_ns] : {std::pair{1000u, kPollNs - 100'000'000}, {1100u, kPollNs - 50'000'000}}) {
+        CanFrame f;
+        ASSERT_TRUE(protocol::encode(protocol::Odometry{odom_mm, 2000}, counter.next(), ids, f));
+        run.bus->inbox.push_back(f);
+        run.bus->inbox_t_rx_ns.push_back(t_rx_ns);
+    }
+    run.stage->poll(kPollNs);
+    EXPECT_EQ(run.stage->counters().rx_odometry.load(), 2u);
+    EXPECT_EQ(run.stage->counters().odometry_rejected.load(), 0u);
+    double odom_mm = 0;
+    ASSERT_TRUE(run.stage->odometry().odometer_at(kPollNs - 100'000'000, odom_mm));
+    EXPECT_DOUBLE_EQ(odom_mm, 1000.0);
+    ASSERT_TRUE(run.stage->odometry().odometer_at(kPollNs - 75'000'000, odom_mm));
+    EXPECT_NEAR(odom_mm, 1050.0, 1e-6);
+    // At the poll, 50 ms after the newest sample: extrapolated at 2 m/s.
+    ASSERT_TRUE(run.stage->odometry().odometer_at(kPollNs, odom_mm));
+    EXPECT_NEAR(odom_mm, 1200.0, 1e-6);
 }
 
 TEST(ActuationStage, HeartbeatEveryIntervalWithState)

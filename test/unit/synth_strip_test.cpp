@@ -254,7 +254,7 @@ TEST(SynthStrip, LayoutRules)
         const double blocks = o.length_mm / strip->view_length_mm;
         int crops = 0;
         for (const StripPlant& p : strip->plants)
-            crops += p.kind == "crop";
+            crops += p.kind == PlantClass::Crop;
         if (o.preset == Preset::late) {
             EXPECT_GE(crops, 2 * std::floor(blocks) - 1);
             EXPECT_LE(crops, 4 * std::ceil(blocks));
@@ -295,7 +295,7 @@ TEST(SynthStrip, ClassMapMatchesKindsAndMask)
             for (const GroundTruthStem& s : f.stems) {
                 const int value = f.plant_class.at<std::uint8_t>(static_cast<int>(std::lround(s.y_px)),
                                                                   static_cast<int>(std::lround(s.x_px)));
-                EXPECT_EQ(value, s.kind == "crop" ? 1 : 2) << "frame " << k;
+                EXPECT_EQ(value, s.kind == PlantClass::Crop ? 1 : 2) << "frame " << k;
                 ++checked;
             }
         }
@@ -306,7 +306,7 @@ TEST(SynthStrip, ClassMapMatchesKindsAndMask)
     const Strip& dense = dense_strip();
     long weed_px = cv::countNonZero(dense.plant_class == 2), stemmed_weed_px = 0;
     for (const StripPlant& p : dense.plants)
-        if (p.kind == "weed")
+        if (p.kind == PlantClass::Weed)
             stemmed_weed_px += cv::countNonZero(p.canvas_mask);
     EXPECT_GT(weed_px, stemmed_weed_px);
 }

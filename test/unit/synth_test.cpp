@@ -10,6 +10,7 @@
 #include "stemd/synth/synth.hpp"
 
 using namespace stemd::synth;
+using stemd::PlantClass;
 
 namespace {
 
@@ -174,8 +175,8 @@ TEST(SynthGroundTruth, CountsWithinPresetRanges)
             const Frame f = make(range.preset, 11, index);
             int crops = 0, weeds = 0;
             for (const GroundTruthStem& s : f.stems) {
-                ASSERT_TRUE(s.kind == "crop" || s.kind == "weed") << s.kind;
-                if (s.kind == "crop") {
+                ASSERT_TRUE(s.kind == PlantClass::Crop || s.kind == PlantClass::Weed) << to_string(s.kind);
+                if (s.kind == PlantClass::Crop) {
                     ++crops;
                     EXPECT_GE(s.leaves, range.crop_leaves_lo);
                     EXPECT_LE(s.leaves, range.crop_leaves_hi);
@@ -225,7 +226,7 @@ TEST(SynthPlants, EarlyCropsAreSmallerThanLateCrops)
             const Frame f = make(p, 3, index);
             const Regions r = regions_of(f.mask);
             for (const GroundTruthStem& s : f.stems) {
-                if (s.kind != "crop")
+                if (s.kind != PlantClass::Crop)
                     continue;
                 sum += r.stats.at<int>(region_at(r, s), cv::CC_STAT_AREA);
                 ++n;
@@ -248,7 +249,7 @@ TEST(SynthPlants, LateCropCentreOfMassIsOffTheStem)
         const Frame f = make(Preset::late, 9, index);
         const Regions r = regions_of(f.mask);
         for (const GroundTruthStem& s : f.stems) {
-            if (s.kind != "crop")
+            if (s.kind != PlantClass::Crop)
                 continue;
             const int label = region_at(r, s);
             ASSERT_NE(label, 0);

@@ -68,6 +68,7 @@
 #include <memory>
 #include <span>
 
+#include "stemd/base/plant_class.hpp"
 #include "stemd/protocol/messages.hpp"
 
 namespace stemd::actuation {
@@ -86,7 +87,7 @@ struct TrackDetection {
     double s_mm = 0;
     double y_mm = 0;
     float confidence = 1.0f;  // fusion weight, 0..1
-    protocol::PlantClass plant_class = protocol::PlantClass::Unknown;
+    PlantClass plant_class = PlantClass::Unknown;
     std::uint8_t leaves = 0;
     double extent_mm = 0;     // along-track half-size of the plant (for the exit rule), >= 0
 };
@@ -105,7 +106,7 @@ struct Target {
     std::uint16_t target_id = 0;  // 0..4095
     double s_mm = 0;              // fused
     double y_mm = 0;
-    protocol::PlantClass plant_class = protocol::PlantClass::Unknown;
+    PlantClass plant_class = PlantClass::Unknown;
     std::uint32_t sightings = 0;  // frames it was seen in, up to confirmation
     std::uint8_t leaves = 0;      // the most leaves seen
     float confidence = 0;         // mean confidence of its sightings
@@ -123,7 +124,7 @@ struct RetiredTrack {
     std::uint16_t target_id = 0;  // emitted only
     double s_mm = 0;
     double y_mm = 0;
-    protocol::PlantClass plant_class = protocol::PlantClass::Unknown;
+    PlantClass plant_class = PlantClass::Unknown;
     std::uint32_t sightings = 0;
     std::uint8_t leaves = 0;
     float confidence = 0;

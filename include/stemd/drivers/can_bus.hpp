@@ -62,9 +62,18 @@ public:
     virtual SendResult send(const protocol::CanFrame& frame, std::int64_t deadline_ns) = 0;
 
     // Waits at most timeout_ns for the next data frame that passes the bus's
-    // receive filter and writes it into `out`. False on timeout (or when the
-    // bus cannot receive), leaving `out` as it was.
-    virtual bool receive(protocol::CanFrame& out, std::int64_t timeout_ns) = 0;
+    // receive filter and writes it into `out`, and into t_rx_ns when it
+    // arrived (CLOCK_MONOTONIC): the kernel's receive stamp where the backend
+    // has one, else when it was read. A frame read late (a poll after a busy
+    // frame) still carries its own time. False on timeout (or when the bus
+    // cannot receive), leaving both as they were.
+    virtual bool receive(protocol::CanFrame& out, std::int64_t timeout_ns, std::int64_t& t_rx_ns) = 0;
+    // The same, for callers that do not need the time.
+    bool receive(protocol::CanFrame& out, std::int64_t timeout_ns)
+    {
+        std::int64_t t_rx_ns = 0;
+        return receive(out, timeout_ns, t_rx_ns);
+    }
 
     virtual CanBusCounters counters() const = 0;
 };

@@ -48,7 +48,7 @@ struct Frame {
     cv::Mat mask;  // CV_8UC1, same size (external mask only)
     // CV_8UC1, same size, optional (the runtime allocates it only when a
     // class map is configured): per-pixel plant class, 0 soil, 1 crop,
-    // 2 weed (values as protocol::PlantClass). A source without class maps
+    // 2 weed (values as PlantClass). A source without class maps
     // leaves has_class_map false.
     cv::Mat plant_class;
     bool has_class_map = false;

@@ -27,7 +27,7 @@ struct TruthPlant {
     long id = 0;
     double s_mm = 0;
     double y_mm = 0;
-    std::string kind;   // crop | weed
+    PlantClass kind = PlantClass::Unknown;   // a word other than crop or weed: Unknown
     double radius_mm = 0;   // stem to the farthest leaf tip (optional column; 0 if absent)
 };
 

@@ -10,7 +10,7 @@
 // by the header (any other column name is an error):
 //   odom_mm  the odometer at capture (mm, a finite real); empty = unknown
 //   class    a per-pixel class PNG (8-bit grey: 0 soil, 1 crop, 2 weed, as
-//            protocol::PlantClass), the same size as rgb; empty = none
+//            PlantClass), the same size as rgb; empty = none
 // e.g. stemd-synth --strip writes
 //   t_ns,rgb,nir,mask,odom_mm,class
 //   1000000000,rgb/000000.png,nir/000000.png,mask/000000.png,0,class/000000.png

@@ -69,6 +69,7 @@
 #include <span>
 #include <string_view>
 
+#include "stemd/base/plant_class.hpp"
 #include "stemd/protocol/can_frame.hpp"
 
 namespace stemd::protocol {
@@ -145,7 +146,8 @@ private:
 
 // ---- messages ----
 
-enum class PlantClass : std::uint8_t { Unknown = 0, Crop = 1, Weed = 2 };
+// The plant_class signal's raw values are PlantClass's own.
+using stemd::PlantClass;
 
 enum class DaemonState : std::uint8_t {
     Starting = 0,  // initialising, not yet sending targets

@@ -1,36 +1,25 @@
 // The actuator thread's work: stems -> field coordinates -> one target per
-// plant -> deadline-checked TARGET commands on the CAN bus.
+// plant -> deadline-checked TARGET commands on the CAN bus. The stage wires
+// its parts, one job each:
 //
 // Per frame (on_frame):
-//  1. The odometer at the frame's capture time, from the configured
-//     odometry (odometry.source): the frame's own odom_mm (a recording's
-//     column), a constant speed, ODOMETRY frames from the bus, or a wheel
-//     encoder. Without a usable reading (none yet, stale) the frame's
-//     detections are not actuated (counted: no_odometry).
-//  2. Each stem -> field position (s_mm, y_mm) through the camera model;
-//     the plant's class from the frame's class map, if any. A plant cut by
-//     the leading or trailing image border (the along-track borders, per
-//     camera.forward) is skipped (counted: clipped): its stem is estimated
-//     from part of it, and the same plant is seen whole in other frames.
-//     Plants cut by the lateral borders are kept (some are never seen whole).
+//  1. The odometer at the frame's capture time (OdometryInput, per
+//     odometry.source). Without a usable reading (none yet, stale) the
+//     frame's detections are not actuated (counted: no_odometry).
+//  2. Each stem -> field position (PlantProjector), skipping plants cut by
+//     the along-track borders.
 //  3. Tracker::update: each plant becomes one target, once.
-//  4. For each new target, Scheduler::schedule with the odometer and speed
-//     NOW (not at capture) and the enable input; a target that cannot be on
-//     time is a deadline miss, counted and never sent. Sent ones are encoded
-//     (E2E counter + CRC) and given to CanBus::send with their deadline; the
-//     bus never sends after it (counted as bus_deadline).
+//  4. For each new target, TargetSender: scheduled with the odometer and
+//     speed NOW, sent before its deadline or counted.
 //  5. Tracks that ended go to the plant map, with what became of them.
-// Between frames (poll): received ODOMETRY / TOOL_STATUS (E2E-checked: bad
-// CRC or counter jumps are rejected and counted), encoder samples, and a
-// HEARTBEAT every can.heartbeat_ms.
+// Between frames (poll): received ODOMETRY / TOOL_STATUS and the HEARTBEAT
+// (CanLink), encoder samples (OdometryInput).
 //
 // Everything is allocated in make(); on_frame() and poll() do not allocate,
 // lock or throw. File I/O (the plant map, the candump log) is buffered.
 // Single-threaded (the actuator thread); counters() from any thread.
 #pragma once
 
-#include <array>
-#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -39,43 +28,20 @@
 #include <opencv2/core/types.hpp>
 #include <spdlog/logger.h>
 
-#include "stemd/protocol/e2e.hpp"
-#include "stemd/protocol/messages.hpp"
-#include "stemd/actuation/scheduler.hpp"
 #include "stemd/actuation/tracker.hpp"
 #include "stemd/drivers/can_bus.hpp"
 #include "stemd/drivers/gpio_lines.hpp"
 #include "stemd/geometry/camera_model.hpp"
-#include "stemd/geometry/odometry.hpp"
 #include "stemd/runtime/actuation_config.hpp"
+#include "stemd/runtime/actuation_counters.hpp"
+#include "stemd/runtime/can_link.hpp"
 #include "stemd/runtime/detection_sink.hpp"
+#include "stemd/runtime/odometry_input.hpp"
 #include "stemd/runtime/plant_map.hpp"
+#include "stemd/runtime/plant_projector.hpp"
+#include "stemd/runtime/target_sender.hpp"
 
 namespace stemd::runtime {
-
-// Written by the actuator thread only (relaxed atomics), read by the status line.
-struct ActuationCounters {
-    std::atomic<std::uint64_t> frames{0};           // frames whose stems were tracked
-    std::atomic<std::uint64_t> no_odometry{0};      // frames not actuated: no usable odometer reading
-    std::atomic<std::uint64_t> off_ground{0};       // stems the camera model could not put on the ground
-    std::atomic<std::uint64_t> clipped{0};          // plants cut by the leading/trailing border, not tracked
-    std::atomic<std::uint64_t> targets{0};          // plants confirmed (one target each)
-    std::atomic<std::uint64_t> sent{0};             // TARGET frames the bus took
-    std::atomic<std::uint64_t> policy{0};           // targets not treated by policy (crops, unclassified)
-    std::atomic<std::uint64_t> no_tool{0};          // no tool covers the plant's y
-    std::atomic<std::uint64_t> disabled{0};         // the enable input was inactive
-    std::atomic<std::uint64_t> deadline_misses{0};  // could not be on time: never sent
-    std::atomic<std::uint64_t> bus_deadline{0};     // the bus could not take it before its deadline: never sent
-    std::atomic<std::uint64_t> bus_errors{0};       // TARGETs that could not be encoded or sent
-    std::atomic<std::uint64_t> heartbeats{0};
-    std::atomic<std::uint64_t> heartbeat_errors{0}; // HEARTBEATs that could not be encoded or sent
-    std::atomic<std::uint64_t> rx_odometry{0};      // ODOMETRY frames accepted
-    std::atomic<std::uint64_t> rx_tool_status{0};   // TOOL_STATUS frames accepted
-    std::atomic<std::uint64_t> rx_rejected{0};      // received frames rejected: E2E (CRC, counter) or decode
-    std::atomic<std::uint64_t> odometry_rejected{0};  // samples the odometry ring refused (not monotonic)
-    std::atomic<std::uint64_t> map_errors{0};
-    std::atomic<std::uint64_t> tools_ready_mask{0}; // the last TOOL_STATUS's
-};
 
 class ActuationStage {
 public:
@@ -118,49 +84,28 @@ public:
     }
     std::uint32_t trigger_pulse_us() const { return config_.trigger_pulse_us; }
     // The view's along-track extent relative to the odometer at capture.
-    double view_forward_min_mm() const { return view_min_mm_; }
-    double view_forward_max_mm() const { return view_max_mm_; }
+    double view_forward_min_mm() const { return projector_.view_forward_min_mm(); }
+    double view_forward_max_mm() const { return projector_.view_forward_max_mm(); }
+    const OdometryInput& odometry() const { return odometry_; }
 
 private:
-    bool clipped_along_track(const cv::Rect& bbox) const noexcept;
-    double extent_mm(const vision::Plant& plant, double odom_mm) const noexcept;
+    ActuationStage(const ActuationConfig& config, Parts parts, PlantProjector projector,
+                   actuation::Scheduler scheduler, std::optional<actuation::Scheduler> scheduler_all,
+                   protocol::CanIds ids, std::shared_ptr<spdlog::logger> log);
 
-    ActuationStage(const ActuationConfig& config, const geometry::CameraModel& camera, cv::Size frame_size, Parts parts,
-                   actuation::Scheduler scheduler, protocol::CanIds ids, std::shared_ptr<spdlog::logger> log);
-
-    bool odometer_at(std::int64_t t_ns, double& odom_mm) const noexcept;
-    void add_frame_odometry(std::int64_t t_capture_ns, double odom_mm) noexcept;
-    void schedule(const actuation::Target& target, std::int64_t now_ns, bool class_map) noexcept;
+    bool enabled() const noexcept { return parts_.gpio ? parts_.gpio->enabled() : true; }
     void write_retired(std::span<const actuation::RetiredTrack> retired) noexcept;
-    void receive(std::int64_t now_ns) noexcept;
-    void heartbeat(std::int64_t now_ns) noexcept;
 
     const ActuationConfig config_;
-    const geometry::CameraModel camera_;
-    const cv::Size frame_size_;
     Parts parts_;
     const std::shared_ptr<spdlog::logger> log_;
-    actuation::Tracker tracker_;
-    actuation::Scheduler scheduler_;
-    std::optional<actuation::Scheduler> scheduler_all_;        // policy auto: frames without a class map
-    const protocol::CanIds ids_;
-    geometry::OdometryRing odometry_;
-    double view_min_mm_ = 0, view_max_mm_ = 0;
-
-    std::array<actuation::TrackDetection, vision::kMaxPlants> detections_{};
-    std::array<MapEntry, protocol::kMaxTargetId + 1> outcomes_{};   // by target_id, for the map
-
-    protocol::E2eCounter target_counter_, heartbeat_counter_;
-    protocol::E2eChecker odometry_checker_, tool_status_checker_;
-    bool have_odometry_frame_ = false;
-    std::uint32_t last_can_odom_raw_ = 0;
-    double can_odom_mm_ = 0;          // unwrapped
-    std::int64_t constant_t0_ns_ = -1;
-    bool constant_now_ = false;       // the last frame's odometer came from the constant speed
-    std::int64_t next_heartbeat_ns_ = 0;
-    std::int64_t last_frame_ns_ = -1;
-    std::uint64_t misses_at_last_heartbeat_ = 0;
     ActuationCounters counters_;
+    OdometryInput odometry_;
+    PlantProjector projector_;
+    actuation::Tracker tracker_;
+    TargetSender sender_;
+    CanLink link_;
+    std::int64_t last_frame_ns_ = -1;
 };
 
 }  // namespace stemd::runtime

@@ -13,6 +13,7 @@
 
 #include <spdlog/logger.h>
 
+#include "stemd/base/plant_class.hpp"
 #include "stemd/drivers/frame_source.hpp"
 #include "stemd/vision/types.hpp"
 
@@ -31,9 +32,8 @@ struct FrameResult {
     drivers::FrameName name;
     vision::Detections detections;
     // Per plant (parallel to detections.plants): the class map's value at
-    // its stem (majority of crop/weed pixels around it), as
-    // protocol::PlantClass: 0 unknown, 1 crop, 2 weed.
-    std::array<std::uint8_t, vision::kMaxPlants> plant_class{};
+    // its stem (majority of crop/weed pixels around it).
+    std::array<PlantClass, vision::kMaxPlants> plant_class{};
 };
 
 class DetectionSink {

@@ -18,6 +18,8 @@
 #include <opencv2/core/mat.hpp>
 #include <opencv2/core/types.hpp>
 
+#include "stemd/base/plant_class.hpp"
+
 namespace stemd::synth {
 
 // Echo the paper's datasets: early = B (small crops, tiny weeds),
@@ -48,7 +50,7 @@ struct Options {
 struct GroundTruthStem {
     double x_px = 0;
     double y_px = 0;
-    std::string kind;       // "crop" | "weed"
+    PlantClass kind = PlantClass::Unknown;   // Crop or Weed
     int leaves = 0;
     // Extras for evaluation and tests, from the pixels this plant put into
     // the mask (inside the image, after fragmentation).
@@ -125,15 +127,12 @@ struct StripOptions {
     double fragmentation = -1;     // < 0: the preset's default; else 0..1
 };
 
-// Plant classes in class maps (values as protocol::PlantClass).
-enum class PixelClass : std::uint8_t { soil = 0, crop = 1, weed = 2 };
-
 // A stemmed plant (crop or weed) of the strip, in field coordinates.
 struct StripPlant {
     int id = 0;             // index in Strip::plants, in order of s_mm
     double s_mm = 0;
     double y_mm = 0;
-    std::string kind;       // "crop" | "weed"
+    PlantClass kind = PlantClass::Unknown;   // Crop or Weed
     int leaves = 0;
     double radius_mm = 0;   // stem to the farthest point of a leaf
     // The pixels this plant put into the mask, on the canvas (for the
@@ -156,7 +155,7 @@ struct Strip {
     cv::Mat bgr;           // CV_8UC3
     cv::Mat nir;           // CV_8UC1
     cv::Mat mask;          // CV_8UC1, 255 = vegetation
-    cv::Mat plant_class;   // CV_8UC1, PixelClass values; grass counts as weed
+    cv::Mat plant_class;   // CV_8UC1, PlantClass values; grass counts as weed
     double top_s_mm = 0;
 
     // Frame k: its odometer (exact), capture time, row offset in the canvas.
@@ -172,7 +171,7 @@ struct StripFrame {
     cv::Mat bgr;           // CV_8UC3
     cv::Mat nir;           // CV_8UC1
     cv::Mat mask;          // CV_8UC1, 255 = vegetation
-    cv::Mat plant_class;   // CV_8UC1, PixelClass values
+    cv::Mat plant_class;   // CV_8UC1, PlantClass values
     // Stems inside the image (as generate_frame: 0 <= x <= w - 1, same for
     // y), with area and centre of mass of the plant's pixels in this frame.
     std::vector<GroundTruthStem> stems;

@@ -1,0 +1,33 @@
+// What the actuator's parts count, for the status line and the heartbeat.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+
+namespace stemd::runtime {
+
+// Written by the actuator thread only (relaxed atomics), read by the status line.
+struct ActuationCounters {
+    std::atomic<std::uint64_t> frames{0};           // frames whose stems were tracked
+    std::atomic<std::uint64_t> no_odometry{0};      // frames not actuated: no usable odometer reading
+    std::atomic<std::uint64_t> off_ground{0};       // stems the camera model could not put on the ground
+    std::atomic<std::uint64_t> clipped{0};          // plants cut by the leading/trailing border, not tracked
+    std::atomic<std::uint64_t> targets{0};          // plants confirmed (one target each)
+    std::atomic<std::uint64_t> sent{0};             // TARGET frames the bus took
+    std::atomic<std::uint64_t> policy{0};           // targets not treated by policy (crops, unclassified)
+    std::atomic<std::uint64_t> no_tool{0};          // no tool covers the plant's y
+    std::atomic<std::uint64_t> disabled{0};         // the enable input was inactive
+    std::atomic<std::uint64_t> deadline_misses{0};  // could not be on time: never sent
+    std::atomic<std::uint64_t> bus_deadline{0};     // the bus could not take it before its deadline: never sent
+    std::atomic<std::uint64_t> bus_errors{0};       // TARGETs that could not be encoded or sent
+    std::atomic<std::uint64_t> heartbeats{0};
+    std::atomic<std::uint64_t> heartbeat_errors{0}; // HEARTBEATs that could not be encoded or sent
+    std::atomic<std::uint64_t> rx_odometry{0};      // ODOMETRY frames accepted
+    std::atomic<std::uint64_t> rx_tool_status{0};   // TOOL_STATUS frames accepted
+    std::atomic<std::uint64_t> rx_rejected{0};      // received frames rejected: E2E (CRC, counter) or decode
+    std::atomic<std::uint64_t> odometry_rejected{0};  // samples the odometry ring refused (not monotonic)
+    std::atomic<std::uint64_t> map_errors{0};
+    std::atomic<std::uint64_t> tools_ready_mask{0}; // the last TOOL_STATUS's
+};
+
+}  // namespace stemd::runtime

@@ -1,0 +1,47 @@
+// The actuator's CAN traffic other than commands: received ODOMETRY (to the
+// odometry input, at each frame's receive time) and TOOL_STATUS, E2E-checked
+// (bad CRC or counter jumps are rejected and counted), and the HEARTBEAT on
+// a fixed grid of can.heartbeat_ms. No allocation, locks or exceptions.
+#pragma once
+
+#include <cstdint>
+
+#include "stemd/drivers/can_bus.hpp"
+#include "stemd/protocol/e2e.hpp"
+#include "stemd/protocol/messages.hpp"
+#include "stemd/runtime/actuation_counters.hpp"
+#include "stemd/runtime/odometry_input.hpp"
+
+namespace stemd::runtime {
+
+class CanLink {
+public:
+    CanLink(drivers::CanBus& bus, protocol::CanIds ids, std::int64_t heartbeat_interval_ns, OdometryInput& odometry,
+            ActuationCounters& counters);
+
+    // Whatever is queued, without waiting; bounded so a flooded bus cannot
+    // starve the frames.
+    void receive() noexcept;
+    // Sends the HEARTBEAT when due: Starting before the first frame, Idle
+    // when disabled or without odometry, Degraded after deadline misses
+    // since the last one, else Active.
+    void heartbeat_if_due(std::int64_t now_ns, bool frames_seen, bool enabled) noexcept;
+
+private:
+    // E2E-checked and decoded into `out`; else counted as rx_rejected.
+    template <typename Message>
+    bool accepted(const protocol::CanFrame& frame, protocol::E2eChecker& checker, Message& out) noexcept;
+    void heartbeat(std::int64_t now_ns, bool frames_seen, bool enabled) noexcept;
+
+    drivers::CanBus& bus_;
+    const protocol::CanIds ids_;
+    const std::int64_t heartbeat_interval_ns_;
+    OdometryInput& odometry_;
+    ActuationCounters& counters_;
+    protocol::E2eCounter heartbeat_counter_;
+    protocol::E2eChecker odometry_checker_, tool_status_checker_;
+    std::int64_t next_heartbeat_ns_ = 0;
+    std::uint64_t misses_at_last_heartbeat_ = 0;
+};
+
+}  // namespace stemd::runtime

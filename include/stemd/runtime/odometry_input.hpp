@@ -1,0 +1,49 @@
+// The actuator's odometer, from the configured source (odometry.source): a
+// frame's own odom_mm (a recording's column), a constant speed from the
+// first frame on, ODOMETRY frames from the bus (at their receive time), or
+// a wheel encoder. Samples that would not advance the ring are refused
+// (counted: odometry_rejected). No allocation after construction; nothing
+// throws.
+#pragma once
+
+#include <cstdint>
+
+#include "stemd/geometry/odometry.hpp"
+#include "stemd/runtime/actuation_config.hpp"
+#include "stemd/runtime/actuation_counters.hpp"
+
+namespace stemd::runtime {
+
+class OdometryInput {
+public:
+    OdometryInput(const ActuationConfig& config, ActuationCounters& counters);
+
+    // A frame's odometer (NaN: the frame has none) at its capture. Also
+    // where a constant speed starts and what says it is in use.
+    void add_frame(std::int64_t t_capture_ns, double odom_mm) noexcept;
+    // The encoder's tick count, read at now_ns (odometry.source encoder).
+    void add_encoder(std::int64_t now_ns, std::int64_t ticks) noexcept;
+    // An ODOMETRY frame's 32-bit odometer (wraps), received at t_rx_ns
+    // (odometry.source can).
+    void add_can(std::int64_t t_rx_ns, std::uint32_t odom_raw_mm) noexcept;
+
+    // False without a usable reading (none yet, stale).
+    bool odometer_at(std::int64_t t_ns, double& odom_mm) const noexcept;
+    double speed_mm_per_s() const noexcept;
+
+private:
+    void push(const geometry::OdomSample& sample) noexcept;
+
+    const OdometrySource source_;
+    const double speed_mm_per_s_;          // odometry.speed_mm_per_s (constant)
+    const double encoder_mm_per_tick_;
+    ActuationCounters& counters_;
+    geometry::OdometryRing ring_;
+    std::int64_t constant_t0_ns_ = -1;
+    bool constant_now_ = false;       // the last frame's odometer came from the constant speed
+    bool have_can_odom_ = false;
+    std::uint32_t last_can_odom_raw_mm_ = 0;
+    double can_odom_mm_ = 0;          // unwrapped
+};
+
+}  // namespace stemd::runtime

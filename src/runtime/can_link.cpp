@@ -1,0 +1,101 @@
+#include "stemd/runtime/can_link.hpp"
+
+#include <span>
+
+#include "stemd/runtime/status.hpp"
+
+namespace stemd::runtime {
+
+CanLink::CanLink(drivers::CanBus& bus, protocol::CanIds ids, std::int64_t heartbeat_interval_ns,
+                 OdometryInput& odometry, ActuationCounters& counters)
+    : bus_(bus),
+      ids_(ids),
+      heartbeat_interval_ns_(heartbeat_interval_ns),
+      odometry_(odometry),
+      counters_(counters),
+      odometry_checker_(ids.id(protocol::MessageKind::Odometry), 3),
+      tool_status_checker_(ids.id(protocol::MessageKind::ToolStatus), 3)
+{
+}
+
+void CanLink::receive() noexcept
+{
+    protocol::CanFrame frame;
+    std::int64_t t_rx_ns = 0;
+    for (int i = 0; i < 64 && bus_.receive(frame, 0, t_rx_ns); ++i) {
+        const auto kind = ids_.kind_of(frame);
+        if (!kind)
+            continue;   // not one of ours (the socket filter normally keeps these out)
+        if (*kind == protocol::MessageKind::Odometry) {
+            protocol::Odometry m;
+            if (!accepted(frame, odometry_checker_, m))
+                continue;
+            bump(counters_.rx_odometry);
+            odometry_.add_can(t_rx_ns, m.odom_mm);
+        } else if (*kind == protocol::MessageKind::ToolStatus) {
+            protocol::ToolStatus m;
+            if (!accepted(frame, tool_status_checker_, m))
+                continue;
+            bump(counters_.rx_tool_status);
+            counters_.tools_ready_mask.store(m.tools_ready_mask, std::memory_order_relaxed);
+        }
+    }
+}
+
+template <typename Message>
+bool CanLink::accepted(const protocol::CanFrame& frame, protocol::E2eChecker& checker, Message& out) noexcept
+{
+    const std::span<const std::uint8_t, 8> data(frame.data.data(), 8);
+    if (frame.dlc != 8 || !protocol::e2e_accepted(checker.check(data)) || !protocol::decode(frame, ids_, out)) {
+        bump(counters_.rx_rejected);
+        return false;
+    }
+    return true;
+}
+
+void CanLink::heartbeat_if_due(std::int64_t now_ns, bool frames_seen, bool enabled) noexcept
+{
+    if (now_ns >= next_heartbeat_ns_)
+        heartbeat(now_ns, frames_seen, enabled);
+}
+
+void CanLink::heartbeat(std::int64_t now_ns, bool frames_seen, bool enabled) noexcept
+{
+    // On a fixed grid (10 Hz stays 10 Hz however late a poll comes); a
+    // heartbeat more than a period late is not caught up.
+    next_heartbeat_ns_ = next_heartbeat_ns_ == 0 || now_ns - next_heartbeat_ns_ >= heartbeat_interval_ns_
+        ? now_ns + heartbeat_interval_ns_
+        : next_heartbeat_ns_ + heartbeat_interval_ns_;
+    const std::uint64_t misses = counters_.deadline_misses.load(std::memory_order_relaxed) +
+                                 counters_.bus_deadline.load(std::memory_order_relaxed);
+    protocol::Heartbeat hb;
+    double odom = 0;
+    if (!frames_seen)
+        hb.state = protocol::DaemonState::Starting;
+    else if (!enabled || !odometry_.odometer_at(now_ns, odom))
+        hb.state = protocol::DaemonState::Idle;
+    else if (misses != misses_at_last_heartbeat_)
+        hb.state = protocol::DaemonState::Degraded;
+    else
+        hb.state = protocol::DaemonState::Active;
+    misses_at_last_heartbeat_ = misses;
+    hb.targets_sent = counters_.sent.load(std::memory_order_relaxed);
+    hb.deadline_misses = misses;
+    hb.targets_dropped = counters_.no_tool.load(std::memory_order_relaxed) +
+                         counters_.disabled.load(std::memory_order_relaxed) +
+                         counters_.bus_errors.load(std::memory_order_relaxed);
+    hb.rx_rejected = counters_.rx_rejected.load(std::memory_order_relaxed);
+    protocol::CanFrame frame;
+    // Heartbeat failures have their own counter: bus_errors goes out inside
+    // targets_dropped and must count TARGETs only.
+    if (!protocol::encode(hb, heartbeat_counter_.next(), ids_, frame)) {
+        bump(counters_.heartbeat_errors);
+        return;
+    }
+    if (bus_.send(frame, now_ns + heartbeat_interval_ns_) == drivers::SendResult::sent)
+        bump(counters_.heartbeats);
+    else
+        bump(counters_.heartbeat_errors);
+}
+
+}  // namespace stemd::runtime

@@ -1,0 +1,110 @@
+#include "stemd/runtime/odometry_input.hpp"
+
+#include <cmath>
+
+#include "stemd/runtime/status.hpp"
+
+namespace stemd::runtime {
+
+namespace {
+
+// Speed over this window: smooths encoder ticks and frame-rate odometry.
+constexpr std::int64_t kSpeedWindowNs = 200'000'000;
+
+// A sample per ~2 ms is plenty for interpolation and speed.
+constexpr std::int64_t kEncoderSampleNs = 2'000'000;
+
+}  // namespace
+
+OdometryInput::OdometryInput(const ActuationConfig& config, ActuationCounters& counters)
+    : source_(config.odometry),
+      speed_mm_per_s_(config.speed_mm_per_s),
+      encoder_mm_per_tick_(config.encoder_mm_per_tick),
+      counters_(counters),
+      ring_({.capacity = 1024, .max_extrapolation_ns = config.max_extrapolation_ns})
+{
+}
+
+void OdometryInput::add_frame(std::int64_t t_capture_ns, double odom_mm) noexcept
+{
+    const bool frame_has_odom = std::isfinite(odom_mm);
+    geometry::OdomSample sample{t_capture_ns, 0};
+    constant_now_ = false;
+    switch (source_) {
+    case OdometrySource::recording:
+        if (!frame_has_odom)
+            return;
+        sample.odom_mm = odom_mm;
+        break;
+    case OdometrySource::automatic:
+        if (frame_has_odom) {
+            sample.odom_mm = odom_mm;
+            break;
+        }
+        [[fallthrough]];
+    case OdometrySource::constant:
+        if (constant_t0_ns_ < 0)
+            constant_t0_ns_ = t_capture_ns;
+        constant_now_ = true;
+        sample = geometry::ConstantSpeedOdometer(speed_mm_per_s_, constant_t0_ns_).sample(t_capture_ns);
+        break;
+    case OdometrySource::encoder:
+    case OdometrySource::can:
+        // Sampled with the time they were read or received; a reading taken
+        // now is not the odometer at this frame's capture.
+        return;
+    }
+    if (!ring_.empty() && ring_.newest().t_ns >= sample.t_ns)
+        return;   // the same instant again (no new information)
+    push(sample);
+}
+
+void OdometryInput::add_encoder(std::int64_t now_ns, std::int64_t ticks) noexcept
+{
+    if (source_ != OdometrySource::encoder)
+        return;
+    if (ring_.empty() || now_ns - ring_.newest().t_ns >= kEncoderSampleNs)
+        push({now_ns, static_cast<double>(ticks) * encoder_mm_per_tick_});
+}
+
+void OdometryInput::add_can(std::int64_t t_rx_ns, std::uint32_t odom_raw_mm) noexcept
+{
+    if (source_ != OdometrySource::can)
+        return;
+    // Unwrap the 32-bit odometer.
+    if (!have_can_odom_) {
+        can_odom_mm_ = odom_raw_mm;
+        have_can_odom_ = true;
+    } else {
+        can_odom_mm_ += static_cast<double>(static_cast<std::int32_t>(odom_raw_mm - last_can_odom_raw_mm_));
+    }
+    last_can_odom_raw_mm_ = odom_raw_mm;
+    push({t_rx_ns, can_odom_mm_});
+}
+
+bool OdometryInput::odometer_at(std::int64_t t_ns, double& odom_mm) const noexcept
+{
+    if (constant_now_) {
+        // A constant speed is known at every instant: it never goes stale.
+        odom_mm = geometry::ConstantSpeedOdometer(speed_mm_per_s_, constant_t0_ns_).sample(t_ns).odom_mm;
+        return true;
+    }
+    const geometry::OdomQuery q = ring_.odom_at(t_ns);
+    if (q.status != geometry::OdomStatus::ok && q.status != geometry::OdomStatus::extrapolated)
+        return false;
+    odom_mm = q.odom_mm;
+    return true;
+}
+
+double OdometryInput::speed_mm_per_s() const noexcept
+{
+    return constant_now_ ? speed_mm_per_s_ : ring_.speed_mm_per_s(kSpeedWindowNs);
+}
+
+void OdometryInput::push(const geometry::OdomSample& sample) noexcept
+{
+    if (!ring_.push(sample))
+        bump(counters_.odometry_rejected);
+}
+
+}  // namespace stemd::runtime
