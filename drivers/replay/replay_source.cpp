@@ -6,14 +6,12 @@
 #include <unistd.h>
 
 #include <cerrno>
-#include <charconv>
 #include <cstring>
 #include <limits>
 #include <system_error>
 
 #include <opencv2/imgcodecs.hpp>
 
-#include "stemd/io/csv.hpp"
 #include "stemd/io/recording.hpp"
 #include "stemd/base/clock.hpp"
 #include "stemd/base/unique_fd.hpp"
@@ -74,62 +72,32 @@ bool ReplaySource::open()
 
 bool ReplaySource::read_frames_csv()
 {
-    const auto csv_path = options_.dir / "frames.csv";
+    // The tools' reader and rules (header, t_ns increasing with bounded
+    // gaps, odometer): the pacing arithmetic below relies on them.
     std::string error;
-    const auto table = io::read_csv(csv_path, error);
-    if (!table) {
+    const auto recording = io::read_recording(options_.dir, error);
+    if (!recording) {
         log_->error("{}: {}", name_, error);
         return false;
     }
-    // Columns by name: extra columns (odom_mm, ...) are tolerated.
-    const int t_col = table->column("t_ns");
-    const int rgb_col = table->column("rgb");
-    const int nir_col = table->column("nir");
-    const int mask_col = table->column("mask");
-    const int odom_col = table->column(io::kFramesCsvOdomColumn);
-    const int class_col = table->column(io::kFramesCsvClassColumn);
-    if (t_col < 0 || (rgb_col < 0 && mask_col < 0)) {
-        log_->error("{}:1: header needs t_ns and rgb (or mask) columns", csv_path.string());
+    if (recording->frames.empty()) {
+        log_->error("{}: no frames", (options_.dir / "frames.csv").string());
         return false;
     }
-    auto resolve = [&](const std::vector<std::string>& fields, int col) {
-        if (col < 0 || fields[static_cast<std::size_t>(col)].empty())
-            return std::filesystem::path{};
-        return options_.dir / fields[static_cast<std::size_t>(col)];
+    auto resolve = [&](const std::string& relative) {
+        return relative.empty() ? std::filesystem::path{} : recording->resolve(relative);
     };
-    entries_.reserve(table->rows.size());
-    for (const auto& row : table->rows) {
+    entries_.reserve(recording->frames.size());
+    for (const io::RecordingFrame& frame : recording->frames) {
         Entry entry;
-        const std::string& t = row.fields[static_cast<std::size_t>(t_col)];
-        const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), entry.t_ns);
-        if (ec != std::errc() || end != t.data() + t.size()) {
-            log_->error("{}:{}: t_ns '{}' is not an integer", csv_path.string(), row.line, t);
-            return false;
-        }
-        entry.rgb = resolve(row.fields, rgb_col);
-        entry.nir = resolve(row.fields, nir_col);
-        entry.mask = resolve(row.fields, mask_col);
-        entry.plant_class = resolve(row.fields, class_col);
-        entry.odom_mm = std::numeric_limits<double>::quiet_NaN();
-        if (odom_col >= 0) {
-            const std::string& odom = row.fields[static_cast<std::size_t>(odom_col)];
-            if (!odom.empty() && !io::parse_odom_mm(odom, entry.odom_mm)) {
-                log_->error("{}:{}: odom_mm '{}' is not a finite number", csv_path.string(), row.line, odom);
-                return false;
-            }
-        }
-        if (entry.rgb.empty() && entry.mask.empty()) {
-            log_->error("{}:{}: a frame needs an rgb or a mask path", csv_path.string(), row.line);
-            return false;
-        }
-        entry.name = rgb_col >= 0 && !row.fields[static_cast<std::size_t>(rgb_col)].empty()
-            ? row.fields[static_cast<std::size_t>(rgb_col)]
-            : row.fields[static_cast<std::size_t>(mask_col)];
+        entry.t_ns = frame.t_ns;
+        entry.rgb = resolve(frame.rgb);
+        entry.nir = resolve(frame.nir);
+        entry.mask = resolve(frame.mask);
+        entry.plant_class = resolve(frame.plant_class);
+        entry.odom_mm = frame.odom_mm.value_or(std::numeric_limits<double>::quiet_NaN());
+        entry.name = !frame.rgb.empty() ? frame.rgb : frame.mask;
         entries_.push_back(std::move(entry));
-    }
-    if (entries_.empty()) {
-        log_->error("{}: no frames", csv_path.string());
-        return false;
     }
     return true;
 }

@@ -56,6 +56,10 @@ std::optional<Recording> read_recording(const std::filesystem::path& dir, std::s
     }
     Recording rec;
     rec.dir = dir;
+    int previous_line = 0;   // 0: no frame yet
+    std::int64_t previous_t_ns = 0;
+    std::optional<double> last_odom_mm;
+    int last_odom_line = 0;
     for (const auto& row : table->rows) {
         const std::string where = csv_path.string() + ":" + std::to_string(row.line) + ": ";
         RecordingFrame frame;
@@ -63,6 +67,23 @@ std::optional<Recording> read_recording(const std::filesystem::path& dir, std::s
         const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), frame.t_ns);
         if (ec != std::errc() || end != t.data() + t.size()) {
             error = where + "t_ns '" + t + "' is not an integer";
+            return std::nullopt;
+        }
+        if (frame.t_ns < 0) {
+            error = where + "t_ns " + t + " is negative (a capture time is CLOCK_MONOTONIC, never below 0)";
+            return std::nullopt;
+        }
+        if (previous_line > 0 && frame.t_ns <= previous_t_ns) {
+            error = where + "t_ns " + t + (frame.t_ns == previous_t_ns ? " repeats" : " is before") + " line " +
+                    std::to_string(previous_line) + "'s " + std::to_string(previous_t_ns) +
+                    " (t_ns must increase from frame to frame)";
+            return std::nullopt;
+        }
+        // Both are >= 0 here, so the difference cannot overflow.
+        if (previous_line > 0 && frame.t_ns - previous_t_ns > kMaxFrameGapNs) {
+            error = where + "t_ns " + t + " is " + std::to_string((frame.t_ns - previous_t_ns) / 1'000'000'000) +
+                    " s after line " + std::to_string(previous_line) + "'s (at most " +
+                    std::to_string(kMaxFrameGapNs / 1'000'000'000) + " s between frames)";
             return std::nullopt;
         }
         frame.rgb = row.fields[1];
@@ -79,11 +100,25 @@ std::optional<Recording> read_recording(const std::filesystem::path& dir, std::s
                 error = where + "odom_mm '" + odom + "' is not a finite number";
                 return std::nullopt;
             }
-            if (!odom.empty())
+            if (!odom.empty()) {
+                if (std::abs(value) > kMaxOdomMm) {
+                    error = where + "odom_mm " + odom + " is beyond +-1e9 mm (1000 km)";
+                    return std::nullopt;
+                }
+                if (last_odom_mm && value < *last_odom_mm) {
+                    error = where + "odom_mm " + odom + " is less than line " + std::to_string(last_odom_line) +
+                            "'s (the odometer never decreases)";
+                    return std::nullopt;
+                }
                 frame.odom_mm = value;
+                last_odom_mm = value;
+                last_odom_line = row.line;
+            }
         }
         if (class_col >= 0)
             frame.plant_class = row.fields[static_cast<std::size_t>(class_col)];
+        previous_t_ns = frame.t_ns;
+        previous_line = row.line;
         rec.frames.push_back(std::move(frame));
     }
     return rec;

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <algorithm>
+#include <cstring>
 #include <random>
 
 #include <opencv2/imgcodecs.hpp>
@@ -307,4 +309,40 @@ TEST_F(ReplayTest, BadOdometerFailsToOpen)
     std::ofstream(dir_ / "frames.csv") << "t_ns,rgb,nir,mask,odom_mm\n0,a.png,,,nan\n";
     auto nan = make(ReplayOptions::Pacing::fast, false);
     EXPECT_FALSE(nan.open());
+}
+
+TEST_F(ReplayTest, HeadersTheToolsRejectFailToOpen)
+{
+    // One reader for every tool: what stemd-detect and the README refuse,
+    // replay refuses too.
+    for (const char* header : {"t_ns,rgb,nir,mask,speed", "t_ns,rgb", "t_ns,rgb,mask", "t_ns,nir,rgb,mask",
+                               "rgb,t_ns,nir,mask", "t_ns,rgb,nir,mask,odom_mm,odom_mm", "t_ns,rgb,rgb,nir,mask"}) {
+        SCOPED_TRACE(header);
+        write_recording(2, 1'000'000);
+        // Rows with the field count the header asks for, so only the header is at fault.
+        const auto columns = std::count(header, header + std::strlen(header), ',') + 1;
+        std::string rows;
+        for (int i = 0; i < 2; ++i) {
+            rows += std::to_string(i * 1'000'000);
+            for (int c = 1; c < columns; ++c)
+                rows += ",rgb/0.png";
+            rows += "\n";
+        }
+        std::ofstream(dir_ / "frames.csv") << header << "\n" << rows;
+        auto source = make(ReplayOptions::Pacing::fast, false);
+        EXPECT_FALSE(source.open());
+    }
+}
+
+TEST_F(ReplayTest, TimeThatWouldStallOrReorderThePacingFailsToOpen)
+{
+    cv::imwrite((dir_ / "rgb/a.png").string(), cv::Mat(kSize, CV_8UC3, cv::Scalar::all(1)));
+    for (const char* rows : {"9223372036854775806,rgb/a.png,,\n-9223372036854775807,rgb/a.png,,\n",
+                             "0,rgb/a.png,,\n1000000000000000,rgb/a.png,,\n", "-5,rgb/a.png,,\n",
+                             "7,rgb/a.png,,\n7,rgb/a.png,,\n", "7,rgb/a.png,,\n6,rgb/a.png,,\n"}) {
+        SCOPED_TRACE(rows);
+        std::ofstream(dir_ / "frames.csv") << "t_ns,rgb,nir,mask\n" << rows;
+        auto source = make(ReplayOptions::Pacing::recorded, true);
+        EXPECT_FALSE(source.open());
+    }
 }
