@@ -107,11 +107,17 @@ bool ReplaySource::preload_all()
     // Every plane a recording has is decoded, since which ones the pipeline
     // uses is the frame's business; a corrupt one marks its frame.
     for (Entry& entry : entries_) {
+        entry.preload_fault = Entry::Fault::none;
         auto load = [&](const std::filesystem::path& path, int flags, cv::Mat& out) {
             if (path.empty())
                 return true;
-            if (!read_file(path))
+            if (!read_file(path)) {
+                entry.preload_fault = Entry::Fault::corrupt;
                 return false;
+            }
+            if (!header_fits(path, options_.frame_size, false, &entry.preload_fault))
+                return false;
+            entry.preload_fault = Entry::Fault::corrupt;
             try {
                 out = cv::imdecode(file_buffer_, flags);
             } catch (const cv::Exception& e) {
@@ -122,12 +128,11 @@ bool ReplaySource::preload_all()
                 log_->warn("{}: cannot decode (corrupt or not an image); it will be skipped", path.string());
                 return false;
             }
+            entry.preload_fault = Entry::Fault::none;
             return true;
         };
-        entry.preload_failed = !(load(entry.rgb, kColorFlags, entry.bgr_data) &&
-                                 load(entry.nir, kGreyFlags, entry.nir_data) &&
-                                 load(entry.mask, kGreyFlags, entry.mask_data) &&
-                                 load(entry.plant_class, kGreyFlags, entry.class_data));
+        load(entry.rgb, kColorFlags, entry.bgr_data) && load(entry.nir, kGreyFlags, entry.nir_data) &&
+            load(entry.mask, kGreyFlags, entry.mask_data) && load(entry.plant_class, kGreyFlags, entry.class_data);
     }
     return true;
 }
@@ -206,8 +211,8 @@ bool ReplaySource::fill(const Entry& entry, Frame& into)
                             {entry.nir, entry.nir_data, kGreyFlags, into.nir},
                             {entry.mask, entry.mask_data, kGreyFlags, into.mask}};
     into.has_class_map = false;
-    if (options_.preload && entry.preload_failed) {
-        corrupt_.fetch_add(1, std::memory_order_relaxed);
+    if (options_.preload && entry.preload_fault != Entry::Fault::none) {
+        (entry.preload_fault == Entry::Fault::bad_size ? bad_size_ : corrupt_).fetch_add(1, std::memory_order_relaxed);
         return false;
     }
     auto fill_plane = [&](const Plane& p) {
@@ -271,12 +276,34 @@ bool ReplaySource::read_file(const std::filesystem::path& path)
     return ok;
 }
 
+bool ReplaySource::header_fits(const std::filesystem::path& path, cv::Size expected, bool count, Entry::Fault* fault)
+{
+    // Before decoding: a small file may declare a huge image, which the
+    // decoder would allocate in full only to be refused afterwards.
+    std::string why;
+    const io::HeaderCheck check = io::check_image_header(file_buffer_, expected, why);
+    if (check == io::HeaderCheck::ok)
+        return true;
+    const bool bad_size = check == io::HeaderCheck::bad_size;
+    if (bad_size)
+        log_->warn("{}: {}; skipped, not decoded", path.string(), why);
+    else
+        log_->warn("{}: cannot decode: {}; skipped", path.string(), why);
+    if (count)
+        (bad_size ? bad_size_ : corrupt_).fetch_add(1, std::memory_order_relaxed);
+    if (fault != nullptr)
+        *fault = bad_size ? Entry::Fault::bad_size : Entry::Fault::corrupt;
+    return false;
+}
+
 bool ReplaySource::decode_into(const std::filesystem::path& path, int imread_flags, cv::Mat& plane)
 {
     if (!read_file(path)) {
         corrupt_.fetch_add(1, std::memory_order_relaxed);
         return false;
     }
+    if (!header_fits(path, plane.size(), true, nullptr))
+        return false;
     // Decoded into a fresh Mat, then copied into the slot. Decoding straight
     // into the slot (imdecode's `dst`) cannot be told apart from a failure in
     // OpenCV 4.6: with no decoder or a bad header it returns `dst` untouched,

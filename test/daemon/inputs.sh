@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Bad input, end to end: stemd --replay and stemd-detect read frames.csv by
-# one rule (header, t_ns, odom_mm).
+# one rule (header, t_ns, odom_mm), and refuse an image from its header
+# before decoding it.
 #   inputs.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
 stemd=$1 tools=$2 src=$3
@@ -56,5 +57,25 @@ expect_refused "decreasing odometer" "4: odom_mm 15 is less than line 3's"
 odom 0 1e300 1e300
 expect_refused "odom_mm 1e300" "3: odom_mm 1e300 is beyond +-1e9 mm"
 cp "$tmp/frames.good" "$tmp/rec/frames.csv"
+
+# --- An image declaring 30000x30000: refused from its header, never decoded.
+python3 - "$tmp/rec/rgb/000001.png" <<'PY'
+import struct, sys, zlib
+path = sys.argv[1]
+png = bytearray(open(path, 'rb').read())
+png[16:24] = struct.pack('>II', 30000, 30000)
+png[29:33] = struct.pack('>I', zlib.crc32(bytes(png[12:29])))
+open(path, 'wb').write(png)
+PY
+run "$stemd" --replay "$tmp/rec" "${fast[@]}" 2>"$tmp/err" || fail "stemd exited $?: $(tail -3 "$tmp/err")"
+grep -q "000001.png: declares 30000x30000, the frames are 1296x966; skipped, not decoded" "$tmp/err" ||
+  fail "no message naming the oversized frame: $(grep 000001 "$tmp/err")"
+grep -q "total: 2 frames in, 2 out.*corrupt 0, bad_size 1" "$tmp/err" || fail "not counted: $(grep total: "$tmp/err")"
+rc=0
+run "$tools/stemd-detect" "$tmp/rec" >"$tmp/out" 2>"$tmp/err" || rc=$?
+[ $rc -eq 1 ] || fail "stemd-detect exited $rc: $(cat "$tmp/err")"
+grep -q "skipped frame: .*000001.png: declares 30000x30000, more than 8192 px a side; not decoded" "$tmp/err" ||
+  fail "stemd-detect message: $(cat "$tmp/err")"
+grep -q "^2 frames, .*, 1 frames skipped$" "$tmp/out" || fail "stemd-detect summary: $(tail -1 "$tmp/out")"
 
 echo "inputs: ok"

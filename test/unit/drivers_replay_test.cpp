@@ -14,6 +14,7 @@
 #include <spdlog/sinks/null_sink.h>
 #include <spdlog/spdlog.h>
 
+#include "forged_png.hpp"
 #include "replay/replay_source.hpp"
 
 namespace fs = std::filesystem;
@@ -344,5 +345,27 @@ TEST_F(ReplayTest, TimeThatWouldStallOrReorderThePacingFailsToOpen)
         std::ofstream(dir_ / "frames.csv") << "t_ns,rgb,nir,mask\n" << rows;
         auto source = make(ReplayOptions::Pacing::recorded, true);
         EXPECT_FALSE(source.open());
+    }
+}
+
+TEST_F(ReplayTest, AHugeDeclaredSizeIsBadSizeAndNeverDecoded)
+{
+    write_recording(3, 1'000'000);
+    const auto png = stemd::test::png_declaring(30000, 30000);
+    std::ofstream(dir_ / "rgb/1.png", std::ios::binary)
+        .write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
+    for (const bool preload : {false, true}) {
+        SCOPED_TRACE(preload ? "preload" : "decode per frame");
+        auto source = ReplaySource(
+            {.dir = dir_, .pacing = ReplayOptions::Pacing::fast, .loop = false, .preload = preload, .frame_size = kSize},
+            quiet_logger());
+        ASSERT_TRUE(source.open());
+        ASSERT_TRUE(source.start());
+        Frame f = slot();
+        EXPECT_EQ(source.next(f, 1s), NextStatus::frame);
+        EXPECT_EQ(source.next(f, 1s), NextStatus::skipped);
+        EXPECT_EQ(source.next(f, 1s), NextStatus::frame);
+        EXPECT_EQ(source.counters().bad_size, 1u);
+        EXPECT_EQ(source.counters().corrupt, 0u) << "refused from its header, not by a failed decode";
     }
 }

@@ -27,6 +27,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -74,8 +75,26 @@ bool is_recording_dir(const std::filesystem::path& path);
 // one that breaks the time and odometer rules above).
 std::optional<Recording> read_recording(const std::filesystem::path& dir, std::string& error);
 
-// Loads an image; on failure (missing, unreadable, corrupt) returns false
-// and says why in `error` with the path. flags as cv::imread.
+// The largest image side any reader decodes: the largest frame the
+// daemon's slots can be configured for (source.width_px, height_px).
+inline constexpr int kMaxImageSidePx = 8192;
+
+// The size an image file declares in its header (PNG IHDR, JPEG SOFn, BMP,
+// PNM), read without decoding. nullopt with the reason when the bytes are
+// none of these formats, or the header is cut short or malformed: the
+// readers decode nothing whose size they cannot check first.
+std::optional<cv::Size> declared_image_size(std::span<const unsigned char> bytes, std::string& why);
+
+enum class HeaderCheck : std::uint8_t { ok, unreadable, bad_size };
+// Checks an encoded image before it is decoded: its declared size must be
+// `expected` (when not empty), and no side may exceed kMaxImageSidePx, so a
+// small file declaring a huge image is refused before it allocates.
+// `why` says what is wrong (without the path).
+HeaderCheck check_image_header(std::span<const unsigned char> bytes, cv::Size expected, std::string& why);
+
+// Loads an image; on failure (missing, unreadable, corrupt, a header
+// declaring an image larger than kMaxImageSidePx) returns false and says
+// why in `error` with the path. flags as cv::imread.
 bool load_image(const std::filesystem::path& path, int imread_flags, cv::Mat& out, std::string& error);
 
 }  // namespace stemd::io
