@@ -185,8 +185,16 @@ NextStatus ReplaySource::next(Frame& into, std::chrono::nanoseconds timeout)
             base::sleep_until_ns(now + timeout.count());
             return NextStatus::timeout;
         }
-        if (due > now)
+        if (due > now) {
             base::sleep_until_ns(due);
+        } else {
+            const std::int64_t lateness_ns = now - due;
+            if (lateness_ns > SourceCounters::kLateToleranceNs)
+                late_.fetch_add(1, std::memory_order_relaxed);
+            // One writer (this thread): load-compare-store is enough.
+            if (lateness_ns > worst_lateness_ns_.load(std::memory_order_relaxed))
+                worst_lateness_ns_.store(lateness_ns, std::memory_order_relaxed);
+        }
     }
     ++index_;
     if (!fill(entry, into))
@@ -335,7 +343,9 @@ SourceCounters ReplaySource::counters() const
     return {.delivered = delivered_.load(std::memory_order_relaxed),
             .corrupt = corrupt_.load(std::memory_order_relaxed),
             .bad_size = bad_size_.load(std::memory_order_relaxed),
-            .loops = loops_.load(std::memory_order_relaxed)};
+            .loops = loops_.load(std::memory_order_relaxed),
+            .late = late_.load(std::memory_order_relaxed),
+            .worst_lateness_ms = static_cast<double>(worst_lateness_ns_.load(std::memory_order_relaxed)) / 1e6};
 }
 
 }  // namespace stemd::drivers

@@ -102,6 +102,8 @@ private:
     std::atomic<std::uint64_t> corrupt_{0};
     std::atomic<std::uint64_t> bad_size_{0};
     std::atomic<std::uint64_t> loops_{0};
+    std::atomic<std::uint64_t> late_{0};
+    std::atomic<std::int64_t> worst_lateness_ns_{0};
 };
 
 }  // namespace stemd::drivers

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Bad input, end to end: stemd --replay and stemd-detect read frames.csv by
-# one rule (header, t_ns, odom_mm), and refuse an image from its header
-# before decoding it.
+# one rule (header, t_ns, odom_mm), refuse an image from its header before
+# decoding it, and report what they cannot use (class values, plants
+# beyond the per-frame capacity) in the total line, never silently.
 #   inputs.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
 stemd=$1 tools=$2 src=$3
@@ -78,4 +79,47 @@ grep -q "skipped frame: .*000001.png: declares 30000x30000, more than 8192 px a 
   fail "stemd-detect message: $(cat "$tmp/err")"
 grep -q "^2 frames, .*, 1 frames skipped$" "$tmp/out" || fail "stemd-detect summary: $(tail -1 "$tmp/out")"
 
+# --- Plants beyond the 256 a frame holds: counted in both summaries.
+# A 720x720 mask with an 18x18 grid of 12x12 px squares, 28 px apart
+# (farther than closing and grouping join): 324 plants a frame.
+mkdir -p "$tmp/many/mask"
+python3 - "$tmp/many/mask/0.pgm" <<'PY'
+import sys
+size, pitch, side = 720, 40, 12
+rows = []
+for y in range(size):
+    on = (y % pitch) >= 20 and (y % pitch) < 20 + side
+    rows.append(bytes(255 if on and (x % pitch) >= 20 and (x % pitch) < 20 + side else 0 for x in range(size)))
+open(sys.argv[1], 'wb').write(b'P5\n%d %d\n255\n' % (size, size) + b''.join(rows))
+PY
+printf 't_ns,rgb,nir,mask\n0,,,mask/0.pgm\n100000000,,,mask/0.pgm\n' >"$tmp/many/frames.csv"
+over=$((18 * 18 - 256))
+"$tools/stemd-detect" --segment mask "$tmp/many" >"$tmp/out" 2>"$tmp/err" || fail "stemd-detect: $(cat "$tmp/err")"
+grep -q "^2 frames, 512 stems, 0 stemless plants, $((2 * over)) plants over capacity (256 a frame)$" "$tmp/out" ||
+  fail "stemd-detect summary: $(tail -1 "$tmp/out")"
+run "$stemd" --replay "$tmp/many" "${fast[@]}" --set segment.method=mask --set source.width_px=720 \
+  --set source.height_px=720 2>"$tmp/err" || fail "stemd exited $?: $(tail -3 "$tmp/err")"
+grep -q "total: 2 frames in, 2 out, 512 stems .*over_capacity $((2 * over)), " "$tmp/err" ||
+  fail "stemd total: $(grep total: "$tmp/err")"
+
+# --- Class values above 2 (no such class): counted in the total line.
+"$tools/stemd-synth" --strip --out "$tmp/strip" --preset early --seed 5 --fragment 0 --length-mm 600 \
+  --fps 15 --speed-kmh 2.5 >/dev/null
+"$stemd" --replay "$tmp/strip" "${fast[@]}" --can-log "$tmp/can.log" 2>"$tmp/err" || fail "strip: $(tail -3 "$tmp/err")"
+grep -q "total: .*, bad_class 0 |" "$tmp/err" || fail "good class maps: $(grep total: "$tmp/err")"
+python3 - "$tmp/strip/class" <<'PY'
+import glob, struct, sys, zlib
+def chunk(t, d):
+    return struct.pack('>I', len(d)) + t + d + struct.pack('>I', zlib.crc32(t + d))
+for path in glob.glob(sys.argv[1] + '/*.png'):
+    png = open(path, 'rb').read()
+    w, h = struct.unpack('>II', png[16:24])
+    pixels = zlib.compress((b'\0' + bytes([3]) * w) * h)   # class 3 everywhere
+    open(path, 'wb').write(b'\x89PNG\r\n\x1a\n' + chunk(b'IHDR', struct.pack('>IIBBBBB', w, h, 8, 0, 0, 0, 0))
+                           + chunk(b'IDAT', pixels) + chunk(b'IEND', b''))
+PY
+"$stemd" --replay "$tmp/strip" "${fast[@]}" --can-log "$tmp/can.log" 2>"$tmp/err" || fail "strip: $(tail -3 "$tmp/err")"
+stems=$(sed -n 's/.*total: .* out, \([0-9]*\) stems.*/\1/p' "$tmp/err")
+bad=$(sed -n 's/.*total: .*, bad_class \([0-9]*\) |.*/\1/p' "$tmp/err")
+[ -n "$bad" ] && [ "$bad" -gt 0 ] && [ "$bad" -le "$stems" ] || fail "class 3 not counted: $(grep total: "$tmp/err")"
 echo "inputs: ok"

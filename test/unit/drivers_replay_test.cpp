@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cstring>
 #include <random>
+#include <thread>
 
 #include <opencv2/imgcodecs.hpp>
 #include <spdlog/sinks/null_sink.h>
@@ -368,4 +369,21 @@ TEST_F(ReplayTest, AHugeDeclaredSizeIsBadSizeAndNeverDecoded)
         EXPECT_EQ(source.counters().bad_size, 1u);
         EXPECT_EQ(source.counters().corrupt, 0u) << "refused from its header, not by a failed decode";
     }
+}
+
+TEST_F(ReplayTest, FramesTheSourceComesToLateAreCounted)
+{
+    write_recording(3, 1'000'000);
+    auto source = make(ReplayOptions::Pacing::recorded, false);
+    ASSERT_TRUE(source.open());
+    ASSERT_TRUE(source.start());
+    Frame f = slot();
+    ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+    EXPECT_EQ(source.counters().late, 0u);
+    // The consumer holds on to the first frame 30 ms; the second was due
+    // 1 ms after it, so it is at least 29 ms late.
+    std::this_thread::sleep_for(30ms);
+    ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+    EXPECT_EQ(source.counters().late, 1u);
+    EXPECT_GE(source.counters().worst_lateness_ms, 29.0);
 }
