@@ -67,6 +67,10 @@ public:
     virtual bool receive(actuation::CanFrame& out, std::int64_t timeout_ns) = 0;
 
     virtual CanBusCounters counters() const = 0;
+
+    // True when the bus is a record (a log file) that lost frames: unlike a
+    // bus that was down for a while, the run's output is then incomplete.
+    virtual bool output_lost() const { return false; }
 };
 
 }  // namespace stemd::drivers

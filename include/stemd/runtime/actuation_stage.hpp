@@ -104,7 +104,8 @@ public:
     void on_capture(std::int64_t t_capture_ns, double odom_mm) noexcept;
     void poll(std::int64_t now_ns) noexcept;
     // End of the run: the tracks still open go to the plant map; the map is
-    // closed. False if the map lost lines.
+    // closed. False (logged) if the map lost lines or the bus is a log that
+    // lost frames.
     bool finish() noexcept;
 
     const ActuationCounters& counters() const { return counters_; }
@@ -160,6 +161,7 @@ private:
     std::int64_t next_heartbeat_ns_ = 0;
     std::int64_t last_frame_ns_ = -1;
     std::uint64_t misses_at_last_heartbeat_ = 0;
+    bool bus_loss_reported_ = false;
     ActuationCounters counters_;
 };
 
