@@ -25,7 +25,8 @@
 // HEARTBEAT every can.heartbeat_ms.
 //
 // Everything is allocated in make(); on_frame() and poll() do not allocate,
-// lock or throw. File I/O (the plant map, the candump log) is buffered.
+// lock or throw. File I/O (the plant map, the candump log) is one write(2)
+// per line.
 // Single-threaded (the actuator thread); counters() from any thread.
 #pragma once
 
