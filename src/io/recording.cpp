@@ -264,16 +264,13 @@ HeaderCheck check_image_header(std::span<const unsigned char> bytes, cv::Size ex
     const auto size = declared_image_size(bytes, why);
     if (!size)
         return HeaderCheck::unreadable;
-    const std::string declared = "declares " + std::to_string(size->width) + "x" + std::to_string(size->height);
-    if (!expected.empty() && *size != expected) {
-        why = declared + ", the frames are " + std::to_string(expected.width) + "x" + std::to_string(expected.height);
-        return HeaderCheck::bad_size;
-    }
-    if (size->width > kMaxImageSidePx || size->height > kMaxImageSidePx) {
-        why = declared + ", more than " + std::to_string(kMaxImageSidePx) + " px a side";
-        return HeaderCheck::bad_size;
-    }
-    return HeaderCheck::ok;
+    const bool wrong_size = !expected.empty() && *size != expected;
+    if (!wrong_size && size->width <= kMaxImageSidePx && size->height <= kMaxImageSidePx)
+        return HeaderCheck::ok;
+    why = "declares " + std::to_string(size->width) + "x" + std::to_string(size->height) +
+          (wrong_size ? ", the frames are " + std::to_string(expected.width) + "x" + std::to_string(expected.height)
+                      : ", more than " + std::to_string(kMaxImageSidePx) + " px a side");
+    return HeaderCheck::bad_size;
 }
 
 bool load_image(const std::filesystem::path& path, int imread_flags, cv::Mat& out, std::string& error)
