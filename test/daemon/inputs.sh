@@ -14,7 +14,7 @@ run() { timeout 60 "$@"; }
 
 "$tools/stemd-synth" --out "$tmp/rec" --preset late --frames 3 >/dev/null
 cp "$tmp/rec/frames.csv" "$tmp/frames.good"
-fast=(--once --set source.replay_pacing=fast)
+fast=(--once --set source.replay_pacing=fast --can-log "$tmp/can.log")
 
 # --- frames.csv: stemd refuses what stemd-detect refuses, naming file and line.
 expect_refused() {  # WHAT EXPECTED_MESSAGE: frames.csv already written
@@ -105,7 +105,7 @@ grep -q "total: 2 frames in, 2 out, 512 stems .*over_capacity $((2 * over)), " "
 # --- Class values above 2 (no such class): counted in the total line.
 "$tools/stemd-synth" --strip --out "$tmp/strip" --preset early --seed 5 --fragment 0 --length-mm 600 \
   --fps 15 --speed-kmh 2.5 >/dev/null
-"$stemd" --replay "$tmp/strip" "${fast[@]}" --can-log "$tmp/can.log" 2>"$tmp/err" || fail "strip: $(tail -3 "$tmp/err")"
+"$stemd" --replay "$tmp/strip" "${fast[@]}" 2>"$tmp/err" || fail "strip: $(tail -3 "$tmp/err")"
 grep -q "total: .*, bad_class 0 |" "$tmp/err" || fail "good class maps: $(grep total: "$tmp/err")"
 python3 - "$tmp/strip/class" <<'PY'
 import glob, struct, sys, zlib
@@ -118,7 +118,7 @@ for path in glob.glob(sys.argv[1] + '/*.png'):
     open(path, 'wb').write(b'\x89PNG\r\n\x1a\n' + chunk(b'IHDR', struct.pack('>IIBBBBB', w, h, 8, 0, 0, 0, 0))
                            + chunk(b'IDAT', pixels) + chunk(b'IEND', b''))
 PY
-"$stemd" --replay "$tmp/strip" "${fast[@]}" --can-log "$tmp/can.log" 2>"$tmp/err" || fail "strip: $(tail -3 "$tmp/err")"
+"$stemd" --replay "$tmp/strip" "${fast[@]}" 2>"$tmp/err" || fail "strip: $(tail -3 "$tmp/err")"
 stems=$(sed -n 's/.*total: .* out, \([0-9]*\) stems.*/\1/p' "$tmp/err")
 bad=$(sed -n 's/.*total: .*, bad_class \([0-9]*\) |.*/\1/p' "$tmp/err")
 [ -n "$bad" ] && [ "$bad" -gt 0 ] && [ "$bad" -le "$stems" ] || fail "class 3 not counted: $(grep total: "$tmp/err")"

@@ -22,6 +22,10 @@
 //     a huge gap would deliver frames out of order or stall it;
 //   - odom_mm never decreases (the odometer counts distance driven) and
 //     stays within +-kMaxOdomMm.
+// These are refused at load rather than counted while running: one bad
+// value makes the whole run's pacing or every field position wrong, and a
+// field engineer would rather fix the file than read a total line of
+// garbage targets.
 #pragma once
 
 #include <cstdint>
