@@ -169,6 +169,7 @@ int main(int argc, char** argv)
     auto detections = std::make_unique<vision::Detections>();
     std::vector<double> stage_ms[6];
     int skipped = 0, plants_total = 0, stemless_total = 0;
+    long long over_capacity_total = 0;   // plants beyond the per-frame capacity: found, not reported
     tools::LoadedFrame frame;
     for (const tools::FrameJob& job : jobs) {
         if (!tools::load_frame(job, params.segmentation, !args->overlay_dir.empty(), frame, error)) {
@@ -208,6 +209,7 @@ int main(int argc, char** argv)
         }
         plants_total += with_stem;
         stemless_total += d.stats.stemless;
+        over_capacity_total += d.stats.plants_over_capacity;
         report << job.image << ": " << with_stem << " stems (" << from_leaves << " from leaves, " << with_stem - from_leaves
                << " centre of mass), " << d.stats.stemless << " stemless, threshold " << d.stats.threshold << "\n";
 
@@ -250,7 +252,9 @@ int main(int argc, char** argv)
                      "total %.3f ms\n",
                      stage_ms[5].size(), median(stage_ms[0]), median(stage_ms[1]), median(stage_ms[2]),
                      median(stage_ms[3]), median(stage_ms[4]), median(stage_ms[5]));
-    report << jobs.size() - skipped << " frames, " << plants_total << " stems, " << stemless_total << " stemless plants";
+    report << jobs.size() - skipped << " frames, " << plants_total << " stems, " << stemless_total
+           << " stemless plants, " << over_capacity_total << " plants over capacity (" << vision::kMaxPlants
+           << " a frame)";
     if (skipped)
         report << ", " << skipped << " frames skipped";
     report << "\n";

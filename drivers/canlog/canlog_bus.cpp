@@ -27,15 +27,11 @@ CanLogBus::CanLogBus(CanLogOptions options, std::shared_ptr<spdlog::logger> log)
 {
 }
 
-CanLogBus::~CanLogBus()
-{
-    if (file_)
-        flush();
-}
+CanLogBus::~CanLogBus() = default;
 
 bool CanLogBus::open()
 {
-    if (file_)
+    if (file_.is_open())
         return true;
     if (!protocol::valid_interface_name(options_.interface)) {
         log_->error("{}: interface name '{}' cannot be written in a candump line (1..15 characters, no "
@@ -43,14 +39,10 @@ bool CanLogBus::open()
                     name_, options_.interface);
         return false;
     }
-    std::FILE* f = std::fopen(options_.path.c_str(), options_.append ? "ae" : "we");
-    if (f == nullptr) {
-        const int e = errno;
+    if (const int e = file_.open(options_.path.c_str(), options_.append); e != 0) {
         log_->error("{}: cannot open {}: {} (errno {})", name_, options_.path.string(), std::strerror(e), e);
         return false;
     }
-    file_.reset(f);
-    unflushed_ = 0;
     log_->info("{}: logging frames as {} ({} timestamps)", name_, options_.interface,
                options_.clock == CanLogOptions::Clock::realtime ? "CLOCK_REALTIME" : "CLOCK_MONOTONIC");
     return true;
@@ -62,7 +54,7 @@ SendResult CanLogBus::send(const protocol::CanFrame& frame, std::int64_t deadlin
         deadline_misses_.fetch_add(1, std::memory_order_relaxed);
         return SendResult::deadline_passed;
     }
-    if (!file_) {
+    if (!file_.is_open()) {
         errors_.fetch_add(1, std::memory_order_relaxed);
         return SendResult::error;
     }
@@ -77,32 +69,17 @@ SendResult CanLogBus::send(const protocol::CanFrame& frame, std::int64_t deadlin
         return SendResult::error;
     }
     line[n] = '\n';
-    if (std::fwrite(line.data(), 1, n + 1, file_.get()) != n + 1) {
-        const int e = errno;
+    if (const int e = file_.write({line.data(), n + 1}); e != 0) {
         errors_.fetch_add(1, std::memory_order_relaxed);
-        log_->error("{}: write failed: {} (errno {})", name_, std::strerror(e), e);
-        std::clearerr(file_.get());
+        // Logged once: a full disk fails every line after the first.
+        if (!write_error_logged_)
+            log_->error("{}: write failed: {} (errno {}); frames that cannot be written are counted as bus errors",
+                        name_, std::strerror(e), e);
+        write_error_logged_ = true;
         return SendResult::error;
     }
     sent_.fetch_add(1, std::memory_order_relaxed);
-    if (++unflushed_ >= options_.flush_every)
-        flush();
     return SendResult::sent;
-}
-
-bool CanLogBus::flush()
-{
-    if (!file_)
-        return false;
-    unflushed_ = 0;
-    if (std::fflush(file_.get()) != 0) {
-        const int e = errno;
-        errors_.fetch_add(1, std::memory_order_relaxed);
-        log_->error("{}: flush failed: {} (errno {})", name_, std::strerror(e), e);
-        std::clearerr(file_.get());
-        return false;
-    }
-    return true;
 }
 
 bool CanLogBus::receive(protocol::CanFrame& /*out*/, std::int64_t timeout_ns, std::int64_t& /*t_rx_ns*/)

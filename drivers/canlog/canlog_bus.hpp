@@ -9,21 +9,23 @@
 // CLOCK_MONOTONIC, to line the log up with the daemon's own monotonic times.
 // Deadlines are CLOCK_MONOTONIC like every CanBus (see can_bus.hpp).
 //
-// The file is opened (truncated, or appended to) by open(), written through a
-// stdio buffer, flushed every `flush_every` lines and when the bus is
-// destroyed. receive() has nothing to deliver: it waits out its timeout and
-// returns false. One thread drives it; counters() from any thread.
+// The file is opened (truncated, or appended to) by open(), and each frame is
+// one line written with one write(2) (base::RecordFile): a frame send()
+// reports as sent is in the file, a kill tears no line, and a write that
+// fails (a full disk: ENOSPC) is the send's error, counted like a bus error.
+// receive() has nothing to deliver: it waits out its timeout and returns
+// false. One thread drives it; counters() from any thread.
 #pragma once
 
 #include <atomic>
 #include <cstdint>
-#include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <string>
 
 #include <spdlog/logger.h>
 
+#include "stemd/base/record_file.hpp"
 #include "stemd/drivers/can_bus.hpp"
 
 namespace stemd::drivers {
@@ -33,13 +35,12 @@ struct CanLogOptions {
     std::string interface = "can0";  // the interface name written in each line
     enum class Clock : std::uint8_t { realtime, monotonic } clock = Clock::realtime;
     bool append = false;             // false: truncate at open()
-    std::uint32_t flush_every = 64;  // lines; 0 or 1 = flush after every line
 };
 
 class CanLogBus final : public CanBus {
 public:
     CanLogBus(CanLogOptions options, std::shared_ptr<spdlog::logger> log);
-    ~CanLogBus() override;  // flushes and closes
+    ~CanLogBus() override;
     CanLogBus(const CanLogBus&) = delete;
     CanLogBus& operator=(const CanLogBus&) = delete;
 
@@ -53,19 +54,15 @@ public:
     using CanBus::receive;
     bool receive(protocol::CanFrame& out, std::int64_t timeout_ns, std::int64_t& t_rx_ns) override;
     CanBusCounters counters() const override;
-
-    bool flush();
+    // Frames that could not be written: the log is incomplete.
+    bool output_lost() const override { return errors_.load(std::memory_order_relaxed) > 0; }
 
 private:
-    struct FileCloser {
-        void operator()(std::FILE* f) const { std::fclose(f); }
-    };
-
     const CanLogOptions options_;
     const std::shared_ptr<spdlog::logger> log_;
     const std::string name_;
-    std::unique_ptr<std::FILE, FileCloser> file_;
-    std::uint32_t unflushed_ = 0;
+    base::RecordFile file_;
+    bool write_error_logged_ = false;
 
     std::atomic<std::uint64_t> sent_{0};
     std::atomic<std::uint64_t> deadline_misses_{0};

@@ -6,14 +6,12 @@
 #include <unistd.h>
 
 #include <cerrno>
-#include <charconv>
 #include <cstring>
 #include <limits>
 #include <system_error>
 
 #include <opencv2/imgcodecs.hpp>
 
-#include "stemd/io/csv.hpp"
 #include "stemd/io/recording.hpp"
 #include "stemd/base/clock.hpp"
 #include "stemd/base/unique_fd.hpp"
@@ -74,62 +72,32 @@ bool ReplaySource::open()
 
 bool ReplaySource::read_frames_csv()
 {
-    const auto csv_path = options_.dir / "frames.csv";
+    // The tools' reader and rules (header, t_ns increasing with bounded
+    // gaps, odometer): the pacing arithmetic below relies on them.
     std::string error;
-    const auto table = io::read_csv(csv_path, error);
-    if (!table) {
+    const auto recording = io::read_recording(options_.dir, error);
+    if (!recording) {
         log_->error("{}: {}", name_, error);
         return false;
     }
-    // Columns by name: extra columns (odom_mm, ...) are tolerated.
-    const int t_col = table->column("t_ns");
-    const int rgb_col = table->column("rgb");
-    const int nir_col = table->column("nir");
-    const int mask_col = table->column("mask");
-    const int odom_col = table->column(io::kFramesCsvOdomColumn);
-    const int class_col = table->column(io::kFramesCsvClassColumn);
-    if (t_col < 0 || (rgb_col < 0 && mask_col < 0)) {
-        log_->error("{}:1: header needs t_ns and rgb (or mask) columns", csv_path.string());
+    if (recording->frames.empty()) {
+        log_->error("{}: no frames", (options_.dir / "frames.csv").string());
         return false;
     }
-    auto resolve = [&](const std::vector<std::string>& fields, int col) {
-        if (col < 0 || fields[static_cast<std::size_t>(col)].empty())
-            return std::filesystem::path{};
-        return options_.dir / fields[static_cast<std::size_t>(col)];
+    auto resolve = [&](const std::string& relative) {
+        return relative.empty() ? std::filesystem::path{} : recording->resolve(relative);
     };
-    entries_.reserve(table->rows.size());
-    for (const auto& row : table->rows) {
+    entries_.reserve(recording->frames.size());
+    for (const io::RecordingFrame& frame : recording->frames) {
         Entry entry;
-        const std::string& t = row.fields[static_cast<std::size_t>(t_col)];
-        const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), entry.t_ns);
-        if (ec != std::errc() || end != t.data() + t.size()) {
-            log_->error("{}:{}: t_ns '{}' is not an integer", csv_path.string(), row.line, t);
-            return false;
-        }
-        entry.rgb = resolve(row.fields, rgb_col);
-        entry.nir = resolve(row.fields, nir_col);
-        entry.mask = resolve(row.fields, mask_col);
-        entry.plant_class = resolve(row.fields, class_col);
-        entry.odom_mm = std::numeric_limits<double>::quiet_NaN();
-        if (odom_col >= 0) {
-            const std::string& odom = row.fields[static_cast<std::size_t>(odom_col)];
-            if (!odom.empty() && !io::parse_odom_mm(odom, entry.odom_mm)) {
-                log_->error("{}:{}: odom_mm '{}' is not a finite number", csv_path.string(), row.line, odom);
-                return false;
-            }
-        }
-        if (entry.rgb.empty() && entry.mask.empty()) {
-            log_->error("{}:{}: a frame needs an rgb or a mask path", csv_path.string(), row.line);
-            return false;
-        }
-        entry.name = rgb_col >= 0 && !row.fields[static_cast<std::size_t>(rgb_col)].empty()
-            ? row.fields[static_cast<std::size_t>(rgb_col)]
-            : row.fields[static_cast<std::size_t>(mask_col)];
+        entry.t_ns = frame.t_ns;
+        entry.rgb = resolve(frame.rgb);
+        entry.nir = resolve(frame.nir);
+        entry.mask = resolve(frame.mask);
+        entry.plant_class = resolve(frame.plant_class);
+        entry.odom_mm = frame.odom_mm.value_or(std::numeric_limits<double>::quiet_NaN());
+        entry.name = !frame.rgb.empty() ? frame.rgb : frame.mask;
         entries_.push_back(std::move(entry));
-    }
-    if (entries_.empty()) {
-        log_->error("{}: no frames", csv_path.string());
-        return false;
     }
     return true;
 }
@@ -139,11 +107,17 @@ bool ReplaySource::preload_all()
     // Every plane a recording has is decoded, since which ones the pipeline
     // uses is the frame's business; a corrupt one marks its frame.
     for (Entry& entry : entries_) {
+        entry.preload_fault = Entry::Fault::none;
         auto load = [&](const std::filesystem::path& path, int flags, cv::Mat& out) {
             if (path.empty())
                 return true;
-            if (!read_file(path))
+            if (!read_file(path)) {
+                entry.preload_fault = Entry::Fault::corrupt;
                 return false;
+            }
+            if (!header_fits(path, options_.frame_size, false, &entry.preload_fault))
+                return false;
+            entry.preload_fault = Entry::Fault::corrupt;
             try {
                 out = cv::imdecode(file_buffer_, flags);
             } catch (const cv::Exception& e) {
@@ -154,12 +128,11 @@ bool ReplaySource::preload_all()
                 log_->warn("{}: cannot decode (corrupt or not an image); it will be skipped", path.string());
                 return false;
             }
+            entry.preload_fault = Entry::Fault::none;
             return true;
         };
-        entry.preload_failed = !(load(entry.rgb, kColorFlags, entry.bgr_data) &&
-                                 load(entry.nir, kGreyFlags, entry.nir_data) &&
-                                 load(entry.mask, kGreyFlags, entry.mask_data) &&
-                                 load(entry.plant_class, kGreyFlags, entry.class_data));
+        load(entry.rgb, kColorFlags, entry.bgr_data) && load(entry.nir, kGreyFlags, entry.nir_data) &&
+            load(entry.mask, kGreyFlags, entry.mask_data) && load(entry.plant_class, kGreyFlags, entry.class_data);
     }
     return true;
 }
@@ -212,8 +185,16 @@ NextStatus ReplaySource::next(Frame& into, std::chrono::nanoseconds timeout)
             base::sleep_until_ns(now + timeout.count());
             return NextStatus::timeout;
         }
-        if (due > now)
+        if (due > now) {
             base::sleep_until_ns(due);
+        } else {
+            const std::int64_t lateness_ns = now - due;
+            if (lateness_ns > SourceCounters::kLateToleranceNs)
+                late_.fetch_add(1, std::memory_order_relaxed);
+            // One writer (this thread): load-compare-store is enough.
+            if (lateness_ns > worst_lateness_ns_.load(std::memory_order_relaxed))
+                worst_lateness_ns_.store(lateness_ns, std::memory_order_relaxed);
+        }
     }
     ++index_;
     if (!fill(entry, into))
@@ -238,8 +219,8 @@ bool ReplaySource::fill(const Entry& entry, Frame& into)
                             {entry.nir, entry.nir_data, kGreyFlags, into.nir},
                             {entry.mask, entry.mask_data, kGreyFlags, into.mask}};
     into.has_class_map = false;
-    if (options_.preload && entry.preload_failed) {
-        corrupt_.fetch_add(1, std::memory_order_relaxed);
+    if (options_.preload && entry.preload_fault != Entry::Fault::none) {
+        (entry.preload_fault == Entry::Fault::bad_size ? bad_size_ : corrupt_).fetch_add(1, std::memory_order_relaxed);
         return false;
     }
     auto fill_plane = [&](const Plane& p) {
@@ -303,12 +284,34 @@ bool ReplaySource::read_file(const std::filesystem::path& path)
     return ok;
 }
 
+bool ReplaySource::header_fits(const std::filesystem::path& path, cv::Size expected, bool count, Entry::Fault* fault)
+{
+    // Before decoding: a small file may declare a huge image, which the
+    // decoder would allocate in full only to be refused afterwards.
+    std::string why;
+    const io::HeaderCheck check = io::check_image_header(file_buffer_, expected, why);
+    if (check == io::HeaderCheck::ok)
+        return true;
+    const bool bad_size = check == io::HeaderCheck::bad_size;
+    if (bad_size)
+        log_->warn("{}: {}; skipped, not decoded", path.string(), why);
+    else
+        log_->warn("{}: cannot decode: {}; skipped", path.string(), why);
+    if (count)
+        (bad_size ? bad_size_ : corrupt_).fetch_add(1, std::memory_order_relaxed);
+    if (fault != nullptr)
+        *fault = bad_size ? Entry::Fault::bad_size : Entry::Fault::corrupt;
+    return false;
+}
+
 bool ReplaySource::decode_into(const std::filesystem::path& path, int imread_flags, cv::Mat& plane)
 {
     if (!read_file(path)) {
         corrupt_.fetch_add(1, std::memory_order_relaxed);
         return false;
     }
+    if (!header_fits(path, plane.size(), true, nullptr))
+        return false;
     // Decoded into a fresh Mat, then copied into the slot. Decoding straight
     // into the slot (imdecode's `dst`) cannot be told apart from a failure in
     // OpenCV 4.6: with no decoder or a bad header it returns `dst` untouched,
@@ -340,7 +343,9 @@ SourceCounters ReplaySource::counters() const
     return {.delivered = delivered_.load(std::memory_order_relaxed),
             .corrupt = corrupt_.load(std::memory_order_relaxed),
             .bad_size = bad_size_.load(std::memory_order_relaxed),
-            .loops = loops_.load(std::memory_order_relaxed)};
+            .loops = loops_.load(std::memory_order_relaxed),
+            .late = late_.load(std::memory_order_relaxed),
+            .worst_lateness_ms = static_cast<double>(worst_lateness_ns_.load(std::memory_order_relaxed)) / 1e6};
 }
 
 }  // namespace stemd::drivers

@@ -39,6 +39,10 @@ struct ReplayOptions {
     enum class Pacing : std::uint8_t { recorded, fast } pacing = Pacing::recorded;
     bool loop = false;
     bool preload = false;   // decode every frame in open(); next() is then a copy
+    // The frame slots' size. Each image's header is checked before it is
+    // decoded: other sizes are counted (bad_size) and never decoded. Empty:
+    // preload checks only io::kMaxImageSidePx (next() checks the slot's size).
+    cv::Size frame_size{};
 };
 
 class ReplaySource final : public FrameSource {
@@ -65,7 +69,9 @@ private:
         std::filesystem::path rgb, nir, mask, plant_class;   // resolved; empty when not recorded
         double odom_mm = 0;                       // NaN when not recorded
         cv::Mat bgr_data, nir_data, mask_data, class_data;   // preload only
-        bool preload_failed = false;              // preload only: corrupt, skipped every pass
+        // Preload only: a plane could not be loaded; the frame is skipped
+        // (and counted as this) every pass.
+        enum class Fault : std::uint8_t { none, corrupt, bad_size } preload_fault = Fault::none;
     };
 
     bool read_frames_csv();
@@ -74,6 +80,9 @@ private:
     // the file is unreadable, corrupt, or not the plane's size and type.
     bool decode_into(const std::filesystem::path& path, int imread_flags, cv::Mat& plane);
     bool read_file(const std::filesystem::path& path);
+    // file_buffer_ (read from `path`) against `expected` before decoding;
+    // false logged, and counted unless `count` is false.
+    bool header_fits(const std::filesystem::path& path, cv::Size expected, bool count, Entry::Fault* fault);
     bool fill(const Entry& entry, Frame& into);
     // Recorded pacing: when the entry at index_ is due, CLOCK_MONOTONIC ns.
     std::int64_t due_ns(const Entry& entry) const;
@@ -93,6 +102,8 @@ private:
     std::atomic<std::uint64_t> corrupt_{0};
     std::atomic<std::uint64_t> bad_size_{0};
     std::atomic<std::uint64_t> loops_{0};
+    std::atomic<std::uint64_t> late_{0};
+    std::atomic<std::int64_t> worst_lateness_ns_{0};
 };
 
 }  // namespace stemd::drivers

@@ -1,8 +1,11 @@
 #include "stemd/io/recording.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
+#include <fstream>
+#include <iterator>
 #include <system_error>
 
 #include <opencv2/core.hpp>
@@ -56,6 +59,10 @@ std::optional<Recording> read_recording(const std::filesystem::path& dir, std::s
     }
     Recording rec;
     rec.dir = dir;
+    int previous_line = 0;   // 0: no frame yet
+    std::int64_t previous_t_ns = 0;
+    std::optional<double> last_odom_mm;
+    int last_odom_line = 0;
     for (const auto& row : table->rows) {
         const std::string where = csv_path.string() + ":" + std::to_string(row.line) + ": ";
         RecordingFrame frame;
@@ -63,6 +70,23 @@ std::optional<Recording> read_recording(const std::filesystem::path& dir, std::s
         const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), frame.t_ns);
         if (ec != std::errc() || end != t.data() + t.size()) {
             error = where + "t_ns '" + t + "' is not an integer";
+            return std::nullopt;
+        }
+        if (frame.t_ns < 0) {
+            error = where + "t_ns " + t + " is negative (a capture time is CLOCK_MONOTONIC, never below 0)";
+            return std::nullopt;
+        }
+        if (previous_line > 0 && frame.t_ns <= previous_t_ns) {
+            error = where + "t_ns " + t + (frame.t_ns == previous_t_ns ? " repeats" : " is before") + " line " +
+                    std::to_string(previous_line) + "'s " + std::to_string(previous_t_ns) +
+                    " (t_ns must increase from frame to frame)";
+            return std::nullopt;
+        }
+        // Both are >= 0 here, so the difference cannot overflow.
+        if (previous_line > 0 && frame.t_ns - previous_t_ns > kMaxFrameGapNs) {
+            error = where + "t_ns " + t + " is " + std::to_string((frame.t_ns - previous_t_ns) / 1'000'000'000) +
+                    " s after line " + std::to_string(previous_line) + "'s (at most " +
+                    std::to_string(kMaxFrameGapNs / 1'000'000'000) + " s between frames)";
             return std::nullopt;
         }
         frame.rgb = row.fields[1];
@@ -79,14 +103,174 @@ std::optional<Recording> read_recording(const std::filesystem::path& dir, std::s
                 error = where + "odom_mm '" + odom + "' is not a finite number";
                 return std::nullopt;
             }
-            if (!odom.empty())
+            if (!odom.empty()) {
+                if (std::abs(value) > kMaxOdomMm) {
+                    error = where + "odom_mm " + odom + " is beyond +-1e9 mm (1000 km)";
+                    return std::nullopt;
+                }
+                if (last_odom_mm && value < *last_odom_mm) {
+                    error = where + "odom_mm " + odom + " is less than line " + std::to_string(last_odom_line) +
+                            "'s (the odometer never decreases)";
+                    return std::nullopt;
+                }
                 frame.odom_mm = value;
+                last_odom_mm = value;
+                last_odom_line = row.line;
+            }
         }
         if (class_col >= 0)
             frame.plant_class = row.fields[static_cast<std::size_t>(class_col)];
+        previous_t_ns = frame.t_ns;
+        previous_line = row.line;
         rec.frames.push_back(std::move(frame));
     }
     return rec;
+}
+
+namespace {
+
+std::uint32_t big_endian(const unsigned char* p, int bytes)
+{
+    std::uint32_t v = 0;
+    for (int i = 0; i < bytes; ++i)
+        v = v << 8 | p[i];
+    return v;
+}
+
+std::int64_t little_endian(const unsigned char* p, int bytes)
+{
+    std::uint32_t v = 0;
+    for (int i = bytes - 1; i >= 0; --i)
+        v = v << 8 | p[i];
+    // Sign-extend: BMP heights are signed (negative: stored top-down).
+    const int shift = 32 - 8 * bytes;
+    return static_cast<std::int32_t>(v << shift) >> shift;
+}
+
+std::optional<cv::Size> png_size(std::span<const unsigned char> b, std::string& why)
+{
+    // Signature (8), then the first chunk, IHDR: length (4), type (4), width, height.
+    if (b.size() < 24 || std::string_view(reinterpret_cast<const char*>(b.data()) + 12, 4) != "IHDR") {
+        why = "PNG without an IHDR header";
+        return std::nullopt;
+    }
+    const std::uint32_t w = big_endian(b.data() + 16, 4), h = big_endian(b.data() + 20, 4);
+    if (w == 0 || h == 0 || w > 0x7fffffff || h > 0x7fffffff) {
+        why = "PNG header declares " + std::to_string(w) + "x" + std::to_string(h);
+        return std::nullopt;
+    }
+    return cv::Size(static_cast<int>(w), static_cast<int>(h));
+}
+
+std::optional<cv::Size> jpeg_size(std::span<const unsigned char> b, std::string& why)
+{
+    // Marker segments up to the first start-of-frame (SOF0..SOF15, but not
+    // DHT C4, JPG C8, DAC CC), whose payload holds precision, height, width.
+    std::size_t i = 2;
+    while (i + 4 <= b.size()) {
+        if (b[i] != 0xFF)
+            break;
+        const unsigned char marker = b[i + 1];
+        if (marker == 0xFF) {   // fill byte
+            ++i;
+            continue;
+        }
+        if (marker == 0x01 || (marker >= 0xD0 && marker <= 0xD7)) {   // no payload
+            i += 2;
+            continue;
+        }
+        const std::size_t length = big_endian(b.data() + i + 2, 2);
+        if (marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC) {
+            if (length < 7 || i + 9 > b.size())
+                break;
+            const int h = static_cast<int>(big_endian(b.data() + i + 5, 2));
+            const int w = static_cast<int>(big_endian(b.data() + i + 7, 2));
+            if (w == 0 || h == 0)
+                break;
+            return cv::Size(w, h);
+        }
+        if (marker == 0xDA || marker == 0xD9 || length < 2)
+            break;   // scan data or the end before any frame header
+        i += 2 + length;
+    }
+    why = "JPEG without a readable frame header";
+    return std::nullopt;
+}
+
+std::optional<cv::Size> bmp_size(std::span<const unsigned char> b, std::string& why)
+{
+    // File header (14), then the DIB header: its size, then the dimensions
+    // (16-bit in the old 12-byte core header, 32-bit in every later one).
+    if (b.size() >= 26) {
+        const std::int64_t dib = little_endian(b.data() + 14, 4);
+        const bool core = dib == 12;
+        const std::int64_t w = little_endian(b.data() + 18, core ? 2 : 4);
+        const std::int64_t h = std::abs(little_endian(b.data() + (core ? 20 : 22), core ? 2 : 4));
+        if (w > 0 && h > 0)
+            return cv::Size(static_cast<int>(w), static_cast<int>(h));
+    }
+    why = "BMP without a readable header";
+    return std::nullopt;
+}
+
+std::optional<cv::Size> pnm_size(std::span<const unsigned char> b, std::string& why)
+{
+    // "P1".."P6", then width and height as decimals, separated by
+    // whitespace and '#' comments.
+    std::size_t i = 2;
+    long long values[2] = {0, 0};
+    for (long long& v : values) {
+        while (i < b.size() && (std::isspace(b[i]) || b[i] == '#')) {
+            if (b[i] == '#')
+                while (i < b.size() && b[i] != '\n')
+                    ++i;
+            else
+                ++i;
+        }
+        int digits = 0;
+        for (; i < b.size() && std::isdigit(b[i]) && digits < 10; ++i, ++digits)
+            v = v * 10 + (b[i] - '0');
+        if (digits == 0 || (i < b.size() && std::isdigit(b[i]))) {
+            why = "PNM without a readable header";
+            return std::nullopt;
+        }
+    }
+    if (values[0] <= 0 || values[1] <= 0 || values[0] > 0x7fffffff || values[1] > 0x7fffffff) {
+        why = "PNM header declares " + std::to_string(values[0]) + "x" + std::to_string(values[1]);
+        return std::nullopt;
+    }
+    return cv::Size(static_cast<int>(values[0]), static_cast<int>(values[1]));
+}
+
+}  // namespace
+
+std::optional<cv::Size> declared_image_size(std::span<const unsigned char> b, std::string& why)
+{
+    static constexpr unsigned char kPng[] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+    if (b.size() >= sizeof kPng && std::equal(std::begin(kPng), std::end(kPng), b.begin()))
+        return png_size(b, why);
+    if (b.size() >= 3 && b[0] == 0xFF && b[1] == 0xD8 && b[2] == 0xFF)
+        return jpeg_size(b, why);
+    if (b.size() >= 2 && b[0] == 'B' && b[1] == 'M')
+        return bmp_size(b, why);
+    if (b.size() >= 2 && b[0] == 'P' && b[1] >= '1' && b[1] <= '6')
+        return pnm_size(b, why);
+    why = "not a PNG, JPEG, BMP or PNM image";
+    return std::nullopt;
+}
+
+HeaderCheck check_image_header(std::span<const unsigned char> bytes, cv::Size expected, std::string& why)
+{
+    const auto size = declared_image_size(bytes, why);
+    if (!size)
+        return HeaderCheck::unreadable;
+    const bool wrong_size = !expected.empty() && *size != expected;
+    if (!wrong_size && size->width <= kMaxImageSidePx && size->height <= kMaxImageSidePx)
+        return HeaderCheck::ok;
+    why = "declares " + std::to_string(size->width) + "x" + std::to_string(size->height) +
+          (wrong_size ? ", the frames are " + std::to_string(expected.width) + "x" + std::to_string(expected.height)
+                      : ", more than " + std::to_string(kMaxImageSidePx) + " px a side");
+    return HeaderCheck::bad_size;
 }
 
 bool load_image(const std::filesystem::path& path, int imread_flags, cv::Mat& out, std::string& error)
@@ -96,10 +280,28 @@ bool load_image(const std::filesystem::path& path, int imread_flags, cv::Mat& ou
         error = path.string() + ": no such file";
         return false;
     }
+    std::vector<unsigned char> bytes;
+    {
+        std::ifstream in(path, std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+        if (in.bad()) {
+            error = path.string() + ": cannot read";
+            return false;
+        }
+    }
+    std::string why;
+    switch (check_image_header(bytes, {}, why)) {
+    case HeaderCheck::ok: break;
+    case HeaderCheck::unreadable: error = path.string() + ": cannot decode: " + why; return false;
+    case HeaderCheck::bad_size: error = path.string() + ": " + why + "; not decoded"; return false;
+    }
     try {
-        out = cv::imread(path.string(), imread_flags);
+        out = cv::imdecode(bytes, imread_flags);
     } catch (const cv::Exception& e) {
         error = path.string() + ": cannot decode: " + e.what();
+        return false;
+    } catch (const std::bad_alloc&) {
+        error = path.string() + ": cannot decode: out of memory";
         return false;
     }
     if (out.empty()) {

@@ -30,8 +30,6 @@ std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, co
         options.path = config.can_log_file == "-" ? "/dev/stdout" : config.can_log_file;
         options.clock = config.can_log_monotonic ? drivers::CanLogOptions::Clock::monotonic
                                                  : drivers::CanLogOptions::Clock::realtime;
-        // Every line at once on a terminal or pipe; batched into a file.
-        options.flush_every = config.can_log_file == "-" ? 1 : 64;
         auto bus = std::make_unique<drivers::CanLogBus>(options, make_logger("canlog"));
         if (!bus->open()) {
             error = "cannot open the CAN log " + options.path.string();

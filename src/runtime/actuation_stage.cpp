@@ -128,10 +128,18 @@ void ActuationStage::poll(std::int64_t now_ns) noexcept
 
 bool ActuationStage::finish() noexcept
 {
+    bool ok = true;
+    if (parts_.bus && parts_.bus->output_lost() && !bus_loss_reported_) {
+        const drivers::CanBusCounters c = parts_.bus->counters();
+        log_->error("{}: {} frames could not be written (sent {}); the CAN log is incomplete", parts_.bus->name(),
+                    c.errors, c.sent);
+        bus_loss_reported_ = true;
+        ok = false;
+    }
     if (!parts_.map)
-        return true;
+        return ok;
     write_retired(tracker_.drain());
-    const bool ok = parts_.map->close() && counters_.map_errors.load(std::memory_order_relaxed) == 0;
+    ok = parts_.map->close() && counters_.map_errors.load(std::memory_order_relaxed) == 0 && ok;
     parts_.map.reset();
     return ok;
 }

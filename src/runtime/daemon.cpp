@@ -42,10 +42,15 @@ private:
 
 // The class of each plant with a stem: the majority of crop and weed pixels
 // of the class map in a 9x9 window around the stem (the stem itself may lie
-// on soil between leaves); Unknown when there are none.
-void classify_plants(const cv::Mat& class_map, const vision::Detections& detections,
-                     std::array<PlantClass, vision::kMaxPlants>& out)
+// on soil between leaves); Unknown when there are none. Returns the number
+// of plants whose window holds values that are no class (above 2): they are
+// counted rather than the recording refused, since a class map is only seen
+// once its frame is decoded, and the field engineer needs to know the
+// labels are broken while the rest of the run goes on.
+std::uint64_t classify_plants(const cv::Mat& class_map, const vision::Detections& detections,
+                              std::array<PlantClass, vision::kMaxPlants>& out)
 {
+    std::uint64_t bad = 0;
     constexpr int kHalf = 4;
     for (std::size_t i = 0; i < detections.plants.size(); ++i) {
         const vision::Plant& p = detections.plants[i];
@@ -53,16 +58,19 @@ void classify_plants(const cv::Mat& class_map, const vision::Detections& detecti
         if (!p.has_stem)
             continue;
         const int cx = static_cast<int>(std::lround(p.stem.x)), cy = static_cast<int>(std::lround(p.stem.y));
-        int crop = 0, weed = 0;
+        int crop = 0, weed = 0, other = 0;
         for (int y = std::max(cy - kHalf, 0); y <= std::min(cy + kHalf, class_map.rows - 1); ++y) {
             const std::uint8_t* row = class_map.ptr<std::uint8_t>(y);
             for (int x = std::max(cx - kHalf, 0); x <= std::min(cx + kHalf, class_map.cols - 1); ++x) {
                 crop += plant_class_from_value(row[x]) == PlantClass::Crop;
                 weed += plant_class_from_value(row[x]) == PlantClass::Weed;
+                other += row[x] > 2;
             }
         }
         out[i] = weed > crop ? PlantClass::Weed : crop > weed ? PlantClass::Crop : PlantClass::Unknown;
+        bad += other > 0;
     }
+    return bad;
 }
 
 }  // namespace
@@ -289,7 +297,8 @@ void Daemon::processing_loop()
             result->odom_mm = frame->odom_mm;
             result->has_class_map = frame->has_class_map && !frame->plant_class.empty();
             if (result->has_class_map)
-                classify_plants(frame->plant_class, result->detections, result->plant_class);
+                bump(counters_->processing.bad_class,
+                     classify_plants(frame->plant_class, result->detections, result->plant_class));
             bump(counters_->processing.frames);
             counters_->processing.pipeline.record(times.total_ns);
             if (result->detections.status == vision::DetectStatus::ok) {
@@ -373,6 +382,10 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
     s.bad_size = source.bad_size;
     s.failed = counters_->processing.failed.load(std::memory_order_relaxed);
     s.no_vegetation = counters_->processing.no_vegetation.load(std::memory_order_relaxed);
+    s.over_capacity = counters_->processing.plants_over_capacity.load(std::memory_order_relaxed);
+    s.late = source.late;
+    s.worst_lateness_ms = source.worst_lateness_ms;
+    s.bad_class = counters_->processing.bad_class.load(std::memory_order_relaxed);
     if (actuation_) {
         const ActuationCounters& a = actuation_->counters();
         const auto get = [](const std::atomic<std::uint64_t>& c) { return c.load(std::memory_order_relaxed); };

@@ -1,13 +1,13 @@
 #include "stemd/runtime/detection_sink.hpp"
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
+#include <string>
 
 namespace stemd::runtime {
 
 namespace {
-
-constexpr std::size_t kCsvBufferBytes = std::size_t{1} << 20;
 
 // The image column as stemd-detect writes it (io::csv_field), into `out`
 // without allocating: quoted when it holds a comma, a quote or a line break.
@@ -43,15 +43,14 @@ DetectionSink::~DetectionSink()
 bool DetectionSink::open_csv(const std::filesystem::path& path)
 {
     csv_path_ = path;
-    csv_.reset(std::fopen(path.c_str(), "w"));
-    if (!csv_) {
-        log_->error("{}: cannot open for writing: {} (errno {})", path.string(), std::strerror(errno), errno);
+    int err = csv_.open(path.c_str());
+    if (err == 0)
+        err = csv_.write(std::string(kCsvHeader) + "\n");
+    if (err != 0) {
+        log_->error("{}: cannot open for writing: {} (errno {})", path.string(), std::strerror(err), err);
+        csv_.close();
         return false;
     }
-    csv_buffer_ = std::make_unique<char[]>(kCsvBufferBytes);
-    std::setvbuf(csv_.get(), csv_buffer_.get(), _IOFBF, kCsvBufferBytes);
-    std::fputs(kCsvHeader, csv_.get());
-    std::fputc('\n', csv_.get());
     return true;
 }
 
@@ -65,7 +64,7 @@ bool DetectionSink::consume(const FrameResult& result, std::int64_t latency_ns)
         log_->debug("frame {} {}: {} plants ({} from leaves), latency {:.2f} ms, pipeline {:.2f} ms", result.seq,
                     result.name.view(), d.plants.size(), from_leaves, latency_ns / 1e6, result.pipeline_ns / 1e6);
     }
-    if (!csv_ || csv_failed_)
+    if (!csv_.is_open() || csv_failed_)
         return !csv_failed_;
     char image[2 * drivers::FrameName::kCapacity + 3];
     const std::size_t image_len = csv_field(result.name.view(), image, sizeof image);
@@ -83,10 +82,12 @@ bool DetectionSink::consume(const FrameResult& result, std::int64_t latency_ns)
                                     i, p.stem.x, p.stem.y, static_cast<int>(method.size()), method.data(),
                                     p.leaves.size(), p.area_px, static_cast<int>(estimator.size()), estimator.data(),
                                     p.confidence);
-        if (n < 0 || static_cast<std::size_t>(n) >= sizeof line ||
-            std::fwrite(line, 1, static_cast<std::size_t>(n), csv_.get()) != static_cast<std::size_t>(n)) {
+        const int err = n < 0 || static_cast<std::size_t>(n) >= sizeof line
+            ? EOVERFLOW
+            : csv_.write({line, static_cast<std::size_t>(n)});
+        if (err != 0) {
             log_->error("{}: write failed: {} (errno {}); no more detections will be written", csv_path_.string(),
-                        std::strerror(errno), errno);
+                        std::strerror(err), err);
             csv_failed_ = true;
             return false;
         }
@@ -96,18 +97,8 @@ bool DetectionSink::consume(const FrameResult& result, std::int64_t latency_ns)
 
 bool DetectionSink::close()
 {
-    if (!csv_)
-        return !csv_failed_;
-    bool ok = std::fflush(csv_.get()) == 0 && !std::ferror(csv_.get());
-    if (!ok && !csv_failed_)
-        log_->error("{}: write failed: {} (errno {})", csv_path_.string(), std::strerror(errno), errno);
-    if (std::fclose(csv_.release()) != 0) {
-        if (ok)
-            log_->error("{}: close failed: {} (errno {})", csv_path_.string(), std::strerror(errno), errno);
-        ok = false;
-    }
-    csv_buffer_.reset();
-    return ok && !csv_failed_;
+    csv_.close();
+    return !csv_failed_;
 }
 
 }  // namespace stemd::runtime

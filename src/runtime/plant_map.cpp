@@ -1,15 +1,10 @@
 #include "stemd/runtime/plant_map.hpp"
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 
 namespace stemd::runtime {
-
-namespace {
-
-constexpr std::size_t kBufferBytes = 1 << 20;
-
-}  // namespace
 
 std::string_view to_string(MapReason r)
 {
@@ -38,60 +33,54 @@ PlantMap::~PlantMap()
 bool PlantMap::open(const std::filesystem::path& path)
 {
     path_ = path;
-    std::FILE* f = std::fopen(path.c_str(), "w");
-    if (f == nullptr) {
-        const int err = errno;
+    if (const int err = file_.open(path.c_str()); err != 0) {
         log_->error("{}: cannot create the plant map: {} (errno {})", path.string(), std::strerror(err), err);
         return false;
     }
-    buffer_ = std::make_unique<char[]>(kBufferBytes);
-    std::setvbuf(f, buffer_.get(), _IOFBF, kBufferBytes);
-    file_.reset(f);
     return true;
+}
+
+bool PlantMap::failed(int err)
+{
+    if (!failed_)
+        log_->error("{}: plant map write failed: {} (errno {})", path_.string(), std::strerror(err), err);
+    failed_ = true;
+    return false;
 }
 
 bool PlantMap::write(const actuation::RetiredTrack& t, const MapEntry& e)
 {
-    if (!file_)
+    if (!file_.is_open())
         return true;
     const bool treated = e.reason == MapReason::sent;
-    int n = std::fprintf(file_.get(),
-                         "{\"id\":%d,\"s_mm\":%.1f,\"y_mm\":%.1f,\"class\":\"%.*s\",\"leaves\":%u,\"sightings\":%u,"
-                         "\"first_frame\":%llu,\"last_frame\":%llu,\"treated\":%s,\"reason\":\"%.*s\"",
-                         t.emitted ? static_cast<int>(t.target_id) : -1, t.s_mm, t.y_mm,
-                         static_cast<int>(to_string(t.plant_class).size()), to_string(t.plant_class).data(),
-                         static_cast<unsigned>(t.leaves), static_cast<unsigned>(t.sightings),
-                         static_cast<unsigned long long>(t.first_seq), static_cast<unsigned long long>(t.last_seq),
-                         treated ? "true" : "false", static_cast<int>(to_string(e.reason).size()),
-                         to_string(e.reason).data());
-    if (n >= 0 && e.has_tool)
-        n = std::fprintf(file_.get(), ",\"tool\":%u,\"lane\":%u,\"fire_odom_mm\":%.1f", static_cast<unsigned>(e.tool),
-                         static_cast<unsigned>(e.lane), e.fire_odom_mm);
-    if (n >= 0)
-        n = std::fputs("}\n", file_.get());
-    if (n < 0) {
-        if (!failed_) {
-            const int err = errno;
-            log_->error("{}: plant map write failed: {} (errno {})", path_.string(), std::strerror(err), err);
-        }
-        failed_ = true;
-        return false;
-    }
+    char* const line = line_.data();
+    const std::size_t capacity = line_.size();
+    int n = std::snprintf(line, capacity,
+                          "{\"id\":%d,\"s_mm\":%.1f,\"y_mm\":%.1f,\"class\":\"%.*s\",\"leaves\":%u,\"sightings\":%u,"
+                          "\"first_frame\":%llu,\"last_frame\":%llu,\"treated\":%s,\"reason\":\"%.*s\"",
+                          t.emitted ? static_cast<int>(t.target_id) : -1, t.s_mm, t.y_mm,
+                          static_cast<int>(to_string(t.plant_class).size()), to_string(t.plant_class).data(),
+                          static_cast<unsigned>(t.leaves), static_cast<unsigned>(t.sightings),
+                          static_cast<unsigned long long>(t.first_seq), static_cast<unsigned long long>(t.last_seq),
+                          treated ? "true" : "false", static_cast<int>(to_string(e.reason).size()),
+                          to_string(e.reason).data());
+    if (n >= 0 && static_cast<std::size_t>(n) < capacity && e.has_tool)
+        n += std::snprintf(line + n, capacity - static_cast<std::size_t>(n),
+                           ",\"tool\":%u,\"lane\":%u,\"fire_odom_mm\":%.1f", static_cast<unsigned>(e.tool),
+                           static_cast<unsigned>(e.lane), e.fire_odom_mm);
+    if (n >= 0 && static_cast<std::size_t>(n) < capacity)
+        n += std::snprintf(line + n, capacity - static_cast<std::size_t>(n), "}\n");
+    if (n < 0 || static_cast<std::size_t>(n) >= capacity)
+        return failed(EOVERFLOW);   // a 1e300 position would not fit: never written half
+    if (const int err = file_.write({line, static_cast<std::size_t>(n)}); err != 0)
+        return failed(err);
     ++lines_;
     return true;
 }
 
 bool PlantMap::close()
 {
-    if (!file_)
-        return !failed_;
-    std::FILE* f = file_.release();
-    if (std::fclose(f) != 0 && !failed_) {
-        const int err = errno;
-        log_->error("{}: cannot write the plant map: {} (errno {})", path_.string(), std::strerror(err), err);
-        failed_ = true;
-    }
-    buffer_.reset();
+    file_.close();
     return !failed_;
 }
 

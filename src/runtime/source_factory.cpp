@@ -86,6 +86,7 @@ std::unique_ptr<drivers::FrameSource> make_frame_source(const DaemonConfig& conf
     replay.pacing = config.replay_fast ? drivers::ReplayOptions::Pacing::fast : drivers::ReplayOptions::Pacing::recorded;
     replay.loop = config.replay_loop;
     replay.preload = config.replay_preload;
+    replay.frame_size = config.frame_size;
     return std::make_unique<drivers::ReplaySource>(replay, make_logger("replay"));
 }
 

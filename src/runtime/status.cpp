@@ -85,21 +85,33 @@ std::string drops(const StatusSnapshot& now, const StatusSnapshot& before)
     return buf;
 }
 
+// What was seen but not reported, and how far a paced replay fell behind
+// (the worst lateness is the whole run's).
+std::string behind(const StatusSnapshot& now, const StatusSnapshot& before)
+{
+    char buf[128];
+    std::snprintf(buf, sizeof buf, "over_capacity %llu, late %llu (worst %.1f ms)",
+                  static_cast<unsigned long long>(now.over_capacity - before.over_capacity),
+                  static_cast<unsigned long long>(now.late - before.late), now.worst_lateness_ms);
+    return buf;
+}
+
 std::string actuation(const StatusSnapshot& now, const StatusSnapshot& before)
 {
     if (!now.actuation)
         return "";
-    char buf[240];
+    char buf[280];
     std::snprintf(buf, sizeof buf,
                   " | targets %llu, sent %llu, deadline_misses %llu, not_treated %llu, no_odometry %llu, bus_errors %llu, "
-                  "heartbeat_errors %llu",
+                  "heartbeat_errors %llu, bad_class %llu",
                   static_cast<unsigned long long>(now.targets - before.targets),
                   static_cast<unsigned long long>(now.sent - before.sent),
                   static_cast<unsigned long long>(now.deadline_misses - before.deadline_misses),
                   static_cast<unsigned long long>(now.not_treated - before.not_treated),
                   static_cast<unsigned long long>(now.no_odometry - before.no_odometry),
                   static_cast<unsigned long long>(now.bus_errors - before.bus_errors),
-                  static_cast<unsigned long long>(now.heartbeat_errors - before.heartbeat_errors));
+                  static_cast<unsigned long long>(now.heartbeat_errors - before.heartbeat_errors),
+                  static_cast<unsigned long long>(now.bad_class - before.bad_class));
     return buf;
 }
 
@@ -117,22 +129,23 @@ std::string format_status(const StatusSnapshot& now, const StatusSnapshot& befor
 {
     const double dt_s = std::max(1e-9, static_cast<double>(now.t_ns - before.t_ns) / 1e9);
     char buf[96];
-    std::snprintf(buf, sizeof buf, "in %.1f fps, out %.1f fps, bare soil %llu | ",
+    std::snprintf(buf, sizeof buf, "in %.1f fps, out %.1f fps, bare soil %llu, ",
                   static_cast<double>(now.frames_in - before.frames_in) / dt_s,
                   static_cast<double>(now.frames_out - before.frames_out) / dt_s,
                   static_cast<unsigned long long>(now.no_vegetation - before.no_vegetation));
-    return buf + drops(now, before) + actuation(now, before) + " | " + durations(now);
+    return buf + behind(now, before) + " | " + drops(now, before) + actuation(now, before) + " | " + durations(now);
 }
 
 std::string format_summary(const StatusSnapshot& end, double run_s)
 {
     char buf[200];
-    std::snprintf(buf, sizeof buf, "%llu frames in, %llu out, %llu stems in %.2f s (%.1f fps out), %llu bare soil | ",
+    std::snprintf(buf, sizeof buf, "%llu frames in, %llu out, %llu stems in %.2f s (%.1f fps out), %llu bare soil, ",
                   static_cast<unsigned long long>(end.frames_in), static_cast<unsigned long long>(end.frames_out),
                   static_cast<unsigned long long>(end.stems_out), run_s,
                   run_s > 0 ? static_cast<double>(end.frames_out) / run_s : 0.0,
                   static_cast<unsigned long long>(end.no_vegetation));
-    return buf + drops(end, StatusSnapshot{}) + actuation(end, StatusSnapshot{}) + " | " + durations(end);
+    return buf + behind(end, StatusSnapshot{}) + " | " + drops(end, StatusSnapshot{}) +
+           actuation(end, StatusSnapshot{}) + " | " + durations(end);
 }
 
 }  // namespace stemd::runtime

@@ -18,7 +18,7 @@ fail() { echo "FAIL: $*" >&2; exit 1; }
 [ "$(head -1 "$tmp/pred.csv")" = "image,plant,x,y,method,leaves,area_px,estimator,confidence" ] \
   || fail "csv header: $(head -1 "$tmp/pred.csv")"
 rows=$(($(wc -l <"$tmp/pred.csv") - 1))
-reported=$(sed -n 's/^3 frames, \([0-9]*\) stems, [0-9]* stemless plants$/\1/p' "$tmp/out.txt")
+reported=$(sed -n 's/^3 frames, \([0-9]*\) stems, [0-9]* stemless plants, 0 plants over capacity (256 a frame)$/\1/p' "$tmp/out.txt")
 [ -n "$reported" ] && [ "$rows" -eq "$reported" ] || fail "csv has $rows rows, summary says '$reported'"
 [ "$rows" -gt 0 ] || fail "no plants found"
 # Image names as written in frames.csv; methods only leaves|com; x,y numbers.
@@ -69,7 +69,7 @@ set +e
 set -e
 [ $rc -eq 1 ] || fail "corrupt frame exited $rc"
 grep -q "skipped frame: .*000001.png" "$tmp/b.err" || fail "no skip message: $(cat "$tmp/b.err")"
-grep -q "^2 frames, .* plants, 1 frames skipped$" "$tmp/b.out" || fail "summary: $(tail -1 "$tmp/b.out")"
+grep -q "^2 frames, .* plants over capacity (256 a frame), 1 frames skipped$" "$tmp/b.out" || fail "summary: $(tail -1 "$tmp/b.out")"
 ! grep -q "000001.png" "$tmp/broken.csv" || fail "corrupt frame has rows"
 grep -q "000002.png" "$tmp/broken.csv" || fail "frame after the corrupt one missing"
 

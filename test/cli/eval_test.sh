@@ -155,7 +155,7 @@ expect_error "stemd-eval: --tol-mm does not apply to --iou (see stemd-eval --hel
 rm "$tmp/pred/f1.png"
 expect_error "stemd-eval: prediction $tmp/pred/f1.png: no such file" --iou "$tmp/pred" "$tmp/rec"
 echo "not an image" >"$tmp/pred/f1.png"
-expect_error "stemd-eval: prediction $tmp/pred/f1.png: cannot decode (corrupt or not an image)" \
+expect_error "stemd-eval: prediction $tmp/pred/f1.png: cannot decode: not a PNG, JPEG, BMP or PNM image" \
   --iou "$tmp/pred" "$tmp/rec"
 
 echo "eval_test: all passed"

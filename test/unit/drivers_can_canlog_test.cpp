@@ -1,5 +1,5 @@
 // The canlog CAN bus: lines written for sent frames read back exactly with the
-// actuation candump parser; timestamps; flushing; deadlines; receive timeout.
+// actuation candump parser; timestamps; one write per line, write failures; deadlines; receive timeout.
 #include <gtest/gtest.h>
 
 #include <time.h>
@@ -65,13 +65,12 @@ std::vector<protocol::CanFrame> sample_frames()
     return frames;
 }
 
-CanLogOptions to(const fs::path& path, const char* interface = "can0", std::uint32_t flush_every = 64,
+CanLogOptions to(const fs::path& path, const char* interface = "can0",
                  CanLogOptions::Clock clock = CanLogOptions::Clock::realtime)
 {
     CanLogOptions o;
     o.path = path;
     o.interface = interface;
-    o.flush_every = flush_every;
     o.clock = clock;
     return o;
 }
@@ -102,7 +101,7 @@ TEST_F(CanLogTest, SentFramesReadBackExactlyWithTheCandumpParser)
             EXPECT_EQ(bus.send(f, stemd::base::monotonic_ns() + kSecond), SendResult::sent);
         EXPECT_EQ(bus.counters().sent, frames.size());
         EXPECT_EQ(bus.counters().errors, 0U);
-    }  // destroyed: flushed
+    }
     const std::uint64_t t1 = now_us(CLOCK_REALTIME);
     const auto lines = read_lines(path);
     ASSERT_EQ(lines.size(), frames.size());
@@ -129,7 +128,7 @@ TEST_F(CanLogTest, DefaultInterfaceIsCan0AndMonotonicClockIsAvailable)
     const auto path = dir_ / "mono.log";
     const std::uint64_t t0 = now_us(CLOCK_MONOTONIC);
     {
-        CanLogBus bus(to(path, "can0", 64, CanLogOptions::Clock::monotonic), quiet_logger());
+        CanLogBus bus(to(path, "can0", CanLogOptions::Clock::monotonic), quiet_logger());
         ASSERT_TRUE(bus.open());
         ASSERT_EQ(bus.send(sample_frames()[0], stemd::base::monotonic_ns() + kSecond), SendResult::sent);
     }
@@ -148,7 +147,7 @@ TEST_F(CanLogTest, DeadlineAlreadyPassedIsNotWrittenAndCounted)
 {
     const auto path = dir_ / "late.log";
     {
-        CanLogBus bus(to(path, "can0", 1), quiet_logger());
+        CanLogBus bus(to(path), quiet_logger());
         ASSERT_TRUE(bus.open());
         EXPECT_EQ(bus.send(sample_frames()[0], stemd::base::monotonic_ns() - 1), SendResult::deadline_passed);
         EXPECT_EQ(bus.send(sample_frames()[0], stemd::base::monotonic_ns()), SendResult::deadline_passed);
@@ -160,20 +159,29 @@ TEST_F(CanLogTest, DeadlineAlreadyPassedIsNotWrittenAndCounted)
     EXPECT_TRUE(read_lines(path).empty());
 }
 
-TEST_F(CanLogTest, FlushesEveryNLines)
+TEST_F(CanLogTest, EverySentFrameIsInTheFileWhenSendReturns)
 {
-    const auto path = dir_ / "flush.log";
-    CanLogBus bus(to(path, "can0", 3), quiet_logger());
+    const auto path = dir_ / "lines.log";
+    CanLogBus bus(to(path), quiet_logger());
     ASSERT_TRUE(bus.open());
     const auto f = sample_frames()[0];
-    for (int i = 0; i < 2; ++i)
+    for (std::size_t i = 1; i <= 3; ++i) {
         ASSERT_EQ(bus.send(f, stemd::base::monotonic_ns() + kSecond), SendResult::sent);
-    EXPECT_EQ(read_lines(path).size(), 0U);  // still in the stdio buffer
-    ASSERT_EQ(bus.send(f, stemd::base::monotonic_ns() + kSecond), SendResult::sent);
-    EXPECT_EQ(read_lines(path).size(), 3U);
-    ASSERT_EQ(bus.send(f, stemd::base::monotonic_ns() + kSecond), SendResult::sent);
-    EXPECT_TRUE(bus.flush());
-    EXPECT_EQ(read_lines(path).size(), 4U);
+        EXPECT_EQ(read_lines(path).size(), i) << "nothing waits in a buffer";
+    }
+    EXPECT_FALSE(bus.output_lost());
+}
+
+TEST_F(CanLogTest, AFullDiskIsABusErrorAndTheLogIsLost)
+{
+    CanLogBus bus(to("/dev/full"), quiet_logger());
+    ASSERT_TRUE(bus.open());
+    const auto f = sample_frames()[0];
+    for (int i = 0; i < 3; ++i)
+        EXPECT_EQ(bus.send(f, stemd::base::monotonic_ns() + kSecond), SendResult::error);
+    EXPECT_EQ(bus.counters().errors, 3U);
+    EXPECT_EQ(bus.counters().sent, 0U);
+    EXPECT_TRUE(bus.output_lost());
 }
 
 TEST_F(CanLogTest, ReceiveWaitsOutItsTimeoutAndReturnsFalse)

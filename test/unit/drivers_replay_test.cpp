@@ -6,12 +6,16 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <algorithm>
+#include <cstring>
 #include <random>
+#include <thread>
 
 #include <opencv2/imgcodecs.hpp>
 #include <spdlog/sinks/null_sink.h>
 #include <spdlog/spdlog.h>
 
+#include "forged_png.hpp"
 #include "replay/replay_source.hpp"
 
 namespace fs = std::filesystem;
@@ -307,4 +311,79 @@ TEST_F(ReplayTest, BadOdometerFailsToOpen)
     std::ofstream(dir_ / "frames.csv") << "t_ns,rgb,nir,mask,odom_mm\n0,a.png,,,nan\n";
     auto nan = make(ReplayOptions::Pacing::fast, false);
     EXPECT_FALSE(nan.open());
+}
+
+TEST_F(ReplayTest, HeadersTheToolsRejectFailToOpen)
+{
+    // One reader for every tool: what stemd-detect and the README refuse,
+    // replay refuses too.
+    for (const char* header : {"t_ns,rgb,nir,mask,speed", "t_ns,rgb", "t_ns,rgb,mask", "t_ns,nir,rgb,mask",
+                               "rgb,t_ns,nir,mask", "t_ns,rgb,nir,mask,odom_mm,odom_mm", "t_ns,rgb,rgb,nir,mask"}) {
+        SCOPED_TRACE(header);
+        write_recording(2, 1'000'000);
+        // Rows with the field count the header asks for, so only the header is at fault.
+        const auto columns = std::count(header, header + std::strlen(header), ',') + 1;
+        std::string rows;
+        for (int i = 0; i < 2; ++i) {
+            rows += std::to_string(i * 1'000'000);
+            for (int c = 1; c < columns; ++c)
+                rows += ",rgb/0.png";
+            rows += "\n";
+        }
+        std::ofstream(dir_ / "frames.csv") << header << "\n" << rows;
+        auto source = make(ReplayOptions::Pacing::fast, false);
+        EXPECT_FALSE(source.open());
+    }
+}
+
+TEST_F(ReplayTest, TimeThatWouldStallOrReorderThePacingFailsToOpen)
+{
+    cv::imwrite((dir_ / "rgb/a.png").string(), cv::Mat(kSize, CV_8UC3, cv::Scalar::all(1)));
+    for (const char* rows : {"9223372036854775806,rgb/a.png,,\n-9223372036854775807,rgb/a.png,,\n",
+                             "0,rgb/a.png,,\n1000000000000000,rgb/a.png,,\n", "-5,rgb/a.png,,\n",
+                             "7,rgb/a.png,,\n7,rgb/a.png,,\n", "7,rgb/a.png,,\n6,rgb/a.png,,\n"}) {
+        SCOPED_TRACE(rows);
+        std::ofstream(dir_ / "frames.csv") << "t_ns,rgb,nir,mask\n" << rows;
+        auto source = make(ReplayOptions::Pacing::recorded, true);
+        EXPECT_FALSE(source.open());
+    }
+}
+
+TEST_F(ReplayTest, AHugeDeclaredSizeIsBadSizeAndNeverDecoded)
+{
+    write_recording(3, 1'000'000);
+    const auto png = stemd::test::png_declaring(30000, 30000);
+    std::ofstream(dir_ / "rgb/1.png", std::ios::binary)
+        .write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
+    for (const bool preload : {false, true}) {
+        SCOPED_TRACE(preload ? "preload" : "decode per frame");
+        auto source = ReplaySource(
+            {.dir = dir_, .pacing = ReplayOptions::Pacing::fast, .loop = false, .preload = preload, .frame_size = kSize},
+            quiet_logger());
+        ASSERT_TRUE(source.open());
+        ASSERT_TRUE(source.start());
+        Frame f = slot();
+        EXPECT_EQ(source.next(f, 1s), NextStatus::frame);
+        EXPECT_EQ(source.next(f, 1s), NextStatus::skipped);
+        EXPECT_EQ(source.next(f, 1s), NextStatus::frame);
+        EXPECT_EQ(source.counters().bad_size, 1u);
+        EXPECT_EQ(source.counters().corrupt, 0u) << "refused from its header, not by a failed decode";
+    }
+}
+
+TEST_F(ReplayTest, FramesTheSourceComesToLateAreCounted)
+{
+    write_recording(3, 1'000'000);
+    auto source = make(ReplayOptions::Pacing::recorded, false);
+    ASSERT_TRUE(source.open());
+    ASSERT_TRUE(source.start());
+    Frame f = slot();
+    ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+    EXPECT_EQ(source.counters().late, 0u);
+    // The consumer holds on to the first frame 30 ms; the second was due
+    // 1 ms after it, so it is at least 29 ms late.
+    std::this_thread::sleep_for(30ms);
+    ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+    EXPECT_EQ(source.counters().late, 1u);
+    EXPECT_GE(source.counters().worst_lateness_ms, 29.0);
 }

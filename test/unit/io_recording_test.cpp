@@ -61,7 +61,7 @@ TEST_F(RecordingTest, OdometerAndClassColumns)
         "1000,rgb/0.png,,,0,class/0.png\n"
         "2000,rgb/1.png,,,46.2,\n"
         "3000,rgb/2.png,,,,class/2.png\n"
-        "4000,rgb/3.png,,,-1.5e3,class/3.png\n");
+        "4000,rgb/3.png,,,1.5e3,class/3.png\n");
     ASSERT_TRUE(rec) << error_;
     ASSERT_EQ(rec->frames.size(), 4u);
     EXPECT_EQ(rec->frames[0].odom_mm, 0.0);
@@ -70,7 +70,7 @@ TEST_F(RecordingTest, OdometerAndClassColumns)
     EXPECT_TRUE(rec->frames[1].plant_class.empty());
     EXPECT_FALSE(rec->frames[2].odom_mm.has_value());
     EXPECT_EQ(rec->frames[2].plant_class, "class/2.png");
-    EXPECT_EQ(rec->frames[3].odom_mm, -1500.0);
+    EXPECT_EQ(rec->frames[3].odom_mm, 1500.0);
 }
 
 TEST_F(RecordingTest, OptionalColumnsInAnyOrderAndAlone)
@@ -126,6 +126,41 @@ TEST_F(RecordingTest, OtherRowErrors)
     EXPECT_EQ(error_, where(2) + "t_ns 'x' is not an integer");
     EXPECT_FALSE(read("t_ns,rgb,nir,mask,class\n0,,,,c.png\n"));
     EXPECT_EQ(error_, where(2) + "a frame needs an rgb or a mask path");
+}
+
+TEST_F(RecordingTest, TimeMustIncreaseFromZeroWithBoundedGaps)
+{
+    EXPECT_FALSE(read("t_ns,rgb,nir,mask\n-1,a.png,,\n"));
+    EXPECT_EQ(error_, where(2) + "t_ns -1 is negative (a capture time is CLOCK_MONOTONIC, never below 0)");
+    EXPECT_FALSE(read("t_ns,rgb,nir,mask\n5,a.png,,\n5,b.png,,\n"));
+    EXPECT_EQ(error_, where(3) + "t_ns 5 repeats line 2's 5 (t_ns must increase from frame to frame)");
+    EXPECT_FALSE(read("t_ns,rgb,nir,mask\n5,a.png,,\n\n4,b.png,,\n"));
+    EXPECT_EQ(error_, where(4) + "t_ns 4 is before line 2's 5 (t_ns must increase from frame to frame)");
+    // 1e15 ns: eleven and a half days without a frame.
+    EXPECT_FALSE(read("t_ns,rgb,nir,mask\n0,a.png,,\n1000000000000000,b.png,,\n"));
+    EXPECT_EQ(error_, where(3) + "t_ns 1000000000000000 is 1000000 s after line 2's (at most 60 s between frames)");
+    // Near the limits of int64: a step across the whole range is refused...
+    EXPECT_FALSE(read("t_ns,rgb,nir,mask\n-9223372036854775808,a.png,,\n9223372036854775807,b.png,,\n"));
+    EXPECT_EQ(error_.rfind(where(2), 0), 0U) << error_;
+    EXPECT_FALSE(read("t_ns,rgb,nir,mask\n0,a.png,,\n9223372036854775807,b.png,,\n"));
+    EXPECT_EQ(error_.rfind(where(3), 0), 0U) << error_;
+    // ...a recording that merely starts late is fine.
+    const auto rec = read("t_ns,rgb,nir,mask\n9223372036754775807,a.png,,\n9223372036854775807,b.png,,\n");
+    ASSERT_TRUE(rec) << error_;
+    EXPECT_EQ(rec->frames[1].t_ns - rec->frames[0].t_ns, 100'000'000);
+    EXPECT_TRUE(read("t_ns,rgb,nir,mask\n0,a.png,,\n60000000000,b.png,,\n")) << error_;
+}
+
+TEST_F(RecordingTest, OdometerNeverDecreasesAndStaysInRange)
+{
+    EXPECT_FALSE(read("t_ns,rgb,nir,mask,odom_mm\n0,a.png,,,10\n1,b.png,,,\n2,c.png,,,9.5\n"));
+    EXPECT_EQ(error_, where(4) + "odom_mm 9.5 is less than line 2's (the odometer never decreases)");
+    EXPECT_FALSE(read("t_ns,rgb,nir,mask,odom_mm\n0,a.png,,,1e300\n"));
+    EXPECT_EQ(error_, where(2) + "odom_mm 1e300 is beyond +-1e9 mm (1000 km)");
+    EXPECT_FALSE(read("t_ns,rgb,nir,mask,odom_mm\n0,a.png,,,-2e9\n"));
+    EXPECT_EQ(error_, where(2) + "odom_mm -2e9 is beyond +-1e9 mm (1000 km)");
+    // Standing still (equal readings) and a negative start are readings.
+    EXPECT_TRUE(read("t_ns,rgb,nir,mask,odom_mm\n0,a.png,,,-5\n1,b.png,,,-5\n2,c.png,,,1e9\n")) << error_;
 }
 
 TEST(RecordingOdometer, ParsesFiniteReals)

@@ -76,6 +76,10 @@ public:
     }
 
     virtual CanBusCounters counters() const = 0;
+
+    // True when the bus is a record (a log file) that lost frames: unlike a
+    // bus that was down for a while, the run's output is then incomplete.
+    virtual bool output_lost() const { return false; }
 };
 
 }  // namespace stemd::drivers

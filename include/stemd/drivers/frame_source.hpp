@@ -76,6 +76,12 @@ struct SourceCounters {
     std::uint64_t corrupt = 0;     // unreadable or undecodable frames, skipped
     std::uint64_t bad_size = 0;    // frames whose size or format does not fit the slot, skipped
     std::uint64_t loops = 0;       // replay: times the recording started over
+    // Replay paced by t_ns: frames whose due time had passed by more than
+    // kLateToleranceNs when the source came to them (it fell behind: slow
+    // decoding, a loaded CPU), and the most any frame was behind.
+    std::uint64_t late = 0;
+    double worst_lateness_ms = 0;
+    static constexpr std::int64_t kLateToleranceNs = 2'000'000;
 };
 
 class FrameSource {

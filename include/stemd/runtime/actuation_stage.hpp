@@ -16,7 +16,8 @@
 // (CanLink), encoder samples (OdometryInput).
 //
 // Everything is allocated in make(); on_frame() and poll() do not allocate,
-// lock or throw. File I/O (the plant map, the candump log) is buffered.
+// lock or throw. File I/O (the plant map, the candump log) is one write(2)
+// per line.
 // Single-threaded (the actuator thread); counters() from any thread.
 #pragma once
 
@@ -70,7 +71,8 @@ public:
     void on_capture(std::int64_t t_capture_ns, double odom_mm) noexcept;
     void poll(std::int64_t now_ns) noexcept;
     // End of the run: the tracks still open go to the plant map; the map is
-    // closed. False if the map lost lines.
+    // closed. False (logged) if the map lost lines or the bus is a log that
+    // lost frames.
     bool finish() noexcept;
 
     const ActuationCounters& counters() const { return counters_; }
@@ -99,6 +101,7 @@ private:
     const ActuationConfig config_;
     Parts parts_;
     const std::shared_ptr<spdlog::logger> log_;
+    bool bus_loss_reported_ = false;
     ActuationCounters counters_;
     OdometryInput odometry_;
     PlantProjector projector_;

@@ -18,8 +18,9 @@
 // is dropped.
 //
 // Per frame, once running, no thread allocates, locks or does blocking I/O
-// (the replay source's PNG decoding and the optional CSV aside: see
-// drivers/replay/replay_source.hpp and detection_sink.hpp). Idle threads
+// (the replay source's PNG decoding and the optional outputs' one write(2)
+// per line aside: see drivers/replay/replay_source.hpp, detection_sink.hpp,
+// plant_map.hpp and drivers/canlog/canlog_bus.hpp). Idle threads
 // poll their ring with a short spin then 100 us sleeps, which bounds the
 // added latency without a futex on the producer's side.
 #pragma once

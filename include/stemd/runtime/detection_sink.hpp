@@ -7,13 +7,13 @@
 
 #include <array>
 #include <cstdint>
-#include <cstdio>
 #include <filesystem>
 #include <memory>
 
 #include <spdlog/logger.h>
 
 #include "stemd/base/plant_class.hpp"
+#include "stemd/base/record_file.hpp"
 #include "stemd/drivers/frame_source.hpp"
 #include "stemd/vision/types.hpp"
 
@@ -44,29 +44,25 @@ public:
     DetectionSink& operator=(const DetectionSink&) = delete;
 
     // Opens the CSV and writes its header; false (logged with errno) if it
-    // cannot. Its buffer is allocated here, so consume() only copies into it.
+    // cannot.
     bool open_csv(const std::filesystem::path& path);
 
-    // Per frame, on the actuator thread: no allocation. The CSV is buffered
-    // (1 MiB) and written when the buffer fills: file I/O on this thread is
-    // what --detections-csv asks for; without it, nothing is written.
-    // False if a CSV write failed (logged once).
+    // Per frame, on the actuator thread: no allocation. Each row is
+    // formatted into a fixed buffer and written with one write(2)
+    // (base::RecordFile), so a kill leaves only complete rows: file I/O on
+    // this thread is what --detections-csv asks for; without it, nothing is
+    // written. False if a CSV write failed (logged once).
     bool consume(const FrameResult& result, std::int64_t latency_ns);
 
-    // Flushes and closes the CSV; false if anything was lost (logged).
+    // Closes the CSV; false if anything was lost (logged).
     bool close();
 
     static constexpr const char* kCsvHeader = "t_ns,image,plant,x,y,method,leaves,area_px,estimator,confidence";
 
 private:
-    struct FileCloser {
-        void operator()(std::FILE* f) const { std::fclose(f); }
-    };
-
     std::shared_ptr<spdlog::logger> log_;
     std::filesystem::path csv_path_;
-    std::unique_ptr<char[]> csv_buffer_;             // declared first: outlives the FILE using it
-    std::unique_ptr<std::FILE, FileCloser> csv_;
+    base::RecordFile csv_;
     bool csv_failed_ = false;
 };
 

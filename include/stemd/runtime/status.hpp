@@ -69,7 +69,10 @@ struct Counters {
         std::atomic<std::uint64_t> failed{0};          // detect() status != ok (size, format, missing plane)
         std::atomic<std::uint64_t> no_vegetation{0};   // frames with no vegetation at all (bare soil)
         std::atomic<std::uint64_t> results_full{0};    // result ring full: result dropped
-        std::atomic<std::uint64_t> plants_over_capacity{0};
+        std::atomic<std::uint64_t> plants_over_capacity{0};   // plants beyond vision::kMaxPlants in a frame
+        // Plants whose class-map window held values other than 0, 1, 2 (no
+        // such class: the plant is taken as unclassified).
+        std::atomic<std::uint64_t> bad_class{0};
         DurationHistogram pipeline;                    // detect() wall time
     } processing;
     struct Actuator {
@@ -92,6 +95,10 @@ struct StatusSnapshot {
     std::uint64_t bad_size = 0;        // frames not the slots' size (source)
     std::uint64_t failed = 0;          // detect() refused the frame
     std::uint64_t no_vegetation = 0;   // bare-soil frames (not a drop: nothing to see)
+    std::uint64_t over_capacity = 0;   // plants beyond the 256 a frame holds (detected, not reported)
+    std::uint64_t late = 0;            // paced replay: frames the source came to late
+    double worst_lateness_ms = 0;      // paced replay: the most a frame was late (whole run)
+    std::uint64_t bad_class = 0;       // plants with class-map values other than 0, 1, 2
     // Actuation (when a CAN side is configured).
     bool actuation = false;
     std::uint64_t targets = 0, sent = 0, deadline_misses = 0, no_odometry = 0, not_treated = 0, bus_errors = 0,
@@ -100,8 +107,9 @@ struct StatusSnapshot {
     DurationHistogram::Summary pipeline;
 };
 
-// "in 30.0 fps, out 30.0 fps | drops: ring_full 0, overwritten 0, results_full 0,
-//  corrupt 1, bad_size 0, failed 0 | latency p50 1.62 p99 2.31 ms | pipeline p50 1.35 p99 1.90 ms"
+// "in 30.0 fps, out 30.0 fps, bare soil 0, over_capacity 0, late 0 (worst 0.3 ms) |
+//  drops: ring_full 0, overwritten 0, results_full 0, corrupt 1, bad_size 0, failed 0 |
+//  latency p50 1.62 p99 2.31 ms | pipeline p50 1.35 p99 1.90 ms"
 std::string format_status(const StatusSnapshot& now, const StatusSnapshot& before);
 // The run's totals for the last line: frames, drops, whole-run percentiles.
 std::string format_summary(const StatusSnapshot& end, double run_s);
