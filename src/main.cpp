@@ -8,12 +8,14 @@
 // Exit: 0 on SIGTERM/SIGINT or, with --once, after the last frame; 1 when the
 // source or an output fails; 2 on bad arguments or configuration.
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <memory>
 #include <optional>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include <spdlog/spdlog.h>
@@ -101,7 +103,13 @@ std::optional<Args> parse_args(int argc, char** argv, std::string& error)
 
 }  // namespace
 
-int main(int argc, char** argv)
+// What main() was doing, for the one line a resource failure gets.
+struct Phase {
+    const char* what = "reading the command line";
+    int exit_code = kUsageError;   // 2 while the configuration is read, 1 once running
+};
+
+int run(int argc, char** argv, Phase& phase)
 {
     if (config::wants_help(argc, argv)) {
         std::cout << kUsage;
@@ -117,6 +125,7 @@ int main(int argc, char** argv)
         std::cerr << "stemd: " << error << "\n" << kUsage;
         return kUsageError;
     }
+    phase.what = "reading the configuration";
     config::Config config;
     if (const auto config_error = config::build_config(args->config, config)) {
         std::cerr << "stemd: " << config_error->to_string() << "\n";
@@ -160,6 +169,7 @@ int main(int argc, char** argv)
         return 0;
     }
 
+    phase = {"starting", 1};
     runtime::set_log_level(daemon_config.log_level);
     const auto log = runtime::make_logger("main");
     const auto status_log = runtime::make_logger("status");
@@ -252,4 +262,23 @@ int main(int argc, char** argv)
     const double run_s = static_cast<double>(base::monotonic_ns() - t_start_ns) / 1e9;
     status_log->info("total: {}", runtime::format_summary(daemon->snapshot(true), run_s));
     return exit_code;
+}
+
+int main(int argc, char** argv)
+{
+    // A file-size limit (ulimit -f) then makes write(2) fail with EFBIG,
+    // which the writers report and count, instead of killing the process
+    // without a word.
+    std::signal(SIGXFSZ, SIG_IGN);
+    Phase phase;
+    try {
+        return run(argc, argv, phase);
+    } catch (const std::bad_alloc&) {
+        std::cerr << "stemd: out of memory while " << phase.what << " (a memory limit: ulimit -v, MemoryMax=?)\n";
+    } catch (const std::system_error& e) {
+        std::cerr << "stemd: " << phase.what << ": " << e.what() << " (a resource limit: threads, memory?)\n";
+    } catch (const std::exception& e) {
+        std::cerr << "stemd: " << phase.what << ": " << e.what() << "\n";
+    }
+    return phase.exit_code;
 }
