@@ -257,7 +257,9 @@ bool ReplaySource::fill(const Entry& entry, Frame& into)
 
 bool ReplaySource::read_file(const std::filesystem::path& path)
 {
-    const base::UniqueFd file(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
+    // O_NONBLOCK: a FIFO in a recording must not block the capture thread
+    // (and with it the shutdown); it is refused below, like any non-file.
+    const base::UniqueFd file(::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK));
     const int fd = file.get();
     if (fd < 0) {
         log_->warn("{}: cannot open: {} (errno {})", path.string(), std::strerror(errno), errno);
@@ -265,6 +267,10 @@ bool ReplaySource::read_file(const std::filesystem::path& path)
     }
     struct stat st {};
     bool ok = fstat(fd, &st) == 0;
+    if (ok && !S_ISREG(st.st_mode)) {
+        log_->warn("{}: not a regular file", path.string());
+        return false;
+    }
     if (ok) {
         file_buffer_.resize(static_cast<std::size_t>(st.st_size));
         std::size_t done = 0;

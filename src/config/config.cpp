@@ -15,6 +15,7 @@
 #include <system_error>
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <yaml-cpp/eventhandler.h>
@@ -1076,12 +1077,18 @@ std::optional<ConfigError> Config::load_file(const std::filesystem::path& path)
     const std::string origin = path.string();
     if (origin.empty())
         return ConfigError{"--config", 0, "", "empty file name"};
-    base::UniqueFd fd(::open(origin.c_str(), O_RDONLY | O_CLOEXEC));
+    // O_NONBLOCK: opening a FIFO must not hang the start (SIGTERM is only
+    // taken later); a FIFO or a device is refused, a config is a file.
+    base::UniqueFd fd(::open(origin.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK));
     if (!fd.valid())
         return ConfigError{origin, 0, "", cat("cannot read file: ", std::strerror(errno))};
-    std::error_code ec;
-    if (std::filesystem::is_directory(path, ec))
+    struct stat st {};
+    if (::fstat(fd.get(), &st) != 0)
+        return ConfigError{origin, 0, "", cat("cannot read file: ", std::strerror(errno))};
+    if (S_ISDIR(st.st_mode))
         return ConfigError{origin, 0, "", "cannot read file: it is a directory"};
+    if (!S_ISREG(st.st_mode))
+        return ConfigError{origin, 0, "", "cannot read file: not a regular file (a FIFO or a device)"};
     // Read with a cap: a config is a few kB, and /dev/zero or a FIFO that
     // never ends must not fill the memory.
     std::string text;

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <gtest/gtest.h>
@@ -566,10 +567,20 @@ TEST_F(ConfigFileTest, UnreadableFile)
 TEST_F(ConfigFileTest, EndlessAndFailingReadsAreErrorsNotAborts)
 {
     Config config;
-    // A device that never ends: the read stops at the cap.
+    // A device that never ends, and a FIFO no one writes: refused at once.
     auto error = config.load_file("/dev/zero");
     ASSERT_TRUE(error);
-    EXPECT_EQ(error->to_string(), "/dev/zero: cannot read file: larger than 1024 KiB; is it a configuration file?");
+    EXPECT_EQ(error->to_string(), "/dev/zero: cannot read file: not a regular file (a FIFO or a device)");
+    const fs::path fifo = dir_ / "fifo.yaml";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    error = config.load_file(fifo);
+    ASSERT_TRUE(error);
+    EXPECT_EQ(error->to_string(), fifo.string() + ": cannot read file: not a regular file (a FIFO or a device)");
+    // A file too large to be a configuration.
+    const fs::path big = write(std::string(1024 * 1024 + 1, '#'), "big.yaml");
+    error = config.load_file(big);
+    ASSERT_TRUE(error);
+    EXPECT_EQ(error->to_string(), big.string() + ": cannot read file: larger than 1024 KiB; is it a configuration file?");
     // A read that fails with EIO (offset 0 of this process's memory is unmapped).
     error = config.load_file("/proc/self/mem");
     ASSERT_TRUE(error);

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# FIFOs where files belong must not hang stemd (SIGTERM would not get
+# through): a FIFO as the config file is refused at once (exit 2), and a
+# FIFO among a recording's images is skipped and counted like a corrupt
+# frame while the replay goes on to the end.
+#   fifo.sh STEMD TOOLS_DIR SOURCE_DIR
+set -euo pipefail
+stemd=$1 tools=$2
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+mkfifo "$tmp/config.yaml"
+rc=0
+timeout 10 "$stemd" --config "$tmp/config.yaml" --check-config 2>"$tmp/err" || rc=$?
+[ $rc -eq 2 ] || fail "FIFO config: exit $rc (124: it hung): $(cat "$tmp/err")"
+grep -q "config.yaml: cannot read file: not a regular file" "$tmp/err" || fail "FIFO config: $(cat "$tmp/err")"
+
+"$tools/stemd-synth" --out "$tmp/rec" --preset early --frames 3 >/dev/null
+second=$(sed -n 3p "$tmp/rec/frames.csv" | cut -d, -f2)
+rm "$tmp/rec/$second"
+mkfifo "$tmp/rec/$second"
+rc=0
+timeout 30 "$stemd" --replay "$tmp/rec" --once 2>"$tmp/err" || rc=$?
+[ $rc -eq 0 ] || fail "FIFO frame: exit $rc (124: it hung): $(tail -3 "$tmp/err")"
+grep -q "not a regular file" "$tmp/err" || fail "FIFO frame not named: $(cat "$tmp/err")"
+grep -q "total: 2 frames in, 2 out.*corrupt 1" "$tmp/err" || fail "FIFO frame not counted: $(grep total: "$tmp/err")"
+echo "fifo: ok"
