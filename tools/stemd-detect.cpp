@@ -1,5 +1,5 @@
 // stemd-detect: offline stem detection on images or recording directories.
-//   stemd-detect [--config FILE] [--set KEY=VALUE]... [--segment exg|ndvi|mask]
+//   stemd-detect [--config FILE] [--set KEY=VALUE]... [--segment METHOD]
 //                [--csv OUT] [--mask-out DIR] [--overlay DIR] [--timing] INPUT...
 #include <algorithm>
 #include <cstdio>
@@ -32,13 +32,14 @@ namespace {
 constexpr int kUsageError = 2;
 
 const char* const kUsage =
-    "usage: stemd-detect [--config FILE] [--set KEY=VALUE]... [--segment exg|ndvi|mask]\n"
+    "usage: stemd-detect [--config FILE] [--set KEY=VALUE]... [--segment METHOD]\n"
     "                    [--csv OUT] [--mask-out DIR] [--overlay DIR] [--timing] INPUT...\n"
     "  INPUT       image files (RGB; masks with --segment mask, nonzero = vegetation)\n"
     "              or recording directories (frames.csv: t_ns,rgb,nir,mask)\n"
     "  --config    configuration file (see config/stemd.yaml)\n"
     "  --set       override one configuration key, e.g. --set closing.radius_px=6\n"
-    "  --segment   shorthand for --set segment.method=...\n"
+    "  --segment   shorthand for --set segment.method=METHOD: chromatic_exg (the\n"
+    "              default), exg, ndvi, exg_and_ndvi (both: recordings with nir), mask\n"
     "  --csv       write image,plant,x,y,method,leaves,area_px,estimator,confidence\n"
     "              ('-' = stdout); plants without a stem (grass) are not written\n"
     "  --mask-out  write each frame's vegetation mask (255 = vegetation) as PNG\n"
