@@ -197,13 +197,6 @@ bool write_text(const fs::path& path, const std::string& text, std::string& erro
     return true;
 }
 
-std::string frame_name(int index)
-{
-    char name[32];
-    std::snprintf(name, sizeof name, "%06d.png", index);
-    return name;
-}
-
 std::string stem_row(const std::string& image, const synth::GroundTruthStem& stem)
 {
     char xy[64];
@@ -233,9 +226,8 @@ int run(const Args& args)
             std::cerr << "stemd-synth: " << error << "\n";
             return kWriteError;
         }
-        const std::string rgb = "rgb/" + frame_name(i);
         for (const synth::GroundTruthStem& stem : frame.stems) {
-            stems_csv += stem_row(rgb, stem);
+            stems_csv += stem_row(writer.last_written().rgb, stem);
             (stem.kind == PlantClass::Crop ? totals.crops : totals.weeds) += 1;
         }
     }
@@ -306,9 +298,8 @@ int run_strip(const Args& args)
                             .plant_class = frame.plant_class},
                            error))
             return fail();
-        const std::string rgb = "rgb/" + frame_name(k);
         for (const synth::GroundTruthStem& stem : frame.stems)
-            stems_csv += stem_row(rgb, stem);
+            stems_csv += stem_row(writer.last_written().rgb, stem);
     }
     std::string plants_csv = "id,s_mm,y_mm,kind,leaves,radius_mm\n";
     Totals totals;

@@ -5,11 +5,11 @@
 #include <cmath>
 #include <cstdio>
 #include <system_error>
+#include <utility>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
-#include "stemd/io/recording.hpp"
 
 namespace stemd::io {
 
@@ -139,6 +139,12 @@ bool RecordingWriter::append(const FrameToWrite& frame, std::string& error)
         error = (dir_ / "frames.csv").string() + ": cannot write: " + errno_text(err);
         return false;
     }
+    last_written_ = {.t_ns = frame.t_ns,
+                     .rgb = std::move(rgb),
+                     .nir = std::move(nir),
+                     .mask = std::move(mask),
+                     .odom_mm = frame.odom_mm,
+                     .plant_class = std::move(plant_class)};
     ++frames_written_;
     return true;
 }

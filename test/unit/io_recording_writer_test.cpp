@@ -63,6 +63,7 @@ TEST_F(RecordingWriterTest, EveryColumnReadsBackFieldByField)
     RecordingWriter writer;
     ASSERT_TRUE(writer.open(dir_, options, error_)) << error_;
     std::vector<FrameToWrite> frames;
+    std::vector<RecordingFrame> rows;   // last_written() after each frame
     for (int i = 0; i < 5; ++i) {
         FrameToWrite f;
         f.t_ns = 1'000'000'000 + i * 33'333'333LL;
@@ -77,6 +78,7 @@ TEST_F(RecordingWriterTest, EveryColumnReadsBackFieldByField)
             f.plant_class = random_image(CV_8UC1, 4 * i + 3, 2);
         frames.push_back(f);
         ASSERT_TRUE(writer.append(f, error_)) << error_;
+        rows.push_back(writer.last_written());
     }
     EXPECT_EQ(writer.frames_written(), frames.size());
 
@@ -91,6 +93,12 @@ TEST_F(RecordingWriterTest, EveryColumnReadsBackFieldByField)
         EXPECT_TRUE(same_pixels(load(*rec, got.nir, cv::IMREAD_GRAYSCALE), frames[i].nir));
         EXPECT_TRUE(same_pixels(load(*rec, got.mask, cv::IMREAD_GRAYSCALE), frames[i].mask));
         EXPECT_EQ(got.odom_mm, frames[i].odom_mm);
+        EXPECT_EQ(rows[i].t_ns, got.t_ns);
+        EXPECT_EQ(rows[i].rgb, got.rgb);
+        EXPECT_EQ(rows[i].nir, got.nir);
+        EXPECT_EQ(rows[i].mask, got.mask);
+        EXPECT_EQ(rows[i].odom_mm, got.odom_mm);
+        EXPECT_EQ(rows[i].plant_class, got.plant_class);
         if (frames[i].plant_class.empty())
             EXPECT_TRUE(got.plant_class.empty());
         else

@@ -16,6 +16,7 @@
 #include <opencv2/core/mat.hpp>
 
 #include "stemd/base/record_file.hpp"
+#include "stemd/io/recording.hpp"
 
 namespace stemd::io {
 
@@ -64,6 +65,10 @@ public:
     bool append(const FrameToWrite& frame, std::string& error);
 
     std::uint64_t frames_written() const { return frames_written_; }
+    // The row the last successful append() wrote, as read_recording reads
+    // it back: callers that refer to a frame by its rgb path (stems.csv)
+    // take the name from here rather than spell the naming again.
+    const RecordingFrame& last_written() const { return last_written_; }
 
 private:
     // Encodes `image` as <dir>/<folder>/NNNNNN.png; `relative` gets the
@@ -77,6 +82,7 @@ private:
     std::vector<unsigned char> png_bytes_;   // reused from frame to frame
     std::string row_;                        // likewise
     std::uint64_t frames_written_ = 0;
+    RecordingFrame last_written_;
 };
 
 }  // namespace stemd::io
