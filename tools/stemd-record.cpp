@@ -7,36 +7,36 @@
 //
 // Threads: the main thread captures (source->next into preallocated slots
 // from a FramePool) and hands full slots to a writer thread through an
-// SpscRing; the writer encodes the PNGs, appends the frames.csv row (flushed
-// per row) and gives the slot back through a second ring. The capture loop
+// SpscRing; the writer (io::RecordingWriter) encodes the PNGs, appends the
+// frames.csv row (one whole line per write(2), so a kill tears none) and
+// gives the slot back through a second ring. The capture loop
 // never waits for the disk: with a camera (a realtime source) a frame that
 // finds no free slot is dropped and counted; a source that can wait (fast
 // replay) waits instead and loses nothing.
 //
 // t_ns is the frame's t_capture_ns (CLOCK_MONOTONIC). A replay source plays
 // its recording once. nir/ and mask/ are written when the source fills those
-// planes (replay of a recording that has them, with segment.method ndvi/mask).
+// planes (replay of a recording that has them, with segment.method ndvi/mask);
+// the odom_mm and class columns (class/NNNNNN.png) when the replayed
+// recording has them.
 //
 // Exit: 0 after N frames, S seconds, SIGINT/SIGTERM or the end of a replayed
 // recording; 1 when the source or the disk fails; 2 on bad arguments or
-// configuration, or when DIR exists and is not empty.
+// configuration, or when DIR exists and is not empty or cannot be created.
 #include <algorithm>
 #include <atomic>
-#include <cerrno>
 #include <chrono>
 #include <cinttypes>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <memory>
 #include <optional>
 #include <string>
 #include <thread>
-#include <vector>
 
-#include <opencv2/imgcodecs.hpp>
 #include <spdlog/spdlog.h>
 
 #include "stemd/drivers/frame_source.hpp"
@@ -49,6 +49,7 @@
 #include "stemd/base/spsc_ring.hpp"
 #include "stemd/runtime/status.hpp"
 #include "stemd/io/recording.hpp"
+#include "stemd/io/recording_writer.hpp"
 #include "stemd/config/command_line.hpp"
 #include "tool_config.hpp"
 #include "stemd/base/clock.hpp"
@@ -135,123 +136,52 @@ std::optional<Args> parse_args(int argc, char** argv, std::string& error)
     return args;
 }
 
-// Creates `dir` (and rgb/, nir/, mask/ as needed); refuses a non-empty one.
-bool prepare_out_dir(const fs::path& dir, bool nir, bool mask, std::string& error)
+// Refuses a `dir` that exists and is not an empty directory: a recording
+// is never overwritten.
+bool check_out_dir(const fs::path& dir, std::string& error)
 {
     std::error_code ec;
-    if (fs::exists(dir, ec)) {
-        if (!fs::is_directory(dir, ec)) {
-            error = dir.string() + " exists and is not a directory: refusing to overwrite it";
-            return false;
-        }
-        if (!fs::is_empty(dir, ec) || ec) {
-            error = dir.string() + " exists and is not empty: refusing to overwrite a recording";
-            return false;
-        }
+    if (!fs::exists(dir, ec))
+        return true;
+    if (!fs::is_directory(dir, ec)) {
+        error = dir.string() + " exists and is not a directory: refusing to overwrite it";
+        return false;
     }
-    for (const char* sub : {"rgb", "nir", "mask"}) {
-        if ((std::string(sub) == "nir" && !nir) || (std::string(sub) == "mask" && !mask))
-            continue;
-        fs::create_directories(dir / sub, ec);
-        if (ec) {
-            error = (dir / sub).string() + ": cannot create: " + ec.message();
-            return false;
-        }
+    if (!fs::is_empty(dir, ec) || ec) {
+        error = dir.string() + " exists and is not empty: refusing to overwrite a recording";
+        return false;
     }
     return true;
 }
 
-// The writer thread's side: PNGs and frames.csv rows, one frame at a time.
-class RecordingWriter {
-public:
-    RecordingWriter(fs::path dir, std::shared_ptr<spdlog::logger> log) : dir_(std::move(dir)), log_(std::move(log)) {}
-    ~RecordingWriter()
-    {
-        if (csv_ != nullptr)
-            std::fclose(csv_);
+// The optional columns a replayed recording carries, so that its copy keeps
+// them. A recording the reader refuses has none here: the replay source
+// then reports it when it opens.
+io::RecordingColumns replayed_columns(const fs::path& replay_dir)
+{
+    io::RecordingColumns columns;
+    std::string error;
+    const auto recording = io::read_recording(replay_dir, error);
+    if (!recording)
+        return columns;
+    for (const io::RecordingFrame& frame : recording->frames) {
+        columns.odom_mm = columns.odom_mm || frame.odom_mm.has_value();
+        columns.plant_class = columns.plant_class || !frame.plant_class.empty();
     }
+    return columns;
+}
 
-    bool open()
-    {
-        const fs::path path = dir_ / "frames.csv";
-        csv_ = std::fopen(path.c_str(), "w");
-        if (csv_ == nullptr) {
-            log_->error("{}: cannot create: {}", path.string(), std::strerror(errno));
-            return false;
-        }
-        return row_done(std::fprintf(csv_, "%s\n", io::kFramesCsvHeader) > 0);
-    }
-
-    // PNGs first, then the row: a row always names files that exist.
-    bool write(const drivers::Frame& frame)
-    {
-        char rgb[32] = "", nir[32] = "", mask[32] = "";
-        std::snprintf(rgb, sizeof rgb, "rgb/%06" PRIu64 ".png", written_);
-        if (!write_png(rgb, frame.bgr))
-            return false;
-        if (!frame.nir.empty()) {
-            std::snprintf(nir, sizeof nir, "nir/%06" PRIu64 ".png", written_);
-            if (!write_png(nir, frame.nir))
-                return false;
-        }
-        if (!frame.mask.empty()) {
-            std::snprintf(mask, sizeof mask, "mask/%06" PRIu64 ".png", written_);
-            if (!write_png(mask, frame.mask))
-                return false;
-        }
-        if (!row_done(std::fprintf(csv_, "%" PRId64 ",%s,%s,%s\n", frame.t_capture_ns, rgb, nir, mask) > 0))
-            return false;
-        ++written_;
-        return true;
-    }
-
-    bool close()
-    {
-        if (csv_ == nullptr)
-            return true;
-        const bool ok = std::fclose(csv_) == 0;
-        csv_ = nullptr;
-        if (!ok)
-            log_->error("{}: cannot close: {}", (dir_ / "frames.csv").string(), std::strerror(errno));
-        return ok;
-    }
-
-    std::uint64_t written() const { return written_; }
-
-private:
-    bool write_png(const char* relative, const cv::Mat& image)
-    {
-        const fs::path path = dir_ / relative;
-        // Level 1: lossless like every level, and fast enough to keep up with a camera.
-        static const std::vector<int> kParams{cv::IMWRITE_PNG_COMPRESSION, 1};
-        bool ok = false;
-        try {
-            ok = cv::imwrite(path.string(), image, kParams);
-        } catch (const cv::Exception& e) {
-            log_->error("{}: cannot write: {}", path.string(), e.what());
-            return false;
-        }
-        if (!ok)
-            log_->error("{}: cannot write", path.string());
-        return ok;
-    }
-
-    // Every row is flushed: frames.csv is complete up to the last frame
-    // written, whatever stops the recorder.
-    bool row_done(bool printed)
-    {
-        if (!printed || std::fflush(csv_) != 0) {
-            log_->error("{}: cannot write: {}", (dir_ / "frames.csv").string(), std::strerror(errno));
-            return false;
-        }
-        return true;
-    }
-
-    const fs::path dir_;
-    const std::shared_ptr<spdlog::logger> log_;
-    std::FILE* csv_ = nullptr;
-    std::uint64_t written_ = 0;
-};
+// What a slot holds as a frames.csv row: t_ns is the capture time, and only
+// a class map the source filled is written.
+io::FrameToWrite to_write(const drivers::Frame& frame)
+{
+    return {.t_ns = frame.t_capture_ns,
+            .bgr = frame.bgr,
+            .nir = frame.nir,
+            .mask = frame.mask,
+            .odom_mm = std::isnan(frame.odom_mm) ? std::nullopt : std::optional<double>(frame.odom_mm),
+            .plant_class = frame.has_class_map ? frame.plant_class : cv::Mat()};
+}
 
 }  // namespace
 
@@ -289,7 +219,15 @@ int main(int argc, char** argv)
     const vision::Segmentation planes =
         daemon_config.source_kind == "replay" ? daemon_config.vision.segmentation : vision::Segmentation::exg;
     const fs::path out = args->out;
-    if (!prepare_out_dir(out, vision::uses_nir(planes), planes == vision::Segmentation::mask, error)) {
+    io::RecordingColumns columns;
+    if (daemon_config.source_kind == "replay")
+        columns = replayed_columns(daemon_config.replay_dir);
+    columns.nir = vision::uses_nir(planes);
+    columns.mask = planes == vision::Segmentation::mask;
+    // Level 1: lossless like every level, and fast enough to keep up with a camera.
+    const io::RecordingWriterOptions recording{.columns = columns, .png_compression_level = 1};
+    io::RecordingWriter writer;
+    if (!check_out_dir(out, error) || !writer.open(out, recording, error)) {
         std::cerr << "stemd-record: " << error << "\n";
         return kUsageError;
     }
@@ -300,7 +238,7 @@ int main(int argc, char** argv)
     const auto slot_count = static_cast<std::size_t>(args->slots);
     std::unique_ptr<runtime::FramePool> pool;
     try {
-        pool = std::make_unique<runtime::FramePool>(daemon_config.frame_size, planes, slot_count);
+        pool = std::make_unique<runtime::FramePool>(daemon_config.frame_size, planes, slot_count, columns.plant_class);
     } catch (const std::bad_alloc&) {
         log->error("cannot allocate {} frame slots of {}x{}", slot_count, daemon_config.frame_size.width,
                    daemon_config.frame_size.height);
@@ -313,10 +251,6 @@ int main(int argc, char** argv)
     for (std::size_t i = 1; i < slot_count; ++i)
         free_slots.try_push(&(*pool)[i]);
     drivers::Frame* hand = &(*pool)[0];
-
-    RecordingWriter writer(out, log);
-    if (!writer.open())
-        return 1;
 
     const std::unique_ptr<drivers::FrameSource> source = runtime::make_frame_source(daemon_config);
     if (!source->open() || !source->start())
@@ -339,10 +273,12 @@ int main(int argc, char** argv)
                     continue;
                 }
             }
-            const bool ok = writer.write(*frame);
+            std::string write_error;
+            const bool ok = writer.append(to_write(*frame), write_error);
             free_slots.try_push(frame);
             frame = nullptr;
             if (!ok) {
+                log->error("{}", write_error);
                 writer_failed.store(true, std::memory_order_release);
                 break;
             }
@@ -400,7 +336,7 @@ int main(int argc, char** argv)
     capture_done.store(true, std::memory_order_release);
     writer_thread.join();
     source->stop();
-    if (!writer.close() || writer_failed.load(std::memory_order_acquire))
+    if (writer_failed.load(std::memory_order_acquire))
         exit_code = 1;
 
     const double run_s = static_cast<double>(base::monotonic_ns() - t_start_ns) / 1e9;
@@ -410,6 +346,6 @@ int main(int argc, char** argv)
     std::fprintf(stderr,
                  "stemd-record: total: %" PRIu64 " frames written to %s in %.1f s | drops: writer_behind %" PRIu64
                  ", corrupt %" PRIu64 ", bad_size %" PRIu64 "\n",
-                 writer.written(), out.c_str(), run_s, writer_behind, c.corrupt, c.bad_size);
+                 writer.frames_written(), out.c_str(), run_s, writer_behind, c.corrupt, c.bad_size);
     return exit_code;
 }

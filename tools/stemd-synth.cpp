@@ -26,10 +26,9 @@
 #include <vector>
 
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "stemd/io/csv.hpp"
-#include "stemd/io/recording.hpp"
+#include "stemd/io/recording_writer.hpp"
 #include "stemd/synth/synth.hpp"
 
 namespace fs = std::filesystem;
@@ -186,31 +185,6 @@ std::optional<Args> parse_args(int argc, char** argv, std::string& error)
     return args;
 }
 
-bool make_dirs(const fs::path& dir, std::string& error)
-{
-    std::error_code ec;
-    fs::create_directories(dir, ec);
-    if (ec) {
-        error = dir.string() + ": cannot create directory: " + ec.message();
-        return false;
-    }
-    return true;
-}
-
-bool write_png(const fs::path& path, const cv::Mat& image, std::string& error)
-{
-    bool ok = false;
-    try {
-        ok = cv::imwrite(path.string(), image);
-    } catch (const cv::Exception& e) {
-        error = path.string() + ": cannot write: " + e.what();
-        return false;
-    }
-    if (!ok)
-        error = path.string() + ": cannot write";
-    return ok;
-}
-
 bool write_text(const fs::path& path, const std::string& text, std::string& error)
 {
     std::ofstream out(path, std::ios::binary | std::ios::trunc);
@@ -221,13 +195,6 @@ bool write_text(const fs::path& path, const std::string& text, std::string& erro
         return false;
     }
     return true;
-}
-
-std::string frame_name(int index)
-{
-    char name[32];
-    std::snprintf(name, sizeof name, "%06d.png", index);
-    return name;
 }
 
 std::string stem_row(const std::string& image, const synth::GroundTruthStem& stem)
@@ -245,34 +212,26 @@ struct Totals {
 int run(const Args& args)
 {
     std::string error;
-    for (const char* sub : {"rgb", "nir", "mask"}) {
-        if (!make_dirs(args.out / sub, error)) {
-            std::cerr << "stemd-synth: " << error << "\n";
-            return kWriteError;
-        }
+    io::RecordingWriter writer;
+    if (!writer.open(args.out, {.columns = {.nir = true, .mask = true}}, error)) {
+        std::cerr << "stemd-synth: " << error << "\n";
+        return kWriteError;
     }
-    std::string frames_csv = std::string(io::kFramesCsvHeader) + "\n";
     std::string stems_csv = "image,x,y,kind,leaves\n";
     Totals totals;
     for (int i = 0; i < args.frames; ++i) {
         const synth::Frame frame = synth::generate_frame(args.options, i);
-        const std::string name = frame_name(i);
-        const std::string rgb = "rgb/" + name, nir = "nir/" + name, mask = "mask/" + name;
-        if (!write_png(args.out / rgb, frame.bgr, error) || !write_png(args.out / nir, frame.nir, error) ||
-            !write_png(args.out / mask, frame.mask, error)) {
+        const auto t_ns = std::llround(static_cast<double>(i) * 1e9 / args.fps);
+        if (!writer.append({.t_ns = t_ns, .bgr = frame.bgr, .nir = frame.nir, .mask = frame.mask}, error)) {
             std::cerr << "stemd-synth: " << error << "\n";
             return kWriteError;
         }
-        const auto t_ns = std::llround(static_cast<double>(i) * 1e9 / args.fps);
-        frames_csv += std::to_string(t_ns) + "," + io::csv_field(rgb) + "," + io::csv_field(nir) + "," +
-                      io::csv_field(mask) + "\n";
         for (const synth::GroundTruthStem& stem : frame.stems) {
-            stems_csv += stem_row(rgb, stem);
+            stems_csv += stem_row(writer.last_written().rgb, stem);
             (stem.kind == PlantClass::Crop ? totals.crops : totals.weeds) += 1;
         }
     }
-    if (!write_text(args.out / "frames.csv", frames_csv, error) ||
-        !write_text(args.out / "stems.csv", stems_csv, error)) {
+    if (!write_text(args.out / "stems.csv", stems_csv, error)) {
         std::cerr << "stemd-synth: " << error << "\n";
         return kWriteError;
     }
@@ -305,9 +264,6 @@ int run_strip(const Args& args)
         std::cerr << "stemd-synth: " << error << "\n";
         return kWriteError;
     };
-    for (const char* sub : {"rgb", "nir", "mask", "class"})
-        if (!make_dirs(args.out / sub, error))
-            return fail();
     const synth::Options& o = args.options;
     const synth::StripOptions options{.preset = o.preset,
                                       .seed = o.seed,
@@ -325,34 +281,25 @@ int run_strip(const Args& args)
         std::cerr << "stemd-synth: " << e.what() << "\n";
         return kUsageError;
     }
+    io::RecordingWriter writer;
     // Low PNG compression: the frames are large and many.
-    const std::vector<int> png{cv::IMWRITE_PNG_COMPRESSION, 1};
-    auto write = [&](const fs::path& path, const cv::Mat& image) {
-        bool ok = false;
-        try {
-            ok = cv::imwrite(path.string(), image, png);
-        } catch (const cv::Exception& e) {
-            error = path.string() + ": cannot write: " + e.what();
-            return false;
-        }
-        if (!ok)
-            error = path.string() + ": cannot write";
-        return ok;
-    };
-    std::string frames_csv = std::string(io::kFramesCsvHeader) + "," + io::kFramesCsvOdomColumn + "," +
-                             io::kFramesCsvClassColumn + "\n";
+    const io::RecordingWriterOptions recording{
+        .columns = {.nir = true, .mask = true, .odom_mm = true, .plant_class = true}, .png_compression_level = 1};
+    if (!writer.open(args.out, recording, error))
+        return fail();
     std::string stems_csv = "image,x,y,kind,leaves\n";
     for (int k = 0; k < strip.frame_count; ++k) {
         const synth::StripFrame frame = synth::render_strip_frame(strip, k);
-        const std::string name = frame_name(k);
-        const std::string rgb = "rgb/" + name, nir = "nir/" + name, mask = "mask/" + name, cls = "class/" + name;
-        if (!write(args.out / rgb, frame.bgr) || !write(args.out / nir, frame.nir) ||
-            !write(args.out / mask, frame.mask) || !write(args.out / cls, frame.plant_class))
+        if (!writer.append({.t_ns = frame.t_ns,
+                            .bgr = frame.bgr,
+                            .nir = frame.nir,
+                            .mask = frame.mask,
+                            .odom_mm = frame.odom_mm,
+                            .plant_class = frame.plant_class},
+                           error))
             return fail();
-        frames_csv += std::to_string(frame.t_ns) + "," + io::csv_field(rgb) + "," + io::csv_field(nir) + "," +
-                      io::csv_field(mask) + "," + exact(frame.odom_mm) + "," + io::csv_field(cls) + "\n";
         for (const synth::GroundTruthStem& stem : frame.stems)
-            stems_csv += stem_row(rgb, stem);
+            stems_csv += stem_row(writer.last_written().rgb, stem);
     }
     std::string plants_csv = "id,s_mm,y_mm,kind,leaves,radius_mm\n";
     Totals totals;
@@ -381,8 +328,7 @@ int run_strip(const Args& args)
     strip_txt += "camera.model: nadir\ncamera.forward: up\ncamera.x_mm: 0\ncamera.y_mm: 0\n";
     strip_txt += "plants: " + std::to_string(strip.plants.size()) + "\n";
     strip_txt += "grass_tufts: " + std::to_string(strip.grass_tufts) + "\n";
-    if (!write_text(args.out / "frames.csv", frames_csv, error) ||
-        !write_text(args.out / "stems.csv", stems_csv, error) ||
+    if (!write_text(args.out / "stems.csv", stems_csv, error) ||
         !write_text(args.out / "plants.csv", plants_csv, error) ||
         !write_text(args.out / "strip.txt", strip_txt, error))
         return fail();
