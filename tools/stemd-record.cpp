@@ -13,7 +13,7 @@
 // finds no free slot is dropped and counted; a source that can wait (fast
 // replay) waits instead and loses nothing.
 //
-// t_ns is the frame's t_capture_ns (CLOCK_MONOTONIC). A replay source plays
+// t_ns is the frame's t_sample_ns (CLOCK_MONOTONIC). A replay source plays
 // its recording once. nir/ and mask/ are written when the source fills those
 // planes (replay of a recording that has them, with segment.method ndvi/mask).
 //
@@ -199,7 +199,7 @@ public:
             if (!write_png(mask, frame.mask))
                 return false;
         }
-        if (!row_done(std::fprintf(csv_, "%" PRId64 ",%s,%s,%s\n", frame.t_capture_ns, rgb, nir, mask) > 0))
+        if (!row_done(std::fprintf(csv_, "%" PRId64 ",%s,%s,%s\n", frame.t_sample_ns, rgb, nir, mask) > 0))
             return false;
         ++written_;
         return true;

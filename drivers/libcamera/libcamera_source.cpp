@@ -604,8 +604,9 @@ NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
 
     if (!sensor_ns)
         unstamped_.fetch_add(1, std::memory_order_relaxed);
-    into.t_capture_ns = libcamera_capture_time_ns(sensor_ns, dequeued_ns);
-    into.t_recorded_ns = into.t_capture_ns;
+    into.t_sample_ns = libcamera_capture_time_ns(sensor_ns, dequeued_ns);
+    into.t_delivered_ns = dequeued_ns;
+    into.t_recorded_ns = into.t_sample_ns;
     into.source_seq = sequence;
     into.name.assign(name_);
     frames_.fetch_add(1, std::memory_order_relaxed);

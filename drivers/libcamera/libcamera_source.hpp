@@ -51,10 +51,10 @@
 // poll() up to its timeout), copies the mmapped plane into the caller's slot
 // and requeues the request. No locks on the per-frame path.
 //
-// Times: t_capture_ns = t_recorded_ns = the request's SensorTimestamp
+// Times: t_sample_ns = t_recorded_ns = the request's SensorTimestamp
 // metadata (CLOCK_MONOTONIC ns; capped at the dequeue time) when present,
-// else CLOCK_MONOTONIC at dequeue (counted as `unstamped`). source_seq =
-// the buffer's sequence number.
+// else CLOCK_MONOTONIC at dequeue (counted as `unstamped`); t_delivered_ns
+// = the dequeue time. source_seq = the buffer's sequence number.
 //
 // Skipped frames: request status cancelled, frame status not success, or
 // too few bytes -> corrupt; a slot of another size or type -> bad_size.

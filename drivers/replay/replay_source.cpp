@@ -200,7 +200,8 @@ NextStatus ReplaySource::next(Frame& into, std::chrono::nanoseconds timeout)
     if (!fill(entry, into))
         return NextStatus::skipped;
     into.odom_mm = entry.odom_mm;
-    into.t_capture_ns = base::monotonic_ns();
+    into.t_delivered_ns = base::monotonic_ns();
+    into.t_sample_ns = into.t_delivered_ns;
     into.t_recorded_ns = entry.t_ns;
     into.source_seq = delivered_.fetch_add(1, std::memory_order_relaxed);
     into.name.assign(entry.name);

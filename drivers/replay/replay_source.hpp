@@ -7,6 +7,11 @@
 // has_class_map (false when the slot has no such plane or the frame no
 // class PNG).
 //
+// Times: t_sample_ns = t_delivered_ns = when next() handed the frame over;
+// t_recorded_ns is the recording's t_ns. Not the paced due time: a replay
+// that falls behind would then hand the actuator frames (and their recorded
+// odometer) older than it may extrapolate, and nothing would be treated.
+//
 // State machine: closed -> opened (frames.csv read) -> streaming -> ended
 // (once, after the last frame) | failed. One thread drives it.
 //

@@ -144,7 +144,8 @@ bool PairedNirSource::handle(const PairDecision& d, Frame& into, NextStatus& sta
         // Same size and type: both write into the slot's own buffers.
         rgb.bgr.copyTo(into.bgr);
         cv::extractChannel(nir.bgr, into.nir, 0);  // the GREY plane (V4l2Source expanded it to B = G = R)
-        into.t_capture_ns = rgb.t_capture_ns;
+        into.t_sample_ns = rgb.t_sample_ns;
+        into.t_delivered_ns = now_ns();
         into.t_recorded_ns = rgb.t_recorded_ns;
         into.source_seq = rgb.source_seq;
         into.name.assign(name_);
@@ -189,10 +190,10 @@ NextStatus PairedNirSource::next(Frame& into, std::chrono::nanoseconds timeout)
         Frame& slot = slots.slots[id];
         const NextStatus got = source.next(slot, std::chrono::nanoseconds(slice));
         if (got == NextStatus::frame) {
-            if (pairer_.push(side, slot.t_capture_ns, id) != PushResult::accepted) {
+            if (pairer_.push(side, slot.t_sample_ns, id) != PushResult::accepted) {
                 slots.give(id);
                 log_->warn("{}: {} frame {} at {} ns is older than its previous one; dropped", name_,
-                           side == PairSide::rgb ? "RGB" : "NIR", slot.source_seq, slot.t_capture_ns);
+                           side == PairSide::rgb ? "RGB" : "NIR", slot.source_seq, slot.t_sample_ns);
                 out_of_order_.store(pairer_.counters().out_of_order, std::memory_order_relaxed);
                 unpaired_rgb_.store(pairer_.counters().unpaired_rgb, std::memory_order_relaxed);
                 unpaired_nir_.store(pairer_.counters().unpaired_nir, std::memory_order_relaxed);

@@ -11,7 +11,8 @@
 // frames no RGB frame takes are unpaired). A delivered Frame has
 //   bgr             the RGB device's frame (converted as V4l2Source does),
 //   nir             the NIR device's frame (CV_8UC1, the GREY plane as is),
-//   t_capture_ns,   the RGB frame's buffer timestamp (t_recorded_ns too);
+//   t_sample_ns     the RGB frame's buffer timestamp (t_recorded_ns too),
+//   t_delivered_ns  when the pair was handed over;
 //   source_seq      the RGB device's sequence number; name "paired:<rgb>+<nir>".
 // A slot whose bgr is not CV_8UC3 or nir not CV_8UC1 of the configured size
 // counts as bad_size (the pair is dropped, next() returns skipped).

@@ -418,8 +418,9 @@ NextStatus V4l2Source::next(Frame& into, std::chrono::nanoseconds timeout)
     if (!deliver)
         return NextStatus::skipped;
 
-    into.t_capture_ns = v4l2_capture_time_ns(buf, dequeued_ns);
-    into.t_recorded_ns = into.t_capture_ns;
+    into.t_sample_ns = v4l2_capture_time_ns(buf, dequeued_ns);
+    into.t_delivered_ns = dequeued_ns;
+    into.t_recorded_ns = into.t_sample_ns;
     into.source_seq = buf.sequence;
     into.name.assign(name_);
     frames_.fetch_add(1, std::memory_order_relaxed);

@@ -20,9 +20,10 @@
 //            an RGB+NIR pair: PairedNirSource (v4l2/paired_nir_source.hpp).
 // Conversions write into the slot's own buffer and never reallocate it.
 //
-// Times: t_capture_ns = t_recorded_ns = the buffer's timestamp when the
+// Times: t_sample_ns = t_recorded_ns = the buffer's timestamp when the
 // driver marks it V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC (capped at the dequeue
-// time), else CLOCK_MONOTONIC at dequeue. source_seq = the driver's sequence number.
+// time), else CLOCK_MONOTONIC at dequeue; t_delivered_ns = the dequeue time.
+// source_seq = the driver's sequence number.
 //
 // Skipped frames: V4L2_BUF_FLAG_ERROR or bytesused != sizeimage -> corrupt;
 // a slot of another size -> bad_size. Both are counted and the buffer is

@@ -163,16 +163,16 @@ void capture(const std::string& camera, const std::string& dump_dir) {
                   "frame " + std::to_string(n));
       const std::int64_t now = monotonic_ns();
       const std::string tag = "frame " + std::to_string(n) + " (seq " + std::to_string(frame.source_seq) + ")";
-      info(tag + ": t_capture " + std::to_string(frame.t_capture_ns) + " ns, " +
-           std::to_string((now - frame.t_capture_ns) / 1'000'000) + " ms before now");
+      info(tag + ": t_sample " + std::to_string(frame.t_sample_ns) + " ns, " +
+           std::to_string((now - frame.t_sample_ns) / 1'000'000) + " ms before now");
       if (frame.bgr.data != slot_data || frame.bgr.size() != cv::Size(kWidth, kHeight) || frame.bgr.type() != CV_8UC3)
         fail(tag + ": the slot was reallocated or resized");
-      if (frame.t_capture_ns > now || now - frame.t_capture_ns > kMaxAgeNs)
-        fail(tag + ": t_capture_ns " + std::to_string(frame.t_capture_ns) + " is not within 2 s before now " +
+      if (frame.t_sample_ns > now || now - frame.t_sample_ns > kMaxAgeNs)
+        fail(tag + ": t_sample_ns " + std::to_string(frame.t_sample_ns) + " is not within 2 s before now " +
              std::to_string(now));
-      if (frame.t_recorded_ns != frame.t_capture_ns) fail(tag + ": t_recorded_ns differs from t_capture_ns");
-      if (n > 0 && frame.t_capture_ns <= last_t)
-        fail(tag + ": timestamp " + std::to_string(frame.t_capture_ns) + " not after the previous " +
+      if (frame.t_recorded_ns != frame.t_sample_ns) fail(tag + ": t_recorded_ns differs from t_sample_ns");
+      if (n > 0 && frame.t_sample_ns <= last_t)
+        fail(tag + ": timestamp " + std::to_string(frame.t_sample_ns) + " not after the previous " +
              std::to_string(last_t));
       if (n > 0 && frame.source_seq <= last_seq) fail(tag + ": source_seq did not increase");
       if (frame.name.view() != source.name()) fail(tag + ": frame name is not the source's");
@@ -182,7 +182,7 @@ void capture(const std::string& camera, const std::string& dump_dir) {
       }
       if (n > 0 && cv::norm(frame.bgr, previous, cv::NORM_L1) > 0) ++changed;
       frame.bgr.copyTo(previous);
-      last_t = frame.t_capture_ns;
+      last_t = frame.t_sample_ns;
       last_seq = frame.source_seq;
     }
     if (changed == 0) fail("all " + std::to_string(kFrames) + " frames are identical (a stale buffer?)");

@@ -185,8 +185,8 @@ void loop(const std::string& rgb_cap, const std::string& rgb_out, const std::str
       if (status == stemd::drivers::NextStatus::timeout || status == stemd::drivers::NextStatus::skipped) continue;
       if (status != stemd::drivers::NextStatus::frame) fail_dump(std::string(phase) + ": next() failed");
       if (slot.bgr.data != bgr_data || slot.nir.data != nir_data) fail_dump("the source reallocated the caller's planes");
-      if (slot.t_capture_ns <= last_t) fail_dump("pair timestamps not increasing");
-      last_t = slot.t_capture_ns;
+      if (slot.t_sample_ns <= last_t) fail_dump("pair timestamps not increasing");
+      last_t = slot.t_sample_ns;
       const auto c = source.paired_counters();
       if (std::llabs(c.last_offset_ns) > kToleranceNs)
         fail_dump("pair offset " + std::to_string(c.last_offset_ns) + " ns over the tolerance");

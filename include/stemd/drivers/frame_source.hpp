@@ -52,7 +52,13 @@ struct Frame {
     // leaves has_class_map false.
     cv::Mat plant_class;
     bool has_class_map = false;
-    std::int64_t t_capture_ns = 0;   // CLOCK_MONOTONIC when the source delivered the frame
+    // CLOCK_MONOTONIC of the exposure: the sensor's timestamp (V4L2 buffer,
+    // libcamera SensorTimestamp), or when a replayed frame was due. Latency
+    // and odometry are measured from it, as the scene is what it was then.
+    std::int64_t t_sample_ns = 0;
+    // CLOCK_MONOTONIC when the source handed the frame over; later than
+    // t_sample_ns by the driver's queueing, or by how late replay fell behind.
+    std::int64_t t_delivered_ns = 0;
     std::int64_t t_recorded_ns = 0;  // the frame's own time: the camera's timestamp, or a recording's t_ns
     // The odometer at capture (mm, monotonic) when the source knows it (a
     // recording's odom_mm column); NaN otherwise.
@@ -97,7 +103,7 @@ public:
     virtual bool start() = 0;
 
     // Waits at most `timeout` for the next frame and writes it into `into`
-    // (including t_capture_ns, CLOCK_MONOTONIC at delivery).
+    // (including t_sample_ns and t_delivered_ns).
     virtual NextStatus next(Frame& into, std::chrono::nanoseconds timeout) = 0;
 
     virtual void stop() = 0;
