@@ -103,9 +103,7 @@ private:
     std::int64_t loop_offset_ns_ = 0;          // recorded pacing: shift of the current pass
     std::int64_t loop_period_ns_ = 0;          // recorded pacing: one pass plus one frame interval
 
-    std::atomic<std::uint64_t> delivered_{0};
-    std::atomic<std::uint64_t> corrupt_{0};
-    std::atomic<std::uint64_t> bad_size_{0};
+    SourceCounterCells counters_;
     std::atomic<std::uint64_t> loops_{0};
     std::atomic<std::uint64_t> late_{0};
     std::atomic<std::int64_t> worst_lateness_ns_{0};

@@ -234,8 +234,8 @@ void loop(const std::string& cap_dev, const std::string& out_dev, V4l2PixelForma
            std::to_string(frames) + " frames; want >= " + std::to_string(kMinMedianFrameIntervalNs) +
            " ns: the unit is wrong)");
   }
-  const auto c = source.v4l2_counters();
-  info("counters: frames=" + std::to_string(c.frames) + " timeouts=" + std::to_string(c.timeouts) +
+  const auto c = source.counters();
+  info("counters: frames=" + std::to_string(c.delivered) + " timeouts=" + std::to_string(c.timeouts) +
        " errors=" + std::to_string(c.errors) + " corrupt=" + std::to_string(c.corrupt) +
        " bad_size=" + std::to_string(c.bad_size));
   source.stop();

@@ -17,6 +17,8 @@
 
 #include <opencv2/core/mat.hpp>
 
+#include "stemd/drivers/source_counters.hpp"
+
 namespace stemd::drivers {
 
 // A frame's name for logs and CSVs (replay: the rgb path as written in
@@ -74,20 +76,6 @@ enum class NextStatus : std::uint8_t {
     skipped,        // a corrupt or unfitting frame was counted and skipped; call again
     end_of_stream,  // a finite source (replay once) has no more frames
     failed,         // the source failed (already logged); stop using it
-};
-
-// Counters every source keeps as members; read from any thread.
-struct SourceCounters {
-    std::uint64_t delivered = 0;   // frames written into a caller's Frame
-    std::uint64_t corrupt = 0;     // unreadable or undecodable frames, skipped
-    std::uint64_t bad_size = 0;    // frames whose size or format does not fit the slot, skipped
-    std::uint64_t loops = 0;       // replay: times the recording started over
-    // Replay paced by t_ns: frames whose due time had passed by more than
-    // kLateToleranceNs when the source came to them (it fell behind: slow
-    // decoding, a loaded CPU), and the most any frame was behind.
-    std::uint64_t late = 0;
-    double worst_lateness_ms = 0;
-    static constexpr std::int64_t kLateToleranceNs = 2'000'000;
 };
 
 class FrameSource {
