@@ -73,10 +73,10 @@ void bench_actuation(benchmark::State& state)
         const auto pass = static_cast<double>(a.i / n);
         const double odom = r.odom_mm;
         r.odom_mm = odom + pass * a.strip_odom_mm;
-        r.t_capture_ns = static_cast<std::int64_t>(a.i) * a.period_ns;
+        r.t_sample_ns = static_cast<std::int64_t>(a.i) * a.period_ns;
         r.seq = a.i;
         const auto t0 = std::chrono::steady_clock::now();
-        a.stage->on_frame(r, r.t_capture_ns + 2'000'000);
+        a.stage->on_frame(r, r.t_sample_ns + 2'000'000);
         const auto t1 = std::chrono::steady_clock::now();
         r.odom_mm = odom;
         ++a.i;

@@ -14,7 +14,7 @@
 // finds no free slot is dropped and counted; a source that can wait (fast
 // replay) waits instead and loses nothing.
 //
-// t_ns is the frame's t_capture_ns (CLOCK_MONOTONIC). A replay source plays
+// t_ns is the frame's t_sample_ns (CLOCK_MONOTONIC). A replay source plays
 // its recording once. nir/ and mask/ are written when the source fills those
 // planes (replay of a recording that has them, with segment.method ndvi/mask);
 // the odom_mm and class columns (class/NNNNNN.png) when the replayed
@@ -171,11 +171,11 @@ io::RecordingColumns replayed_columns(const fs::path& replay_dir)
     return columns;
 }
 
-// What a slot holds as a frames.csv row: t_ns is the capture time, and only
+// What a slot holds as a frames.csv row: t_ns is the sample (exposure) time, and only
 // a class map the source filled is written.
 io::FrameToWrite to_write(const drivers::Frame& frame)
 {
-    return {.t_ns = frame.t_capture_ns,
+    return {.t_ns = frame.t_sample_ns,
             .bgr = frame.bgr,
             .nir = frame.nir,
             .mask = frame.mask,

@@ -272,7 +272,7 @@ bool LibcameraSource::open()
 
 bool LibcameraSource::error(const std::string& what)
 {
-    errors_.fetch_add(1, std::memory_order_relaxed);
+    SourceCounterCells::bump(counters_.errors);
     if (reopening_)
         attempt_error_ = what;
     else
@@ -471,7 +471,7 @@ void LibcameraSource::stop()
 
 NextStatus LibcameraSource::lose(const std::string& why)
 {
-    errors_.fetch_add(1, std::memory_order_relaxed);
+    SourceCounterCells::bump(counters_.errors);
     lost_.fetch_add(1, std::memory_order_relaxed);
     close_camera();
     if (wedged_) {
@@ -494,7 +494,7 @@ NextStatus LibcameraSource::try_reopen(std::chrono::nanoseconds timeout)
     if (!backoff_.due(now)) {
         base::sleep_for_ns(std::min<std::int64_t>(backoff_.wait_ns(now), timeout.count()));
         if (!backoff_.due(base::monotonic_ns())) {
-            timeouts_.fetch_add(1, std::memory_order_relaxed);
+            SourceCounterCells::bump(counters_.timeouts);
             return NextStatus::timeout;
         }
     }
@@ -511,13 +511,13 @@ NextStatus LibcameraSource::try_reopen(std::chrono::nanoseconds timeout)
             logged_attempt_error_ = attempt_error_;
         }
         state_ = State::backoff;
-        timeouts_.fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(counters_.timeouts);
         return NextStatus::timeout;
     }
     backoff_.on_success();
-    reopens_.fetch_add(1, std::memory_order_relaxed);
+    SourceCounterCells::bump(counters_.reopens);
     log_->info("{}: camera '{}' is back; streaming again (reopen {})", name_, camera_id_,
-               reopens_.load(std::memory_order_relaxed));
+               counters_.reopens.load(std::memory_order_relaxed));
     return NextStatus::timeout;
 }
 
@@ -541,7 +541,7 @@ NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
             return lose(fmt::format("{} within {} ms", to_string(loss), watchdog_.limit_ns() / 1'000'000));
         const std::int64_t left = deadline - now;
         if (left <= 0) {
-            timeouts_.fetch_add(1, std::memory_order_relaxed);
+            SourceCounterCells::bump(counters_.timeouts);
             return NextStatus::timeout;
         }
         pollfd pfd{m.event_fd.get(), POLLIN, 0};
@@ -565,7 +565,7 @@ NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
         meta && !meta->planes().empty() ? meta->planes()[0].bytesused : 0;
     if (request->status() != libcamera::Request::RequestComplete || meta == nullptr ||
         meta->status != libcamera::FrameMetadata::FrameSuccess) {
-        corrupt_.fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(counters_.corrupt);
         watchdog_.failed_request();
         log_->warn("{}: request {} {} (frame status {}); skipped", name_, index,
                    request->status() == libcamera::Request::RequestCancelled ? "cancelled" : "not complete",
@@ -577,12 +577,12 @@ NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
             copy_plane_to_bgr(m.planes[index].bytes(), std::min(bytesused, m.planes[index].length()), m.stride,
                               options_.size, order_, into.bgr);
         if (copied == PlaneStatus::bad_size) {
-            bad_size_.fetch_add(1, std::memory_order_relaxed);
+            SourceCounterCells::bump(counters_.bad_size);
             log_->warn("{}: frame is {}x{}, the slot is {}x{} type {}; skipped", name_, options_.size.width,
                        options_.size.height, into.bgr.cols, into.bgr.rows, into.bgr.type());
             deliver = false;
         } else if (copied == PlaneStatus::corrupt) {
-            corrupt_.fetch_add(1, std::memory_order_relaxed);
+            SourceCounterCells::bump(counters_.corrupt);
             log_->warn("{}: frame {} has {} bytes, {}x{} at stride {} needs more; skipped", name_, meta->sequence,
                        bytesused, options_.size.width, options_.size.height, m.stride);
             deliver = false;
@@ -604,32 +604,23 @@ NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
 
     if (!sensor_ns)
         unstamped_.fetch_add(1, std::memory_order_relaxed);
-    into.t_capture_ns = libcamera_capture_time_ns(sensor_ns, dequeued_ns);
-    into.t_recorded_ns = into.t_capture_ns;
+    into.t_sample_ns = libcamera_capture_time_ns(sensor_ns, dequeued_ns);
+    into.t_delivered_ns = dequeued_ns;
+    into.t_recorded_ns = into.t_sample_ns;
     into.source_seq = sequence;
     into.name.assign(name_);
-    frames_.fetch_add(1, std::memory_order_relaxed);
+    SourceCounterCells::bump(counters_.delivered);
     return NextStatus::frame;
 }
 
 SourceCounters LibcameraSource::counters() const
 {
-    return {.delivered = frames_.load(std::memory_order_relaxed),
-            .corrupt = corrupt_.load(std::memory_order_relaxed),
-            .bad_size = bad_size_.load(std::memory_order_relaxed),
-            .loops = 0};
+    return counters_.load();
 }
 
 LibcameraCounters LibcameraSource::libcamera_counters() const
 {
-    return {.frames = frames_.load(std::memory_order_relaxed),
-            .timeouts = timeouts_.load(std::memory_order_relaxed),
-            .errors = errors_.load(std::memory_order_relaxed),
-            .corrupt = corrupt_.load(std::memory_order_relaxed),
-            .bad_size = bad_size_.load(std::memory_order_relaxed),
-            .unstamped = unstamped_.load(std::memory_order_relaxed),
-            .lost = lost_.load(std::memory_order_relaxed),
-            .reopens = reopens_.load(std::memory_order_relaxed)};
+    return {counters_.load(), unstamped_.load(std::memory_order_relaxed), lost_.load(std::memory_order_relaxed)};
 }
 
 }  // namespace stemd::drivers

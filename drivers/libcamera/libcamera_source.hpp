@@ -51,10 +51,10 @@
 // poll() up to its timeout), copies the mmapped plane into the caller's slot
 // and requeues the request. No locks on the per-frame path.
 //
-// Times: t_capture_ns = t_recorded_ns = the request's SensorTimestamp
+// Times: t_sample_ns = t_recorded_ns = the request's SensorTimestamp
 // metadata (CLOCK_MONOTONIC ns; capped at the dequeue time) when present,
-// else CLOCK_MONOTONIC at dequeue (counted as `unstamped`). source_seq =
-// the buffer's sequence number.
+// else CLOCK_MONOTONIC at dequeue (counted as `unstamped`); t_delivered_ns
+// = the dequeue time. source_seq = the buffer's sequence number.
 //
 // Skipped frames: request status cancelled, frame status not success, or
 // too few bytes -> corrupt; a slot of another size or type -> bad_size.
@@ -169,15 +169,11 @@ struct LibcameraOptions {
     std::chrono::nanoseconds reopen_max = std::chrono::seconds(5);
 };
 
-struct LibcameraCounters {
-    std::uint64_t frames = 0;      // frames delivered
-    std::uint64_t timeouts = 0;    // next() calls that saw no frame within their timeout
-    std::uint64_t errors = 0;      // failures (manager, camera, configure, mmap, queue), each logged
-    std::uint64_t corrupt = 0;     // cancelled or failed requests, short frames; skipped
-    std::uint64_t bad_size = 0;    // slot of another size or type, skipped
+// The common counters (corrupt: cancelled or failed requests, short frames;
+// reopens: after a loss) and libcamera's own.
+struct LibcameraCounters : SourceCounters {
     std::uint64_t unstamped = 0;   // delivered frames without SensorTimestamp (stamped at dequeue)
     std::uint64_t lost = 0;        // times the streaming camera was lost (released, then retried)
-    std::uint64_t reopens = 0;     // successful reopens after a loss
 };
 
 class LibcameraSource final : public FrameSource {
@@ -235,14 +231,9 @@ private:
     std::string attempt_error_;     // why the current reopen attempt failed
     std::string logged_attempt_error_;  // the last one logged
 
-    std::atomic<std::uint64_t> frames_{0};
-    std::atomic<std::uint64_t> timeouts_{0};
-    std::atomic<std::uint64_t> errors_{0};
-    std::atomic<std::uint64_t> corrupt_{0};
-    std::atomic<std::uint64_t> bad_size_{0};
+    SourceCounterCells counters_;
     std::atomic<std::uint64_t> unstamped_{0};
     std::atomic<std::uint64_t> lost_{0};
-    std::atomic<std::uint64_t> reopens_{0};
 };
 
 std::string_view to_string(LibcameraSource::State s);

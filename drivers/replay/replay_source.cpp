@@ -200,9 +200,10 @@ NextStatus ReplaySource::next(Frame& into, std::chrono::nanoseconds timeout)
     if (!fill(entry, into))
         return NextStatus::skipped;
     into.odom_mm = entry.odom_mm;
-    into.t_capture_ns = base::monotonic_ns();
+    into.t_delivered_ns = base::monotonic_ns();
+    into.t_sample_ns = into.t_delivered_ns;
     into.t_recorded_ns = entry.t_ns;
-    into.source_seq = delivered_.fetch_add(1, std::memory_order_relaxed);
+    into.source_seq = SourceCounterCells::bump(counters_.delivered);
     into.name.assign(entry.name);
     return NextStatus::frame;
 }
@@ -220,7 +221,7 @@ bool ReplaySource::fill(const Entry& entry, Frame& into)
                             {entry.mask, entry.mask_data, kGreyFlags, into.mask}};
     into.has_class_map = false;
     if (options_.preload && entry.preload_fault != Entry::Fault::none) {
-        (entry.preload_fault == Entry::Fault::bad_size ? bad_size_ : corrupt_).fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(entry.preload_fault == Entry::Fault::bad_size ? counters_.bad_size : counters_.corrupt);
         return false;
     }
     auto fill_plane = [&](const Plane& p) {
@@ -231,7 +232,7 @@ bool ReplaySource::fill(const Entry& entry, Frame& into)
         log_->warn("{}: {} is {}x{} type {}, the slots are {}x{} type {}; skipped", name_, p.path.string(),
                    p.preloaded.cols, p.preloaded.rows, p.preloaded.type(), p.plane.cols, p.plane.rows,
                    p.plane.type());
-        bad_size_.fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(counters_.bad_size);
         return false;
     };
     for (const Plane& p : planes) {
@@ -239,7 +240,7 @@ bool ReplaySource::fill(const Entry& entry, Frame& into)
             continue;  // the pipeline does not use this plane
         if (p.path.empty()) {
             log_->warn("{}: frame {} has no image for a plane the pipeline needs; skipped", name_, entry.name);
-            corrupt_.fetch_add(1, std::memory_order_relaxed);
+            SourceCounterCells::bump(counters_.corrupt);
             return false;
         }
         if (!fill_plane(p))
@@ -304,7 +305,7 @@ bool ReplaySource::header_fits(const std::filesystem::path& path, cv::Size expec
     else
         log_->warn("{}: cannot decode: {}; skipped", path.string(), why);
     if (count)
-        (bad_size ? bad_size_ : corrupt_).fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(bad_size ? counters_.bad_size : counters_.corrupt);
     if (fault != nullptr)
         *fault = bad_size ? Entry::Fault::bad_size : Entry::Fault::corrupt;
     return false;
@@ -313,7 +314,7 @@ bool ReplaySource::header_fits(const std::filesystem::path& path, cv::Size expec
 bool ReplaySource::decode_into(const std::filesystem::path& path, int imread_flags, cv::Mat& plane)
 {
     if (!read_file(path)) {
-        corrupt_.fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(counters_.corrupt);
         return false;
     }
     if (!header_fits(path, plane.size(), true, nullptr))
@@ -327,18 +328,18 @@ bool ReplaySource::decode_into(const std::filesystem::path& path, int imread_fla
         decoded = cv::imdecode(file_buffer_, imread_flags);
     } catch (const cv::Exception& e) {
         log_->warn("{}: cannot decode: {}; skipped", path.string(), e.what());
-        corrupt_.fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(counters_.corrupt);
         return false;
     }
     if (decoded.empty()) {
         log_->warn("{}: cannot decode (corrupt or not an image); skipped", path.string());
-        corrupt_.fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(counters_.corrupt);
         return false;
     }
     if (!copy_into(decoded, plane)) {
         log_->warn("{}: is {}x{} type {}, the slots are {}x{} type {}; skipped", path.string(), decoded.cols,
                    decoded.rows, decoded.type(), plane.cols, plane.rows, plane.type());
-        bad_size_.fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(counters_.bad_size);
         return false;
     }
     return true;
@@ -346,12 +347,11 @@ bool ReplaySource::decode_into(const std::filesystem::path& path, int imread_fla
 
 SourceCounters ReplaySource::counters() const
 {
-    return {.delivered = delivered_.load(std::memory_order_relaxed),
-            .corrupt = corrupt_.load(std::memory_order_relaxed),
-            .bad_size = bad_size_.load(std::memory_order_relaxed),
-            .loops = loops_.load(std::memory_order_relaxed),
-            .late = late_.load(std::memory_order_relaxed),
-            .worst_lateness_ms = static_cast<double>(worst_lateness_ns_.load(std::memory_order_relaxed)) / 1e6};
+    SourceCounters c = counters_.load();
+    c.loops = loops_.load(std::memory_order_relaxed);
+    c.late = late_.load(std::memory_order_relaxed);
+    c.worst_lateness_ms = static_cast<double>(worst_lateness_ns_.load(std::memory_order_relaxed)) / 1e6;
+    return c;
 }
 
 }  // namespace stemd::drivers

@@ -7,6 +7,11 @@
 // has_class_map (false when the slot has no such plane or the frame no
 // class PNG).
 //
+// Times: t_sample_ns = t_delivered_ns = when next() handed the frame over;
+// t_recorded_ns is the recording's t_ns. Not the paced due time: a replay
+// that falls behind would then hand the actuator frames (and their recorded
+// odometer) older than it may extrapolate, and nothing would be treated.
+//
 // State machine: closed -> opened (frames.csv read) -> streaming -> ended
 // (once, after the last frame) | failed. One thread drives it.
 //
@@ -98,9 +103,7 @@ private:
     std::int64_t loop_offset_ns_ = 0;          // recorded pacing: shift of the current pass
     std::int64_t loop_period_ns_ = 0;          // recorded pacing: one pass plus one frame interval
 
-    std::atomic<std::uint64_t> delivered_{0};
-    std::atomic<std::uint64_t> corrupt_{0};
-    std::atomic<std::uint64_t> bad_size_{0};
+    SourceCounterCells counters_;
     std::atomic<std::uint64_t> loops_{0};
     std::atomic<std::uint64_t> late_{0};
     std::atomic<std::int64_t> worst_lateness_ns_{0};

@@ -135,7 +135,7 @@ bool PairedNirSource::handle(const PairDecision& d, Frame& into, NextStatus& sta
     const cv::Size size = options_.rgb.size;
     if (into.bgr.size() != size || into.bgr.type() != CV_8UC3 || into.nir.size() != size ||
         into.nir.type() != CV_8UC1) {
-        bad_size_.fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(counters_.bad_size);
         log_->warn("{}: the slot (bgr {}x{} type {}, nir {}x{} type {}) does not fit {}x{} BGR + NIR; pair skipped",
                    name_, into.bgr.cols, into.bgr.rows, into.bgr.type(), into.nir.cols, into.nir.rows,
                    into.nir.type(), size.width, size.height);
@@ -144,12 +144,13 @@ bool PairedNirSource::handle(const PairDecision& d, Frame& into, NextStatus& sta
         // Same size and type: both write into the slot's own buffers.
         rgb.bgr.copyTo(into.bgr);
         cv::extractChannel(nir.bgr, into.nir, 0);  // the GREY plane (V4l2Source expanded it to B = G = R)
-        into.t_capture_ns = rgb.t_capture_ns;
+        into.t_sample_ns = rgb.t_sample_ns;
+        into.t_delivered_ns = now_ns();
         into.t_recorded_ns = rgb.t_recorded_ns;
         into.source_seq = rgb.source_seq;
         into.name.assign(name_);
         last_offset_ns_.store(d.nir_t_ns - d.rgb_t_ns, std::memory_order_relaxed);
-        delivered_.fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(counters_.delivered);
         status = NextStatus::frame;
     }
     rgb_side_.give(d.rgb_id);
@@ -189,10 +190,10 @@ NextStatus PairedNirSource::next(Frame& into, std::chrono::nanoseconds timeout)
         Frame& slot = slots.slots[id];
         const NextStatus got = source.next(slot, std::chrono::nanoseconds(slice));
         if (got == NextStatus::frame) {
-            if (pairer_.push(side, slot.t_capture_ns, id) != PushResult::accepted) {
+            if (pairer_.push(side, slot.t_sample_ns, id) != PushResult::accepted) {
                 slots.give(id);
                 log_->warn("{}: {} frame {} at {} ns is older than its previous one; dropped", name_,
-                           side == PairSide::rgb ? "RGB" : "NIR", slot.source_seq, slot.t_capture_ns);
+                           side == PairSide::rgb ? "RGB" : "NIR", slot.source_seq, slot.t_sample_ns);
                 out_of_order_.store(pairer_.counters().out_of_order, std::memory_order_relaxed);
                 unpaired_rgb_.store(pairer_.counters().unpaired_rgb, std::memory_order_relaxed);
                 unpaired_nir_.store(pairer_.counters().unpaired_nir, std::memory_order_relaxed);
@@ -207,32 +208,36 @@ NextStatus PairedNirSource::next(Frame& into, std::chrono::nanoseconds timeout)
         // A device reopening delivers nothing captured before now.
         if (source.state() == V4l2Source::State::backoff)
             pairer_.advance(side, now_ns());
-        if (remaining <= 0)
+        if (remaining <= 0) {
+            SourceCounterCells::bump(counters_.timeouts);
             return NextStatus::timeout;
+        }
     }
 }
 
 SourceCounters PairedNirSource::counters() const
 {
-    const V4l2Counters r = rgb_.v4l2_counters();
-    const V4l2Counters n = nir_.v4l2_counters();
-    return {.delivered = delivered_.load(std::memory_order_relaxed),
-            .corrupt = r.corrupt + n.corrupt,
-            .bad_size = bad_size_.load(std::memory_order_relaxed) + r.bad_size + n.bad_size,
-            .loops = 0};
+    const SourceCounters r = rgb_.counters();
+    const SourceCounters n = nir_.counters();
+    SourceCounters c = counters_.load();
+    c.errors = r.errors + n.errors;
+    c.reopens = r.reopens + n.reopens;
+    c.corrupt = r.corrupt + n.corrupt;
+    c.bad_size += r.bad_size + n.bad_size;
+    return c;
 }
 
 PairedNirCounters PairedNirSource::paired_counters() const
 {
-    return {.delivered = delivered_.load(std::memory_order_relaxed),
+    return {.delivered = counters_.delivered.load(std::memory_order_relaxed),
             .unpaired_rgb = unpaired_rgb_.load(std::memory_order_relaxed),
             .unpaired_nir = unpaired_nir_.load(std::memory_order_relaxed),
             .forced = forced_.load(std::memory_order_relaxed),
             .out_of_order = out_of_order_.load(std::memory_order_relaxed),
-            .bad_size = bad_size_.load(std::memory_order_relaxed),
+            .bad_size = counters_.bad_size.load(std::memory_order_relaxed),
             .last_offset_ns = last_offset_ns_.load(std::memory_order_relaxed),
-            .rgb = rgb_.v4l2_counters(),
-            .nir = nir_.v4l2_counters()};
+            .rgb = rgb_.counters(),
+            .nir = nir_.counters()};
 }
 
 }  // namespace stemd::drivers

@@ -11,7 +11,8 @@
 // frames no RGB frame takes are unpaired). A delivered Frame has
 //   bgr             the RGB device's frame (converted as V4l2Source does),
 //   nir             the NIR device's frame (CV_8UC1, the GREY plane as is),
-//   t_capture_ns,   the RGB frame's buffer timestamp (t_recorded_ns too);
+//   t_sample_ns     the RGB frame's buffer timestamp (t_recorded_ns too),
+//   t_delivered_ns  when the pair was handed over;
 //   source_seq      the RGB device's sequence number; name "paired:<rgb>+<nir>".
 // A slot whose bgr is not CV_8UC3 or nir not CV_8UC1 of the configured size
 // counts as bad_size (the pair is dropped, next() returns skipped).
@@ -66,8 +67,8 @@ struct PairedNirCounters {
     std::uint64_t out_of_order = 0;  // frames older than their device's previous one (counted as unpaired too)
     std::uint64_t bad_size = 0;      // pairs dropped: the caller's slot does not fit
     std::int64_t last_offset_ns = 0; // t_nir - t_rgb of the last delivered pair
-    V4l2Counters rgb;                // each device's own counters (its `timeouts` count poll slices)
-    V4l2Counters nir;
+    SourceCounters rgb;              // each device's own counters (its `timeouts` count poll slices)
+    SourceCounters nir;
 };
 
 class PairedNirSource final : public FrameSource {
@@ -85,7 +86,8 @@ public:
     bool start() override;
     NextStatus next(Frame& into, std::chrono::nanoseconds timeout) override;
     void stop() override;
-    // delivered: pairs; corrupt: both devices'; bad_size: both devices' and ours.
+    // delivered, timeouts: pairs; corrupt, errors, reopens: both devices';
+    // bad_size: both devices' and ours.
     SourceCounters counters() const override;
     bool realtime() const override { return true; }
 
@@ -122,12 +124,11 @@ private:
     PairSide turn_ = PairSide::rgb;
     bool opened_ = false;
 
-    std::atomic<std::uint64_t> delivered_{0};
+    SourceCounterCells counters_;   // the pairs' (devices' are their own)
     std::atomic<std::uint64_t> unpaired_rgb_{0};
     std::atomic<std::uint64_t> unpaired_nir_{0};
     std::atomic<std::uint64_t> forced_{0};
     std::atomic<std::uint64_t> out_of_order_{0};
-    std::atomic<std::uint64_t> bad_size_{0};
     std::atomic<std::int64_t> last_offset_ns_{0};
 };
 

@@ -138,7 +138,7 @@ std::int64_t V4l2Source::now_ns() const
 
 void V4l2Source::log_errno(const char* what, int err)
 {
-    errors_.fetch_add(1, std::memory_order_relaxed);
+    SourceCounterCells::bump(counters_.errors);
     log_->error("{}: {}: {} (errno {})", options_.device, what, std::strerror(err), err);
 }
 
@@ -183,7 +183,7 @@ bool V4l2Source::open_device()
     }
     const std::uint32_t caps = (cap.capabilities & V4L2_CAP_DEVICE_CAPS) ? cap.device_caps : cap.capabilities;
     if ((caps & V4L2_CAP_VIDEO_CAPTURE) == 0 || (caps & V4L2_CAP_STREAMING) == 0) {
-        errors_.fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(counters_.errors);
         log_->error("{}: {} ({}) is not a video capture device with streaming I/O", options_.device,
                     reinterpret_cast<const char*>(cap.card), reinterpret_cast<const char*>(cap.driver));
         return false;
@@ -202,7 +202,7 @@ bool V4l2Source::open_device()
     const v4l2_pix_format& pix = fmt.fmt.pix;
     if (static_cast<int>(pix.width) != options_.size.width || static_cast<int>(pix.height) != options_.size.height ||
         pix.pixelformat != v4l2_fourcc_of(options_.pixel_format)) {
-        errors_.fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(counters_.errors);
         const std::uint32_t f = pix.pixelformat;
         log_->error("{}: asked {}x{} {}, the driver offers {}x{} '{}{}{}{}'", options_.device, options_.size.width,
                     options_.size.height, to_string(options_.pixel_format), pix.width, pix.height,
@@ -241,7 +241,7 @@ bool V4l2Source::open_device()
         return false;
     }
     if (req.count < 2) {
-        errors_.fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(counters_.errors);
         log_->error("{}: the driver granted {} buffers, at least 2 are needed", options_.device, req.count);
         return false;
     }
@@ -342,7 +342,7 @@ NextStatus V4l2Source::next(Frame& into, std::chrono::nanoseconds timeout)
             const std::int64_t wait = std::min<std::int64_t>(backoff_.wait_ns(now), timeout.count());
             base::sleep_for_ns(wait);
             if (!backoff_.due(now_ns())) {
-                timeouts_.fetch_add(1, std::memory_order_relaxed);
+                SourceCounterCells::bump(counters_.timeouts);
                 return NextStatus::timeout;
             }
         }
@@ -356,7 +356,7 @@ NextStatus V4l2Source::next(Frame& into, std::chrono::nanoseconds timeout)
             return NextStatus::timeout;
         }
         backoff_.on_success();
-        reopens_.fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(counters_.reopens);
         log_->info("{}: reopened, streaming again", name_);
     }
     if (state_ != State::streaming)
@@ -371,7 +371,7 @@ NextStatus V4l2Source::next(Frame& into, std::chrono::nanoseconds timeout)
     if (ready < 0)
         return fail_and_backoff("poll", errno);
     if (ready == 0) {
-        timeouts_.fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(counters_.timeouts);
         return NextStatus::timeout;
     }
     if (pfd.revents & (POLLERR | POLLHUP | POLLNVAL)) {
@@ -384,7 +384,7 @@ NextStatus V4l2Source::next(Frame& into, std::chrono::nanoseconds timeout)
     buf.memory = V4L2_MEMORY_MMAP;
     if (!ioctl_retry(VIDIOC_DQBUF, &buf)) {
         if (errno == EAGAIN) {
-            timeouts_.fetch_add(1, std::memory_order_relaxed);
+            SourceCounterCells::bump(counters_.timeouts);
             return NextStatus::timeout;
         }
         return fail_and_backoff("VIDIOC_DQBUF", errno);
@@ -396,7 +396,7 @@ NextStatus V4l2Source::next(Frame& into, std::chrono::nanoseconds timeout)
     bool deliver = true;
     if ((buf.flags & V4L2_BUF_FLAG_ERROR) || buf.bytesused != sizeimage_ ||
         buf.bytesused > buffers_[buf.index].length()) {
-        corrupt_.fetch_add(1, std::memory_order_relaxed);
+        SourceCounterCells::bump(counters_.corrupt);
         log_->warn("{}: frame {} corrupt (flags {:#x}, {} of {} bytes); skipped", name_, buf.sequence, buf.flags,
                    buf.bytesused, sizeimage_);
         deliver = false;
@@ -404,12 +404,12 @@ NextStatus V4l2Source::next(Frame& into, std::chrono::nanoseconds timeout)
         const ConvertStatus converted = convert_to_bgr(buffers_[buf.index].bytes(), buf.bytesused, bytesperline_,
                                                        options_.size, options_.pixel_format, into.bgr);
         if (converted == ConvertStatus::bad_size) {
-            bad_size_.fetch_add(1, std::memory_order_relaxed);
+            SourceCounterCells::bump(counters_.bad_size);
             log_->warn("{}: frame is {}x{}, the slot is {}x{} type {}; skipped", name_, options_.size.width,
                        options_.size.height, into.bgr.cols, into.bgr.rows, into.bgr.type());
             deliver = false;
         } else if (converted == ConvertStatus::corrupt) {
-            corrupt_.fetch_add(1, std::memory_order_relaxed);
+            SourceCounterCells::bump(counters_.corrupt);
             deliver = false;
         }
     }
@@ -418,30 +418,18 @@ NextStatus V4l2Source::next(Frame& into, std::chrono::nanoseconds timeout)
     if (!deliver)
         return NextStatus::skipped;
 
-    into.t_capture_ns = v4l2_capture_time_ns(buf, dequeued_ns);
-    into.t_recorded_ns = into.t_capture_ns;
+    into.t_sample_ns = v4l2_capture_time_ns(buf, dequeued_ns);
+    into.t_delivered_ns = dequeued_ns;
+    into.t_recorded_ns = into.t_sample_ns;
     into.source_seq = buf.sequence;
     into.name.assign(name_);
-    frames_.fetch_add(1, std::memory_order_relaxed);
+    SourceCounterCells::bump(counters_.delivered);
     return NextStatus::frame;
 }
 
 SourceCounters V4l2Source::counters() const
 {
-    return {.delivered = frames_.load(std::memory_order_relaxed),
-            .corrupt = corrupt_.load(std::memory_order_relaxed),
-            .bad_size = bad_size_.load(std::memory_order_relaxed),
-            .loops = 0};
-}
-
-V4l2Counters V4l2Source::v4l2_counters() const
-{
-    return {.frames = frames_.load(std::memory_order_relaxed),
-            .timeouts = timeouts_.load(std::memory_order_relaxed),
-            .errors = errors_.load(std::memory_order_relaxed),
-            .reopens = reopens_.load(std::memory_order_relaxed),
-            .corrupt = corrupt_.load(std::memory_order_relaxed),
-            .bad_size = bad_size_.load(std::memory_order_relaxed)};
+    return counters_.load();
 }
 
 }  // namespace stemd::drivers

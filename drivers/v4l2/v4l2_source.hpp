@@ -20,9 +20,10 @@
 //            an RGB+NIR pair: PairedNirSource (v4l2/paired_nir_source.hpp).
 // Conversions write into the slot's own buffer and never reallocate it.
 //
-// Times: t_capture_ns = t_recorded_ns = the buffer's timestamp when the
+// Times: t_sample_ns = t_recorded_ns = the buffer's timestamp when the
 // driver marks it V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC (capped at the dequeue
-// time), else CLOCK_MONOTONIC at dequeue. source_seq = the driver's sequence number.
+// time), else CLOCK_MONOTONIC at dequeue; t_delivered_ns = the dequeue time.
+// source_seq = the driver's sequence number.
 //
 // Skipped frames: V4L2_BUF_FLAG_ERROR or bytesused != sizeimage -> corrupt;
 // a slot of another size -> bad_size. Both are counted and the buffer is
@@ -90,16 +91,6 @@ struct V4l2Options {
     std::function<std::int64_t()> clock;
 };
 
-// V4L2-specific counters (SourceCounters has the common ones).
-struct V4l2Counters {
-    std::uint64_t frames = 0;     // frames delivered
-    std::uint64_t timeouts = 0;   // next() calls that saw no frame within their timeout
-    std::uint64_t errors = 0;     // failures (open, ioctl, poll, mmap), each logged
-    std::uint64_t reopens = 0;    // successful reopens after a failure
-    std::uint64_t corrupt = 0;    // V4L2_BUF_FLAG_ERROR or wrong bytesused, skipped
-    std::uint64_t bad_size = 0;   // slot of another size or type, skipped
-};
-
 class V4l2Source final : public FrameSource {
 public:
     enum class State : std::uint8_t { closed, opening, streaming, failed, backoff };
@@ -117,7 +108,6 @@ public:
     SourceCounters counters() const override;
     bool realtime() const override { return true; }
 
-    V4l2Counters v4l2_counters() const;
     State state() const { return state_; }
     // What the driver granted (valid while streaming).
     std::size_t buffer_count() const { return buffers_.size(); }
@@ -149,12 +139,7 @@ private:
     double granted_fps_ = 0;
     ReopenBackoff backoff_;
 
-    std::atomic<std::uint64_t> frames_{0};
-    std::atomic<std::uint64_t> timeouts_{0};
-    std::atomic<std::uint64_t> errors_{0};
-    std::atomic<std::uint64_t> reopens_{0};
-    std::atomic<std::uint64_t> corrupt_{0};
-    std::atomic<std::uint64_t> bad_size_{0};
+    SourceCounterCells counters_;
 };
 
 }  // namespace stemd::drivers

@@ -86,7 +86,7 @@ void Tracker::emit(Track& t, const TrackFrame& frame, bool by_exit) noexcept
     o.leaves = t.leaves;
     o.confidence = t.sightings > 0 ? static_cast<float>(t.conf_sum / t.sightings) : 0.0f;
     o.by_exit = by_exit;
-    o.t_emit_ns = frame.t_capture_ns;
+    o.t_emit_ns = frame.t_sample_ns;
     o.first_seq = t.first_seq;
     t.target_id = o.target_id;
     t.emitted = true;

@@ -73,23 +73,23 @@ ActuationStage::~ActuationStage()
     finish();
 }
 
-void ActuationStage::on_capture(std::int64_t t_capture_ns, double odom_mm) noexcept
+void ActuationStage::on_capture(std::int64_t t_sample_ns, double odom_mm) noexcept
 {
-    odometry_.add_frame(t_capture_ns, odom_mm);
+    odometry_.add_frame(t_sample_ns, odom_mm);
 }
 
 void ActuationStage::on_frame(const FrameResult& r, std::int64_t now_ns) noexcept
 {
     last_frame_ns_ = now_ns;
-    odometry_.add_frame(r.t_capture_ns, r.odom_mm);
+    odometry_.add_frame(r.t_sample_ns, r.odom_mm);
     double odom_at_capture = 0;
-    if (!odometry_.odometer_at(r.t_capture_ns, odom_at_capture)) {
+    if (!odometry_.odometer_at(r.t_sample_ns, odom_at_capture)) {
         bump(counters_.no_odometry);
         return;
     }
     actuation::TrackFrame frame;
     frame.seq = r.seq;
-    frame.t_capture_ns = r.t_capture_ns;
+    frame.t_sample_ns = r.t_sample_ns;
     frame.odom_at_capture_mm = odom_at_capture;
     frame.view_s_min_mm = odom_at_capture + projector_.view_forward_min_mm();
     frame.view_s_max_mm = odom_at_capture + projector_.view_forward_max_mm();

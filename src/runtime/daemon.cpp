@@ -227,7 +227,7 @@ void Daemon::capture_loop()
         // pipeline: a slow frame must not make the odometer look stale. A
         // full ring loses nothing, the frame carries the same sample.
         if (actuation_ && std::isfinite(hand->odom_mm))
-            captured_odometry_.try_push({hand->t_capture_ns, hand->odom_mm});
+            captured_odometry_.try_push({hand->t_sample_ns, hand->odom_mm});
         if (can_wait) {
             // Back-pressure: only this thread fills the ring, so once there
             // is room the push cannot fail.
@@ -289,7 +289,7 @@ void Daemon::processing_loop()
             vision::detect({.bgr = frame->bgr, .nir = frame->nir, .mask = frame->mask}, config_.vision, *workspace_,
                            result->detections, &times);
             result->seq = frame->seq;
-            result->t_capture_ns = frame->t_capture_ns;
+            result->t_sample_ns = frame->t_sample_ns;
             result->t_recorded_ns = frame->t_recorded_ns;
             result->t_result_ns = base::monotonic_ns();
             result->pipeline_ns = times.total_ns;
@@ -349,7 +349,7 @@ void Daemon::actuator_loop()
             continue;
         }
         idle.reset();
-        const std::int64_t latency_ns = base::monotonic_ns() - result->t_capture_ns;
+        const std::int64_t latency_ns = base::monotonic_ns() - result->t_sample_ns;
         counters_->actuator.latency.record(latency_ns);
         if (!sink_->consume(*result, latency_ns))
             bump(counters_->actuator.sink_errors);

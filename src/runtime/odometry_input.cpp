@@ -25,10 +25,10 @@ OdometryInput::OdometryInput(const ActuationConfig& config, ActuationCounters& c
 {
 }
 
-void OdometryInput::add_frame(std::int64_t t_capture_ns, double odom_mm) noexcept
+void OdometryInput::add_frame(std::int64_t t_sample_ns, double odom_mm) noexcept
 {
     const bool frame_has_odom = std::isfinite(odom_mm);
-    geometry::OdomSample sample{t_capture_ns, 0};
+    geometry::OdomSample sample{t_sample_ns, 0};
     constant_now_ = false;
     switch (source_) {
     case OdometrySource::recording:
@@ -44,9 +44,9 @@ void OdometryInput::add_frame(std::int64_t t_capture_ns, double odom_mm) noexcep
         [[fallthrough]];
     case OdometrySource::constant:
         if (constant_t0_ns_ < 0)
-            constant_t0_ns_ = t_capture_ns;
+            constant_t0_ns_ = t_sample_ns;
         constant_now_ = true;
-        sample = geometry::ConstantSpeedOdometer(speed_mm_per_s_, constant_t0_ns_).sample(t_capture_ns);
+        sample = geometry::ConstantSpeedOdometer(speed_mm_per_s_, constant_t0_ns_).sample(t_sample_ns);
         break;
     case OdometrySource::encoder:
     case OdometrySource::can:

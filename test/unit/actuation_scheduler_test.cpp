@@ -285,14 +285,14 @@ TEST(ActuationRealTime, TrackerAndSchedulerAllocateNothing)
                          i % 4 == 0 ? PlantClass::Crop : PlantClass::Weed, 2};
         }
         TrackFrame f;
-        f.t_capture_ns = static_cast<std::int64_t>(odom * 1e6);
+        f.t_sample_ns = static_cast<std::int64_t>(odom * 1e6);
         f.odom_at_capture_mm = odom;
         f.view_s_min_mm = odom - 150;
         f.view_s_max_mm = odom + 150;
         f.detections = std::span(dets.data(), n);
         for (const Target& t : tracker.update(f)) {
             ++n_targets;
-            const auto d = sched.schedule(t, {f.t_capture_ns, odom, 1000, true});
+            const auto d = sched.schedule(t, {f.t_sample_ns, odom, 1000, true});
             if (d.ok() && n_commands < commands.size())
                 commands[n_commands++] = d.command;
         }

@@ -38,7 +38,7 @@ TrackerParams params()
 TrackFrame frame_at(double odom, std::span<const TrackDetection> dets)
 {
     TrackFrame f;
-    f.t_capture_ns = static_cast<std::int64_t>(odom * 1e6);  // 1 m/s
+    f.t_sample_ns = static_cast<std::int64_t>(odom * 1e6);  // 1 m/s
     f.odom_at_capture_mm = odom;
     f.view_s_min_mm = odom - kHalfViewMm;
     f.view_s_max_mm = odom + kHalfViewMm;

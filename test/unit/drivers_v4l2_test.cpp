@@ -197,7 +197,7 @@ TEST(V4l2Source, MissingDeviceIsAClearErrorNotACrash)
     frame.bgr = cv::Mat(480, 640, CV_8UC3);
     EXPECT_EQ(source.next(frame, 10ms), NextStatus::failed);
     source.stop();
-    EXPECT_EQ(source.v4l2_counters().errors, 1u);
+    EXPECT_EQ(source.counters().errors, 1u);
     EXPECT_EQ(source.counters().delivered, 0u);
     const std::string text = log.text->str();
     EXPECT_NE(text.find("/dev/stemd-no-such-video-device: cannot open: No such file or directory (errno 2)"),

@@ -76,7 +76,7 @@ std::unique_ptr<FrameResult> frame(const std::vector<Plant>& plants, int k, bool
     auto r = std::make_unique<FrameResult>();
     const double odom = k * kSpeed / 30.0;
     r->seq = static_cast<std::uint64_t>(k);
-    r->t_capture_ns = kT0 + k * kPeriodNs;
+    r->t_sample_ns = kT0 + k * kPeriodNs;
     r->odom_mm = with_odom ? odom : std::nan("");
     r->has_class_map = class_map;
     const cv::Point2d c = geometry::image_centre(kSize);
@@ -144,7 +144,7 @@ TEST(ActuationStage, EveryPlantBecomesExactlyOneTargetAtItsFirePosition)
     Stage run = make_stage(base_config());
     for (int k = 0; k < frames_for(plants); ++k) {
         const auto r = frame(plants, k);
-        run.stage->on_frame(*r, r->t_capture_ns + 3'000'000);   // 3 ms pipeline
+        run.stage->on_frame(*r, r->t_sample_ns + 3'000'000);   // 3 ms pipeline
     }
     const auto sent = targets(*run.bus);
     ASSERT_EQ(sent.size(), plants.size());
@@ -175,7 +175,7 @@ TEST(ActuationStage, EnableInactiveSendsNothingAndCountsEveryTarget)
     run.gpio->enable = false;
     for (int k = 0; k < frames_for(plants); ++k) {
         const auto r = frame(plants, k);
-        run.stage->on_frame(*r, r->t_capture_ns + 3'000'000);
+        run.stage->on_frame(*r, r->t_sample_ns + 3'000'000);
     }
     EXPECT_TRUE(targets(*run.bus).empty());
     EXPECT_EQ(run.stage->counters().disabled.load(), plants.size());
@@ -194,7 +194,7 @@ TEST(ActuationStage, EnableTakesEffectFromTheNextFrame)
             sent_before_disable = targets(*run.bus).size();
         }
         const auto r = frame(plants, k);
-        run.stage->on_frame(*r, r->t_capture_ns + 3'000'000);
+        run.stage->on_frame(*r, r->t_sample_ns + 3'000'000);
     }
     EXPECT_GT(sent_before_disable, 0u);
     EXPECT_EQ(targets(*run.bus).size(), sent_before_disable);
@@ -212,7 +212,7 @@ TEST(ActuationStage, SlowPipelineMakesDeadlineMissesThatAreNeverSent)
         const auto r = frame(plants, k);
         // 400 ms late: the machine has moved 556 mm since the capture, past
         // every fire position (a plant is confirmed at most ~160 mm ahead).
-        run.stage->on_frame(*r, r->t_capture_ns + 400'000'000);
+        run.stage->on_frame(*r, r->t_sample_ns + 400'000'000);
     }
     EXPECT_TRUE(targets(*run.bus).empty());
     EXPECT_EQ(run.stage->counters().deadline_misses.load(), plants.size());
@@ -228,7 +228,7 @@ TEST(ActuationStage, DeadlineGivenToTheBusLeavesTheLeadTime)
     for (int k = 0; k < frames_for(plants); ++k) {
         const auto r = frame(plants, k);
         const std::size_t before = run.bus->sent.size();
-        const std::int64_t now = r->t_capture_ns + 3'000'000;
+        const std::int64_t now = r->t_sample_ns + 3'000'000;
         run.stage->on_frame(*r, now);
         for (std::size_t i = before; i < run.bus->sent.size(); ++i) {
             protocol::TargetCommand t;
@@ -249,7 +249,7 @@ TEST(ActuationStage, FramesWithoutOdometryAreNotActuated)
     Stage run = make_stage(base_config());   // odometry.source: recording
     for (int k = 0; k < frames_for(plants); ++k) {
         const auto r = frame(plants, k, false, /*with_odom=*/false);
-        run.stage->on_frame(*r, r->t_capture_ns + 3'000'000);
+        run.stage->on_frame(*r, r->t_sample_ns + 3'000'000);
     }
     EXPECT_TRUE(targets(*run.bus).empty());
     EXPECT_EQ(run.stage->counters().no_odometry.load(), static_cast<std::uint64_t>(frames_for(plants)));
@@ -267,7 +267,7 @@ TEST(ActuationStage, AutoPolicyTreatsOnlyWeedsWithAClassMapAndEverythingWithout)
         Stage run = make_stage(config);
         for (int k = 0; k < frames_for(plants); ++k) {
             const auto r = frame(plants, k, class_map);
-            run.stage->on_frame(*r, r->t_capture_ns + 3'000'000);
+            run.stage->on_frame(*r, r->t_sample_ns + 3'000'000);
         }
         const auto sent = targets(*run.bus);
         if (class_map) {
@@ -392,7 +392,7 @@ TEST(ActuationStage, ConstantSpeedOdometryNeverGoesStale)
     Stage run = make_stage(config);
     for (int k = 0; k < frames_for(plants); ++k) {
         const auto r = frame(plants, k, false, /*with_odom=*/false);
-        run.stage->on_frame(*r, r->t_capture_ns + 400'000'000);
+        run.stage->on_frame(*r, r->t_sample_ns + 400'000'000);
     }
     EXPECT_EQ(run.stage->counters().no_odometry.load(), 0u);
     EXPECT_EQ(targets(*run.bus).size(), plants.size());
@@ -478,7 +478,7 @@ TEST(ActuationStage, PlantsCutByTheAlongTrackBordersAreNotTrackedButLateralOnesA
 {
     Stage run = make_stage(base_config());
     auto r = std::make_unique<FrameResult>();
-    r->t_capture_ns = kT0;
+    r->t_sample_ns = kT0;
     r->odom_mm = 0;
     const auto add = [&](cv::Point2f stem, cv::Rect bbox) {
         vision::Plant p;
@@ -493,8 +493,8 @@ TEST(ActuationStage, PlantsCutByTheAlongTrackBordersAreNotTrackedButLateralOnesA
     add({600, 480}, {580, 460, 40, 40});    // whole
     for (int k = 0; k < 3; ++k) {
         r->seq = static_cast<std::uint64_t>(k);
-        r->t_capture_ns = kT0 + k;   // the same view again: three sightings
-        run.stage->on_frame(*r, r->t_capture_ns + 1'000'000);
+        r->t_sample_ns = kT0 + k;   // the same view again: three sightings
+        run.stage->on_frame(*r, r->t_sample_ns + 1'000'000);
     }
     EXPECT_EQ(run.stage->counters().clipped.load(), 6u);
     EXPECT_EQ(run.stage->counters().targets.load(), 2u);
@@ -575,10 +575,10 @@ TEST(ActuationStage, RecordingOdometerGivenAtCaptureOutlivesASlowPipeline)
     const int n = frames_for(plants);
     for (int k = 0; k < n; ++k) {
         const auto r = frame(plants, k);
-        const std::int64_t now_ns = r->t_capture_ns + kLateNs;
+        const std::int64_t now_ns = r->t_sample_ns + kLateNs;
         for (int j = k; j <= std::min(k + kFramesInFlight, n - 1); ++j) {
             const auto captured = frame(plants, j);
-            at_capture.stage->on_capture(captured->t_capture_ns, captured->odom_mm);
+            at_capture.stage->on_capture(captured->t_sample_ns, captured->odom_mm);
         }
         at_capture.stage->on_frame(*r, now_ns);
         with_result.stage->on_frame(*r, now_ns);

@@ -33,7 +33,7 @@ public:
     {
         if (frames_ >= 0 && next_ >= frames_)
             return drivers::NextStatus::end_of_stream;
-        into.t_capture_ns = stemd::base::monotonic_ns();
+        into.t_sample_ns = stemd::base::monotonic_ns();
         into.t_recorded_ns = next_;
         into.source_seq = static_cast<std::uint64_t>(next_);
         ++next_;
@@ -149,7 +149,7 @@ public:
             while (hang_.load())
                 std::this_thread::yield();
         }
-        into.t_capture_ns = stemd::base::monotonic_ns();
+        into.t_sample_ns = stemd::base::monotonic_ns();
         return drivers::NextStatus::end_of_stream;
     }
     void stop() override {}

@@ -163,16 +163,16 @@ void capture(const std::string& camera, const std::string& dump_dir) {
                   "frame " + std::to_string(n));
       const std::int64_t now = monotonic_ns();
       const std::string tag = "frame " + std::to_string(n) + " (seq " + std::to_string(frame.source_seq) + ")";
-      info(tag + ": t_capture " + std::to_string(frame.t_capture_ns) + " ns, " +
-           std::to_string((now - frame.t_capture_ns) / 1'000'000) + " ms before now");
+      info(tag + ": t_sample " + std::to_string(frame.t_sample_ns) + " ns, " +
+           std::to_string((now - frame.t_sample_ns) / 1'000'000) + " ms before now");
       if (frame.bgr.data != slot_data || frame.bgr.size() != cv::Size(kWidth, kHeight) || frame.bgr.type() != CV_8UC3)
         fail(tag + ": the slot was reallocated or resized");
-      if (frame.t_capture_ns > now || now - frame.t_capture_ns > kMaxAgeNs)
-        fail(tag + ": t_capture_ns " + std::to_string(frame.t_capture_ns) + " is not within 2 s before now " +
+      if (frame.t_sample_ns > now || now - frame.t_sample_ns > kMaxAgeNs)
+        fail(tag + ": t_sample_ns " + std::to_string(frame.t_sample_ns) + " is not within 2 s before now " +
              std::to_string(now));
-      if (frame.t_recorded_ns != frame.t_capture_ns) fail(tag + ": t_recorded_ns differs from t_capture_ns");
-      if (n > 0 && frame.t_capture_ns <= last_t)
-        fail(tag + ": timestamp " + std::to_string(frame.t_capture_ns) + " not after the previous " +
+      if (frame.t_recorded_ns != frame.t_sample_ns) fail(tag + ": t_recorded_ns differs from t_sample_ns");
+      if (n > 0 && frame.t_sample_ns <= last_t)
+        fail(tag + ": timestamp " + std::to_string(frame.t_sample_ns) + " not after the previous " +
              std::to_string(last_t));
       if (n > 0 && frame.source_seq <= last_seq) fail(tag + ": source_seq did not increase");
       if (frame.name.view() != source.name()) fail(tag + ": frame name is not the source's");
@@ -182,17 +182,17 @@ void capture(const std::string& camera, const std::string& dump_dir) {
       }
       if (n > 0 && cv::norm(frame.bgr, previous, cv::NORM_L1) > 0) ++changed;
       frame.bgr.copyTo(previous);
-      last_t = frame.t_capture_ns;
+      last_t = frame.t_sample_ns;
       last_seq = frame.source_seq;
     }
     if (changed == 0) fail("all " + std::to_string(kFrames) + " frames are identical (a stale buffer?)");
     const auto c = source.libcamera_counters();
     const auto common = source.counters();
-    info("counters: frames " + std::to_string(c.frames) + ", timeouts " + std::to_string(c.timeouts) + ", errors " +
+    info("counters: frames " + std::to_string(c.delivered) + ", timeouts " + std::to_string(c.timeouts) + ", errors " +
          std::to_string(c.errors) + ", corrupt " + std::to_string(c.corrupt) + ", bad_size " +
          std::to_string(c.bad_size) + ", unstamped " + std::to_string(c.unstamped));
-    if (c.frames != static_cast<std::uint64_t>(kFrames) || common.delivered != c.frames)
-      fail("counters: frames " + std::to_string(c.frames) + ", delivered " + std::to_string(common.delivered) +
+    if (c.delivered != static_cast<std::uint64_t>(kFrames) || common.delivered != c.delivered)
+      fail("counters: frames " + std::to_string(c.delivered) + ", delivered " + std::to_string(common.delivered) +
            ", captured " + std::to_string(kFrames));
     if (c.errors != 0 || c.bad_size != 0 || c.corrupt != 0 || common.corrupt != c.corrupt ||
         common.bad_size != c.bad_size)
@@ -220,7 +220,7 @@ void capture(const std::string& camera, const std::string& dump_dir) {
 
 std::string counters_text(const LibcameraSource& source) {
   const auto c = source.libcamera_counters();
-  return "frames " + std::to_string(c.frames) + ", timeouts " + std::to_string(c.timeouts) + ", errors " +
+  return "frames " + std::to_string(c.delivered) + ", timeouts " + std::to_string(c.timeouts) + ", errors " +
          std::to_string(c.errors) + ", corrupt " + std::to_string(c.corrupt) + ", lost " + std::to_string(c.lost) +
          ", reopens " + std::to_string(c.reopens) + ", state " + std::string(to_string(source.state()));
 }
@@ -286,13 +286,13 @@ void unplug(const std::string& camera, const std::string& dump_dir, const std::v
   info("camera away: " + counters_text(source));
 
   run_ctl(ctl, "plug");
-  const std::uint64_t frames_before = source.libcamera_counters().frames;
+  const std::uint64_t frames_before = source.libcamera_counters().delivered;
   capture_one(source, frame, std::chrono::seconds(30), "first frame after the plug");
   info("frames resume: " + counters_text(source));
   for (int n = 0; n < 3; ++n) capture_one(source, frame, std::chrono::seconds(5), "frame after the plug");
   const auto c = source.libcamera_counters();
   if (c.reopens != 1 || c.lost != 1) fail("counters after the plug: " + counters_text(source));
-  if (c.frames != frames_before + 4) fail("frames did not keep counting: " + counters_text(source));
+  if (c.delivered != frames_before + 4) fail("frames did not keep counting: " + counters_text(source));
   if (source.camera_id() != id) fail("reopened '" + source.camera_id() + "', not '" + id + "'");
   if (frame.bgr.data != slot_data) fail("frame after the plug: slot reallocated");
   if (const std::string why = judge_pattern(frame.bgr); !why.empty()) {

@@ -131,7 +131,7 @@ std::string counters_text(const stemd::drivers::PairedNirCounters& c) {
   return "delivered=" + std::to_string(c.delivered) + " unpaired_rgb=" + std::to_string(c.unpaired_rgb) +
          " unpaired_nir=" + std::to_string(c.unpaired_nir) + " forced=" + std::to_string(c.forced) +
          " out_of_order=" + std::to_string(c.out_of_order) + " bad_size=" + std::to_string(c.bad_size) +
-         " rgb.frames=" + std::to_string(c.rgb.frames) + " nir.frames=" + std::to_string(c.nir.frames) +
+         " rgb.delivered=" + std::to_string(c.rgb.delivered) + " nir.delivered=" + std::to_string(c.nir.delivered) +
          " rgb.corrupt=" + std::to_string(c.rgb.corrupt) + " nir.corrupt=" + std::to_string(c.nir.corrupt) +
          " last_offset=" + std::to_string(c.last_offset_ns / 1000) + " us";
 }
@@ -185,8 +185,8 @@ void loop(const std::string& rgb_cap, const std::string& rgb_out, const std::str
       if (status == stemd::drivers::NextStatus::timeout || status == stemd::drivers::NextStatus::skipped) continue;
       if (status != stemd::drivers::NextStatus::frame) fail_dump(std::string(phase) + ": next() failed");
       if (slot.bgr.data != bgr_data || slot.nir.data != nir_data) fail_dump("the source reallocated the caller's planes");
-      if (slot.t_capture_ns <= last_t) fail_dump("pair timestamps not increasing");
-      last_t = slot.t_capture_ns;
+      if (slot.t_sample_ns <= last_t) fail_dump("pair timestamps not increasing");
+      last_t = slot.t_sample_ns;
       const auto c = source.paired_counters();
       if (std::llabs(c.last_offset_ns) > kToleranceNs)
         fail_dump("pair offset " + std::to_string(c.last_offset_ns) + " ns over the tolerance");
@@ -209,7 +209,7 @@ void loop(const std::string& rgb_cap, const std::string& rgb_out, const std::str
   read_pairs("steady", kPassPairs);
   const auto cs = source.paired_counters();
   info(fmt::format("steady: {} pairs of {} RGB and {} NIR frames, offsets {:.2f}..{:.2f} ms; {}",
-                   cs.delivered - c0.delivered, cs.rgb.frames - c0.rgb.frames, cs.nir.frames - c0.nir.frames,
+                   cs.delivered - c0.delivered, cs.rgb.delivered - c0.rgb.delivered, cs.nir.delivered - c0.nir.delivered,
                    static_cast<double>(min_offset) / 1e6, static_cast<double>(max_offset) / 1e6, counters_text(cs)));
   c0 = cs;
 

@@ -210,13 +210,13 @@ void loop(const std::string& cap_dev, const std::string& out_dev, V4l2PixelForma
     const std::int64_t now = monotonic_ns();
     ++frames;
     if (slot.bgr.data != slot_data) fail("V4l2Source reallocated the caller's slot");
-    if (slot.t_capture_ns <= last_t)
-      fail("capture timestamps not increasing: " + std::to_string(slot.t_capture_ns) + " after " + std::to_string(last_t));
-    if (last_t != 0) intervals_ns.push_back(slot.t_capture_ns - last_t);
-    last_t = slot.t_capture_ns;
-    const std::int64_t age = now - slot.t_capture_ns;
+    if (slot.t_sample_ns <= last_t)
+      fail("capture timestamps not increasing: " + std::to_string(slot.t_sample_ns) + " after " + std::to_string(last_t));
+    if (last_t != 0) intervals_ns.push_back(slot.t_sample_ns - last_t);
+    last_t = slot.t_sample_ns;
+    const std::int64_t age = now - slot.t_sample_ns;
     if (age < 0 || age > kMaxAgeNs)
-      fail("capture timestamp " + std::to_string(slot.t_capture_ns) + " is " + std::to_string(age) +
+      fail("capture timestamp " + std::to_string(slot.t_sample_ns) + " is " + std::to_string(age) +
            " ns before CLOCK_MONOTONIC now " + std::to_string(now) + " (want 0.." + std::to_string(kMaxAgeNs) + ")");
     last_why = judge(slot.bgr, ws, det);
     info("frame " + std::to_string(frames) + " seq=" + std::to_string(slot.source_seq) + " age=" +
@@ -234,8 +234,8 @@ void loop(const std::string& cap_dev, const std::string& out_dev, V4l2PixelForma
            std::to_string(frames) + " frames; want >= " + std::to_string(kMinMedianFrameIntervalNs) +
            " ns: the unit is wrong)");
   }
-  const auto c = source.v4l2_counters();
-  info("counters: frames=" + std::to_string(c.frames) + " timeouts=" + std::to_string(c.timeouts) +
+  const auto c = source.counters();
+  info("counters: frames=" + std::to_string(c.delivered) + " timeouts=" + std::to_string(c.timeouts) +
        " errors=" + std::to_string(c.errors) + " corrupt=" + std::to_string(c.corrupt) +
        " bad_size=" + std::to_string(c.bad_size));
   source.stop();

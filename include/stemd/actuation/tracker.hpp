@@ -94,7 +94,7 @@ struct TrackDetection {
 
 struct TrackFrame {
     std::uint64_t seq = 0;            // the frame's number (first/last frame of a track)
-    std::int64_t t_capture_ns = 0;    // CLOCK_MONOTONIC
+    std::int64_t t_sample_ns = 0;     // CLOCK_MONOTONIC of the exposure
     double odom_at_capture_mm = 0;
     double view_s_min_mm = 0;         // the view's along-track extent in field mm
     double view_s_max_mm = 0;         // (trailing edge s_min, leading edge s_max)

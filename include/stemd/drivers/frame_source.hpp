@@ -17,6 +17,8 @@
 
 #include <opencv2/core/mat.hpp>
 
+#include "stemd/drivers/source_counters.hpp"
+
 namespace stemd::drivers {
 
 // A frame's name for logs and CSVs (replay: the rgb path as written in
@@ -52,7 +54,13 @@ struct Frame {
     // leaves has_class_map false.
     cv::Mat plant_class;
     bool has_class_map = false;
-    std::int64_t t_capture_ns = 0;   // CLOCK_MONOTONIC when the source delivered the frame
+    // CLOCK_MONOTONIC of the exposure: the sensor's timestamp (V4L2 buffer,
+    // libcamera SensorTimestamp), or when a replayed frame was due. Latency
+    // and odometry are measured from it, as the scene is what it was then.
+    std::int64_t t_sample_ns = 0;
+    // CLOCK_MONOTONIC when the source handed the frame over; later than
+    // t_sample_ns by the driver's queueing, or by how late replay fell behind.
+    std::int64_t t_delivered_ns = 0;
     std::int64_t t_recorded_ns = 0;  // the frame's own time: the camera's timestamp, or a recording's t_ns
     // The odometer at capture (mm, monotonic) when the source knows it (a
     // recording's odom_mm column); NaN otherwise.
@@ -70,20 +78,6 @@ enum class NextStatus : std::uint8_t {
     failed,         // the source failed (already logged); stop using it
 };
 
-// Counters every source keeps as members; read from any thread.
-struct SourceCounters {
-    std::uint64_t delivered = 0;   // frames written into a caller's Frame
-    std::uint64_t corrupt = 0;     // unreadable or undecodable frames, skipped
-    std::uint64_t bad_size = 0;    // frames whose size or format does not fit the slot, skipped
-    std::uint64_t loops = 0;       // replay: times the recording started over
-    // Replay paced by t_ns: frames whose due time had passed by more than
-    // kLateToleranceNs when the source came to them (it fell behind: slow
-    // decoding, a loaded CPU), and the most any frame was behind.
-    std::uint64_t late = 0;
-    double worst_lateness_ms = 0;
-    static constexpr std::int64_t kLateToleranceNs = 2'000'000;
-};
-
 class FrameSource {
 public:
     virtual ~FrameSource() = default;
@@ -97,7 +91,7 @@ public:
     virtual bool start() = 0;
 
     // Waits at most `timeout` for the next frame and writes it into `into`
-    // (including t_capture_ns, CLOCK_MONOTONIC at delivery).
+    // (including t_sample_ns and t_delivered_ns).
     virtual NextStatus next(Frame& into, std::chrono::nanoseconds timeout) = 0;
 
     virtual void stop() = 0;

@@ -68,7 +68,7 @@ public:
     // captured, ahead of its detections: the odometer then stays as fresh as
     // the capture, not as late as the pipeline. on_frame() adds the same
     // sample if this was not called.
-    void on_capture(std::int64_t t_capture_ns, double odom_mm) noexcept;
+    void on_capture(std::int64_t t_sample_ns, double odom_mm) noexcept;
     void poll(std::int64_t now_ns) noexcept;
     // End of the run: the tracks still open go to the plant map; the map is
     // closed. False (logged) if the map lost lines or the bus is a log that

@@ -23,7 +23,7 @@ namespace stemd::runtime {
 // thread (it is ~150 KiB: the Detections are fixed-capacity).
 struct FrameResult {
     std::uint64_t seq = 0;             // the runtime's frame number
-    std::int64_t t_capture_ns = 0;     // CLOCK_MONOTONIC at capture
+    std::int64_t t_sample_ns = 0;      // CLOCK_MONOTONIC of the exposure (drivers::Frame)
     std::int64_t t_recorded_ns = 0;    // the frame's own time (recording t_ns)
     std::int64_t t_result_ns = 0;      // CLOCK_MONOTONIC when detect() returned
     std::int64_t pipeline_ns = 0;      // detect() wall time

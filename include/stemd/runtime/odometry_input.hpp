@@ -20,7 +20,7 @@ public:
 
     // A frame's odometer (NaN: the frame has none) at its capture. Also
     // where a constant speed starts and what says it is in use.
-    void add_frame(std::int64_t t_capture_ns, double odom_mm) noexcept;
+    void add_frame(std::int64_t t_sample_ns, double odom_mm) noexcept;
     // The encoder's tick count, read at now_ns (odometry.source encoder).
     void add_encoder(std::int64_t now_ns, std::int64_t ticks) noexcept;
     // An ODOMETRY frame's 32-bit odometer (wraps), received at t_rx_ns

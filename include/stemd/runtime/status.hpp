@@ -79,7 +79,7 @@ struct Counters {
         std::atomic<std::uint64_t> frames{0};          // results handed to the sink
         std::atomic<std::uint64_t> stems{0};           // plants with a stem (stemd-detect's rows)
         std::atomic<std::uint64_t> sink_errors{0};     // e.g. the CSV could not be written
-        DurationHistogram latency;                     // t_capture_ns -> result received by the actuator
+        DurationHistogram latency;                     // t_sample_ns -> result received by the actuator
     } actuator;
 };
 
