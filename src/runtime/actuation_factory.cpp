@@ -2,11 +2,7 @@
 
 #include <utility>
 
-#include "canlog/canlog_bus.hpp"
-#include "socketcan/socketcan_bus.hpp"
-#if STEMD_HAVE_LIBGPIOD
-#include "gpiod/gpiod_lines.hpp"
-#endif
+#include "stemd/drivers/actuation_factory.hpp"
 #include "stemd/runtime/logging.hpp"
 
 namespace stemd::runtime {
@@ -25,51 +21,28 @@ std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, co
         return nullptr;
     }
     ActuationStage::Parts parts;
-    if (config.can_interface.empty()) {
-        drivers::CanLogOptions options;
-        options.path = config.can_log_file == "-" ? "/dev/stdout" : config.can_log_file;
-        options.clock = config.can_log_monotonic ? drivers::CanLogOptions::Clock::monotonic
-                                                 : drivers::CanLogOptions::Clock::realtime;
-        auto bus = std::make_unique<drivers::CanLogBus>(options, make_logger("canlog"));
-        if (!bus->open()) {
-            error = "cannot open the CAN log " + options.path.string();
-            return nullptr;
-        }
-        log->info("no CAN interface: commands go to {} (candump -L format)", options.path.string());
-        parts.bus = std::move(bus);
-    } else {
-        drivers::SocketCanOptions options;
-        options.interface = config.can_interface;
-        options.rx_ids = {ids->id(protocol::MessageKind::Odometry), ids->id(protocol::MessageKind::ToolStatus)};
-        auto bus = std::make_unique<drivers::SocketCanBus>(options, make_logger("socketcan"));
-        if (!bus->open())
-            log->warn("{}: not up yet; retrying in the background", bus->name());
-        parts.bus = std::move(bus);
-    }
-    if (!config.gpio_chip.empty()) {
-#if STEMD_HAVE_LIBGPIOD
-        drivers::GpiodOptions options;
-        options.chip = config.gpio_chip;
-        options.enable_line = static_cast<unsigned>(config.enable_line);
-        options.enable_active_low = config.enable_active_low;
-        options.enable_debounce_ns = config.enable_debounce_ns;
-        options.trigger_line = config.trigger_line;
-        options.trigger_active_low = config.trigger_active_low;
-        options.encoder = config.encoder_mode == "quadrature" ? drivers::EncoderMode::quadrature
-                          : config.encoder_mode == "single"   ? drivers::EncoderMode::single
-                                                              : drivers::EncoderMode::none;
-        options.encoder_a_line = config.encoder_a_line;
-        options.encoder_b_line = config.encoder_b_line;
-        auto gpio = std::make_unique<drivers::GpiodLines>(options, make_logger("gpiod"));
-        if (!gpio->open())
-            log->warn("{}: not available yet ({}); commands stay disabled until it is", gpio->name(),
-                      gpio->last_error());
-        gpio->start();
-        parts.gpio = std::move(gpio);
-#else
-        error = "gpio.chip is set but this build has no libgpiod (apt install libgpiod-dev, rebuild)";
+    drivers::CanBusSpec can;
+    can.interface = config.can_interface;
+    can.log_file = config.can_log_file;
+    can.log_monotonic = config.can_log_monotonic;
+    can.rx_ids = {ids->id(protocol::MessageKind::Odometry), ids->id(protocol::MessageKind::ToolStatus)};
+    parts.bus = drivers::make_can_bus(can, make_logger, *log, error);
+    if (!parts.bus)
         return nullptr;
-#endif
+    if (!config.gpio_chip.empty()) {
+        drivers::GpioSpec gpio;
+        gpio.chip = config.gpio_chip;
+        gpio.enable_line = static_cast<unsigned>(config.enable_line);
+        gpio.enable_active_low = config.enable_active_low;
+        gpio.enable_debounce_ns = config.enable_debounce_ns;
+        gpio.trigger_line = config.trigger_line;
+        gpio.trigger_active_low = config.trigger_active_low;
+        gpio.encoder_mode = config.encoder_mode;
+        gpio.encoder_a_line = config.encoder_a_line;
+        gpio.encoder_b_line = config.encoder_b_line;
+        parts.gpio = drivers::make_gpio_lines(gpio, make_logger, *log, error);
+        if (!parts.gpio)
+            return nullptr;
     } else {
         log->warn("no GPIO enable input (gpio.chip none): commands are always enabled");
     }

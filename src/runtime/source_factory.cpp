@@ -1,16 +1,7 @@
 #include "stemd/runtime/source_factory.hpp"
 
-#include <chrono>
-#include <cmath>
-#include <utility>
-
-#include "replay/replay_source.hpp"
-#include "v4l2/paired_nir_source.hpp"
-#include "v4l2/v4l2_source.hpp"
-// --- libcamera source (built only with libcamera; STEMD_HAVE_LIBCAMERA from stemd_drivers)
-#if STEMD_HAVE_LIBCAMERA
-#include "libcamera/libcamera_source.hpp"
-#endif
+// STEMD_HAVE_LIBCAMERA comes from stemd_drivers: libcamera is optional.
+#include "stemd/drivers/source_factory.hpp"
 #include "stemd/io/recording.hpp"
 #include "stemd/runtime/logging.hpp"
 
@@ -52,42 +43,21 @@ std::optional<std::string> check_source_config(const DaemonConfig& d, const conf
 
 std::unique_ptr<drivers::FrameSource> make_frame_source(const DaemonConfig& config)
 {
-    if (config.source_kind == "v4l2") {
-        drivers::V4l2Options v4l2;
-        v4l2.device = config.v4l2_device;
-        // The schema allows only the formats the source knows.
-        v4l2.pixel_format =
-            drivers::parse_v4l2_pixel_format(config.v4l2_pixel_format).value_or(drivers::V4l2PixelFormat::yuyv);
-        v4l2.buffers = config.v4l2_buffers;
-        v4l2.size = config.frame_size;
-        v4l2.fps = config.fps;
-        if (!config.nir_device.empty()) {
-            // Paired by capture time; the NIR device's format and size are forced (GREY, same size).
-            drivers::PairedNirOptions paired;
-            paired.rgb = v4l2;
-            paired.nir = v4l2;
-            paired.nir.device = config.nir_device;
-            paired.tolerance = std::chrono::microseconds(std::llround(config.nir_tolerance_ms * 1000));
-            return std::make_unique<drivers::PairedNirSource>(std::move(paired), make_logger("v4l2"));
-        }
-        return std::make_unique<drivers::V4l2Source>(std::move(v4l2), make_logger("v4l2"));
-    }
-#if STEMD_HAVE_LIBCAMERA
-    if (config.source_kind == "libcamera") {  // --- libcamera source
-        drivers::LibcameraOptions libcamera;
-        libcamera.camera = config.libcamera_camera;
-        libcamera.size = config.frame_size;
-        libcamera.fps = config.fps;
-        return std::make_unique<drivers::LibcameraSource>(std::move(libcamera), make_logger("libcamera"));
-    }
-#endif
-    drivers::ReplayOptions replay;
-    replay.dir = config.replay_dir;
-    replay.pacing = config.replay_fast ? drivers::ReplayOptions::Pacing::fast : drivers::ReplayOptions::Pacing::recorded;
-    replay.loop = config.replay_loop;
-    replay.preload = config.replay_preload;
-    replay.frame_size = config.frame_size;
-    return std::make_unique<drivers::ReplaySource>(replay, make_logger("replay"));
+    drivers::SourceSpec spec;
+    spec.kind = config.source_kind;
+    spec.frame_size = config.frame_size;
+    spec.fps = config.fps;
+    spec.v4l2_device = config.v4l2_device;
+    spec.v4l2_pixel_format = config.v4l2_pixel_format;
+    spec.v4l2_buffers = config.v4l2_buffers;
+    spec.nir_device = config.nir_device;
+    spec.nir_tolerance_ms = config.nir_tolerance_ms;
+    spec.libcamera_camera = config.libcamera_camera;
+    spec.replay_dir = config.replay_dir;
+    spec.replay_fast = config.replay_fast;
+    spec.replay_loop = config.replay_loop;
+    spec.replay_preload = config.replay_preload;
+    return drivers::make_frame_source(spec, make_logger);
 }
 
 }  // namespace stemd::runtime
