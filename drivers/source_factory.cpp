@@ -48,6 +48,7 @@ std::unique_ptr<FrameSource> make_frame_source(const SourceSpec& spec, const Mak
     replay.pacing = spec.replay_fast ? ReplayOptions::Pacing::fast : ReplayOptions::Pacing::recorded;
     replay.loop = spec.replay_loop;
     replay.preload = spec.replay_preload;
+    replay.cancelled = spec.cancelled;
     replay.frame_size = spec.frame_size;
     return std::make_unique<ReplaySource>(replay, make_logger("replay"));
 }

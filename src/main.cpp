@@ -174,7 +174,7 @@ int run(int argc, char** argv, Phase& phase)
     const auto log = runtime::make_logger("main");
     const auto status_log = runtime::make_logger("status");
 
-    std::unique_ptr<drivers::FrameSource> source = runtime::make_frame_source(daemon_config);
+    std::unique_ptr<drivers::FrameSource> source = runtime::make_frame_source(daemon_config, [&signals] { return signals.pending(); });
 
     auto sink = std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator"));
     if (!args->detections_csv.empty() && !sink->open_csv(args->detections_csv))
@@ -196,8 +196,14 @@ int run(int argc, char** argv, Phase& phase)
                    daemon_config.frame_size.height);
         return 1;
     }
-    if (!daemon->start())
+    if (!daemon->start()) {
+        // A SIGTERM during a slow start (a long preload) is a stop, not a failure.
+        if (const auto sig = signals.wait(0ms)) {
+            log->info("{}: stopping", *sig == SIGTERM ? "SIGTERM" : "SIGINT");
+            return 0;
+        }
         return 1;
+    }
 
     const auto interval = std::chrono::nanoseconds(static_cast<std::int64_t>(daemon_config.status_interval_s * 1e9));
     const std::int64_t t_start_ns = base::monotonic_ns();

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <system_error>
@@ -63,6 +64,21 @@ bool ReplaySource::open()
     // A looping pass lasts the recording plus one mean frame interval, so
     // the first frame of the next pass keeps the recording's rhythm.
     loop_period_ns_ = n > 1 ? span_ns + span_ns / (n - 1) : 100'000'000;
+    // The same for the odometer, over the frames that have one (the reader
+    // has checked it never decreases).
+    const Entry* first_odom = nullptr;
+    const Entry* last_odom = nullptr;
+    std::int64_t odom_frames = 0;
+    for (const Entry& entry : entries_) {
+        if (!std::isfinite(entry.odom_mm))
+            continue;
+        first_odom = first_odom ? first_odom : &entry;
+        last_odom = &entry;
+        ++odom_frames;
+    }
+    const double odom_span_mm = odom_frames > 1 ? last_odom->odom_mm - first_odom->odom_mm : 0.0;
+    loop_odom_period_mm_ =
+        odom_frames > 1 ? odom_span_mm + odom_span_mm / static_cast<double>(odom_frames - 1) : 0.0;
     state_ = State::opened;
     log_->info("{}: {} frames over {:.2f} s, pacing {}, {}{}", name_, entries_.size(), span_ns / 1e9,
                options_.pacing == ReplayOptions::Pacing::recorded ? "recorded t_ns" : "fast",
@@ -106,7 +122,12 @@ bool ReplaySource::preload_all()
 {
     // Every plane a recording has is decoded, since which ones the pipeline
     // uses is the frame's business; a corrupt one marks its frame.
+    log_->info("{}: preloading {} frames", name_, entries_.size());
     for (Entry& entry : entries_) {
+        if (options_.cancelled && options_.cancelled()) {
+            log_->info("{}: preload cancelled", name_);
+            return false;
+        }
         entry.preload_fault = Entry::Fault::none;
         auto load = [&](const std::filesystem::path& path, int flags, cv::Mat& out) {
             if (path.empty())
@@ -145,6 +166,7 @@ bool ReplaySource::start()
     }
     index_ = 0;
     loop_offset_ns_ = 0;
+    loop_odom_offset_mm_ = 0;
     start_mono_ns_ = base::monotonic_ns();
     state_ = State::streaming;
     return true;
@@ -175,6 +197,7 @@ NextStatus ReplaySource::next(Frame& into, std::chrono::nanoseconds timeout)
         }
         index_ = 0;
         loop_offset_ns_ += loop_period_ns_;
+        loop_odom_offset_mm_ += loop_odom_period_mm_;
         loops_.fetch_add(1, std::memory_order_relaxed);
     }
     const Entry& entry = entries_[index_];
@@ -199,7 +222,7 @@ NextStatus ReplaySource::next(Frame& into, std::chrono::nanoseconds timeout)
     ++index_;
     if (!fill(entry, into))
         return NextStatus::skipped;
-    into.odom_mm = entry.odom_mm;
+    into.odom_mm = entry.odom_mm + loop_odom_offset_mm_;
     into.t_delivered_ns = base::monotonic_ns();
     into.t_sample_ns = into.t_delivered_ns;
     into.t_recorded_ns = entry.t_ns;

@@ -11,6 +11,9 @@
 // t_recorded_ns is the recording's t_ns. Not the paced due time: a replay
 // that falls behind would then hand the actuator frames (and their recorded
 // odometer) older than it may extrapolate, and nothing would be treated.
+// A looping replay drives the strip again: each pass adds the recording's
+// distance plus one mean frame step to odom_mm, so the odometer never runs
+// back (a real odometer does not; the actuator would refuse the samples).
 //
 // State machine: closed -> opened (frames.csv read) -> streaming -> ended
 // (once, after the last frame) | failed. One thread drives it.
@@ -28,6 +31,7 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -48,6 +52,9 @@ struct ReplayOptions {
     // decoded: other sizes are counted (bad_size) and never decoded. Empty:
     // preload checks only io::kMaxImageSidePx (next() checks the slot's size).
     cv::Size frame_size{};
+    // Polled before each frame the preload decodes; true: open() gives up
+    // (a SIGTERM must not wait for a long recording). Empty: never.
+    std::function<bool()> cancelled{};
 };
 
 class ReplaySource final : public FrameSource {
@@ -102,6 +109,8 @@ private:
     std::int64_t start_mono_ns_ = 0;           // recorded pacing: when the first frame was due
     std::int64_t loop_offset_ns_ = 0;          // recorded pacing: shift of the current pass
     std::int64_t loop_period_ns_ = 0;          // recorded pacing: one pass plus one frame interval
+    double loop_odom_offset_mm_ = 0;           // added to odom_mm: the current pass's shift
+    double loop_odom_period_mm_ = 0;           // one pass's distance plus one mean frame step
 
     SourceCounterCells counters_;
     std::atomic<std::uint64_t> loops_{0};

@@ -32,4 +32,12 @@ std::optional<int> ShutdownSignals::wait(std::chrono::milliseconds timeout)
     }
 }
 
+bool ShutdownSignals::pending() const
+{
+    sigset_t waiting;
+    if (sigpending(&waiting) != 0)
+        return false;
+    return sigismember(&waiting, SIGTERM) == 1 || sigismember(&waiting, SIGINT) == 1;
+}
+
 }  // namespace stemd::runtime

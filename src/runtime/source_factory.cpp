@@ -41,7 +41,7 @@ std::optional<std::string> check_source_config(const DaemonConfig& d, const conf
     return std::nullopt;
 }
 
-std::unique_ptr<drivers::FrameSource> make_frame_source(const DaemonConfig& config)
+std::unique_ptr<drivers::FrameSource> make_frame_source(const DaemonConfig& config, std::function<bool()> cancelled)
 {
     drivers::SourceSpec spec;
     spec.kind = config.source_kind;
@@ -57,6 +57,7 @@ std::unique_ptr<drivers::FrameSource> make_frame_source(const DaemonConfig& conf
     spec.replay_fast = config.replay_fast;
     spec.replay_loop = config.replay_loop;
     spec.replay_preload = config.replay_preload;
+    spec.cancelled = std::move(cancelled);
     return drivers::make_frame_source(spec, make_logger);
 }
 

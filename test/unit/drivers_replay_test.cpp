@@ -149,6 +149,36 @@ TEST_F(ReplayTest, LoopsStartOver)
     EXPECT_EQ(source.counters().loops, 2u);
 }
 
+TEST_F(ReplayTest, LoopingDrivesTheStripAgainWithTheOdometerGoingOn)
+{
+    // Three frames 12.5 mm apart: a pass covers 25 mm, and the next pass
+    // starts one step (12.5 mm) after the last frame, as the time does.
+    write_recording(3, 1'000'000);
+    auto source = make(ReplayOptions::Pacing::fast, true);
+    ASSERT_TRUE(source.open());
+    ASSERT_TRUE(source.start());
+    Frame f = slot();
+    for (int i = 0; i < 7; ++i) {
+        ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+        EXPECT_EQ(f.odom_mm, 12.5 * i) << "frame " << i << " of the looping replay";
+    }
+}
+
+TEST_F(ReplayTest, LoopingWithoutAnOdometerHasNone)
+{
+    std::ofstream(dir_ / "frames.csv") << "t_ns,rgb,nir,mask\n0,rgb/0.png,,\n1000,rgb/1.png,,\n";
+    for (int i = 0; i < 2; ++i)
+        cv::imwrite((dir_ / ("rgb/" + std::to_string(i) + ".png")).string(), cv::Mat::zeros(kSize, CV_8UC3));
+    auto source = make(ReplayOptions::Pacing::fast, true);
+    ASSERT_TRUE(source.open());
+    ASSERT_TRUE(source.start());
+    Frame f = slot();
+    for (int i = 0; i < 5; ++i) {
+        ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+        EXPECT_TRUE(std::isnan(f.odom_mm));
+    }
+}
+
 TEST_F(ReplayTest, RecordedPacingKeepsTheRecordingsIntervals)
 {
     constexpr std::int64_t kPeriodNs = 40'000'000;

@@ -32,6 +32,9 @@ struct SourceSpec {
     bool replay_fast = false;              // as fast as taken, else paced by the recording's t_ns
     bool replay_loop = false;
     bool replay_preload = false;
+    // Polled between the slow steps of open() (each frame a replay
+    // preloads); true makes open() give up and fail. Empty: never.
+    std::function<bool()> cancelled{};
 };
 
 // The source, not yet opened; loggers are named after the backend ("v4l2",

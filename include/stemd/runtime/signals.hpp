@@ -22,6 +22,10 @@ public:
     // Waits at most `timeout`; the signal number, or nothing.
     std::optional<int> wait(std::chrono::milliseconds timeout);
 
+    // A signal is waiting for wait() (left pending): for slow start-up
+    // steps, such as a replay's preload, to give up early.
+    bool pending() const;
+
 private:
     sigset_t set_{};
     sigset_t previous_{};

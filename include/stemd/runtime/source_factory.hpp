@@ -3,6 +3,7 @@
 // that open the same sources (tools/stemd-record.cpp).
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -22,7 +23,9 @@ std::optional<std::string> check_source_config(const DaemonConfig& d, const conf
                                                bool replay_from_cli, bool check_only = false);
 
 // The source config.source_kind names, not yet opened. Loggers are named
-// after the backend ("v4l2", "libcamera", "replay").
-std::unique_ptr<drivers::FrameSource> make_frame_source(const DaemonConfig& config);
+// after the backend ("v4l2", "libcamera", "replay"). `cancelled`, if set,
+// is polled during the source's slow start-up steps (a replay's preload).
+std::unique_ptr<drivers::FrameSource> make_frame_source(const DaemonConfig& config,
+                                                        std::function<bool()> cancelled = {});
 
 }  // namespace stemd::runtime
