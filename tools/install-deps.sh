@@ -10,6 +10,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libgpiod-dev libcamera-dev  # APIs the VM driver probes (test/vm) build against
   can-utils python3-canmatrix  # third-party readers of our candump logs and DBC (cross-check tests)
+  clang libclang-rt-14-dev  # the libFuzzer build of the parsers (test/fuzz)
   systemd python3  # systemd-analyze verify of the unit; a stand-in notify socket in a daemon test
 )
 

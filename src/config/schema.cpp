@@ -41,7 +41,7 @@ using vision::ThresholdMethod;
 #define STEMD_KEY(path) [](auto& s, std::size_t) -> auto& { return s.path; }
 #define STEMD_ITEM(list, member) [](auto& s, std::size_t item) -> auto& { return s.list[item].member; }
 
-constexpr double kNsPerMs = 1e6;
+constexpr std::int64_t kNsPerMs = 1'000'000;
 
 // A text key whose default is "none" keeps "none" (not set) as "".
 bool means_unset(const KeySpec& spec, std::string_view value)
@@ -71,8 +71,9 @@ std::string choice_name(const KeySpec& spec, std::size_t index)
 }
 
 // A row bound to a bool, text, integer or real member. A real key bound to
-// an integer member is scaled (ms -> ns with Scale = kNsPerMs).
-template <auto Field, double Scale = 1.0>
+// an integer member is scaled (ms -> ns with Scale = kNsPerMs). Scale is an
+// integer: clang 14 (the fuzz build) takes no floating-point template argument.
+template <auto Field, std::int64_t Scale = 1>
 constexpr KeySpec bind(KeySpec spec)
 {
     spec.store = [](const KeySpec& k, Settings& s, std::size_t item, const detail::ConfigValue& v) {
