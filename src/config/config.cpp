@@ -334,18 +334,34 @@ double number_of(const KeySpec& spec, const ConfigValue& value)
     return spec.type == ValueType::integer ? static_cast<double>(value.integer) : value.real;
 }
 
+// The schema's defaults are valid (the tests check); a bad one would leave
+// the zero value rather than throw.
+ConfigValue default_value(const KeySpec& spec)
+{
+    ConfigValue value;
+    (void)parse_value(spec, Scalar{std::string(spec.default_value), false}, value);
+    return value;
+}
+
 // An item with every key at its default.
 std::vector<ConfigValue> default_item(const ListSpec& list)
 {
     std::vector<ConfigValue> item;
-    for (const KeySpec& spec : item_keys(list.section)) {
-        ConfigValue value;
-        const Scalar scalar{std::string(spec.default_value), false};
-        (void)parse_value(spec, scalar, value);
-        value.origin = "default";
-        item.push_back(std::move(value));
-    }
+    for (const KeySpec& spec : item_keys(list.section))
+        item.push_back(default_value(spec));
     return item;
+}
+
+// The value of --set KEY=VALUE into `value`; the message of the first problem.
+std::optional<std::string> set_value(const KeySpec& spec, std::string_view raw, ConfigValue& value)
+{
+    Scalar scalar;
+    if (auto message = parse_scalar(raw, scalar))
+        return message;
+    if (auto message = parse_value(spec, scalar, value))
+        return message;
+    value.origin = "--set";
+    return std::nullopt;
 }
 
 // What is wrong with item `index` of a list, given the other items: its
@@ -995,15 +1011,8 @@ std::string ConfigError::to_string() const
 
 Config::Config()
 {
-    values_.resize(schema().size());
-    for (const KeySpec& spec : schema()) {
-        ConfigValue& value = values_[index_of(spec)];
-        // The schema's defaults are valid (the tests check); a bad one would
-        // leave the zero value rather than throw.
-        const Scalar scalar{std::string(spec.default_value), false};
-        (void)parse_value(spec, scalar, value);
-        value.origin = "default";
-    }
+    for (const KeySpec& spec : schema())
+        values_.push_back(default_value(spec));
     // Each list: one item at the item defaults.
     for (const ListSpec& list : list_schema())
         lists_.push_back(detail::ListValue{{default_item(list)}});
@@ -1071,13 +1080,9 @@ std::optional<ConfigError> Config::set_override(std::string_view key_equals_valu
     const KeySpec* spec = find_key(key);
     if (spec == nullptr)
         return ConfigError{origin, 0, key, unknown_key_message(key)};
-    Scalar scalar;
-    if (auto message = parse_scalar(key_equals_value.substr(eq + 1), scalar))
-        return ConfigError{origin, 0, key, *message};
     ConfigValue value = values_[index_of(*spec)];
-    if (auto message = parse_value(*spec, scalar, value))
+    if (auto message = set_value(*spec, key_equals_value.substr(eq + 1), value))
         return ConfigError{origin, 0, key, *message};
-    value.origin = "--set";
     values_[index_of(*spec)] = std::move(value);
     return std::nullopt;
 }
@@ -1125,13 +1130,8 @@ std::optional<ConfigError> Config::set_item_override(const ListSpec& list, std::
         }
         staged.items.push_back(std::move(item));
     }
-    Scalar scalar;
-    if (auto message = parse_scalar(raw_value, scalar))
+    if (auto message = set_value(*spec, raw_value, staged.items[index][item_key_index(list, *spec)]))
         return ConfigError{origin, 0, full, *message};
-    ConfigValue& value = staged.items[index][item_key_index(list, *spec)];
-    if (auto message = parse_value(*spec, scalar, value))
-        return ConfigError{origin, 0, full, *message};
-    value.origin = "--set";
     if (const auto problem = check_item(list, staged, index, false))
         return ConfigError{origin, 0, full, problem->message};
     lists_[list_index(list)] = std::move(staged);
@@ -1158,22 +1158,6 @@ std::string Config::origin_of(std::string_view key) const
 {
     const KeySpec* spec = find_key(key);
     return spec == nullptr ? std::string() : values_[index_of(*spec)].origin;
-}
-
-std::optional<std::string> Config::value_text(std::string_view key) const
-{
-    if (const KeySpec* spec = find_key(key))
-        return config::value_text(*spec, values_[index_of(*spec)]);
-    const ListSpec* list = find_list(key.substr(0, key.find_first_of(".[")));
-    std::size_t index = 0;
-    std::string_view leaf;
-    if (list == nullptr || !parse_item_key(key, list->section, index, leaf))
-        return std::nullopt;
-    const KeySpec* spec = find_item_key(list->section, leaf);
-    const detail::ListValue& value = lists_[list_index(*list)];
-    if (spec == nullptr || index >= value.items.size())
-        return std::nullopt;
-    return config::value_text(*spec, value.items[index][item_key_index(*list, *spec)]);
 }
 
 std::string Config::blame(std::string_view key, std::string_view message) const
