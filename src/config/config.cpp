@@ -440,7 +440,15 @@ public:
     void OnDocumentStart(const YAML::Mark& mark) override { documents.push_back(mark); }
     void OnDocumentEnd() override {}
     void OnNull(const YAML::Mark& mark, YAML::anchor_t anchor) override { add({Kind::null, mark, "", "", {}}, anchor); }
-    void OnAlias(const YAML::Mark&, YAML::anchor_t anchor) override { add(anchors_[anchor], 0); }
+    void OnAlias(const YAML::Mark& mark, YAML::anchor_t anchor) override
+    {
+        // A copy, where YAML::Load would share the node: count what the
+        // copies add up to, or aliases of aliases fill the memory.
+        nodes_ += anchors_[anchor].second;
+        if (nodes_ > kMaxNodes)
+            throw YAML::ParserException(mark, cat("more than ", std::to_string(kMaxNodes), " values (aliases)"));
+        add(anchors_[anchor].first, 0);
+    }
     void OnScalar(const YAML::Mark& mark, const std::string& tag, YAML::anchor_t anchor,
                   const std::string& value) override
     {
@@ -460,23 +468,33 @@ public:
     void OnMapEnd() override { close(); }
 
 private:
+    static constexpr std::size_t kMaxNodes = 100000;
+
     Node& add(Node node, YAML::anchor_t anchor)
     {
-        Node& added = open_.empty() ? (root = std::move(node)) : open_.back().first->items.emplace_back(std::move(node));
+        ++nodes_;
+        Node& added = open_.empty() ? (root = std::move(node)) : open_.back().node->items.emplace_back(std::move(node));
         if (anchor != 0)
-            anchors_[anchor] = added;
+            anchors_[anchor] = {added, 1};
         return added;
     }
-    void open(Node node, YAML::anchor_t anchor) { open_.emplace_back(&add(std::move(node), 0), anchor); }
+    void open(Node node, YAML::anchor_t anchor) { open_.push_back({&add(std::move(node), 0), anchor, nodes_}); }
     void close()
     {
-        if (open_.back().second != 0)  // an anchored collection: complete only now
-            anchors_[open_.back().second] = *open_.back().first;
+        const Open& done = open_.back();
+        if (done.anchor != 0)  // an anchored collection: complete only now
+            anchors_[done.anchor] = {*done.node, nodes_ - done.nodes + 1};
         open_.pop_back();
     }
 
-    std::vector<std::pair<Node*, YAML::anchor_t>> open_;  // the collections not yet ended
-    std::map<YAML::anchor_t, Node> anchors_;
+    struct Open {
+        Node* node;
+        YAML::anchor_t anchor;
+        std::size_t nodes;  // nodes_ when it started
+    };
+    std::vector<Open> open_;  // the collections not yet ended
+    std::map<YAML::anchor_t, std::pair<Node, std::size_t>> anchors_;  // and how many nodes each holds
+    std::size_t nodes_ = 0;
 };
 
 // A tab before a line's content, in its indentation or after an item's '-'.
