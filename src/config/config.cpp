@@ -152,7 +152,8 @@ std::string unknown_key_message(std::string_view key)
 
 std::string range_text(const KeySpec& spec)
 {
-    return cat("[", format_number(spec.min), ", ", format_number(spec.max), "]", spec.unit.empty() ? "" : " ", spec.unit);
+    return cat("[", format_number(spec.min), ", ", format_number(spec.max), "]", spec.unit.empty() ? "" : " ",
+               spec.unit);
 }
 
 // --- list sections ---------------------------------------------------------
@@ -422,7 +423,7 @@ struct Node {
     YAML::Mark mark;
     std::string tag;
     std::string text;         // a scalar's value
-    std::vector<Node> items;  // a sequence's items; a map's keys and values, alternating
+    std::vector<Node> items;  // a sequence's items; a map's keys and values, alternating (duplicates too)
 };
 
 using Kind = Node::Kind;
@@ -602,7 +603,10 @@ private:
         std::string_view text = line_text(line);
         const std::size_t indent = std::min(text.find_first_not_of(kWhitespace), text.size());
         std::size_t dashes = 0;
-        for (text.remove_prefix(indent); text.starts_with('-') && (text.size() == 1 || kWhitespace.find(text[1]) != std::string_view::npos); ++dashes)
+        const auto dash = [&] {
+            return text.starts_with('-') && (text.size() == 1 || kWhitespace.find(text[1]) != std::string_view::npos);
+        };
+        for (text.remove_prefix(indent); dash(); ++dashes)
             text = trim(text.substr(1));
         const std::string name(trim(text.substr(0, text.find(':'))));
         if (text.find(':') == std::string_view::npos || !is_valid_name(name))
@@ -624,9 +628,8 @@ private:
             return cat(section->text, ".", name);
         std::size_t items = dashes > 0 ? 1 : 0;  // the items started above the line, and this one
         if (value != nullptr && value->kind == Kind::sequence)
-            items += static_cast<std::size_t>(std::count_if(value->items.begin(), value->items.end(), [&](const Node& item) {
-                return item.mark.line + 1 < line;
-            }));
+            for (const Node& item : value->items)
+                items += item.mark.line + 1 < line ? 1 : 0;
         return items == 0 ? std::string(list->section) : item_key_name(list->section, items - 1, name);
     }
 
