@@ -529,9 +529,9 @@ public:
         } catch (const YAML::Exception& e) {
             failure.emplace(e.mark, e.msg);
         }
-        // YAML allows no tabs in the indentation, and yaml-cpp says so
-        // unclearly (an "illegal map value"), or not at all when the line
-        // continues a value.
+        // A tab in the indentation: yaml-cpp calls it an "illegal map value"
+        // or an "illegal tab", and takes one inside a quoted or a [ ] { }
+        // value; one clear error for all of them.
         int line = 1;
         for (std::size_t at = 0; at < text_.size(); ++line) {
             const std::size_t end = std::min(text_.find('\n', at), text_.size());

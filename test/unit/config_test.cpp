@@ -398,6 +398,9 @@ TEST_F(ConfigFileTest, TabIndentation)
 {
     expect_error("closing:\n\tradius_px: 6\n", 2, "closing.radius_px", "tab in the indentation");
     expect_error("closing:\n  \tradius_px: 6\n", 2, "closing.radius_px", "indent with spaces");
+    // yaml-cpp reads these; the format does not.
+    expect_error("map:\n  file: \"a\n\tb\"\n", 3, "", "tab in the indentation");
+    expect_error("closing: {\n\tradius_px: 6}\n", 2, "closing.radius_px", "tab in the indentation");
 }
 
 TEST_F(ConfigFileTest, KeyOutsideASection)
