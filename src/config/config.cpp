@@ -855,7 +855,7 @@ private:
         // The file's list replaces the whole list.
         ListValue& items = lists_[list_index(list)];
         items.items.clear();
-        std::vector<int> unique_lines;  // per item: line of its unique key (or its first line)
+        std::vector<int> item_lines;
         for (std::size_t i = 0; i < value.items.size(); ++i) {
             const Node& item = value.items[i];
             const std::string name = item_name(section, i);
@@ -892,27 +892,23 @@ private:
                                            spec ? &items.items[i][item_key_index(list, *spec)] : nullptr))
                     return error;
             }
-            // The item against the earlier ones.
-            const auto line_of_key = [&](std::string_view leaf) {
-                const auto it = key_lines_.find(item_key_name(section, i, leaf));
-                return it == key_lines_.end() ? 0 : it->second;
+            // The item against the earlier ones; a key's line, or the item's
+            // if the file leaves the key out.
+            item_lines.push_back(item_line);
+            const auto line_of_key = [&](std::size_t index, std::string_view leaf) {
+                const auto it = key_lines_.find(item_key_name(section, index, leaf));
+                return it == key_lines_.end() ? item_lines[index] : it->second;
             };
-            const int unique_line = line_of_key(list.unique_key);
-            unique_lines.push_back(unique_line != 0 ? unique_line : item_line);
             auto problem = check_item(list, items, i, true);
             if (!problem)
                 continue;
             std::string_view leaf = problem->leaf;
-            int problem_line = line_of_key(leaf);
-            if (leaf == list.unique_key) {
-                problem->message += cat(" (line ", std::to_string(unique_lines[problem->other]), ")");
-            } else if (problem_line == 0 && line_of_key(list.lower_key) != 0) {
-                // The upper key is at its default: the lower key set is at fault.
-                leaf = list.lower_key;
-                problem_line = line_of_key(leaf);
-            }
-            return error(problem_line != 0 ? problem_line : item_line, item_key_name(section, i, leaf),
-                         problem->message);
+            if (leaf == list.unique_key)
+                problem->message += cat(" (line ", std::to_string(line_of_key(problem->other, leaf)), ")");
+            else if (!key_lines_.contains(item_key_name(section, i, leaf)) &&
+                     key_lines_.contains(item_key_name(section, i, list.lower_key)))
+                leaf = list.lower_key;  // the upper key at its default: the lower key set is at fault
+            return error(line_of_key(i, leaf), item_key_name(section, i, leaf), problem->message);
         }
         return std::nullopt;
     }
@@ -1058,16 +1054,17 @@ std::optional<ConfigError> Config::load_file(const std::filesystem::path& path)
         return ConfigError{"--config", 0, "", "empty file name"};
     // O_NONBLOCK: opening a FIFO must not hang the start (SIGTERM is only
     // taken later); a FIFO or a device is refused, a config is a file.
+    const auto unreadable = [&](std::string_view why) {
+        return ConfigError{origin, 0, "", cat("cannot read file: ", why)};
+    };
     base::UniqueFd fd(::open(origin.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK));
-    if (!fd.valid())
-        return ConfigError{origin, 0, "", cat("cannot read file: ", std::strerror(errno))};
     struct stat st {};
-    if (::fstat(fd.get(), &st) != 0)
-        return ConfigError{origin, 0, "", cat("cannot read file: ", std::strerror(errno))};
+    if (!fd.valid() || ::fstat(fd.get(), &st) != 0)
+        return unreadable(std::strerror(errno));
     if (S_ISDIR(st.st_mode))
-        return ConfigError{origin, 0, "", "cannot read file: it is a directory"};
+        return unreadable("it is a directory");
     if (!S_ISREG(st.st_mode))
-        return ConfigError{origin, 0, "", "cannot read file: not a regular file (a FIFO or a device)"};
+        return unreadable("not a regular file (a FIFO or a device)");
     // Read with a cap: a config is a few kB, and /dev/zero or a FIFO that
     // never ends must not fill the memory.
     std::string text;
@@ -1077,13 +1074,11 @@ std::optional<ConfigError> Config::load_file(const std::filesystem::path& path)
         if (n < 0 && errno == EINTR)
             continue;
         if (n < 0)
-            return ConfigError{origin, 0, "", cat("cannot read file: read error: ", std::strerror(errno))};
+            return unreadable(cat("read error: ", std::strerror(errno)));
         if (n == 0)
             break;
         if (text.size() + static_cast<std::size_t>(n) > kMaxConfigBytes)
-            return ConfigError{origin, 0, "",
-                               cat("cannot read file: larger than ", std::to_string(kMaxConfigBytes / 1024),
-                                   " KiB; is it a configuration file?")};
+            return unreadable(cat("larger than ", std::to_string(kMaxConfigBytes / 1024), " KiB; is it a configuration file?"));
         text.append(chunk.data(), static_cast<std::size_t>(n));
     }
     return load_text(text, origin);
