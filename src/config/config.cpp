@@ -1078,7 +1078,8 @@ std::optional<ConfigError> Config::load_file(const std::filesystem::path& path)
         if (n == 0)
             break;
         if (text.size() + static_cast<std::size_t>(n) > kMaxConfigBytes)
-            return unreadable(cat("larger than ", std::to_string(kMaxConfigBytes / 1024), " KiB; is it a configuration file?"));
+            return unreadable(
+                cat("larger than ", std::to_string(kMaxConfigBytes / 1024), " KiB; is it a configuration file?"));
         text.append(chunk.data(), static_cast<std::size_t>(n));
     }
     return load_text(text, origin);
