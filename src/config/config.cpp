@@ -6,12 +6,9 @@
 #include <charconv>
 #include <cmath>
 #include <cstring>
-#include <fstream>
-#include <iterator>
 #include <map>
 #include <span>
 #include <sstream>
-#include <stdexcept>
 #include <system_error>
 
 #include <fcntl.h>
@@ -28,6 +25,7 @@ namespace stemd::config {
 namespace {
 
 using detail::ConfigValue;
+using detail::ListValue;
 
 constexpr std::size_t kMaxConfigBytes = 1024 * 1024;
 
@@ -74,25 +72,34 @@ bool is_known_section(std::string_view name)
                        [&](const KeySpec& spec) { return section_of(spec.key) == name; });
 }
 
-std::string list_sections()
+bool is_valid_name(std::string_view name)
+{
+    return !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
+        return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+               c == '_' || c == '-' || c == '.';
+    });
+}
+
+// "a, b, c": the names `name_of` gives, each once, in order.
+template <class Range, class NameOf>
+std::string joined(const Range& range, NameOf name_of)
 {
     std::string out;
     std::string_view previous;
-    for (const KeySpec& spec : schema()) {
-        const std::string_view section = section_of(spec.key);
-        if (section == previous)
+    for (const auto& element : range) {
+        const std::string_view name = name_of(element);
+        if (name.empty() || name == previous)
             continue;
-        if (!out.empty())
-            out += ", ";
-        out += section;
-        previous = section;
-    }
-    for (const ListSpec& list : list_schema()) {
-        if (!out.empty())
-            out += ", ";
-        out += list.section;
+        out += cat(out.empty() ? "" : ", ", name);
+        previous = name;
     }
     return out;
+}
+
+std::string list_sections()
+{
+    return cat(joined(schema(), [](const KeySpec& spec) { return section_of(spec.key); }), ", ",
+               joined(list_schema(), [](const ListSpec& list) { return list.section; }));
 }
 
 std::size_t edit_distance(std::string_view a, std::string_view b)
@@ -112,47 +119,41 @@ std::size_t edit_distance(std::string_view a, std::string_view b)
     return row[b.size()];
 }
 
-// "unknown key; did you mean 'closing.radius_px'?" and the like.
-std::string unknown_key_message(std::string_view key)
+// The key of `keys` nearest `name` (a full key, or an item key's leaf), if
+// it is at most three edits away.
+const KeySpec* nearest(std::string_view name, std::span<const KeySpec> keys)
 {
     const KeySpec* best = nullptr;
-    std::size_t best_distance = 0;
-    for (const KeySpec& spec : schema()) {
-        const std::size_t d = edit_distance(key, spec.key);
-        if (best == nullptr || d < best_distance) {
+    std::size_t best_distance = 4;
+    for (const KeySpec& spec : keys)
+        if (const std::size_t d = edit_distance(name, item_leaf_of(spec)); d < best_distance) {
             best = &spec;
             best_distance = d;
         }
-    }
-    if (best != nullptr && best_distance <= 3)
+    return best;
+}
+
+// "unknown key; did you mean 'closing.radius_px'?" and the like.
+std::string unknown_key_message(std::string_view key)
+{
+    if (const KeySpec* best = nearest(key, schema()))
         return cat("unknown key; did you mean ", quote(best->key), "?");
     // The same name in another section.
     for (const KeySpec& spec : schema())
         if (leaf_of(spec.key) == leaf_of(key))
             return cat("unknown key; did you mean ", quote(spec.key), "?");
     const std::string_view section = section_of(key);
-    if (is_known_section(section)) {
-        std::string keys;
-        for (const KeySpec& spec : schema()) {
-            if (section_of(spec.key) != section)
-                continue;
-            if (!keys.empty())
-                keys += ", ";
-            keys += leaf_of(spec.key);
-        }
-        return cat("unknown key; section ", quote(section), " has: ", keys);
-    }
+    if (is_known_section(section))
+        return cat("unknown key; section ", quote(section), " has: ", joined(schema(), [&](const KeySpec& spec) {
+                       return section_of(spec.key) == section ? leaf_of(spec.key) : std::string_view{};
+                   }));
     return cat("unknown key; the sections are: ", list_sections());
 }
 
 std::string range_text(const KeySpec& spec)
 {
-    std::string out = cat("[", format_number(spec.min), ", ", format_number(spec.max), "]");
-    if (!spec.unit.empty()) {
-        out += ' ';
-        out += spec.unit;
-    }
-    return out;
+    return cat("[", format_number(spec.min), ", ", format_number(spec.max), "]", spec.unit.empty() ? "" : " ",
+               spec.unit);
 }
 
 // --- list sections ---------------------------------------------------------
@@ -181,24 +182,10 @@ std::size_t item_key_index(const ListSpec& list, const KeySpec& spec)
 // "unknown key; did you mean 'tools[1].offset_mm'?" or the item's keys.
 std::string unknown_item_key_message(const ListSpec& list, std::size_t index, std::string_view leaf)
 {
-    const KeySpec* best = nullptr;
-    std::size_t best_distance = 0;
-    std::string keys;
-    for (const KeySpec& spec : item_keys(list.section)) {
-        const std::size_t d = edit_distance(leaf, item_leaf_of(spec));
-        if (best == nullptr || d < best_distance) {
-            best = &spec;
-            best_distance = d;
-        }
-        if (!keys.empty())
-            keys += ", ";
-        keys += item_leaf_of(spec);
-    }
-    if (best != nullptr && best_distance <= 3)
+    if (const KeySpec* best = nearest(leaf, item_keys(list.section)))
         return cat("unknown key; did you mean ", quote(item_key_name(list.section, index, item_leaf_of(*best))), "?");
-    return cat("unknown key; a ", list.section, " item has: ", keys);
+    return cat("unknown key; a ", list.section, " item has: ", joined(item_keys(list.section), item_leaf_of));
 }
-
 // A value as written: bare, or quoted (a YAML quoted scalar in a file, a
 // double-quoted string with \" \\ \n \t escapes after --set KEY=).
 struct Scalar {
@@ -310,26 +297,72 @@ std::size_t index_of(const KeySpec& spec)
     return static_cast<std::size_t>(&spec - schema().data());
 }
 
-// A value as a config file writes it (text quoted).
-std::string value_text(const KeySpec& spec, const ConfigValue& value);
+std::string yaml_quoted(std::string_view s)
+{
+    std::string out = "\"";
+    for (const char c : s) {
+        switch (c) {
+        case '"': out += "\\\""; break;
+        case '\\': out += "\\\\"; break;
+        case '\n': out += "\\n"; break;
+        case '\t': out += "\\t"; break;
+        default:
+            if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {  // YAML's \xXX escape
+                constexpr std::string_view kHex = "0123456789abcdef";
+                const auto byte = static_cast<unsigned char>(c);
+                out += cat("\\x", std::string_view(&kHex[byte >> 4], 1), std::string_view(&kHex[byte & 15], 1));
+            } else {
+                out += c;
+            }
+        }
+    }
+    return out + "\"";
+}
 
+std::string value_text(const KeySpec& spec, const ConfigValue& value)
+{
+    switch (spec.type) {
+    case ValueType::integer: return std::to_string(value.integer);
+    case ValueType::real: return format_number(value.real);
+    case ValueType::boolean: return value.boolean ? "true" : "false";
+    case ValueType::choice: return value.text;
+    case ValueType::text: return yaml_quoted(value.text);
+    }
+    return "?";
+}
 double number_of(const KeySpec& spec, const ConfigValue& value)
 {
     return spec.type == ValueType::integer ? static_cast<double>(value.integer) : value.real;
+}
+
+// The schema's defaults are valid (the tests check); a bad one would leave
+// the zero value rather than throw.
+ConfigValue default_value(const KeySpec& spec)
+{
+    ConfigValue value;
+    (void)parse_value(spec, Scalar{std::string(spec.default_value), false}, value);
+    return value;
 }
 
 // An item with every key at its default.
 std::vector<ConfigValue> default_item(const ListSpec& list)
 {
     std::vector<ConfigValue> item;
-    for (const KeySpec& spec : item_keys(list.section)) {
-        ConfigValue value;
-        const Scalar scalar{std::string(spec.default_value), false};
-        (void)parse_value(spec, scalar, value);
-        value.origin = "default";
-        item.push_back(std::move(value));
-    }
+    for (const KeySpec& spec : item_keys(list.section))
+        item.push_back(default_value(spec));
     return item;
+}
+
+// The value of --set KEY=VALUE into `value`; the message of the first problem.
+std::optional<std::string> set_value(const KeySpec& spec, std::string_view raw, ConfigValue& value)
+{
+    Scalar scalar;
+    if (auto message = parse_scalar(raw, scalar))
+        return message;
+    if (auto message = parse_value(spec, scalar, value))
+        return message;
+    value.origin = "--set";
+    return std::nullopt;
 }
 
 // What is wrong with item `index` of a list, given the other items: its
@@ -381,87 +414,104 @@ std::string printable(std::string_view s)
     return out;
 }
 
-std::string_view without_cr(std::string_view line)
-{
-    if (!line.empty() && line.back() == '\r')
-        line.remove_suffix(1);
-    return line;
-}
+// --- the YAML tree -------------------------------------------------------------
 
-bool is_valid_name(std::string_view name)
-{
-    return !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
-        return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
-               c == '_' || c == '-' || c == '.';
-    });
-}
-
-// One source line, for what the YAML tree does not say: tabs in the
-// indentation, and which key a YAML syntax error is on.
-struct LineParts {
-    std::size_t indent = 0;       // leading spaces and tabs
-    bool tab = false;             // a tab in the indentation or after an item's '-'
-    bool content = false;         // neither blank nor a comment
-    std::size_t dashes = 0;       // "- " item indicators before the text
-    std::string_view text;        // after the indentation and the dashes
-    std::string_view name;        // before the ':' (trimmed) if a valid name, else empty
+// A YAML node with the marks (0-based line, column, offset) yaml-cpp's
+// parser gives its events.
+struct Node {
+    enum class Kind { null, scalar, sequence, map } kind = Kind::null;
+    YAML::Mark mark;
+    std::string tag;
+    std::string text;         // a scalar's value
+    std::vector<Node> items;  // a sequence's items; a map's keys and values, alternating (duplicates too)
 };
 
-LineParts split_line(std::string_view line)
-{
-    LineParts p;
-    p.indent = std::min(line.find_first_not_of(kWhitespace), line.size());
-    p.tab = line.substr(0, p.indent).find('\t') != std::string_view::npos;
-    std::string_view rest = line.substr(p.indent);
-    while (!rest.empty() && rest.front() == '-' &&
-           (rest.size() == 1 || kWhitespace.find(rest[1]) != std::string_view::npos)) {
-        const std::size_t next = std::min(rest.find_first_not_of(kWhitespace, 1), rest.size());
-        p.tab = p.tab || rest.substr(1, next - 1).find('\t') != std::string_view::npos;
-        rest.remove_prefix(next);
-        ++p.dashes;
-    }
-    p.content = !(rest.empty() && p.dashes == 0) && !rest.starts_with('#');
-    p.text = rest;
-    const std::size_t colon = rest.find(':');
-    if (colon != std::string_view::npos && is_valid_name(trim(rest.substr(0, colon))))
-        p.name = trim(rest.substr(0, colon));
-    return p;
-}
+using Kind = Node::Kind;
 
-// Where each YAML document of a text starts, for at most two documents.
-// YAML::LoadAll cannot be used: yaml-cpp 0.7 reads a stray ',' as an
-// endless run of empty documents, and LoadAll allocates until it aborts.
-class DocumentStarts : public YAML::EventHandler {
+// Builds the tree of one YAML document from the parser's events, instead of
+// YAML::Load: the part built before a syntax error tells where in the file
+// the error is. YAML::LoadAll cannot count the documents: yaml-cpp 0.7 reads
+// a stray ',' as an endless run of empty documents, and LoadAll allocates
+// until it aborts; the loader asks for two documents at the most.
+class TreeBuilder : public YAML::EventHandler {
 public:
-    static std::vector<YAML::Mark> of(const std::string& text)
-    {
-        std::istringstream in(text);
-        YAML::Parser parser(in);
-        DocumentStarts starts;
-        while (starts.marks_.size() < 2 && parser.HandleNextDocument(starts)) {
-        }
-        return starts.marks_;
-    }
+    Node root;
+    std::vector<YAML::Mark> documents;  // where each document starts
 
-    void OnDocumentStart(const YAML::Mark& mark) override { marks_.push_back(mark); }
+    void OnDocumentStart(const YAML::Mark& mark) override { documents.push_back(mark); }
     void OnDocumentEnd() override {}
-    void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
-    void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
-    void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t, const std::string&) override {}
-    void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
-    void OnSequenceEnd() override {}
-    void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
-    void OnMapEnd() override {}
+    void OnNull(const YAML::Mark& mark, YAML::anchor_t anchor) override { add({Kind::null, mark, "", "", {}}, anchor); }
+    void OnAlias(const YAML::Mark& mark, YAML::anchor_t anchor) override
+    {
+        // A copy, where YAML::Load would share the node: count what the
+        // copies add up to, or aliases of aliases fill the memory.
+        nodes_ += anchors_[anchor].second;
+        if (nodes_ > kMaxNodes)
+            throw YAML::ParserException(mark, cat("more than ", std::to_string(kMaxNodes), " values (aliases)"));
+        add(anchors_[anchor].first, 0);
+    }
+    void OnScalar(const YAML::Mark& mark, const std::string& tag, YAML::anchor_t anchor,
+                  const std::string& value) override
+    {
+        add({Kind::scalar, mark, tag, value, {}}, anchor);
+    }
+    void OnSequenceStart(const YAML::Mark& mark, const std::string& tag, YAML::anchor_t anchor,
+                         YAML::EmitterStyle::value) override
+    {
+        open({Kind::sequence, mark, tag, "", {}}, anchor);
+    }
+    void OnSequenceEnd() override { close(); }
+    void OnMapStart(const YAML::Mark& mark, const std::string& tag, YAML::anchor_t anchor,
+                    YAML::EmitterStyle::value) override
+    {
+        open({Kind::map, mark, tag, "", {}}, anchor);
+    }
+    void OnMapEnd() override { close(); }
 
 private:
-    std::vector<YAML::Mark> marks_;
+    static constexpr std::size_t kMaxNodes = 100000;
+
+    Node& add(Node node, YAML::anchor_t anchor)
+    {
+        ++nodes_;
+        Node& added = open_.empty() ? (root = std::move(node)) : open_.back().node->items.emplace_back(std::move(node));
+        if (anchor != 0)
+            anchors_[anchor] = {added, 1};
+        return added;
+    }
+    void open(Node node, YAML::anchor_t anchor) { open_.push_back({&add(std::move(node), 0), anchor, nodes_}); }
+    void close()
+    {
+        const Open& done = open_.back();
+        if (done.anchor != 0)  // an anchored collection: complete only now
+            anchors_[done.anchor] = {*done.node, nodes_ - done.nodes + 1};
+        open_.pop_back();
+    }
+
+    struct Open {
+        Node* node;
+        YAML::anchor_t anchor;
+        std::size_t nodes;  // nodes_ when it started
+    };
+    std::vector<Open> open_;  // the collections not yet ended
+    std::map<YAML::anchor_t, std::pair<Node, std::size_t>> anchors_;  // and how many nodes each holds
+    std::size_t nodes_ = 0;
 };
 
-// The YAML tree of a configuration file, checked against the schema, into
+// A tab before a line's content, in its indentation or after an item's '-'.
+bool tab_in_indentation(std::string_view line)
+{
+    const std::size_t end = std::min(line.find_first_not_of(" \t-"), line.size());
+    const std::string_view lead = line.substr(0, end);
+    const bool content = end < line.size() ? line[end] != '#' : lead.find('-') != std::string_view::npos;
+    return content && lead.find('\t') != std::string_view::npos;
+}
+
+// The tree of a configuration file, checked against the schema, into
 // `values` and `lists` (copies the caller commits).
 class YamlLoader {
 public:
-    YamlLoader(std::string_view origin, std::vector<ConfigValue>& values, std::vector<detail::ListValue>& lists)
+    YamlLoader(std::string_view origin, std::vector<ConfigValue>& values, std::vector<ListValue>& lists)
         : origin_(origin), values_(values), lists_(lists) {}
 
     std::optional<ConfigError> load(std::string_view text)
@@ -469,51 +519,41 @@ public:
         if (text.starts_with("\xEF\xBB\xBF"))  // UTF-8 byte order mark
             text.remove_prefix(3);
         text_ = std::string(text);
-        for (std::string_view rest = text_; !rest.empty();) {
-            const std::size_t nl = rest.find('\n');
-            lines_.push_back(without_cr(rest.substr(0, nl)));
-            rest = nl == std::string_view::npos ? std::string_view{} : rest.substr(nl + 1);
-        }
-        // YAML does not allow tabs in the indentation; say so before the
-        // parser reports something less clear.
-        for (std::size_t i = 0; i < lines_.size(); ++i) {
-            const LineParts p = split_line(lines_[i]);
-            if (p.content && p.tab)
-                return error(static_cast<int>(i) + 1, key_at_line(i), "tab in the indentation; indent with spaces");
-        }
-        YAML::Node root;
+        TreeBuilder second;
+        std::optional<std::pair<YAML::Mark, std::string>> failure;
         try {
-            const std::vector<YAML::Mark> starts = DocumentStarts::of(text_);
-            if (starts.size() > 1) {
-                // The second document's "---" line, at or above its first node.
-                int line = line_of(starts[1]);
-                for (int l = line; l >= 1; --l)
-                    if (static_cast<std::size_t>(l) <= lines_.size() && lines_[l - 1].starts_with("---")) {
-                        line = l;
-                        break;
-                    }
-                return error(line, "",
-                             "more than one YAML document ('---'); a config file holds one map of sections (a ',' "
-                             "outside [ ] or { } starts a document too)");
-            }
-            root = YAML::Load(text_);
-        } catch (const YAML::ParserException& e) {
-            return syntax_error(e.mark, e.msg);
+            std::istringstream in(text_);
+            YAML::Parser parser(in);
+            if (parser.HandleNextDocument(tree_))
+                parser.HandleNextDocument(second);
         } catch (const YAML::Exception& e) {
-            return syntax_error(e.mark, e.msg);
+            failure.emplace(e.mark, e.msg);
         }
-        if (root.IsNull())
+        // A tab in the indentation: yaml-cpp calls it an "illegal map value"
+        // or an "illegal tab", and takes one inside a quoted or a [ ] { }
+        // value; one clear error for all of them.
+        int line = 1;
+        for (std::size_t at = 0; at < text_.size(); ++line) {
+            const std::size_t end = std::min(text_.find('\n', at), text_.size());
+            if (tab_in_indentation(line_text(at, end)))
+                return error(line, key_at(line), "tab in the indentation; indent with spaces");
+            at = end + 1;
+        }
+        if (failure)
+            return syntax_error(failure->first, failure->second);
+        if (!second.documents.empty())
+            return error(line_of(second.documents.front()), "",
+                         "more than one YAML document ('---'); a config file holds one map of sections (a ',' "
+                         "outside [ ] or { } starts a document too)");
+        const Node& root = tree_.root;
+        if (root.kind == Kind::null)
             return std::nullopt;
-        if (!root.IsMap())
+        if (root.kind != Kind::map)
             return error(line_of(root), "",
                          cat("expected 'section:' lines (a map of sections) at the top level, got ", what(root)));
-        try {
-            for (auto it = root.begin(); it != root.end(); ++it)
-                if (auto error = section(it->first, it->second))
-                    return error;
-        } catch (const YAML::Exception& e) {
-            return error(line_of(e.mark), "", cat("invalid YAML: ", e.msg));
-        }
+        for (std::size_t i = 0; i + 1 < root.items.size(); i += 2)
+            if (auto error = section(root.items[i], root.items[i + 1]))
+                return error;
         return std::nullopt;
     }
 
@@ -523,203 +563,205 @@ private:
         return ConfigError{origin_, line, printable(key), printable(message)};
     }
 
+    // 1-based; a mark without a position (the end of the input): the last line.
     int line_of(const YAML::Mark& mark) const
     {
-        // A mark without a position (end of input): the last line.
-        return mark.line >= 0 ? mark.line + 1 : static_cast<int>(lines_.size());
+        if (mark.line >= 0)
+            return mark.line + 1;
+        return static_cast<int>(std::count(text_.begin(), text_.end(), '\n')) +
+               (text_.empty() || text_.back() == '\n' ? 0 : 1);
     }
 
-    int line_of(const YAML::Node& node) const { return line_of(node.Mark()); }
+    int line_of(const Node& node) const { return line_of(node.mark); }
+
+    std::size_t offset_of(const Node& node) const
+    {
+        return node.mark.pos >= 0 ? std::min(static_cast<std::size_t>(node.mark.pos), text_.size()) : text_.size();
+    }
+
+    std::string_view line_text(std::size_t begin, std::size_t end) const
+    {
+        std::string_view line = std::string_view(text_).substr(begin, end - begin);
+        return line.ends_with('\r') ? line.substr(0, line.size() - 1) : line;
+    }
+
+    // Line `line` (1-based) of the text.
+    std::string_view line_text(int line) const
+    {
+        std::size_t begin = 0;
+        for (int l = 1; l < line && begin < text_.size(); ++l)
+            begin = std::min(text_.find('\n', begin), text_.size() - 1) + 1;
+        return line_text(begin, std::min(text_.find('\n', begin), text_.size()));
+    }
+
+    // The key a line holds, as errors name it ("closing.radius_px",
+    // "tools[1].offset_mm", a section), or "" if the line does not say: the
+    // section and the item from the tree above the line, the name from the
+    // line itself (yaml-cpp stops before the key of a line it cannot read).
+    std::string key_at(int line) const
+    {
+        std::string_view text = line_text(line);
+        const std::size_t indent = std::min(text.find_first_not_of(kWhitespace), text.size());
+        std::size_t dashes = 0;
+        const auto dash = [&] {
+            return text.starts_with('-') && (text.size() == 1 || kWhitespace.find(text[1]) != std::string_view::npos);
+        };
+        for (text.remove_prefix(indent); dash(); ++dashes)
+            text = trim(text.substr(1));
+        const std::string name(trim(text.substr(0, text.find(':'))));
+        if (text.find(':') == std::string_view::npos || !is_valid_name(name))
+            return "";
+        if (indent == 0 && dashes == 0)
+            return name;
+        const Node& root = tree_.root;
+        const Node* section = nullptr;  // the last section above the line, and its value
+        const Node* value = nullptr;
+        for (std::size_t i = 0; root.kind == Kind::map && i < root.items.size(); i += 2)
+            if (root.items[i].mark.line + 1 < line) {
+                section = &root.items[i];
+                value = i + 1 < root.items.size() ? &root.items[i + 1] : nullptr;
+            }
+        if (section == nullptr)
+            return "";
+        const ListSpec* list = find_list(section->text);
+        if (list == nullptr)
+            return cat(section->text, ".", name);
+        std::size_t items = dashes > 0 ? 1 : 0;  // the items started above the line, and this one
+        if (value != nullptr && value->kind == Kind::sequence)
+            for (const Node& item : value->items)
+                items += item.mark.line + 1 < line ? 1 : 0;
+        return items == 0 ? std::string(list->section) : item_key_name(list->section, items - 1, name);
+    }
 
     ConfigError syntax_error(const YAML::Mark& mark, const std::string& message) const
     {
         const int line = line_of(mark);
-        const std::size_t index = static_cast<std::size_t>(std::max(line, 1) - 1);
-        const std::string key = key_at_line(index);
+        const std::string key = key_at(line);
         // "key: -": the dash starts a YAML list item, not the text "-".
-        if (index < lines_.size()) {
-            const LineParts p = split_line(lines_[index]);
-            if (!p.name.empty()) {
-                std::string_view value = p.text.substr(p.text.find(':') + 1);
-                const std::size_t comment = value.find(" #");
-                value = trim(value.substr(0, comment));
-                if (value == "-" || value.starts_with("- "))
-                    return error(line, key, "invalid YAML: a bare '-' starts a list item, not a value; write "
-                                            "\"-\" (double-quoted) for a dash");
-            }
-        }
-        return error(line, key, cat("invalid YAML: ", message, indentation_hint(index)));
+        if (message == YAML::ErrorMsg::BLOCK_ENTRY && !key.empty())
+            return error(line, key, "invalid YAML: a bare '-' starts a list item, not a value; write \"-\" "
+                                    "(double-quoted) for a dash");
+        return error(line, key, cat("invalid YAML: ", message, indentation_hint(line)));
     }
 
-    // " (inconsistent indentation? ...)" when line `index` starts in a column
-    // no line above starts a key in, after a line with a value (so it cannot
+    // " (inconsistent indentation? ...)" when a line starts in a column no
+    // key above it starts in, after a key with a value (so that it cannot
     // open a deeper level); "" otherwise.
-    std::string indentation_hint(std::size_t index) const
+    std::string indentation_hint(int line) const
     {
-        if (index >= lines_.size())
-            return "";
-        const LineParts p = split_line(lines_[index]);
-        if (!p.content)
+        const std::string_view text = line_text(line);
+        const std::size_t indent = text.find_first_not_of(' ');
+        if (indent == std::string_view::npos || text[indent] == '#')
             return "";
         std::vector<std::size_t> columns;
-        std::optional<std::size_t> previous;
-        bool previous_has_value = false;
-        for (std::size_t j = 0; j < index; ++j) {
-            const LineParts above = split_line(lines_[j]);
-            if (!above.content)
-                continue;
-            const std::size_t key_column = lines_[j].size() - above.text.size();
-            columns.push_back(above.indent);
-            columns.push_back(key_column);
-            previous = key_column;
-            std::string_view after = above.name.empty() ? above.text : above.text.substr(above.text.find(':') + 1);
-            after = trim(after);
-            previous_has_value = above.name.empty() || (!after.empty() && !after.starts_with('#'));
-        }
-        if (!previous || !previous_has_value ||
-            std::find(columns.begin(), columns.end(), p.indent) != columns.end())
-            return "";
-        return cat(" (inconsistent indentation? ", std::to_string(p.indent), " spaces here, ",
-                   std::to_string(*previous), " on the line above)");
-    }
-
-    // The key a source line holds, as errors name it ("closing.radius_px",
-    // "tools[1].offset_mm", a section), or "" if the line does not say.
-    std::string key_at_line(std::size_t index) const
-    {
-        if (index >= lines_.size())
-            return "";
-        const LineParts p = split_line(lines_[index]);
-        if (p.name.empty())
-            return "";
-        if (p.indent == 0 && p.dashes == 0)
-            return std::string(p.name);
-        // The section: the nearest line above at indent 0.
-        std::size_t section_line = index;
-        while (section_line > 0) {
-            const LineParts above = split_line(lines_[--section_line]);
-            if (above.content && above.indent == 0 && above.dashes == 0) {
-                if (above.name.empty())
-                    return "";
-                const ListSpec* list = find_list(above.name);
-                if (list == nullptr)
-                    return cat(above.name, ".", p.name);
-                // A list item: count the "- " lines from the section down.
-                std::size_t items = 0;
-                for (std::size_t j = section_line + 1; j <= index; ++j)
-                    items += split_line(lines_[j]).dashes > 0 ? 1 : 0;
-                return items == 0 ? std::string(list->section)
-                                  : item_key_name(list->section, items - 1, p.name);
+        const Node* last_key = nullptr;
+        const Node* last_value = nullptr;
+        const auto above = [&](const Node& node) { return node.mark.line >= 0 && node.mark.line + 1 < line; };
+        const auto visit = [&](const auto& self, const Node& node) -> void {
+            if (!above(node))
+                return;
+            if (node.kind != Kind::scalar)
+                columns.push_back(static_cast<std::size_t>(node.mark.column));
+            for (std::size_t i = 0; i < node.items.size(); ++i) {
+                if (node.kind == Kind::map && i % 2 == 0 && above(node.items[i])) {
+                    last_key = &node.items[i];
+                    last_value = i + 1 < node.items.size() ? &node.items[i + 1] : nullptr;
+                    columns.push_back(static_cast<std::size_t>(last_key->mark.column));
+                }
+                self(self, node.items[i]);
             }
-        }
-        return "";
+        };
+        visit(visit, tree_.root);
+        if (last_value == nullptr || last_value->kind != Kind::scalar ||
+            std::find(columns.begin(), columns.end(), indent) != columns.end())
+            return "";
+        return cat(" (inconsistent indentation? ", std::to_string(indent), " spaces here, ",
+                   std::to_string(last_key->mark.column), " on the line above)");
     }
 
     // "a list", "a map", "'text'": a node where something else belongs.
-    static std::string what(const YAML::Node& node)
+    static std::string what(const Node& node)
     {
-        if (node.IsSequence())
-            return "a list";
-        if (node.IsMap())
-            return "a map";
-        if (node.IsNull())
-            return "nothing";
-        return quote(node.Scalar());
-    }
-
-    // The name of a map key; nullopt (and `failure` set) if the key is not a
-    // scalar.
-    std::optional<std::string> key_name(const YAML::Node& key, std::string_view where,
-                                        std::optional<ConfigError>& failure) const
-    {
-        if (key.IsScalar() && !key.Scalar().empty())
-            return key.Scalar();
-        failure = error(line_of(key), where, cat("expected a key name, got ", what(key)));
-        return std::nullopt;
-    }
-
-    // A value that is not a scalar (or empty), where one line "key: value"
-    // belongs: the error, naming the nested key if there is one.
-    std::optional<ConfigError> not_a_value(const std::string& full, const YAML::Node& value,
-                                           std::string_view holder) const
-    {
-        const std::string rule = cat("; ", holder, " holds only 'key: value' lines");
-        if (value.IsMap()) {
-            if (value.size() > 0) {
-                const YAML::Node first = value.begin()->first;
-                return error(line_of(first), cat(full, ".", first.IsScalar() ? first.Scalar() : "?"),
-                             cat("nesting deeper than one level", rule));
-            }
-            return error(line_of(value), full, cat("expected a value, got a map", rule));
+        switch (node.kind) {
+        case Kind::sequence: return "a list";
+        case Kind::map: return "a map";
+        case Kind::null: return "nothing";
+        case Kind::scalar: break;
         }
-        if (value.IsSequence())
-            return error(line_of(value), full, cat("expected a value, got a list", rule));
-        return std::nullopt;
+        return quote(node.text);
+    }
+
+    // The name of a map key, or the error for a key that is not one.
+    std::optional<ConfigError> not_a_name(const Node& key, std::string_view where) const
+    {
+        if (key.kind == Kind::scalar && !key.text.empty())
+            return std::nullopt;
+        return error(line_of(key), where, cat("expected a key name, got ", what(key)));
+    }
+
+    // "key: ~" and "key: null": YAML for no value, like "key:" (whose null's
+    // mark is where the next token starts).
+    bool explicit_null(const Node& value) const
+    {
+        const std::string_view at = std::string_view(text_).substr(offset_of(value));
+        return value.kind == Kind::null &&
+               (at.starts_with("~") || at.starts_with("null") || at.starts_with("Null") || at.starts_with("NULL"));
+    }
+
+    // yaml-cpp 0.7 reads a quoted string the input ends in as if closed.
+    bool unterminated(std::size_t pos) const
+    {
+        const char q = text_[pos];
+        for (std::size_t i = pos + 1; i < text_.size(); ++i) {
+            if (q == '"' && text_[i] == '\\')
+                ++i;
+            else if (text_[i] == q && !(q == '\'' && i + 1 < text_.size() && text_[i + 1] == '\''))
+                return false;
+            else if (text_[i] == q)
+                ++i;  // '' in a single-quoted string
+        }
+        return true;
     }
 
     // A scalar (or null) value as the schema checks read it.
-    std::optional<std::string> scalar_of(const YAML::Node& value, int key_line, Scalar& out) const
+    std::optional<std::string> scalar_of(const Node& value, int key_line, Scalar& out) const
     {
         out = Scalar{};
-        const YAML::Mark mark = value.Mark();
-        const std::size_t pos = mark.pos >= 0 ? static_cast<std::size_t>(mark.pos) : text_.size();
-        if (value.IsNull()) {
-            // "key: ~" and "key: null" are YAML for no value, like "key:".
-            const std::string_view at = pos < text_.size() ? std::string_view(text_).substr(pos) : "";
-            if (mark.line + 1 == key_line &&
-                (at.starts_with("~") || at.starts_with("null") || at.starts_with("Null") || at.starts_with("NULL")))
+        if (value.kind == Kind::null) {
+            if (line_of(value) == key_line && explicit_null(value))
                 return std::string("empty value ('~' and 'null' are YAML for no value; quote them for the text)");
             return std::nullopt;
         }
-        const std::string& tag = value.Tag();
-        if (tag != "?" && tag != "!")
-            return cat("YAML tags are not supported (", quote(tag), "); write a plain value or a double-quoted string");
-        out.text = value.Scalar();
-        out.quoted = tag == "!";
-        if (out.quoted && pos < text_.size() && (text_[pos] == '"' || text_[pos] == '\'') && !closed_quote(pos))
+        if (value.tag != "?" && value.tag != "!")
+            return cat("YAML tags are not supported (", quote(value.tag),
+                       "); write a plain value or a double-quoted string");
+        out.text = value.text;
+        out.quoted = value.tag == "!";
+        const std::size_t pos = offset_of(value);
+        if (out.quoted && pos < text_.size() && (text_[pos] == '"' || text_[pos] == '\'') && unterminated(pos))
             return std::string(text_[pos] == '"' ? "unterminated double-quoted string"
                                                   : "unterminated single-quoted string");
         return std::nullopt;
     }
 
-    // yaml-cpp 0.7 reads a quoted string the input ends in as if closed.
-    bool closed_quote(std::size_t pos) const
-    {
-        const char q = text_[pos];
-        for (std::size_t i = pos + 1; i < text_.size(); ++i) {
-            if (q == '"' && text_[i] == '\\') {
-                ++i;
-            } else if (text_[i] == q) {
-                if (q == '\'' && i + 1 < text_.size() && text_[i + 1] == '\'')
-                    ++i;  // '' in a single-quoted string
-                else
-                    return true;
-            }
-        }
-        return false;
-    }
-
     // A scalar on a line of its own where "key: value" belongs: "radius_px 6",
     // or "radius_px:6" (YAML needs the space).
-    ConfigError not_key_value(const YAML::Node& value, std::string_view key_prefix, std::string_view expected) const
+    ConfigError not_key_value(const Node& value, std::string_view key_prefix, std::string_view expected) const
     {
-        const std::string& text = value.Scalar();
-        const std::size_t colon = text.find(':');
-        if (colon != std::string::npos && is_valid_name(text.substr(0, colon)))
-            return error(line_of(value), cat(key_prefix, text.substr(0, colon)), "expected a space after ':'");
-        return error(line_of(value), "", cat("expected ", expected, ", got ", quote(text)));
+        const std::size_t colon = value.text.find(':');
+        if (colon != std::string::npos && is_valid_name(value.text.substr(0, colon)))
+            return error(line_of(value), cat(key_prefix, value.text.substr(0, colon)), "expected a space after ':'");
+        return error(line_of(value), "", cat("expected ", expected, ", got ", quote(value.text)));
     }
 
-    std::optional<ConfigError> section(const YAML::Node& key, const YAML::Node& value)
+    std::optional<ConfigError> section(const Node& key, const Node& value)
     {
-        std::optional<ConfigError> failure;
-        const auto name = key_name(key, "", failure);
-        if (!name)
+        if (auto failure = not_a_name(key, ""))
             return failure;
         const int line = line_of(key);
-        const std::string& section = *name;
+        const std::string& section = key.text;
         const ListSpec* list = find_list(section);
-        if (value.IsScalar()) {
+        if (value.kind == Kind::scalar) {
             if (line_of(value) > line)  // the section's line, then a line without "key: "
                 return list != nullptr
                     ? error(line_of(value), section,
@@ -743,201 +785,141 @@ private:
         }
         if (!is_known_section(section) && list == nullptr)
             return error(line, section, cat("unknown section; the sections are: ", list_sections()));
-        const auto [it, inserted] = section_lines_.emplace(section, line);
+        const auto [it, inserted] = key_lines_.emplace(section, line);
         if (!inserted)
             return error(line, section, cat("duplicate section (first on line ", std::to_string(it->second), ")"));
         if (list != nullptr)
             return list_section(*list, line, value);
-        if (value.IsNull())
+        if (value.kind == Kind::null)
             return error(line, section, "empty section; put its keys ('key: value') on indented lines below it, "
                                         "or remove the line");
-        if (value.IsSequence())
-            return error(line_of(value), section,
-                         cat("expected 'key: value' lines under '", section, ":', got a list ('- ' items); only ",
-                             list_names(), " holds a list"));
-        for (auto entry = value.begin(); entry != value.end(); ++entry)
-            if (auto error = key_value(section, entry->first, entry->second))
+        if (value.kind == Kind::sequence) {
+            std::string lists;
+            for (const ListSpec& other : list_schema())
+                lists += cat(lists.empty() ? "" : ", ", quote(other.section));
+            return error(line_of(value), section, cat("expected 'key: value' lines under '", section,
+                                                      ":', got a list ('- ' items); only ", lists, " holds a list"));
+        }
+        for (std::size_t i = 0; i + 1 < value.items.size(); i += 2) {
+            const Node& leaf = value.items[i];
+            if (auto failure = not_a_name(leaf, section))
+                return failure;
+            const std::string full = cat(section, ".", leaf.text);
+            const KeySpec* spec = find_key(full);
+            if (auto error = key_value(full, spec, spec ? "" : unknown_key_message(full), leaf, value.items[i + 1],
+                                       "a section", spec ? &values_[index_of(*spec)] : nullptr))
                 return error;
+        }
         return std::nullopt;
     }
 
-    static std::string list_names()
+    // One "key: value" of a section or a list item, named `full`: `spec` its
+    // row (nullptr: an unknown key, `unknown` says so), `stored` its value.
+    std::optional<ConfigError> key_value(const std::string& full, const KeySpec* spec, const std::string& unknown,
+                                         const Node& key, const Node& value, std::string_view holder,
+                                         ConfigValue* stored)
     {
-        std::string out;
-        for (const ListSpec& list : list_schema())
-            out += cat(out.empty() ? "" : ", ", quote(list.section));
-        return out;
-    }
-
-    std::optional<ConfigError> key_value(const std::string& section, const YAML::Node& key, const YAML::Node& value)
-    {
-        std::optional<ConfigError> failure;
-        const auto leaf = key_name(key, section, failure);
-        if (!leaf)
-            return failure;
         const int line = line_of(key);
-        const std::string full = cat(section, ".", *leaf);
-        if (auto error = not_a_value(full, value, "a section"))
-            return error;
-        const KeySpec* spec = find_key(full);
+        const std::string rule = cat("; ", holder, " holds only 'key: value' lines");
+        if (value.kind == Kind::map && !value.items.empty()) {
+            const Node& first = value.items.front();
+            return error(line_of(first), cat(full, ".", first.kind == Kind::scalar ? first.text : "?"),
+                         cat("nesting deeper than one level", rule));
+        }
+        if (value.kind == Kind::map || value.kind == Kind::sequence)
+            return error(line_of(value), full, cat("expected a value, got ", what(value), rule));
         if (spec == nullptr)
-            return error(line, full, unknown_key_message(full));
+            return error(line, full, unknown);
         const auto [it, inserted] = key_lines_.emplace(full, line);
         if (!inserted)
             return error(line, full, cat("duplicate key (first on line ", std::to_string(it->second), ")"));
         Scalar scalar;
         if (auto message = scalar_of(value, line, scalar))
             return error(line, full, *message);
-        ConfigValue& stored = values_[index_of(*spec)];
-        if (auto message = parse_value(*spec, scalar, stored))
+        if (auto message = parse_value(*spec, scalar, *stored))
             return error(line, full, *message);
-        stored.origin = cat(origin_, ":", std::to_string(line));
+        stored->origin = cat(origin_, ":", std::to_string(line));
         return std::nullopt;
     }
 
-    // The line of a null list item ("-" alone): the node's mark is where the
-    // next token starts, so look back for the dash.
-    int null_item_line(const YAML::Node& item, int list_line) const
-    {
-        const int mark_line = line_of(item);
-        for (int line = mark_line; line > list_line; --line) {
-            const std::size_t index = static_cast<std::size_t>(line - 1);
-            if (index >= lines_.size())
-                continue;
-            const LineParts p = split_line(lines_[index]);
-            if (p.dashes > 0 && (p.text.empty() || p.text.starts_with('#') || p.text.starts_with('~') ||
-                                 p.text.starts_with("null") || p.text.starts_with("Null") || p.text.starts_with("NULL")))
-                return line;
-        }
-        return mark_line;
-    }
-
-    std::optional<ConfigError> list_section(const ListSpec& list, int line, const YAML::Node& value)
+    std::optional<ConfigError> list_section(const ListSpec& list, int line, const Node& value)
     {
         const std::string section(list.section);
         const std::string first_key(item_leaf_of(item_keys(section).front()));
-        if (value.IsMap())
+        if (value.kind == Kind::map)
             return error(line_of(value), section,
                          cat("expected a list of items ('- key: value' lines) under '", section, ":'"));
-        if (value.IsNull() || value.size() == 0)
+        if (value.items.empty())
             return error(line, section, cat("empty list; give at least one item ('- ", first_key,
                                             ": ...') on indented lines below it"));
         // The file's list replaces the whole list.
-        detail::ListValue& items = lists_[list_index(list)];
+        ListValue& items = lists_[list_index(list)];
         items.items.clear();
-        std::vector<int> unique_lines;  // per item: line of its unique key (or its first line)
-        for (std::size_t i = 0; i < value.size(); ++i) {
-            const YAML::Node item = value[i];
+        std::vector<int> item_lines;
+        for (std::size_t i = 0; i < value.items.size(); ++i) {
+            const Node& item = value.items[i];
             const std::string name = item_name(section, i);
-            const int item_line = item.IsNull() ? null_item_line(item, line) : line_of(item);
+            // A null item's mark is where the next token starts: its line is
+            // that of the '-' before it.
+            const std::size_t dash = offset_of(item) == 0 ? std::string::npos : text_.rfind('-', offset_of(item) - 1);
+            const int item_line = item.kind == Kind::null && dash != std::string::npos && dash >= offset_of(value)
+                ? static_cast<int>(std::count(text_.begin(), text_.begin() + static_cast<long>(dash), '\n')) + 1
+                : line_of(item);
             if (i >= list.max_items)
                 return error(item_line, name, cat("more than ", std::to_string(list.max_items), " items; '",
                                                   section, "' holds at most ", std::to_string(list.max_items)));
-            if (item.IsNull())
+            if (item.kind == Kind::null)
                 return error(item_line, name, cat("empty item; an item starts with '- ' and its first key ('- ",
                                                   first_key, ": ...')"));
-            if (item.IsScalar()) {
-                if (item.Tag() == "?" && item.Scalar().find(':') != std::string::npos &&
-                    is_valid_name(item.Scalar().substr(0, item.Scalar().find(':'))))
+            if (item.kind == Kind::scalar) {
+                if (item.tag == "?" && item.text.find(':') != std::string::npos &&
+                    is_valid_name(item.text.substr(0, item.text.find(':'))))
                     return not_key_value(item, cat(name, "."), "'- key: value'");
                 return error(item_line, name, cat("expected '- key: value' (an item is 'key: value' lines), got ",
-                                                  quote(item.Scalar())));
+                                                  quote(item.text)));
             }
-            if (item.IsSequence())
+            if (item.kind == Kind::sequence)
                 return error(item_line, name, "expected '- key: value' (an item is 'key: value' lines), got a list");
             items.items.push_back(default_item(list));
-            std::map<std::string, int, std::less<>> key_lines;
-            for (auto entry = item.begin(); entry != item.end(); ++entry) {
-                std::optional<ConfigError> failure;
-                const auto leaf = key_name(entry->first, name, failure);
-                if (!leaf)
+            for (std::size_t k = 0; k + 1 < item.items.size(); k += 2) {
+                const Node& leaf = item.items[k];
+                if (auto failure = not_a_name(leaf, name))
                     return failure;
-                const int key_line = line_of(entry->first);
-                const std::string full = item_key_name(section, i, *leaf);
-                if (auto error = not_a_value(full, entry->second, "a list item"))
+                const KeySpec* spec = find_item_key(section, leaf.text);
+                if (auto error = key_value(item_key_name(section, i, leaf.text), spec,
+                                           spec ? "" : unknown_item_key_message(list, i, leaf.text), leaf,
+                                           item.items[k + 1], "a list item",
+                                           spec ? &items.items[i][item_key_index(list, *spec)] : nullptr))
                     return error;
-                const KeySpec* spec = find_item_key(section, *leaf);
-                if (spec == nullptr)
-                    return error(key_line, full, unknown_item_key_message(list, i, *leaf));
-                const auto [it, inserted] = key_lines.emplace(*leaf, key_line);
-                if (!inserted)
-                    return error(key_line, full,
-                                 cat("duplicate key (first on line ", std::to_string(it->second), ")"));
-                Scalar scalar;
-                if (auto message = scalar_of(entry->second, key_line, scalar))
-                    return error(key_line, full, *message);
-                ConfigValue& stored = items.items[i][item_key_index(list, *spec)];
-                if (auto message = parse_value(*spec, scalar, stored))
-                    return error(key_line, full, *message);
-                stored.origin = cat(origin_, ":", std::to_string(key_line));
             }
-            // The item against the earlier ones.
-            const auto line_of_key = [&](std::string_view leaf) {
-                const auto it = key_lines.find(leaf);
-                return it == key_lines.end() ? 0 : it->second;
+            // The item against the earlier ones; a key's line, or the item's
+            // if the file leaves the key out.
+            item_lines.push_back(item_line);
+            const auto line_of_key = [&](std::size_t index, std::string_view leaf) {
+                const auto it = key_lines_.find(item_key_name(section, index, leaf));
+                return it == key_lines_.end() ? item_lines[index] : it->second;
             };
-            const int unique_line = line_of_key(list.unique_key);
-            unique_lines.push_back(unique_line != 0 ? unique_line : item_line);
             auto problem = check_item(list, items, i, true);
             if (!problem)
                 continue;
             std::string_view leaf = problem->leaf;
-            int problem_line = line_of_key(leaf);
-            if (leaf == list.unique_key) {
-                problem->message += cat(" (line ", std::to_string(unique_lines[problem->other]), ")");
-            } else if (problem_line == 0 && line_of_key(list.lower_key) != 0) {
-                // The upper key is at its default: the lower key set is at fault.
-                leaf = list.lower_key;
-                problem_line = line_of_key(leaf);
-            }
-            return error(problem_line != 0 ? problem_line : item_line, item_key_name(section, i, leaf),
-                         problem->message);
+            if (leaf == list.unique_key)
+                problem->message += cat(" (line ", std::to_string(line_of_key(problem->other, leaf)), ")");
+            else if (!key_lines_.contains(item_key_name(section, i, leaf)) &&
+                     key_lines_.contains(item_key_name(section, i, list.lower_key)))
+                leaf = list.lower_key;  // the upper key at its default: the lower key set is at fault
+            return error(line_of_key(i, leaf), item_key_name(section, i, leaf), problem->message);
         }
         return std::nullopt;
     }
 
     std::string origin_;
     std::vector<ConfigValue>& values_;
-    std::vector<detail::ListValue>& lists_;
+    std::vector<ListValue>& lists_;
     std::string text_;
-    std::vector<std::string_view> lines_;  // of text_, without '\r'
-    std::map<std::string, int, std::less<>> section_lines_;
-    std::map<std::string, int, std::less<>> key_lines_;
+    TreeBuilder tree_;
+    std::map<std::string, int, std::less<>> key_lines_;  // sections and keys ("tools[1].id"): their lines
 };
-
-std::string yaml_quoted(std::string_view s)
-{
-    std::string out = "\"";
-    for (const char c : s) {
-        switch (c) {
-        case '"': out += "\\\""; break;
-        case '\\': out += "\\\\"; break;
-        case '\n': out += "\\n"; break;
-        case '\t': out += "\\t"; break;
-        default:
-            if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {  // YAML's \xXX escape
-                constexpr std::string_view kHex = "0123456789abcdef";
-                const auto byte = static_cast<unsigned char>(c);
-                out += cat("\\x", std::string_view(&kHex[byte >> 4], 1), std::string_view(&kHex[byte & 15], 1));
-            } else {
-                out += c;
-            }
-        }
-    }
-    return out + "\"";
-}
-
-std::string value_text(const KeySpec& spec, const ConfigValue& value)
-{
-    switch (spec.type) {
-    case ValueType::integer: return std::to_string(value.integer);
-    case ValueType::real: return format_number(value.real);
-    case ValueType::boolean: return value.boolean ? "true" : "false";
-    case ValueType::choice: return value.text;
-    case ValueType::text: return yaml_quoted(value.text);
-    }
-    return "?";
-}
 
 // The comment to_yaml() writes after a value: unit, range or choices.
 std::string about_text(const KeySpec& spec)
@@ -1046,15 +1028,8 @@ std::string ConfigError::to_string() const
 
 Config::Config()
 {
-    values_.resize(schema().size());
-    for (const KeySpec& spec : schema()) {
-        ConfigValue& value = values_[index_of(spec)];
-        // The schema's defaults are valid (the tests check); a bad one would
-        // leave the zero value rather than throw.
-        const Scalar scalar{std::string(spec.default_value), false};
-        (void)parse_value(spec, scalar, value);
-        value.origin = "default";
-    }
+    for (const KeySpec& spec : schema())
+        values_.push_back(default_value(spec));
     // Each list: one item at the item defaults.
     for (const ListSpec& list : list_schema())
         lists_.push_back(detail::ListValue{{default_item(list)}});
@@ -1079,16 +1054,17 @@ std::optional<ConfigError> Config::load_file(const std::filesystem::path& path)
         return ConfigError{"--config", 0, "", "empty file name"};
     // O_NONBLOCK: opening a FIFO must not hang the start (SIGTERM is only
     // taken later); a FIFO or a device is refused, a config is a file.
+    const auto unreadable = [&](std::string_view why) {
+        return ConfigError{origin, 0, "", cat("cannot read file: ", why)};
+    };
     base::UniqueFd fd(::open(origin.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK));
-    if (!fd.valid())
-        return ConfigError{origin, 0, "", cat("cannot read file: ", std::strerror(errno))};
     struct stat st {};
-    if (::fstat(fd.get(), &st) != 0)
-        return ConfigError{origin, 0, "", cat("cannot read file: ", std::strerror(errno))};
+    if (!fd.valid() || ::fstat(fd.get(), &st) != 0)
+        return unreadable(std::strerror(errno));
     if (S_ISDIR(st.st_mode))
-        return ConfigError{origin, 0, "", "cannot read file: it is a directory"};
+        return unreadable("it is a directory");
     if (!S_ISREG(st.st_mode))
-        return ConfigError{origin, 0, "", "cannot read file: not a regular file (a FIFO or a device)"};
+        return unreadable("not a regular file (a FIFO or a device)");
     // Read with a cap: a config is a few kB, and /dev/zero or a FIFO that
     // never ends must not fill the memory.
     std::string text;
@@ -1098,13 +1074,12 @@ std::optional<ConfigError> Config::load_file(const std::filesystem::path& path)
         if (n < 0 && errno == EINTR)
             continue;
         if (n < 0)
-            return ConfigError{origin, 0, "", cat("cannot read file: read error: ", std::strerror(errno))};
+            return unreadable(cat("read error: ", std::strerror(errno)));
         if (n == 0)
             break;
         if (text.size() + static_cast<std::size_t>(n) > kMaxConfigBytes)
-            return ConfigError{origin, 0, "",
-                               cat("cannot read file: larger than ", std::to_string(kMaxConfigBytes / 1024),
-                                   " KiB; is it a configuration file?")};
+            return unreadable(
+                cat("larger than ", std::to_string(kMaxConfigBytes / 1024), " KiB; is it a configuration file?"));
         text.append(chunk.data(), static_cast<std::size_t>(n));
     }
     return load_text(text, origin);
@@ -1122,13 +1097,9 @@ std::optional<ConfigError> Config::set_override(std::string_view key_equals_valu
     const KeySpec* spec = find_key(key);
     if (spec == nullptr)
         return ConfigError{origin, 0, key, unknown_key_message(key)};
-    Scalar scalar;
-    if (auto message = parse_scalar(key_equals_value.substr(eq + 1), scalar))
-        return ConfigError{origin, 0, key, *message};
     ConfigValue value = values_[index_of(*spec)];
-    if (auto message = parse_value(*spec, scalar, value))
+    if (auto message = set_value(*spec, key_equals_value.substr(eq + 1), value))
         return ConfigError{origin, 0, key, *message};
-    value.origin = "--set";
     values_[index_of(*spec)] = std::move(value);
     return std::nullopt;
 }
@@ -1176,13 +1147,8 @@ std::optional<ConfigError> Config::set_item_override(const ListSpec& list, std::
         }
         staged.items.push_back(std::move(item));
     }
-    Scalar scalar;
-    if (auto message = parse_scalar(raw_value, scalar))
+    if (auto message = set_value(*spec, raw_value, staged.items[index][item_key_index(list, *spec)]))
         return ConfigError{origin, 0, full, *message};
-    ConfigValue& value = staged.items[index][item_key_index(list, *spec)];
-    if (auto message = parse_value(*spec, scalar, value))
-        return ConfigError{origin, 0, full, *message};
-    value.origin = "--set";
     if (const auto problem = check_item(list, staged, index, false))
         return ConfigError{origin, 0, full, problem->message};
     lists_[list_index(list)] = std::move(staged);
@@ -1209,22 +1175,6 @@ std::string Config::origin_of(std::string_view key) const
 {
     const KeySpec* spec = find_key(key);
     return spec == nullptr ? std::string() : values_[index_of(*spec)].origin;
-}
-
-std::optional<std::string> Config::value_text(std::string_view key) const
-{
-    if (const KeySpec* spec = find_key(key))
-        return config::value_text(*spec, values_[index_of(*spec)]);
-    const ListSpec* list = find_list(key.substr(0, key.find_first_of(".[")));
-    std::size_t index = 0;
-    std::string_view leaf;
-    if (list == nullptr || !parse_item_key(key, list->section, index, leaf))
-        return std::nullopt;
-    const KeySpec* spec = find_item_key(list->section, leaf);
-    const detail::ListValue& value = lists_[list_index(*list)];
-    if (spec == nullptr || index >= value.items.size())
-        return std::nullopt;
-    return config::value_text(*spec, value.items[index][item_key_index(*list, *spec)]);
 }
 
 std::string Config::blame(std::string_view key, std::string_view message) const

@@ -1,10 +1,12 @@
 #include "stemd/config/schema.hpp"
 
+#include <algorithm>
 #include <array>
 #include <charconv>
 #include <cmath>
 #include <system_error>
 #include <type_traits>
+#include <vector>
 
 #include "stemd/config/config.hpp"
 #include "stemd/config/settings.hpp"
@@ -49,25 +51,24 @@ bool means_unset(const KeySpec& spec, std::string_view value)
     return spec.type == ValueType::text && spec.default_value == "none" && value == "none";
 }
 
-// The position of `text` among spec.choices ("a|b|c"); the loader has
-// checked that it is one.
-std::size_t choice_index(const KeySpec& spec, std::string_view text)
+// spec.choices ("a|b|c"), one by one.
+std::vector<std::string_view> choices_of(const KeySpec& spec)
 {
-    std::size_t index = 0;
-    for (std::string_view rest = spec.choices;; ++index) {
-        const std::size_t bar = rest.find('|');
-        if (rest.substr(0, bar) == text || bar == std::string_view::npos)
-            return index;
-        rest.remove_prefix(bar + 1);
+    std::vector<std::string_view> out;
+    for (std::string_view rest = spec.choices; !rest.empty();) {
+        const std::size_t bar = std::min(rest.find('|'), rest.size());
+        out.push_back(rest.substr(0, bar));
+        rest.remove_prefix(std::min(bar + 1, rest.size()));
     }
+    return out;
 }
 
-std::string choice_name(const KeySpec& spec, std::size_t index)
+// The position of `text` among the choices (the loader has checked that it
+// is one; else the last).
+std::size_t choice_index(const KeySpec& spec, std::string_view text)
 {
-    std::string_view rest = spec.choices;
-    for (; index > 0 && rest.find('|') != std::string_view::npos; --index)
-        rest.remove_prefix(rest.find('|') + 1);
-    return std::string(rest.substr(0, rest.find('|')));
+    const std::vector<std::string_view> choices = choices_of(spec);
+    return static_cast<std::size_t>(std::find(choices.begin(), choices.end() - 1, text) - choices.begin());
 }
 
 // A row bound to a bool, text, integer or real member. A real key bound to
@@ -114,7 +115,7 @@ constexpr KeySpec bind_choice(KeySpec spec)
     spec.load = [](const KeySpec& k, const Settings& s, std::size_t item, detail::ConfigValue& v) {
         for (std::size_t i = 0; i < Values.size(); ++i)
             if (Values[i] == Field(s, item))
-                v.text = choice_name(k, i);
+                v.text = choices_of(k).at(i);
     };
     return spec;
 }
@@ -544,27 +545,15 @@ const KeySpec* find_item_key(std::string_view section, std::string_view item_key
 
 bool is_choice(const KeySpec& spec, std::string_view value)
 {
-    std::string_view rest = spec.choices;
-    while (!rest.empty()) {
-        const std::size_t bar = rest.find('|');
-        if (rest.substr(0, bar) == value)
-            return true;
-        if (bar == std::string_view::npos)
-            break;
-        rest.remove_prefix(bar + 1);
-    }
-    return false;
+    const std::vector<std::string_view> choices = choices_of(spec);
+    return std::find(choices.begin(), choices.end(), value) != choices.end();
 }
 
 std::string list_choices(const KeySpec& spec, std::string_view separator)
 {
     std::string out;
-    for (const char c : spec.choices) {
-        if (c == '|')
-            out += separator;
-        else
-            out += c;
-    }
+    for (const std::string_view choice : choices_of(spec))
+        out += cat(out.empty() ? "" : separator, choice);
     return out;
 }
 
@@ -596,19 +585,8 @@ std::string schema_markdown()
             range = cat("`", list_choices(spec, "`, `"), "`");
         else if (spec.type == boolean)
             range = "`true`, `false`";
-        out += "| `";
-        out += spec.key;
-        out += "` | ";
-        out += to_string(spec.type);
-        out += " | ";
-        out += spec.unit;
-        out += " | `";
-        out += spec.default_value;
-        out += "` | ";
-        out += range;
-        out += " | ";
-        out += spec.help;
-        out += " |\n";
+        out += cat("| `", spec.key, "` | ", to_string(spec.type), " | ", spec.unit, " | `", spec.default_value,
+                   "` | ", range, " | ", spec.help, " |\n");
     };
     for (const KeySpec& spec : kSchema)
         row(spec);

@@ -398,6 +398,9 @@ TEST_F(ConfigFileTest, TabIndentation)
 {
     expect_error("closing:\n\tradius_px: 6\n", 2, "closing.radius_px", "tab in the indentation");
     expect_error("closing:\n  \tradius_px: 6\n", 2, "closing.radius_px", "indent with spaces");
+    // yaml-cpp reads these; the format does not.
+    expect_error("map:\n  file: \"a\n\tb\"\n", 3, "", "tab in the indentation");
+    expect_error("closing: {\n\tradius_px: 6}\n", 2, "closing.radius_px", "tab in the indentation");
 }
 
 TEST_F(ConfigFileTest, KeyOutsideASection)
@@ -600,6 +603,26 @@ TEST_F(ConfigFileTest, AStrayCommaIsOneClearErrorNotAnEndlessLoad)
     expect_error(",\nclosing:\n  radius_px: 6\n", 1, "", message);
     expect_error("closing:\n  radius_px: 6\n---\n,\n", 3, "", message);
     expect_error("closing:\n  radius_px: 6\n...\n,\n", 4, "", message);
+}
+
+TEST_F(ConfigFileTest, AliasesOfAliasesAreOneErrorNotAnAbort)
+{
+    // Each line doubles the one above: 2^40 values if every alias were copied.
+    std::string text = "camera: &a0 [1]\n";
+    for (int i = 1; i <= 40; ++i) {
+        const std::string n = std::to_string(i), above = std::to_string(i - 1);
+        text.append("k").append(n).append(": &a").append(n).append(" [*a").append(above).append(", *a");
+        text.append(above).append("]\n");
+    }
+    Config config;
+    const auto error = config.load_text(text, "x");
+    ASSERT_TRUE(error);
+    EXPECT_NE(error->message.find("invalid YAML: more than 100000 values (aliases)"), std::string::npos)
+        << error->to_string();
+    expect_same_values(config, Config{});
+    // One alias of a value reads as the value.
+    ASSERT_FALSE(config.load_text("closing:\n  radius_px: &r 7\nstem:\n  min_leaves: *r\n", "x"));
+    EXPECT_EQ(test::int_of(config, "stem.min_leaves"), 7);
 }
 
 // --- --set ---------------------------------------------------------------------
