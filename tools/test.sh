@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The test command: installs what it needs, then builds and tests a Release
-# build and an ASan+UBSan build. Exit status 0 = everything passed.
+# build, an ASan+UBSan build, a TSan build of the runtime and a libFuzzer
+# build of the parsers. Exit status 0 = everything passed.
 #   tools/test.sh            all of it
 #   STEMD_TEST_SKIP_SANITIZE=1 tools/test.sh   Release only (quick local loop)
 set -euo pipefail
@@ -44,5 +45,16 @@ if [ "${STEMD_TEST_SKIP_SANITIZE:-0}" != 1 ]; then
   step "TSan tests"
   TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$PWD/tools/tsan.supp" \
     ctest --test-dir build/tsan --output-on-failure -j "$jobs" -L unit -R '^(SpscRing|Daemon|ReplayTest)'
+fi
+# --- libFuzzer: every parser of outside input (test/fuzz) -------------------
+# clang with ASan+UBSan; each fuzzer runs a fixed number of inputs from a
+# fixed seed over its committed corpus, so the step is repeatable.
+if [ "${STEMD_TEST_SKIP_SANITIZE:-0}" != 1 ]; then
+  step "libFuzzer build (parsers)"
+  CXX=clang++ cmake -S . -B build/fuzz -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g" \
+    -DSTEMD_SANITIZE=fuzzer -DSTEMD_BUILD_BENCH=OFF >/dev/null
+  cmake --build build/fuzz -j "$jobs"
+  step "libFuzzer runs"
+  ctest --test-dir build/fuzz --output-on-failure -j "$jobs"
 fi
 step "all tests passed"

@@ -125,11 +125,18 @@ const KeySpec* nearest(std::string_view name, std::span<const KeySpec> keys)
 {
     const KeySpec* best = nullptr;
     std::size_t best_distance = 4;
-    for (const KeySpec& spec : keys)
-        if (const std::size_t d = edit_distance(name, item_leaf_of(spec)); d < best_distance) {
+    for (const KeySpec& spec : keys) {
+        // Lengths further apart than that are further apart in edits too: a
+        // long line mistaken for a key costs nothing.
+        const std::string_view candidate = item_leaf_of(spec);
+        const std::size_t longer = std::max(name.size(), candidate.size());
+        if (longer - std::min(name.size(), candidate.size()) >= best_distance)
+            continue;
+        if (const std::size_t d = edit_distance(name, candidate); d < best_distance) {
             best = &spec;
             best_distance = d;
         }
+    }
     return best;
 }
 
