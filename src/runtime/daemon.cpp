@@ -397,6 +397,8 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
         s.no_odometry = get(a.no_odometry);
         s.bus_errors = get(a.bus_errors);
         s.heartbeat_errors = get(a.heartbeat_errors);
+        DurationHistogram& send = actuation_->counters().send_latency;
+        s.send = whole_run ? send.total() : send.take_interval();
     }
     s.latency = whole_run ? counters_->actuator.latency.total() : counters_->actuator.latency.take_interval();
     s.pipeline = whole_run ? counters_->processing.pipeline.total() : counters_->processing.pipeline.take_interval();

@@ -166,6 +166,11 @@ TEST(ActuationStage, EveryPlantBecomesExactlyOneTargetAtItsFirePosition)
     EXPECT_EQ(run.stage->counters().deadline_misses.load(), 0u);
     EXPECT_EQ(run.stage->counters().sent.load(), plants.size());
     EXPECT_EQ(run.stage->counters().targets.load(), plants.size());
+    // Each TARGET left 3 ms after its frame's capture (the 50 us bucket's middle).
+    const auto latency = run.stage->counters().send_latency.total();
+    EXPECT_EQ(latency.count, plants.size());
+    EXPECT_NEAR(latency.p50_ms, 3.0, 0.05);
+    EXPECT_NEAR(latency.max_ms, 3.0, 1e-9);
 }
 
 TEST(ActuationStage, EnableInactiveSendsNothingAndCountsEveryTarget)
@@ -216,6 +221,7 @@ TEST(ActuationStage, SlowPipelineMakesDeadlineMissesThatAreNeverSent)
     }
     EXPECT_TRUE(targets(*run.bus).empty());
     EXPECT_EQ(run.stage->counters().deadline_misses.load(), plants.size());
+    EXPECT_EQ(run.stage->counters().send_latency.total().count, 0u) << "nothing was sent";
 }
 
 TEST(ActuationStage, DeadlineGivenToTheBusLeavesTheLeadTime)

@@ -4,6 +4,8 @@
 #include <atomic>
 #include <cstdint>
 
+#include "stemd/runtime/duration_histogram.hpp"
+
 namespace stemd::runtime {
 
 // Written by the actuator thread only (relaxed atomics), read by the status line.
@@ -28,6 +30,10 @@ struct ActuationCounters {
     std::atomic<std::uint64_t> odometry_rejected{0};  // samples the odometry ring refused (not monotonic)
     std::atomic<std::uint64_t> map_errors{0};
     std::atomic<std::uint64_t> tools_ready_mask{0}; // the last TOOL_STATUS's
+    // Capture (t_sample_ns of the frame that confirmed the plant) to the
+    // moment its TARGET was decided and handed to the bus (the now_ns the
+    // deadline was checked against): the whole chain's latency.
+    DurationHistogram send_latency;
 };
 
 }  // namespace stemd::runtime

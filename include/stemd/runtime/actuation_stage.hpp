@@ -76,6 +76,8 @@ public:
     bool finish() noexcept;
 
     const ActuationCounters& counters() const { return counters_; }
+    // The status thread takes the histograms' intervals through this one.
+    ActuationCounters& counters() { return counters_; }
     const drivers::CanBus& bus() const { return *parts_.bus; }
     const actuation::Tracker& tracker() const { return tracker_; }
     // The GPIO lines when they have a camera trigger output (else nullptr):

@@ -8,43 +8,9 @@
 #include <cstdint>
 #include <string>
 
+#include "stemd/runtime/duration_histogram.hpp"
+
 namespace stemd::runtime {
-
-// Durations in fixed 50 us buckets up to 200 ms (and one overflow bucket),
-// so that recording one is a relaxed increment: no allocation, no lock.
-// One writer thread; any thread may read. Two sets of buckets: the interval
-// since the last take_interval() (the status line) and the whole run.
-class DurationHistogram {
-public:
-    static constexpr std::int64_t kBucketNs = 50'000;
-    static constexpr std::size_t kBuckets = 4000;   // 0 .. 200 ms
-
-    struct Summary {
-        std::uint64_t count = 0;
-        double p50_ms = 0;
-        double p99_ms = 0;
-        double max_ms = 0;
-        double mean_ms = 0;
-    };
-
-    void record(std::int64_t duration_ns);
-    // Reads and clears the interval buckets (the status thread only).
-    Summary take_interval();
-    Summary total() const;
-
-private:
-    struct Buckets {
-        std::array<std::atomic<std::uint64_t>, kBuckets + 1> counts{};
-        std::atomic<std::int64_t> max_ns{0};
-        std::atomic<std::int64_t> sum_ns{0};
-    };
-    static void add(Buckets& b, std::int64_t ns, std::size_t bucket);
-    static Summary summarise(const std::array<std::uint64_t, kBuckets + 1>& counts, std::int64_t max_ns,
-                             std::int64_t sum_ns);
-
-    Buckets interval_;
-    Buckets total_;
-};
 
 // Adds to a counter that has one writer thread: a relaxed load-add-store is
 // enough (readers only need a recent value) and cheaper than a locked
@@ -105,6 +71,7 @@ struct StatusSnapshot {
                   heartbeat_errors = 0;
     DurationHistogram::Summary latency;    // interval, or whole run for the final line
     DurationHistogram::Summary pipeline;
+    DurationHistogram::Summary send;       // actuation: capture -> TARGET on the bus
 };
 
 // "in 30.0 fps, out 30.0 fps, bare soil 0, over_capacity 0, late 0 (worst 0.3 ms) |
