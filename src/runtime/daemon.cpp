@@ -105,7 +105,7 @@ Daemon::~Daemon()
 
 bool Daemon::start()
 {
-    if (!source_->open() || !source_->start()) {
+    if (!source_->open()) {
         log_->error("{}: cannot start the frame source", source_->name());
         return false;
     }
@@ -123,6 +123,12 @@ bool Daemon::start()
     // Before the threads, so that their stacks are locked too.
     if (config_.mlockall)
         note(lock_all_memory());
+    // After the lock, which can take seconds over a preloaded recording: a
+    // paced replay's clock starts here, so its first frames are not late.
+    if (!source_->start()) {
+        log_->error("{}: cannot start the frame source", source_->name());
+        return false;
+    }
     // Stamped now, so a thread not yet scheduled does not look stuck.
     for (auto& stamp : alive_ns_)
         stamp.store(base::monotonic_ns(), std::memory_order_relaxed);
