@@ -1,7 +1,7 @@
 // stemd-bench: per-stage and whole-pipeline timings on synthetic
 // 1296x966 frames, one thread, with one cv::cvtColor BGR->GRAY pass over the
 // same frames as a yardstick of this machine's speed.
-//   stemd-bench [--json] [--preset early|late|dense|seedling] [--frames N] [--radius M] [benchmark flags]
+//   stemd-bench [--json] [--preset early|late|dense|seedling] [--frames N] [--radius M] [--edge-radius R] [benchmark flags]
 // (defaults: late, 8 frames, the pipeline's default closing radius)
 // Each repetition is one frame; medians and p90 are over repetitions.
 // "actuation" is the actuator thread's work per frame (field positions,
@@ -167,11 +167,12 @@ int main(int argc, char** argv)
     bool json = false;
     std::string preset_name = "late";
     int frame_count = 8, radius = vision::Params{}.closing_radius_px, repetitions = 200;
+    int edge_radius = vision::Params{}.edge_radius_px;
     std::vector<char*> rest{argv[0]};
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         auto next_int = [&](int& out) {
-            if (i + 1 >= argc || (out = std::atoi(argv[i + 1]), out <= 0 && a != "--radius")) {
+            if (i + 1 >= argc || (out = std::atoi(argv[i + 1]), out <= 0 && a != "--radius" && a != "--edge-radius")) {
                 std::fprintf(stderr, "stemd-bench: %s needs a positive integer\n", a.c_str());
                 std::exit(2);
             }
@@ -182,6 +183,7 @@ int main(int argc, char** argv)
         else if (a == "--frames") next_int(frame_count);
         else if (a == "--radius") next_int(radius);
         else if (a == "--repetitions") next_int(repetitions);
+        else if (a == "--edge-radius") next_int(edge_radius);
         else rest.push_back(argv[i]);
     }
     const auto preset = synth::parse_preset(preset_name);
@@ -198,6 +200,7 @@ int main(int argc, char** argv)
     for (int i = 0; i < frame_count; ++i)
         setup.frames.push_back(synth::generate_frame(options, i));
     setup.params.closing_radius_px = radius;
+    setup.params.edge_radius_px = std::max(edge_radius, 0);
     setup.workspace = std::make_unique<vision::Workspace>(setup.frames.front().bgr.size(), setup.params);
     g_setup = &setup;
 

@@ -174,6 +174,9 @@ constexpr std::array kSchema{
     bind<STEMD_KEY(daemon.vision.opening_radius_px)>(
         {"segment.opening_radius_px", integer, "px", 0, 50, "1", "",
             "radius of the elliptic opening before the closing: removes specks and colour fringes; 0 disables"}),
+    bind<STEMD_KEY(daemon.vision.edge_radius_px)>(
+        {"segment.edge_radius_px", integer, "px", 0, 50, "5", "",
+            "exg, chromatic_exg: mixed pixels at a plant's edge: within this radius of the thresholded plant, a pixel is vegetation when its index lies above the halfway point between the soil mode and the mean of the plant pixels around it (at least half leaf) and beyond the soil's noise; 0 disables"}),
     bind<STEMD_KEY(daemon.vision.min_class_separation)>(
         {"segment.min_class_separation", real, "index", 0, 255, "12", "",
             "automatic thresholds: if the two classes' mean 8-bit index differs by less (ExG: 1 = 4 of 2G-R-B), the frame has no vegetation; 0 disables"}),

@@ -1,5 +1,5 @@
-// The whole pipeline: index -> smoothing -> threshold -> opening -> closing ->
-// plants -> leaves -> stems.
+// The whole pipeline: index -> smoothing -> threshold -> opening -> mixed
+// edge pixels -> closing -> plants -> leaves -> stems.
 #pragma once
 
 #include <vector>
@@ -8,6 +8,7 @@
 
 #include "stemd/vision/bitmask.hpp"
 #include "stemd/vision/closing.hpp"
+#include "stemd/vision/edges.hpp"
 #include "stemd/vision/index.hpp"
 #include "stemd/vision/leaves.hpp"
 #include "stemd/vision/plants.hpp"
@@ -55,6 +56,8 @@ private:
     BitMask second_;                        // exg_and_ndvi: the chromatic ExG mask, where seeds must lie
     BitMask opened_;                        // seeds: what survives the opening
     std::vector<std::uint8_t> keep_;        // per thresholded component: seeded
+    BitMask edged_;                         // vegetation_ with its mixed edge pixels
+    EdgeScratch edges_;
     BitMask closed_;
     ClosingScratch opening_;
     ClosingScratch closing_;

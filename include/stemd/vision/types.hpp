@@ -117,6 +117,11 @@ struct Params {
     // Opening with a 3x3 square before the closing: removes vegetation
     // specks and colour fringes one or two pixels wide (0 disables).
     int opening_radius_px = 1;
+    // Mixed pixels at a plant's edge: within this radius of the thresholded
+    // plant, a pixel is vegetation when its index is above the halfway point
+    // between the soil mode and the plant pixels around it (at least half
+    // leaf). 0 disables.
+    int edge_radius_px = 5;
     int closing_radius_px = 5;          // paper's m
     double gsd_mm_per_px = 0.33;        // ground sampling distance
     double min_plant_area_mm2 = 10.0;   // smaller plants are noise

@@ -1,0 +1,157 @@
+#include "stemd/vision/edges.hpp"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cstring>
+
+#include <opencv2/core.hpp>
+
+namespace stemd::vision {
+
+int histogram_mode(const Histogram& histogram)
+{
+    int mode = 0;
+    std::uint64_t best = 0;
+    for (int v = 0; v < 256; ++v) {
+        const std::uint64_t smoothed = static_cast<std::uint64_t>(histogram[v]) + (v > 0 ? histogram[v - 1] : 0) +
+                                       (v < 255 ? histogram[v + 1] : 0);
+        if (smoothed > best) {
+            best = smoothed;
+            mode = v;
+        }
+    }
+    return mode;
+}
+
+void EdgeScratch::reserve(int width_px, int height_px)
+{
+    const auto width = static_cast<std::size_t>(std::max(width_px, 0));
+    count_.assign(width, 0);
+    sum_.assign(width, 0);
+    row_mask_.assign(64, 0);  // one word of a row, unpacked
+    candidates_.reset(std::max(width_px, 0), std::max(height_px, 0));
+}
+
+namespace {
+
+constexpr int kMaxRadiusPx = 50;  // keeps a column's sum of 101 rows of 255 in 16 bits
+
+// Byte b to eight bytes, each 0 or 1: bit i of b in byte i.
+constexpr std::array<std::uint64_t, 256> make_unpack_table()
+{
+    std::array<std::uint64_t, 256> table{};
+    for (int b = 0; b < 256; ++b)
+        for (int i = 0; i < 8; ++i)
+            table[static_cast<std::size_t>(b)] |= static_cast<std::uint64_t>((b >> i) & 1) << (8 * i);
+    return table;
+}
+constexpr std::array<std::uint64_t, 256> kUnpack = make_unpack_table();
+
+// Adds one plant row's pixels (and their index) to the column sums, or
+// takes them away, 64 columns at a time where the row has plant pixels:
+// branch-free inside a word, so the compiler vectorises it.
+void update_columns(const cv::Mat& index_u8, const BitMask& plant, int y, bool add, std::uint16_t* count,
+                    std::uint16_t* sum, std::uint8_t* word_mask)
+{
+    const std::uint64_t* words = plant.row(y);
+    const std::uint8_t* index = index_u8.ptr<std::uint8_t>(y);
+    const int width = plant.width();
+    for (int w = 0; w < plant.words_per_row(); ++w) {
+        const std::uint64_t bits = words[w];
+        if (bits == 0)
+            continue;
+        for (int k = 0; k < 8; ++k) {
+            const std::uint64_t bytes = kUnpack[(bits >> (8 * k)) & 0xFFu];
+            std::memcpy(word_mask + 8 * k, &bytes, sizeof bytes);
+        }
+        const int x0 = w * 64, n = std::min(64, width - x0);
+        std::uint16_t* c = count + x0;
+        std::uint16_t* s = sum + x0;
+        const std::uint8_t* v = index + x0;
+        if (add) {
+            for (int i = 0; i < n; ++i) {
+                c[i] = static_cast<std::uint16_t>(c[i] + word_mask[i]);
+                s[i] = static_cast<std::uint16_t>(s[i] + word_mask[i] * v[i]);
+            }
+        } else {
+            for (int i = 0; i < n; ++i) {
+                c[i] = static_cast<std::uint16_t>(c[i] - word_mask[i]);
+                s[i] = static_cast<std::uint16_t>(s[i] - word_mask[i] * v[i]);
+            }
+        }
+    }
+}
+
+long row_count(const BitMask& plant, int y)
+{
+    long n = 0;
+    const std::uint64_t* words = plant.row(y);
+    for (int w = 0; w < plant.words_per_row(); ++w)
+        n += std::popcount(words[w]);
+    return n;
+}
+
+}  // namespace
+
+void extend_to_mixed_edges(const cv::Mat& index_u8, const BitMask& plant, int soil_level, int floor, int radius_px,
+                           BitMask& out, EdgeScratch& scratch)
+{
+    CV_Assert(index_u8.type() == CV_8UC1 && index_u8.cols == plant.width() && index_u8.rows == plant.height());
+    CV_Assert(&out != &plant && out.width() == plant.width() && out.height() == plant.height());
+    const int width = plant.width(), height = plant.height();
+    CV_Assert(scratch.candidates_.width() == width && scratch.candidates_.height() == height);
+    out = plant;  // same size: copies the words, allocates nothing
+    const int r = std::min(radius_px, kMaxRadiusPx);
+    if (r <= 0 || width == 0 || height == 0)
+        return;
+    // Only pixels above the floor and outside the plant can join it.
+    BitMask& candidates = scratch.candidates_;
+    threshold_to_bits(index_u8, std::clamp(floor, 0, 255), candidates);
+    std::uint16_t* count = scratch.count_.data();
+    std::uint16_t* sum = scratch.sum_.data();
+    std::uint8_t* row_mask = scratch.row_mask_.data();
+    std::fill(count, count + width, std::uint16_t{0});
+    std::fill(sum, sum + width, std::uint16_t{0});
+    // An edge pixel of a leaf wider than the window sees the leaf over about
+    // half of it; a speck of a few pixels fills much less, and is left as it is.
+    const long min_plant_px = static_cast<long>(2 * r + 1) * (2 * r + 1) / 4;
+    const long soil = soil_level;
+    // Column sums over rows [y - r, y + r], slid down one row at a time.
+    long window_pixels = 0;
+    for (int y = 0; y < std::min(r, height); ++y) {
+        update_columns(index_u8, plant, y, true, count, sum, row_mask);
+        window_pixels += row_count(plant, y);
+    }
+    for (int y = 0; y < height; ++y) {
+        if (y + r < height) {
+            update_columns(index_u8, plant, y + r, true, count, sum, row_mask);
+            window_pixels += row_count(plant, y + r);
+        }
+        if (y - r - 1 >= 0) {
+            update_columns(index_u8, plant, y - r - 1, false, count, sum, row_mask);
+            window_pixels -= row_count(plant, y - r - 1);
+        }
+        if (window_pixels < min_plant_px)
+            continue;  // too little plant within reach of this row
+        const std::uint8_t* index = index_u8.ptr<std::uint8_t>(y);
+        const std::uint64_t* inside = plant.row(y);
+        std::uint64_t* cand = candidates.row(y);
+        std::uint64_t* row = out.row(y);
+        for (int w = 0; w < candidates.words_per_row(); ++w) {
+            for (std::uint64_t bits = cand[w] & ~inside[w]; bits != 0; bits &= bits - 1) {
+                const int x = w * 64 + std::countr_zero(bits);
+                long n = 0, s = 0;
+                for (int c = std::max(x - r, 0); c <= std::min(x + r, width - 1); ++c) {
+                    n += count[c];
+                    s += sum[c];
+                }
+                // index > soil + (s / n - soil) / 2, in integers.
+                if (n >= min_plant_px && 2 * n * index[x] > n * soil + s)
+                    row[w] |= std::uint64_t{1} << (x & 63);
+            }
+        }
+    }
+}
+
+}  // namespace stemd::vision
