@@ -77,6 +77,9 @@ ClassifyWorkspace::ClassifyWorkspace(cv::Size frame_size, const Params& params)
     group_labels_.reserve(cells_.width(), cells_.height());
     if (width > 0 && height > 0)
         dilate_mask(cells_, group_radius_cells(params), grouped_, grouping_);
+    reciprocal_[0] = 0;   // a black pixel has no chromaticity: counted as 0
+    for (std::size_t i = 1; i < reciprocal_.size(); ++i)
+        reciprocal_[i] = 1.0f / static_cast<float>(i);
 }
 
 void plant_features(const FrameView& frame, const Params& params, const Workspace& dws, const Detections& det,
@@ -165,20 +168,21 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
                 const int sum = p[0] + p[1] + p[2];
                 ++s.vegetation_px;
                 s.brightness += sum;
-                if (sum > 0) {
-                    const double r = p[2] / static_cast<double>(sum), g = p[1] / static_cast<double>(sum);
-                    s.r += r;
-                    s.g += g;
-                    s.b += p[0] / static_cast<double>(sum);
-                    s.rr += r * r;
-                    s.gg += g * g;
-                }
+                // Reciprocals from a table: a division per pixel and
+                // channel would cost more than the rest of the pass.
+                const float inv = ws.reciprocal_[static_cast<std::size_t>(sum)];
+                const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
+                s.r += r;
+                s.g += g;
+                s.b += static_cast<float>(p[0]) * inv;
+                s.rr += r * r;
+                s.gg += g * g;
                 auto total = [](const cv::Vec3b& v) { return v[0] + v[1] + v[2]; };
                 const int left = total(bgr[std::max(x - 1, 0)]), right = total(bgr[std::min(x + 1, width - 1)]);
                 s.gradient += std::abs(right - left) + std::abs(total(bgr_down[x]) - total(bgr_up[x]));
                 if (nir) {
                     const int n = nir[x], red = p[2];
-                    const double ndvi = n + red > 0 ? (n - red) / static_cast<double>(n + red) : 0.0;
+                    const float ndvi = static_cast<float>(n - red) * ws.reciprocal_[static_cast<std::size_t>(n + red)];
                     s.ndvi += ndvi;
                     s.ndvi2 += ndvi * ndvi;
                 }

@@ -102,6 +102,7 @@ private:
     std::array<Sums, kMaxPlants> sums_{};
     std::array<FeatureRow, kMaxPlants> features_{};
     std::size_t plants_ = 0;
+    std::array<float, 3 * 255 + 1> reciprocal_{};   // 1 / (R + G + B), also 1 / (NIR + R)
 };
 
 // The features of every plant `detections` holds. `detect_workspace` and
