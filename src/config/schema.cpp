@@ -329,7 +329,7 @@ constexpr std::array kSchema{
 
     bind_choice<STEMD_KEY(actuation.policy), std::array{PolicyChoice::automatic, PolicyChoice::weeds_only, PolicyChoice::all}>(
         {"scheduler.policy", choice, "", 0, 0, "auto", "auto|weeds_only|all",
-            "which plants are treated: weeds_only, all, or auto (weeds_only when the frames carry a class map, all without)"}),
+            "which plants are treated: weeds_only, all, or auto (weeds_only when classify.model is set or the frames carry a class map, all without); unknown plants are never treated under weeds_only"}),
     bind<STEMD_KEY(actuation.scheduler.lead_ms)>(
         {"scheduler.lead_ms", real, "ms", 0, 1000, "20", "",
             "a command must reach the tool controller at least this long before the plant is under the tool"}),
