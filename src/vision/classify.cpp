@@ -85,11 +85,14 @@ ClassifyWorkspace::ClassifyWorkspace(cv::Size frame_size, const Params& params)
 void plant_features(const FrameView& frame, const Params& params, const Workspace& dws, const Detections& det,
                     ClassifyWorkspace& ws)
 {
-    ws.plants_ = det.plants.size();
+    // A frame the workspaces were not made for, or without its rgb image,
+    // gives no features: its plants stay unclassified.
+    ws.plants_ = 0;
     clear_rows(ws.plant_index_);
-    if (ws.plants_ == 0 || frame.bgr.empty() || frame.bgr.size() != ws.frame_size_ ||
-        dws.frame_size() != ws.frame_size_)
+    if (det.plants.empty() || frame.bgr.empty() || frame.bgr.size() != ws.frame_size_ ||
+        frame.bgr.type() != CV_8UC3 || dws.frame_size() != ws.frame_size_)
         return;
+    ws.plants_ = det.plants.size();
     const BitMask& closed = dws.closed();
     const BitMask& vegetation = dws.vegetation();
     const bool has_nir = !frame.nir.empty() && frame.nir.size() == ws.frame_size_ && frame.nir.type() == CV_8UC1;

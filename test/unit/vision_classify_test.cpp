@@ -344,3 +344,24 @@ TEST(Classify, TrainingRefusesOneClassOrBadLabels)
     EXPECT_FALSE(PlantClassifier::train(samples, labels, {}, error));
     EXPECT_FALSE(PlantClassifier::train(samples.colRange(0, 3), labels, {}, error));
 }
+
+TEST(Classify, AFrameWithoutItsRgbImageGivesNoFeatures)
+{
+    const cv::Size size(200, 200);
+    cv::Mat bgr(size, CV_8UC3, cv::Scalar(60, 80, 110));
+    cv::circle(bgr, {100, 100}, 20, cv::Scalar(40, 170, 60), cv::FILLED);
+    const Params params = test_params();
+    Workspace ws(size, params);
+    Detections det;
+    detect({.bgr = bgr}, params, ws, det);
+    ASSERT_EQ(det.plants.size(), 1u);
+    ClassifyWorkspace cws(size, params);
+    plant_features({.bgr = bgr}, params, ws, det, cws);
+    ASSERT_EQ(cws.features().size(), 1u);
+    plant_features({}, params, ws, det, cws);
+    EXPECT_TRUE(cws.features().empty());
+    EXPECT_EQ(cv::countNonZero(cws.plant_index()), 0);
+    ClassifyWorkspace other(cv::Size(100, 100), params);
+    plant_features({.bgr = bgr}, params, ws, det, other);
+    EXPECT_TRUE(other.features().empty()) << "a workspace of another size";
+}

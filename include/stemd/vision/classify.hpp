@@ -107,8 +107,9 @@ private:
 
 // The features of every plant `detections` holds. `detect_workspace` and
 // `detections` must come from detect() on this frame with these params.
-// The frame's bgr is required (with mask segmentation too); its nir is used
-// when present (NDVI features), else they are 0.
+// The frame's bgr is required (with mask segmentation too): without it, or
+// on a frame of another size, features() is empty. Its nir is used when
+// present (NDVI features), else they are 0.
 void plant_features(const FrameView& frame, const Params& params, const Workspace& detect_workspace,
                     const Detections& detections, ClassifyWorkspace& workspace);
 
