@@ -127,11 +127,18 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
             ws.group_plant_[static_cast<std::size_t>(group)] = static_cast<std::uint16_t>(p + 1);
     }
 
-    // 2. One pass over the closed mask: each run gets its plant once, each
-    // pixel adds to its plant's sums.
+    // 2. One pass over the closed mask: each run gets its plant once. Its
+    // moments follow from its ends in closed form; colour and texture add
+    // up in locals and go to the plant's sums once per run (adding into the
+    // array pixel by pixel would chain every add through memory).
     std::fill(ws.sums_.begin(), ws.sums_.begin() + static_cast<std::ptrdiff_t>(ws.plants_), ClassifyWorkspace::Sums{});
     const int width = ws.frame_size_.width, height = ws.frame_size_.height;
     const int words = closed.words_per_row();
+    struct RunSums {
+        long vegetation_px = 0, sampled_px = 0;
+        float r = 0, g = 0, b = 0, rr = 0, gg = 0, ndvi = 0, ndvi2 = 0;
+        long brightness = 0, gradient = 0;
+    };
     for (int y = 0; y < height; ++y) {
         const std::uint64_t* crow = closed.row(y);
         const std::uint64_t* vrow = vegetation.row(y);
@@ -140,69 +147,111 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
         const auto* bgr_up = frame.bgr.ptr<cv::Vec3b>(std::max(y - 1, 0));
         const auto* bgr_down = frame.bgr.ptr<cv::Vec3b>(std::min(y + 1, height - 1));
         const std::uint8_t* nir = has_nir ? frame.nir.ptr<std::uint8_t>(y) : nullptr;
+        // Colour, texture and NDVI are means: every other row estimates
+        // them well and halves the cost of the pass.
+        const bool sample_row = (y & 1) == 0;
         std::uint16_t id = 0;
-        int run_end = -1;   // last x of the run `id` was looked up for
+        int run_start = 0, run_end = -2;   // the current run, [run_start, run_end]
+        RunSums acc;
+        auto flush = [&] {
+            if (id == 0 || run_end < run_start)
+                return;
+            ClassifyWorkspace::Sums& s = ws.sums_[id - 1u];
+            const cv::Rect& box = det.plants[id - 1u].bbox;
+            // Pixels x0..x1 relative to the box corner, all on row dy.
+            const double n = run_end - run_start + 1;
+            const double x0 = run_start - box.x, x1 = run_end - box.x, dy = y - box.y;
+            const double sum_x = (x0 + x1) * n / 2;
+            const double sum_xx = (x1 * (x1 + 1) * (2 * x1 + 1) - (x0 - 1) * x0 * (2 * x0 - 1)) / 6;
+            s.closed_px += static_cast<long>(n);
+            s.x += sum_x;
+            s.y += dy * n;
+            s.xx += sum_xx;
+            s.yy += dy * dy * n;
+            s.xy += dy * sum_x;
+            s.vegetation_px += acc.vegetation_px;
+            s.sampled_px += acc.sampled_px;
+            s.brightness += static_cast<double>(acc.brightness);
+            s.gradient += static_cast<double>(acc.gradient);
+            s.r += acc.r;
+            s.g += acc.g;
+            s.b += acc.b;
+            s.rr += acc.rr;
+            s.gg += acc.gg;
+            s.ndvi += acc.ndvi;
+            s.ndvi2 += acc.ndvi2;
+            acc = RunSums{};
+        };
         for (int w = 0; w < words; ++w) {
             std::uint64_t bits = crow[w];
             while (bits) {
                 const int x = w * 64 + std::countr_zero(bits);
                 bits &= bits - 1;
                 if (x != run_end + 1) {
+                    flush();
                     const int piece = component_at(ws.labels_, {x, y});
                     const int group = piece >= 0 ? ws.piece_group_[static_cast<std::size_t>(piece)] : -1;
                     id = group >= 0 ? ws.group_plant_[static_cast<std::size_t>(group)] : 0;
+                    run_start = x;
                 }
                 run_end = x;
                 if (id == 0)
                     continue;
                 index_row[x] = id;
-                ClassifyWorkspace::Sums& s = ws.sums_[id - 1u];
-                const cv::Rect& box = det.plants[id - 1u].bbox;
-                const double dx = x - box.x, dy = y - box.y;
-                ++s.closed_px;
-                s.x += dx;
-                s.y += dy;
-                s.xx += dx * dx;
-                s.yy += dy * dy;
-                s.xy += dx * dy;
                 if (!((vrow[w] >> (x & 63)) & 1u))
                     continue;
+                ++acc.vegetation_px;
+                if (!sample_row)
+                    continue;
+                ++acc.sampled_px;
                 const cv::Vec3b& p = bgr[x];
                 const int sum = p[0] + p[1] + p[2];
-                ++s.vegetation_px;
-                s.brightness += sum;
+                acc.brightness += sum;
                 // Reciprocals from a table: a division per pixel and
                 // channel would cost more than the rest of the pass.
                 const float inv = ws.reciprocal_[static_cast<std::size_t>(sum)];
                 const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
-                s.r += r;
-                s.g += g;
-                s.b += static_cast<float>(p[0]) * inv;
-                s.rr += r * r;
-                s.gg += g * g;
+                acc.r += r;
+                acc.g += g;
+                acc.b += static_cast<float>(p[0]) * inv;
+                acc.rr += r * r;
+                acc.gg += g * g;
                 auto total = [](const cv::Vec3b& v) { return v[0] + v[1] + v[2]; };
                 const int left = total(bgr[std::max(x - 1, 0)]), right = total(bgr[std::min(x + 1, width - 1)]);
-                s.gradient += std::abs(right - left) + std::abs(total(bgr_down[x]) - total(bgr_up[x]));
+                acc.gradient += std::abs(right - left) + std::abs(total(bgr_down[x]) - total(bgr_up[x]));
                 if (nir) {
                     const int n = nir[x], red = p[2];
                     const float ndvi = static_cast<float>(n - red) * ws.reciprocal_[static_cast<std::size_t>(n + red)];
-                    s.ndvi += ndvi;
-                    s.ndvi2 += ndvi * ndvi;
+                    acc.ndvi += ndvi;
+                    acc.ndvi2 += ndvi * ndvi;
                 }
             }
         }
+        flush();
     }
 
     // 3. Features from the sums and the plant's own measures.
-    const cv::Scalar frame_mean = cv::mean(frame.bgr);
-    const double frame_brightness = std::max(frame_mean[0] + frame_mean[1] + frame_mean[2], 1.0);
+    // The frame's mean R+G+B from every 4th pixel of every 4th row, as the
+    // chromatic index samples it: a mean needs no more.
+    long frame_sum = 0, frame_samples = 0;
+    for (int y = 0; y < height; y += 4) {
+        const auto* row = frame.bgr.ptr<cv::Vec3b>(y);
+        for (int x = 0; x < width; x += 4) {
+            frame_sum += row[x][0] + row[x][1] + row[x][2];
+            ++frame_samples;
+        }
+    }
+    const double frame_brightness =
+        std::max(static_cast<double>(frame_sum) / static_cast<double>(std::max(frame_samples, 1L)), 1.0);
     const double gsd = params.gsd_mm_per_px;
     for (std::size_t i = 0; i < ws.plants_; ++i) {
         const Plant& plant = det.plants[i];
         const ClassifyWorkspace::Sums& s = ws.sums_[i];
         FeatureRow& f = ws.features_[i];
         const double closed_px = std::max<double>(static_cast<double>(s.closed_px), 1);
-        const double veg_px = std::max<double>(static_cast<double>(s.vegetation_px), 1);
+        // Means over the sampled rows; a plant on no sampled row (one odd
+        // row tall) has 0 colour, texture and NDVI.
+        const double veg_px = std::max<double>(static_cast<double>(s.sampled_px), 1);
         const double area_mm2 = std::max(static_cast<double>(plant.area_px), 1.0) * gsd * gsd;
         const double width_mm = plant.mean_width_mm > 0 ? plant.mean_width_mm : 0.0;
         // Without a traced contour (centre-of-mass estimator) the perimeter

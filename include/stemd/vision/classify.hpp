@@ -48,7 +48,7 @@ enum PlantFeature : int {
     f_leaf_elongation,    // mean elongation of those leaves (1 without leaves)
     f_vegetation_fill,    // vegetation pixels / closed pixels (lacy plants < 1)
     f_mean_width_mm,      // 2 area / perimeter
-    f_r_mean,             // chromatic r, g, b over the plant's vegetation pixels
+    f_r_mean,             // chromatic r, g, b over the plant's vegetation pixels (every other row)
     f_g_mean,
     f_b_mean,
     f_r_std,
@@ -84,7 +84,7 @@ private:
     friend void plant_features(const FrameView&, const Params&, const Workspace&, const Detections&,
                                ClassifyWorkspace&);
     struct Sums {
-        long closed_px, vegetation_px;
+        long closed_px, vegetation_px, sampled_px;   // sampled: on the rows colour is read from
         double r, g, b, rr, gg, brightness, gradient, ndvi, ndvi2;
         double x, y, xx, yy, xy;   // closed pixels, relative to the bbox corner
     };
