@@ -164,6 +164,22 @@ int run(int argc, char** argv, Phase& phase)
         std::cerr << "stemd: " << *problem << "\n";
         return kUsageError;
     }
+    // The crop/weed model: refused at start, like any other bad setting,
+    // when it is unreadable or made for another camera.
+    std::optional<vision::PlantClassifier> classifier;
+    if (!daemon_config.classify.model.empty()) {
+        classifier = vision::PlantClassifier::load(daemon_config.classify.model, error);
+        if (!classifier) {
+            std::cerr << "stemd: " << config.blame("classify.model", error) << "\n";
+            return kUsageError;
+        }
+        if (const auto why = classifier->mismatch(daemon_config.vision.gsd_mm_per_px,
+                                                  vision::uses_nir(daemon_config.vision.segmentation),
+                                                  daemon_config.classify.model)) {
+            std::cerr << "stemd: " << config.blame("classify.model", *why) << "\n";
+            return kUsageError;
+        }
+    }
     if (args->check_config) {
         std::cout << "stemd: configuration ok\n";
         return 0;
@@ -195,6 +211,12 @@ int run(int argc, char** argv, Phase& phase)
         log->error("cannot allocate the frame slots and workspace for {}x{} frames", daemon_config.frame_size.width,
                    daemon_config.frame_size.height);
         return 1;
+    }
+    if (classifier) {
+        log->info("classify.model {}: trained on {} at {} mm/px, {}", daemon_config.classify.model,
+                  classifier->info().recordings.empty() ? std::string("?") : classifier->info().recordings.front(),
+                  classifier->info().gsd_mm_per_px, vision::channels_name(classifier->info().nir));
+        daemon->set_classifier(std::move(*classifier));
     }
     if (!daemon->start()) {
         // A SIGTERM during a slow start (a long preload) is a stop, not a failure.

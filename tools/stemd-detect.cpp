@@ -1,7 +1,8 @@
 // stemd-detect: offline stem detection on images or recording directories.
 //   stemd-detect [--config FILE] [--set KEY=VALUE]... [--segment METHOD]
-//                [--csv OUT] [--mask-out DIR] [--overlay DIR] [--timing] INPUT...
+//                [--csv OUT] [--mask-out DIR] [--class-out DIR] [--overlay DIR] [--timing] INPUT...
 #include <algorithm>
+#include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -15,9 +16,11 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "stemd/base/clock.hpp"
 #include "stemd/io/csv.hpp"
 #include "stemd/io/recording.hpp"
 #include "stemd/config/config.hpp"
+#include "stemd/vision/classify.hpp"
 #include "stemd/vision/detect.hpp"
 #include "stemd/viz/overlay.hpp"
 #include "stemd/config/command_line.hpp"
@@ -33,7 +36,8 @@ constexpr int kUsageError = 2;
 
 const char* const kUsage =
     "usage: stemd-detect [--config FILE] [--set KEY=VALUE]... [--segment METHOD]\n"
-    "                    [--csv OUT] [--mask-out DIR] [--overlay DIR] [--timing] INPUT...\n"
+    "                    [--csv OUT] [--mask-out DIR] [--class-out DIR] [--overlay DIR] [--timing]\n"
+    "                    INPUT...\n"
     "  INPUT       image files (RGB; masks with --segment mask, nonzero = vegetation)\n"
     "              or recording directories (frames.csv: t_ns,rgb,nir,mask)\n"
     "  --config    configuration file (see config/stemd.yaml)\n"
@@ -41,8 +45,11 @@ const char* const kUsage =
     "  --segment   shorthand for --set segment.method=METHOD: chromatic_exg (the\n"
     "              default), exg, ndvi, exg_and_ndvi (both: recordings with nir), mask\n"
     "  --csv       write image,plant,x,y,method,leaves,area_px,estimator,confidence\n"
-    "              ('-' = stdout); plants without a stem (grass) are not written\n"
+    "              ('-' = stdout); plants without a stem (grass) are not written;\n"
+    "              with classify.model, then class (crop|weed|unknown),weed_probability\n"
     "  --mask-out  write each frame's vegetation mask (255 = vegetation) as PNG\n"
+    "  --class-out write each frame's class map (0 soil, 1 crop, 2 weed) as PNG;\n"
+    "              needs classify.model (a model from stemd-train)\n"
     "  --overlay   write overlays (contour, hull, cuts, leaves, stem, centre of mass)\n"
     "  --timing    per-frame stage times on stderr and medians at the end\n";
 
@@ -50,6 +57,7 @@ struct Args {
     config::ConfigArgs config;
     std::string csv_path;
     std::string mask_dir;
+    std::string class_dir;
     std::string overlay_dir;
     bool timing = false;
     std::vector<std::string> inputs;
@@ -80,6 +88,8 @@ std::optional<Args> parse_args(int argc, char** argv, std::string& error)
             if (!value(args.csv_path)) return std::nullopt;
         } else if (a == "--mask-out") {
             if (!value(args.mask_dir)) return std::nullopt;
+        } else if (a == "--class-out") {
+            if (!value(args.class_dir)) return std::nullopt;
         } else if (a == "--overlay") {
             if (!value(args.overlay_dir)) return std::nullopt;
         } else if (a == "--timing") {
@@ -137,13 +147,30 @@ int main(int argc, char** argv)
         return kUsageError;
     }
     const vision::Params params = config.settings().daemon.vision;
+    const runtime::ClassifyConfig& classify = config.settings().daemon.classify;
+    std::optional<vision::PlantClassifier> model;
+    if (!classify.model.empty()) {
+        model = vision::PlantClassifier::load(classify.model, error);
+        if (!model) {
+            std::cerr << "stemd-detect: classify.model: " << error << "\n";
+            return kUsageError;
+        }
+        if (const auto why = model->mismatch(params.gsd_mm_per_px, vision::uses_nir(params.segmentation), classify.model)) {
+            std::cerr << "stemd-detect: classify.model: " << *why << "\n";
+            return kUsageError;
+        }
+    }
+    if (!args->class_dir.empty() && !model) {
+        std::cerr << "stemd-detect: --class-out needs classify.model (train one with stemd-train)\n";
+        return kUsageError;
+    }
 
     std::vector<tools::FrameJob> jobs;
     if (!tools::collect_frames(args->inputs, params.segmentation, jobs, error)) {
         std::cerr << "stemd-detect: " << error << "\n";
         return kUsageError;
     }
-    for (const std::string* dir : {&args->mask_dir, &args->overlay_dir}) {
+    for (const std::string* dir : {&args->mask_dir, &args->class_dir, &args->overlay_dir}) {
         if (!dir->empty() && !ensure_dir(*dir, error)) {
             std::cerr << "stemd-detect: " << error << "\n";
             return 1;
@@ -164,16 +191,22 @@ int main(int argc, char** argv)
     }
     std::ostream& report = args->csv_path == "-" ? std::cerr : std::cout;
     if (csv)
-        *csv << "image,plant,x,y,method,leaves,area_px,estimator,confidence\n";
+        *csv << "image,plant,x,y,method,leaves,area_px,estimator,confidence" << (model ? ",class,weed_probability" : "")
+             << "\n";
 
     std::unique_ptr<vision::Workspace> workspace;
+    std::unique_ptr<vision::ClassifyWorkspace> classify_workspace;
+    std::array<float, vision::kMaxPlants> weed_probability{};
+    std::array<PlantClass, vision::kMaxPlants> plant_class{};
+    cv::Mat class_image;
+    std::vector<double> classify_ms;
     auto detections = std::make_unique<vision::Detections>();
     std::vector<double> stage_ms[6];
     int skipped = 0, plants_total = 0, stemless_total = 0;
     long long over_capacity_total = 0;   // plants beyond the per-frame capacity: found, not reported
     tools::LoadedFrame frame;
     for (const tools::FrameJob& job : jobs) {
-        if (!tools::load_frame(job, params.segmentation, !args->overlay_dir.empty(), frame, error)) {
+        if (!tools::load_frame(job, params.segmentation, !args->overlay_dir.empty() || model.has_value(), frame, error)) {
             std::cerr << "stemd-detect: skipped frame: " << error << "\n";
             ++skipped;
             continue;
@@ -183,6 +216,8 @@ int main(int argc, char** argv)
         const cv::Size size = params.segmentation == vision::Segmentation::mask ? mask.size() : bgr.size();
         if (!workspace || workspace->frame_size() != size)
             workspace = std::make_unique<vision::Workspace>(size, params);
+        if (model && (!classify_workspace || classify_workspace->frame_size() != size))
+            classify_workspace = std::make_unique<vision::ClassifyWorkspace>(size, params);
         vision::StageTimes times;
         vision::detect({.bgr = bgr, .nir = frame.nir, .mask = mask}, params, *workspace, *detections, &times);
         if (detections->status != vision::DetectStatus::ok) {
@@ -192,6 +227,21 @@ int main(int argc, char** argv)
             continue;
         }
         const auto& d = *detections;
+        if (model) {
+            if (bgr.empty() || bgr.size() != size) {
+                std::cerr << "stemd-detect: skipped frame: " << job.image << ": the classifier needs its rgb image\n";
+                ++skipped;
+                continue;
+            }
+            const std::int64_t t0 = base::monotonic_ns();
+            const vision::FrameView view{.bgr = bgr, .nir = frame.nir, .mask = mask};
+            vision::plant_features(view, params, *workspace, d, *classify_workspace);
+            for (std::size_t i = 0; i < d.plants.size(); ++i) {
+                weed_probability[i] = model->weed_probability(classify_workspace->features()[i]);
+                plant_class[i] = vision::decide_class(weed_probability[i], classify.min_confidence);
+            }
+            classify_ms.push_back(static_cast<double>(base::monotonic_ns() - t0) / 1e6);
+        }
         int from_leaves = 0, with_stem = 0;
         for (std::size_t i = 0; i < d.plants.size(); ++i) {
             const auto& p = d.plants[i];
@@ -205,7 +255,13 @@ int main(int argc, char** argv)
                 std::snprintf(confidence, sizeof confidence, "%.3f", p.confidence);
                 *csv << io::csv_field(job.image) << ',' << i << ',' << xy << ',' << vision::to_string(p.method) << ','
                      << p.leaves.size() << ',' << p.area_px << ',' << vision::to_string(p.estimator) << ','
-                     << confidence << '\n';
+                     << confidence;
+                if (model) {
+                    char probability[16];
+                    std::snprintf(probability, sizeof probability, "%.3f", weed_probability[i]);
+                    *csv << ',' << to_string(plant_class[i]) << ',' << probability;
+                }
+                *csv << '\n';
             }
         }
         plants_total += with_stem;
@@ -220,6 +276,14 @@ int main(int argc, char** argv)
             vision::unpack_mask(workspace->vegetation(), veg);
             const auto path = (fs::path(args->mask_dir) / out_name).string();
             if (!cv::imwrite(path, veg)) {
+                std::cerr << "stemd-detect: " << path << ": cannot write\n";
+                return 1;
+            }
+        }
+        if (!args->class_dir.empty()) {
+            vision::class_map(*workspace, *classify_workspace, {plant_class.data(), d.plants.size()}, class_image);
+            const auto path = (fs::path(args->class_dir) / out_name).string();
+            if (!cv::imwrite(path, class_image)) {
                 std::cerr << "stemd-detect: " << path << ": cannot write\n";
                 return 1;
             }
@@ -253,6 +317,9 @@ int main(int argc, char** argv)
                      "total %.3f ms\n",
                      stage_ms[5].size(), median(stage_ms[0]), median(stage_ms[1]), median(stage_ms[2]),
                      median(stage_ms[3]), median(stage_ms[4]), median(stage_ms[5]));
+    if (args->timing && !classify_ms.empty())
+        std::fprintf(stderr, "timing median over %zu frames: classify %.3f ms (features, forest, decision)\n",
+                     classify_ms.size(), median(classify_ms));
     report << jobs.size() - skipped << " frames, " << plants_total << " stems, " << stemless_total
            << " stemless plants, " << over_capacity_total << " plants over capacity (" << vision::kMaxPlants
            << " a frame)";

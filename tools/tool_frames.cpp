@@ -22,6 +22,7 @@ bool collect_frames(const std::vector<std::string>& inputs, vision::Segmentation
                 if (!f.rgb.empty()) job.rgb = rec->resolve(f.rgb);
                 if (!f.nir.empty()) job.nir = rec->resolve(f.nir);
                 if (!f.mask.empty()) job.mask = rec->resolve(f.mask);
+                if (!f.plant_class.empty()) job.plant_class = rec->resolve(f.plant_class);
                 jobs.push_back(std::move(job));
             }
         } else if (fs::is_directory(input)) {

@@ -15,6 +15,7 @@ namespace stemd::tools {
 struct FrameJob {
     std::string image;   // the frame's name in CSVs: as written in frames.csv, or the basename
     std::filesystem::path rgb, nir, mask;
+    std::filesystem::path plant_class;   // a recording's class column; empty when none
 };
 
 // Expands INPUTs: a recording directory gives its frames, an image file one

@@ -223,6 +223,12 @@ constexpr std::array kSchema{
     bind<STEMD_KEY(daemon.vision.grass_max_hull_fill)>(
         {"stem.grass_max_hull_fill", real, "fraction", 0, 2, "0.4", "",
             "robust estimator: grass also covers less than this fraction of its convex hull; 1 or more: width alone"}),
+    bind<STEMD_KEY(daemon.classify.model)>(
+        {"classify.model", text, "", 0, 0, "none", "",
+            "crop/weed model written by stemd-train (trained for this camera, GSD and crop); none: no classifier, plants are unknown"}),
+    bind<STEMD_KEY(daemon.classify.min_confidence)>(
+        {"classify.min_confidence", real, "probability", 0.5, 1, "0.6", "",
+            "a plant is weed when the model's weed probability is at least this, crop when its crop probability is; else unknown (never treated under weeds_only)"}),
 
     // The daemon (stemd): frame source, rings, threads, status, logging.
     bind<STEMD_KEY(daemon.source_kind)>(
@@ -328,7 +334,7 @@ constexpr std::array kSchema{
 
     bind_choice<STEMD_KEY(actuation.policy), std::array{PolicyChoice::automatic, PolicyChoice::weeds_only, PolicyChoice::all}>(
         {"scheduler.policy", choice, "", 0, 0, "auto", "auto|weeds_only|all",
-            "which plants are treated: weeds_only, all, or auto (weeds_only when the frames carry a class map, all without)"}),
+            "which plants are treated: weeds_only, all, or auto (weeds_only when classify.model is set or the frames carry a class map, all without); unknown plants are never treated under weeds_only"}),
     bind<STEMD_KEY(actuation.scheduler.lead_ms)>(
         {"scheduler.lead_ms", real, "ms", 0, 1000, "20", "",
             "a command must reach the tool controller at least this long before the plant is under the tool"}),
@@ -416,6 +422,7 @@ constexpr std::array kSections{
     SectionSpec{"plants", "", "Plants: the blobs of the closed mask, grouped across small gaps."},
     SectionSpec{"leaves", "", "Leaves: the plant's contour cut at its deep convexity defects."},
     SectionSpec{"stem", "", "The stem: from the leaf directions, or the centre of mass as the fallback."},
+    SectionSpec{"classify", "", "Crop or weed per plant: a model trained by stemd-train (README, \"Crop or weed\")."},
     SectionSpec{"source", "The daemon (stemd): frames, rings, threads, status, logging",
                 "Where frames come from. Real-time settings (threads.*) are off by default; on the robot, e.g. "
                 "capture_priority: 40, actuator_priority: 45, processing_priority: 30, processing_cpu: 1, "

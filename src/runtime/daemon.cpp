@@ -97,6 +97,12 @@ Daemon::Daemon(const DaemonConfig& config, std::unique_ptr<drivers::FrameSource>
         free_slots_.try_push(&pool_[i]);
 }
 
+void Daemon::set_classifier(vision::PlantClassifier model)
+{
+    classify_workspace_ = std::make_unique<vision::ClassifyWorkspace>(config_.frame_size, config_.vision);
+    classifier_ = std::move(model);
+}
+
 Daemon::~Daemon()
 {
     request_stop();
@@ -301,8 +307,24 @@ void Daemon::processing_loop()
             result->pipeline_ns = times.total_ns;
             result->name = frame->name;
             result->odom_mm = frame->odom_mm;
-            result->has_class_map = frame->has_class_map && !frame->plant_class.empty();
-            if (result->has_class_map)
+            if (classifier_ && result->detections.status == vision::DetectStatus::ok) {
+                // The model's class, even where a recording has a class
+                // column too: what runs in the field is what a replay shows.
+                // A frame without its rgb image leaves every plant unknown.
+                const vision::FrameView view{.bgr = frame->bgr, .nir = frame->nir, .mask = frame->mask};
+                vision::plant_features(view, config_.vision, *workspace_, result->detections, *classify_workspace_);
+                const auto features = classify_workspace_->features();
+                for (std::size_t i = 0; i < result->detections.plants.size(); ++i)
+                    result->plant_class[i] =
+                        i < features.size()
+                            ? vision::decide_class(classifier_->weed_probability(features[i]),
+                                                   config_.classify.min_confidence)
+                            : PlantClass::Unknown;
+                result->has_class_map = true;
+            } else {
+                result->has_class_map = frame->has_class_map && !frame->plant_class.empty();
+            }
+            if (result->has_class_map && !classifier_)
                 bump(counters_->processing.bad_class,
                      classify_plants(frame->plant_class, result->detections, result->plant_class));
             bump(counters_->processing.frames);

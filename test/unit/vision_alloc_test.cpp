@@ -11,6 +11,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "stemd/vision/classify.hpp"
 #include "stemd/vision/detect.hpp"
 #include "vision_test_util.hpp"
 
@@ -60,4 +61,48 @@ TEST(RealTime, TheCounterSeesAllocations)
     auto p = std::make_unique<int>(3);
     EXPECT_EQ(stemd::test::allocations() - before, 1);
     EXPECT_EQ(*p, 3);
+}
+
+TEST(RealTime, ClassifierAllocatesNothingOnceWarm)
+{
+    const cv::Size size(1296, 966);
+    cv::Mat bgr(size, CV_8UC3, cv::Scalar(60, 80, 110));
+    const cv::Mat plants = stemd::test::random_blob_mask(size, 78, 150, 0.001);
+    bgr.setTo(cv::Scalar(40, 160, 50), plants);
+    cv::Mat nir(size, CV_8UC1, cv::Scalar(80));
+    nir.setTo(220, plants);
+    Params params;
+    auto ws = std::make_unique<Workspace>(size, params);
+    auto out = std::make_unique<Detections>();
+    const FrameView frame{bgr, nir, {}};
+    detect(frame, params, *ws, *out);
+    ASSERT_GT(out->plants.size(), 10u);
+
+    cv::Mat samples(40, kPlantFeatureCount, CV_32FC1), labels(40, 1, CV_32SC1);
+    cv::RNG rng(4);
+    rng.fill(samples, cv::RNG::UNIFORM, 0, 1);
+    for (int i = 0; i < labels.rows; ++i)
+        labels.at<int>(i) = i % 2 ? 1 : 2;
+    std::string error;
+    const auto model = PlantClassifier::train(samples, labels, {.trees = 30}, error);
+    ASSERT_TRUE(model) << error;
+    auto cws = std::make_unique<ClassifyWorkspace>(size, params);
+    std::array<stemd::PlantClass, kMaxPlants> classes{};
+    cv::Mat map(size, CV_8UC1);
+
+    long before = stemd::test::allocations();
+    plant_features(frame, params, *ws, *out, *cws);
+    EXPECT_EQ(stemd::test::allocations() - before, 0) << "heap allocations in plant_features";
+    float sum = 0;
+    before = stemd::test::allocations();
+    for (std::size_t i = 0; i < cws->features().size(); ++i) {
+        const float p = model->weed_probability(cws->features()[i]);
+        sum += p;
+        classes[i] = decide_class(p, 0.6);
+    }
+    EXPECT_EQ(stemd::test::allocations() - before, 0) << "heap allocations in weed_probability";
+    before = stemd::test::allocations();
+    class_map(*ws, *cws, {classes.data(), cws->features().size()}, map);
+    EXPECT_EQ(stemd::test::allocations() - before, 0) << "heap allocations in class_map";
+    EXPECT_GE(sum, 0.0f);
 }

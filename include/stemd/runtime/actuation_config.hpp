@@ -22,7 +22,8 @@ enum class OdometrySource : std::uint8_t {
     encoder,    // a wheel encoder on GPIO lines (gpio.encoder_*)
 };
 
-// scheduler.policy: auto = weeds_only when the frames carry a class map, all without.
+// scheduler.policy: auto = weeds_only when the frames carry a class map or
+// classify.model is set (the daemon then gives every result one), all without.
 enum class PolicyChoice : std::uint8_t { automatic, weeds_only, all };
 
 struct ActuationConfig {

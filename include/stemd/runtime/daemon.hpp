@@ -40,6 +40,7 @@
 #include "stemd/runtime/frame_pool.hpp"
 #include "stemd/base/spsc_ring.hpp"
 #include "stemd/runtime/status.hpp"
+#include "stemd/vision/classify.hpp"
 #include "stemd/vision/detect.hpp"
 
 namespace stemd::runtime {
@@ -60,6 +61,13 @@ public:
     // the real-time settings and of mlockall are warned about once, and the
     // daemon runs without them.
     bool start();
+
+    // Before start(): every plant gets its class from `model` (weed
+    // probability against config.classify.min_confidence) instead of a
+    // recording's class column, and the scheduler's auto policy treats
+    // weeds only. The model must fit the configuration (checked by the
+    // caller: PlantClassifier::mismatch).
+    void set_classifier(vision::PlantClassifier model);
 
     // From any thread; the threads finish their current frame and exit.
     void request_stop();
@@ -104,6 +112,8 @@ private:
     base::SpscRing<FrameResult> results_;          // processing -> actuator, built in place
     base::SpscRing<geometry::OdomSample> captured_odometry_;   // capture -> actuator: frames' own odom_mm
     const std::unique_ptr<vision::Workspace> workspace_;   // the processing thread's
+    std::optional<vision::PlantClassifier> classifier_;
+    std::unique_ptr<vision::ClassifyWorkspace> classify_workspace_;   // the processing thread's
 
     std::atomic<bool> stop_{false};
     std::atomic<bool> capture_done_{false};      // the source ended or failed: nothing more will be pushed

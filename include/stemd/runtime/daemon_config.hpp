@@ -23,6 +23,12 @@ struct ThreadSettings {
     int cpu = -1;
 };
 
+// classify.*: the crop/weed model of vision/classify.
+struct ClassifyConfig {
+    std::string model;             // empty: none
+    double min_confidence = 0.6;   // probability
+};
+
 struct DaemonConfig {
     // source.*
     std::string source_kind = "replay";
@@ -51,6 +57,7 @@ struct DaemonConfig {
     // Allocate a class-map plane per frame slot (replay of recordings with a
     // class column, for the actuation's policy).
     bool class_maps = false;
+    ClassifyConfig classify;
     // The pipeline's keys (camera.*, segment.*, closing.*, ...).
     vision::Params vision;
 };

@@ -1,0 +1,186 @@
+// Crop or weed, per plant: a fixed-length feature vector for each plant
+// detect() found (colour, texture, shape in millimetres, lateral position),
+// a random forest (OpenCV ml RTrees) that gives each plant a weed
+// probability, and the per-pixel class map that follows from it.
+//
+// The features are computed from the same frame, parameters and Workspace
+// as detect(), so training (stemd-train) and use (stemd-detect, stemd) see
+// the same plants. A trained model is one file (OpenCV FileStorage, YAML or
+// JSON by extension) holding the forest and what it was trained on: feature
+// names and version, camera GSD, channels, recordings, date and the
+// cross-validated figures. A model only holds for the camera, GSD and crop
+// it was trained on: loading checks the first two.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+#include <opencv2/ml.hpp>
+
+#include "stemd/base/plant_class.hpp"
+#include "stemd/vision/detect.hpp"
+
+namespace stemd::vision {
+
+// Bumped whenever a feature is added, removed or computed differently: a
+// model trained on other features is refused.
+inline constexpr int kPlantFeaturesVersion = 1;
+
+// The features, in vector order. Shape is in physical units (via
+// gsd_mm_per_px) so that a model carries over between resolutions of the
+// same camera; colour is chromatic (r = R / (R + G + B)) so that it does not
+// change with exposure.
+enum PlantFeature : int {
+    f_log_area_mm2,       // log10 of the plant's vegetation area in mm²
+    f_perimeter_mm,       // outer contour length (2 area / mean width)
+    f_solidity,           // vegetation area / convex hull area (detect's hull_fill)
+    f_compactness,        // 4 pi area / perimeter² of the closed plant
+    f_elongation,         // sqrt of the ratio of the principal second moments, >= 1
+    f_extent,             // closed area / bounding box area
+    f_leaves,             // leaves found by the leaf step
+    f_leaf_elongation,    // mean elongation of those leaves (1 without leaves)
+    f_vegetation_fill,    // vegetation pixels / closed pixels (lacy plants < 1)
+    f_mean_width_mm,      // 2 area / perimeter
+    f_r_mean,             // chromatic r, g, b over the plant's vegetation pixels (every other row)
+    f_g_mean,
+    f_b_mean,
+    f_r_std,
+    f_g_std,
+    f_exg_mean,           // 2g - r - b
+    f_brightness_rel,     // mean R+G+B of the plant / the frame's
+    f_texture,            // mean gradient magnitude of R+G+B / mean R+G+B, inside the plant
+    f_ndvi_mean,          // (NIR - R) / (NIR + R), 0 without a NIR plane
+    f_ndvi_std,
+    f_lateral,            // the plant's centre x / frame width (across the travel with camera.forward up|down)
+    kPlantFeatureCount
+};
+
+std::string_view feature_name(int feature);
+
+using FeatureRow = std::array<float, kPlantFeatureCount>;
+
+// What classify needs per frame, allocated once for a frame size; nothing
+// is allocated by plant_features() afterwards.
+class ClassifyWorkspace {
+public:
+    ClassifyWorkspace(cv::Size frame_size, const Params& params);
+    cv::Size frame_size() const { return frame_size_; }
+
+    // After plant_features(): per pixel of the closed mask, 1 + the index of
+    // its plant in the Detections; 0 for soil and for pieces dropped as too
+    // small or over capacity. CV_16UC1.
+    const cv::Mat& plant_index() const { return plant_index_; }
+    // After plant_features(): one row per plant of the Detections.
+    std::span<const FeatureRow> features() const { return {features_.data(), plants_}; }
+
+private:
+    friend void plant_features(const FrameView&, const Params&, const Workspace&, const Detections&,
+                               ClassifyWorkspace&);
+    struct Sums {
+        long closed_px, vegetation_px, sampled_px;   // sampled: on the rows colour is read from
+        double r, g, b, rr, gg, brightness, gradient, ndvi, ndvi2;
+        double x, y, xx, yy, xy;   // closed pixels, relative to the bbox corner
+    };
+    cv::Size frame_size_;
+    cv::Mat plant_index_;
+    LabelScratch labels_;
+    std::vector<Component> pieces_;
+    BitMask cells_;
+    BitMask grouped_;
+    ClosingScratch grouping_;
+    LabelScratch group_labels_;
+    std::vector<Component> groups_;
+    std::vector<int> piece_group_;
+    std::vector<std::uint16_t> group_plant_;   // 1 + plant index, 0 = dropped
+    std::array<Sums, kMaxPlants> sums_{};
+    std::array<FeatureRow, kMaxPlants> features_{};
+    std::size_t plants_ = 0;
+    std::array<float, 3 * 255 + 1> reciprocal_{};   // 1 / (R + G + B), also 1 / (NIR + R)
+};
+
+// The features of every plant `detections` holds. `detect_workspace` and
+// `detections` must come from detect() on this frame with these params.
+// The frame's bgr is required (with mask segmentation too): without it, or
+// on a frame of another size, features() is empty. Its nir is used when
+// present (NDVI features), else they are 0.
+void plant_features(const FrameView& frame, const Params& params, const Workspace& detect_workspace,
+                    const Detections& detections, ClassifyWorkspace& workspace);
+
+// The class of a plant from its weed probability: weed at or above
+// min_confidence, crop at or below 1 - min_confidence, else unknown.
+PlantClass decide_class(float weed_probability, double min_confidence);
+
+// The per-pixel class map: every vegetation pixel of a plant gets its
+// plant's class (0 soil, 1 crop, 2 weed; unknown plants are 0 too, as
+// PlantClass has it). `out` is CV_8UC1 of the frame size, (re)created
+// only when its size differs.
+void class_map(const Workspace& detect_workspace, const ClassifyWorkspace& workspace,
+               std::span<const PlantClass> plant_classes, cv::Mat& out);
+
+// What a model file says about itself.
+struct ModelInfo {
+    int features_version = kPlantFeaturesVersion;
+    std::vector<std::string> feature_names{};
+    double gsd_mm_per_px = 0;
+    bool nir = false;                      // channels: rgb+nir (true) or rgb
+    std::string segmentation{};            // segment.method of the training
+    std::vector<std::string> recordings{};
+    std::string trained_utc{};
+    int trees = 0;
+    std::string cross_validation{};        // the figures stemd-train printed, as text
+};
+
+// "rgb" or "rgb+nir".
+std::string_view channels_name(bool nir);
+
+// A model whose GSD differs from the configuration's by more than this
+// fraction is refused: sizes in mm² would be read off the wrong scale.
+inline constexpr double kModelGsdTolerance = 0.10;
+
+struct ForestOptions {
+    int trees = 100;
+    int max_depth = 12;
+    int min_sample_count = 4;
+    // Weigh the two classes equally whatever their counts (a field may
+    // hold ten weeds per crop plant).
+    bool balance_classes = true;
+    std::uint64_t seed = 1;
+};
+
+class PlantClassifier {
+public:
+    // Trains on one row per plant (samples CV_32F, kPlantFeatureCount
+    // columns) with labels CV_32S: 1 crop, 2 weed. Deterministic for a
+    // given options.seed (it reseeds the calling thread's cv::theRNG()).
+    static std::optional<PlantClassifier> train(const cv::Mat& samples, const cv::Mat& labels,
+                                                const ForestOptions& options, std::string& error);
+    // Reads a model file; error names the file and the reason.
+    static std::optional<PlantClassifier> load(const std::filesystem::path& path, std::string& error);
+    // Writes the forest with `info` (its trees field is filled in here).
+    bool save(const std::filesystem::path& path, ModelInfo info, std::string& error) const;
+
+    // The fraction of the trees that vote weed. OpenCV's predict() on one
+    // CV_32F row with PREDICT_SUM and no output array walks each tree and
+    // sums its leaf values: it allocates nothing (a unit test counts).
+    float weed_probability(const FeatureRow& features) const;
+
+    const ModelInfo& info() const { return info_; }
+
+    // Empty when the model fits a configuration of this GSD and channels;
+    // else the reason, naming `model_name` (the file).
+    std::optional<std::string> mismatch(double gsd_mm_per_px, bool nir, std::string_view model_name) const;
+
+private:
+    cv::Ptr<cv::ml::RTrees> forest_;
+    ModelInfo info_;
+    float trees_ = 1;
+};
+
+}  // namespace stemd::vision

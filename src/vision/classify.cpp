@@ -1,0 +1,518 @@
+#include "stemd/vision/classify.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cstdio>
+#include <cstring>
+#include <cmath>
+#include <numbers>
+
+#include <opencv2/core.hpp>
+
+namespace stemd::vision {
+
+namespace {
+
+constexpr std::array<std::string_view, kPlantFeatureCount> kFeatureNames{
+    "log_area_mm2", "perimeter_mm", "solidity",   "compactness", "elongation", "extent",   "leaves",
+    "leaf_elongation", "vegetation_fill", "mean_width_mm", "r_mean", "g_mean", "b_mean", "r_std",
+    "g_std",        "exg_mean",     "brightness_rel", "texture", "ndvi_mean", "ndvi_std", "lateral",
+};
+
+// The grouping of detect(): pieces of the closed mask closer than the group
+// gap are one plant, joined on 4 px cells dilated by half the gap. It is
+// repeated here (from the closed mask) rather than exported from detect();
+// a unit test checks that both give every plant the same area.
+constexpr int kGroupCellPx = 4;
+
+int group_radius_cells(const Params& params)
+{
+    if (params.group_gap_mm <= 0 || params.gsd_mm_per_px <= 0)
+        return 0;
+    const double radius_px = params.group_gap_mm / (2.0 * params.gsd_mm_per_px);
+    return std::clamp(static_cast<int>(std::ceil(radius_px / kGroupCellPx)), 1, kMaxClosingRadiusPx);
+}
+
+double sq(double v) { return v * v; }
+
+// Zeroes an image row by row: Mat::setTo allocates a scratch buffer.
+void clear_rows(cv::Mat& image)
+{
+    for (int y = 0; y < image.rows; ++y)
+        std::memset(image.ptr(y), 0, image.cols * image.elemSize());
+}
+
+// Population standard deviation from sums; 0 for fewer than two values.
+double spread(double sum, double sum2, double n)
+{
+    if (n < 2)
+        return 0;
+    const double mean = sum / n;
+    return std::sqrt(std::max(0.0, sum2 / n - mean * mean));
+}
+
+}  // namespace
+
+std::string_view feature_name(int feature)
+{
+    return feature >= 0 && feature < kPlantFeatureCount ? kFeatureNames[static_cast<std::size_t>(feature)]
+                                                        : std::string_view("?");
+}
+
+ClassifyWorkspace::ClassifyWorkspace(cv::Size frame_size, const Params& params)
+    : frame_size_(frame_size)
+{
+    const int width = std::max(frame_size.width, 0);
+    const int height = std::max(frame_size.height, 0);
+    plant_index_.create(height, width, CV_16UC1);
+    labels_.reserve(width, height);
+    const std::size_t max_components =
+        static_cast<std::size_t>((width + 1) / 2) * static_cast<std::size_t>((height + 1) / 2);
+    pieces_.reserve(max_components);
+    groups_.reserve(max_components);
+    piece_group_.reserve(max_components);
+    group_plant_.reserve(max_components);
+    cells_.reset(width / kGroupCellPx + 1, height / kGroupCellPx + 1);
+    grouped_.reset(cells_.width(), cells_.height());
+    group_labels_.reserve(cells_.width(), cells_.height());
+    if (width > 0 && height > 0)
+        dilate_mask(cells_, group_radius_cells(params), grouped_, grouping_);
+    reciprocal_[0] = 0;   // a black pixel has no chromaticity: counted as 0
+    for (std::size_t i = 1; i < reciprocal_.size(); ++i)
+        reciprocal_[i] = 1.0f / static_cast<float>(i);
+}
+
+void plant_features(const FrameView& frame, const Params& params, const Workspace& dws, const Detections& det,
+                    ClassifyWorkspace& ws)
+{
+    // A frame the workspaces were not made for, or without its rgb image,
+    // gives no features: its plants stay unclassified.
+    ws.plants_ = 0;
+    clear_rows(ws.plant_index_);
+    if (det.plants.empty() || frame.bgr.empty() || frame.bgr.size() != ws.frame_size_ ||
+        frame.bgr.type() != CV_8UC3 || dws.frame_size() != ws.frame_size_)
+        return;
+    ws.plants_ = det.plants.size();
+    const BitMask& closed = dws.closed();
+    const BitMask& vegetation = dws.vegetation();
+    const bool has_nir = !frame.nir.empty() && frame.nir.size() == ws.frame_size_ && frame.nir.type() == CV_8UC1;
+
+    // 1. Which plant each piece of the closed mask belongs to.
+    label_components(closed, ws.labels_, ws.pieces_);
+    const int pieces = static_cast<int>(ws.pieces_.size());
+    ws.piece_group_.resize(static_cast<std::size_t>(pieces));
+    std::size_t groups = static_cast<std::size_t>(pieces);
+    const int group_radius = group_radius_cells(params);
+    if (group_radius > 0 && pieces > 1) {
+        reduce_labelled_mask(ws.labels_, kGroupCellPx, ws.cells_);
+        dilate_mask(ws.cells_, group_radius, ws.grouped_, ws.grouping_);
+        label_components(ws.grouped_, ws.group_labels_, ws.groups_);
+        groups = ws.groups_.size();
+        for (int i = 0; i < pieces; ++i) {
+            const cv::Point first = ws.pieces_[static_cast<std::size_t>(i)].first_pixel;
+            ws.piece_group_[static_cast<std::size_t>(i)] =
+                component_at(ws.group_labels_, {first.x / kGroupCellPx, first.y / kGroupCellPx});
+        }
+    } else {
+        for (int i = 0; i < pieces; ++i)
+            ws.piece_group_[static_cast<std::size_t>(i)] = i;
+    }
+    ws.group_plant_.assign(groups, 0);
+    for (std::size_t p = 0; p < ws.plants_; ++p) {
+        const int piece = component_at(ws.labels_, det.plants[p].first_pixel);
+        if (piece < 0)
+            continue;
+        const int group = ws.piece_group_[static_cast<std::size_t>(piece)];
+        if (group >= 0)
+            ws.group_plant_[static_cast<std::size_t>(group)] = static_cast<std::uint16_t>(p + 1);
+    }
+
+    // 2. One pass over the closed mask: each run gets its plant once. Its
+    // moments follow from its ends in closed form; colour and texture add
+    // up in locals and go to the plant's sums once per run (adding into the
+    // array pixel by pixel would chain every add through memory).
+    std::fill(ws.sums_.begin(), ws.sums_.begin() + static_cast<std::ptrdiff_t>(ws.plants_), ClassifyWorkspace::Sums{});
+    const int width = ws.frame_size_.width, height = ws.frame_size_.height;
+    const int words = closed.words_per_row();
+    struct RunSums {
+        long vegetation_px = 0, sampled_px = 0;
+        float r = 0, g = 0, b = 0, rr = 0, gg = 0, ndvi = 0, ndvi2 = 0;
+        long brightness = 0, gradient = 0;
+    };
+    for (int y = 0; y < height; ++y) {
+        const std::uint64_t* crow = closed.row(y);
+        const std::uint64_t* vrow = vegetation.row(y);
+        auto* index_row = ws.plant_index_.ptr<std::uint16_t>(y);
+        const auto* bgr = frame.bgr.ptr<cv::Vec3b>(y);
+        const auto* bgr_up = frame.bgr.ptr<cv::Vec3b>(std::max(y - 1, 0));
+        const auto* bgr_down = frame.bgr.ptr<cv::Vec3b>(std::min(y + 1, height - 1));
+        const std::uint8_t* nir = has_nir ? frame.nir.ptr<std::uint8_t>(y) : nullptr;
+        // Colour, texture and NDVI are means: every other row estimates
+        // them well and halves the cost of the pass.
+        const bool sample_row = (y & 1) == 0;
+        std::uint16_t id = 0;
+        int run_start = 0, run_end = -2;   // the current run, [run_start, run_end]
+        RunSums acc;
+        auto flush = [&] {
+            if (id == 0 || run_end < run_start)
+                return;
+            ClassifyWorkspace::Sums& s = ws.sums_[id - 1u];
+            const cv::Rect& box = det.plants[id - 1u].bbox;
+            // Pixels x0..x1 relative to the box corner, all on row dy.
+            const double n = run_end - run_start + 1;
+            const double x0 = run_start - box.x, x1 = run_end - box.x, dy = y - box.y;
+            const double sum_x = (x0 + x1) * n / 2;
+            const double sum_xx = (x1 * (x1 + 1) * (2 * x1 + 1) - (x0 - 1) * x0 * (2 * x0 - 1)) / 6;
+            s.closed_px += static_cast<long>(n);
+            s.x += sum_x;
+            s.y += dy * n;
+            s.xx += sum_xx;
+            s.yy += dy * dy * n;
+            s.xy += dy * sum_x;
+            s.vegetation_px += acc.vegetation_px;
+            s.sampled_px += acc.sampled_px;
+            s.brightness += static_cast<double>(acc.brightness);
+            s.gradient += static_cast<double>(acc.gradient);
+            s.r += acc.r;
+            s.g += acc.g;
+            s.b += acc.b;
+            s.rr += acc.rr;
+            s.gg += acc.gg;
+            s.ndvi += acc.ndvi;
+            s.ndvi2 += acc.ndvi2;
+            acc = RunSums{};
+        };
+        for (int w = 0; w < words; ++w) {
+            std::uint64_t bits = crow[w];
+            while (bits) {
+                const int x = w * 64 + std::countr_zero(bits);
+                bits &= bits - 1;
+                if (x != run_end + 1) {
+                    flush();
+                    const int piece = component_at(ws.labels_, {x, y});
+                    const int group = piece >= 0 ? ws.piece_group_[static_cast<std::size_t>(piece)] : -1;
+                    id = group >= 0 ? ws.group_plant_[static_cast<std::size_t>(group)] : 0;
+                    run_start = x;
+                }
+                run_end = x;
+                if (id == 0)
+                    continue;
+                index_row[x] = id;
+                if (!((vrow[w] >> (x & 63)) & 1u))
+                    continue;
+                ++acc.vegetation_px;
+                if (!sample_row)
+                    continue;
+                ++acc.sampled_px;
+                const cv::Vec3b& p = bgr[x];
+                const int sum = p[0] + p[1] + p[2];
+                acc.brightness += sum;
+                // Reciprocals from a table: a division per pixel and
+                // channel would cost more than the rest of the pass.
+                const float inv = ws.reciprocal_[static_cast<std::size_t>(sum)];
+                const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
+                acc.r += r;
+                acc.g += g;
+                acc.b += static_cast<float>(p[0]) * inv;
+                acc.rr += r * r;
+                acc.gg += g * g;
+                auto total = [](const cv::Vec3b& v) { return v[0] + v[1] + v[2]; };
+                const int left = total(bgr[std::max(x - 1, 0)]), right = total(bgr[std::min(x + 1, width - 1)]);
+                acc.gradient += std::abs(right - left) + std::abs(total(bgr_down[x]) - total(bgr_up[x]));
+                if (nir) {
+                    const int n = nir[x], red = p[2];
+                    const float ndvi = static_cast<float>(n - red) * ws.reciprocal_[static_cast<std::size_t>(n + red)];
+                    acc.ndvi += ndvi;
+                    acc.ndvi2 += ndvi * ndvi;
+                }
+            }
+        }
+        flush();
+    }
+
+    // 3. Features from the sums and the plant's own measures.
+    // The frame's mean R+G+B from every 4th pixel of every 4th row, as the
+    // chromatic index samples it: a mean needs no more.
+    long frame_sum = 0, frame_samples = 0;
+    for (int y = 0; y < height; y += 4) {
+        const auto* row = frame.bgr.ptr<cv::Vec3b>(y);
+        for (int x = 0; x < width; x += 4) {
+            frame_sum += row[x][0] + row[x][1] + row[x][2];
+            ++frame_samples;
+        }
+    }
+    const double frame_brightness =
+        std::max(static_cast<double>(frame_sum) / static_cast<double>(std::max(frame_samples, 1L)), 1.0);
+    const double gsd = params.gsd_mm_per_px;
+    for (std::size_t i = 0; i < ws.plants_; ++i) {
+        const Plant& plant = det.plants[i];
+        const ClassifyWorkspace::Sums& s = ws.sums_[i];
+        FeatureRow& f = ws.features_[i];
+        const double closed_px = std::max<double>(static_cast<double>(s.closed_px), 1);
+        // Means over the sampled rows; a plant on no sampled row (one odd
+        // row tall) has 0 colour, texture and NDVI.
+        const double veg_px = std::max<double>(static_cast<double>(s.sampled_px), 1);
+        const double area_mm2 = std::max(static_cast<double>(plant.area_px), 1.0) * gsd * gsd;
+        const double width_mm = plant.mean_width_mm > 0 ? plant.mean_width_mm : 0.0;
+        // Without a traced contour (centre-of-mass estimator) the perimeter
+        // is that of a disc of the same area.
+        const double perimeter_mm =
+            width_mm > 0 ? 2.0 * area_mm2 / width_mm : 2.0 * std::sqrt(std::numbers::pi * area_mm2);
+        const double mx = s.x / closed_px, my = s.y / closed_px;
+        const double cxx = s.xx / closed_px - mx * mx, cyy = s.yy / closed_px - my * my;
+        const double cxy = s.xy / closed_px - mx * my;
+        const double half_trace = 0.5 * (cxx + cyy);
+        const double root = std::sqrt(std::max(0.0, sq(0.5 * (cxx - cyy)) + cxy * cxy));
+        const double major = half_trace + root, minor = std::max(half_trace - root, 1e-3);
+        float leaf_elongation = 1;
+        if (!plant.leaves.empty()) {
+            double sum = 0;
+            for (const Leaf& leaf : plant.leaves)
+                sum += leaf.elongation;
+            leaf_elongation = static_cast<float>(sum / static_cast<double>(plant.leaves.size()));
+        }
+        const double brightness = s.brightness / veg_px;
+        f[f_log_area_mm2] = static_cast<float>(std::log10(area_mm2));
+        f[f_perimeter_mm] = static_cast<float>(perimeter_mm);
+        f[f_solidity] = plant.hull_fill;
+        f[f_compactness] = static_cast<float>(4.0 * std::numbers::pi * area_mm2 / std::max(sq(perimeter_mm), 1e-9));
+        f[f_elongation] = static_cast<float>(std::sqrt(std::max(major, 1e-3) / minor));
+        f[f_extent] = static_cast<float>(closed_px / std::max(plant.bbox.area(), 1));
+        f[f_leaves] = static_cast<float>(plant.leaves.size());
+        f[f_leaf_elongation] = leaf_elongation;
+        f[f_vegetation_fill] = static_cast<float>(static_cast<double>(s.vegetation_px) / closed_px);
+        f[f_mean_width_mm] = static_cast<float>(width_mm);
+        f[f_r_mean] = static_cast<float>(s.r / veg_px);
+        f[f_g_mean] = static_cast<float>(s.g / veg_px);
+        f[f_b_mean] = static_cast<float>(s.b / veg_px);
+        f[f_r_std] = static_cast<float>(spread(s.r, s.rr, veg_px));
+        f[f_g_std] = static_cast<float>(spread(s.g, s.gg, veg_px));
+        f[f_exg_mean] = f[f_g_mean] * 2 - f[f_r_mean] - f[f_b_mean];
+        f[f_brightness_rel] = static_cast<float>(brightness / frame_brightness);
+        f[f_texture] = static_cast<float>(s.gradient / veg_px / std::max(brightness, 1.0));
+        f[f_ndvi_mean] = has_nir ? static_cast<float>(s.ndvi / veg_px) : 0.0f;
+        f[f_ndvi_std] = has_nir ? static_cast<float>(spread(s.ndvi, s.ndvi2, veg_px)) : 0.0f;
+        f[f_lateral] = static_cast<float>(plant.centre_of_mass.x / std::max(width, 1));
+    }
+}
+
+PlantClass decide_class(float weed_probability, double min_confidence)
+{
+    // In float, as the probability is: 0.7f must pass a 0.7 bar.
+    const auto bar = static_cast<float>(min_confidence);
+    if (weed_probability >= bar)
+        return PlantClass::Weed;
+    if (1.0f - weed_probability >= bar)
+        return PlantClass::Crop;
+    return PlantClass::Unknown;
+}
+
+void class_map(const Workspace& dws, const ClassifyWorkspace& ws, std::span<const PlantClass> plant_classes,
+               cv::Mat& out)
+{
+    const cv::Size size = ws.frame_size();
+    if (out.size() != size || out.type() != CV_8UC1)
+        out.create(size, CV_8UC1);
+    clear_rows(out);
+    const BitMask& vegetation = dws.vegetation();
+    if (vegetation.width() != size.width || vegetation.height() != size.height)
+        return;
+    for (int y = 0; y < size.height; ++y) {
+        const std::uint64_t* vrow = vegetation.row(y);
+        const auto* index = ws.plant_index().ptr<std::uint16_t>(y);
+        auto* dst = out.ptr<std::uint8_t>(y);
+        for (int w = 0; w < vegetation.words_per_row(); ++w) {
+            std::uint64_t bits = vrow[w];
+            while (bits) {
+                const int x = w * 64 + std::countr_zero(bits);
+                bits &= bits - 1;
+                const std::size_t id = index[x];
+                if (id > 0 && id <= plant_classes.size())
+                    dst[x] = to_value(plant_classes[id - 1]);
+            }
+        }
+    }
+}
+
+std::string_view channels_name(bool nir) { return nir ? "rgb+nir" : "rgb"; }
+
+std::optional<PlantClassifier> PlantClassifier::train(const cv::Mat& samples, const cv::Mat& labels,
+                                                      const ForestOptions& options, std::string& error)
+{
+    if (samples.type() != CV_32FC1 || samples.cols != kPlantFeatureCount || labels.type() != CV_32SC1 ||
+        labels.rows != samples.rows || labels.cols != 1) {
+        error = "training data must be CV_32F rows of " + std::to_string(kPlantFeatureCount) +
+                " features with one CV_32S label each";
+        return std::nullopt;
+    }
+    // Internally 0 = crop, 1 = weed: PREDICT_SUM over the trees then counts
+    // the weed votes.
+    cv::Mat responses(labels.rows, 1, CV_32SC1);
+    int counts[2] = {0, 0};
+    for (int i = 0; i < labels.rows; ++i) {
+        const int label = labels.at<int>(i);
+        if (label != to_value(PlantClass::Crop) && label != to_value(PlantClass::Weed)) {
+            error = "label " + std::to_string(label) + " is neither crop (1) nor weed (2)";
+            return std::nullopt;
+        }
+        responses.at<int>(i) = label == to_value(PlantClass::Weed) ? 1 : 0;
+        ++counts[responses.at<int>(i)];
+    }
+    if (counts[0] == 0 || counts[1] == 0) {
+        error = "training needs crop and weed plants (" + std::to_string(counts[0]) + " crop, " +
+                std::to_string(counts[1]) + " weed)";
+        return std::nullopt;
+    }
+    PlantClassifier model;
+    model.forest_ = cv::ml::RTrees::create();
+    model.forest_->setMaxDepth(options.max_depth);
+    model.forest_->setMinSampleCount(options.min_sample_count);
+    model.forest_->setActiveVarCount(0);   // sqrt of the feature count per split
+    model.forest_->setCalculateVarImportance(false);
+    model.forest_->setTermCriteria(cv::TermCriteria(cv::TermCriteria::MAX_ITER, options.trees, 0));
+    if (options.balance_classes) {
+        const double total = counts[0] + counts[1];
+        cv::Mat priors = (cv::Mat_<float>(1, 2) << static_cast<float>(total / (2.0 * counts[0])),
+                          static_cast<float>(total / (2.0 * counts[1])));
+        model.forest_->setPriors(priors);
+    }
+    try {
+        // The forest draws its bootstrap samples and split variables from
+        // the thread's cv::theRNG(): seeded, the same data gives the same forest.
+        cv::theRNG() = cv::RNG(options.seed);
+        if (!model.forest_->train(cv::ml::TrainData::create(samples, cv::ml::ROW_SAMPLE, responses))) {
+            error = "OpenCV RTrees training failed";
+            return std::nullopt;
+        }
+    } catch (const cv::Exception& e) {
+        error = std::string("OpenCV RTrees training failed: ") + e.what();
+        return std::nullopt;
+    }
+    model.trees_ = static_cast<float>(std::max<std::size_t>(model.forest_->getRoots().size(), 1));
+    model.info_.trees = static_cast<int>(model.trees_);
+    model.info_.feature_names.assign(kFeatureNames.begin(), kFeatureNames.end());
+    return model;
+}
+
+float PlantClassifier::weed_probability(const FeatureRow& features) const
+{
+    // A header over the caller's array: no copy, no allocation.
+    const cv::Mat row(1, kPlantFeatureCount, CV_32FC1, const_cast<float*>(features.data()));
+    const float votes = forest_->predict(row, cv::noArray(), cv::ml::DTrees::PREDICT_SUM);
+    return std::clamp(votes / trees_, 0.0f, 1.0f);
+}
+
+bool PlantClassifier::save(const std::filesystem::path& path, ModelInfo info, std::string& error) const
+{
+    info.trees = static_cast<int>(trees_);
+    info.features_version = kPlantFeaturesVersion;
+    info.feature_names.assign(kFeatureNames.begin(), kFeatureNames.end());
+    try {
+        cv::FileStorage fs(path.string(), cv::FileStorage::WRITE);
+        if (!fs.isOpened()) {
+            error = path.string() + ": cannot write";
+            return false;
+        }
+        fs << "stemd_plant_classifier" << "{";
+        fs << "features_version" << info.features_version;
+        fs << "feature_names" << "[";
+        for (const std::string& name : info.feature_names)
+            fs << name;
+        fs << "]";
+        fs << "gsd_mm_per_px" << info.gsd_mm_per_px;
+        fs << "channels" << std::string(channels_name(info.nir));
+        fs << "segmentation" << info.segmentation;
+        fs << "recordings" << "[";
+        for (const std::string& r : info.recordings)
+            fs << r;
+        fs << "]";
+        fs << "trained_utc" << info.trained_utc;
+        fs << "trees" << info.trees;
+        fs << "cross_validation" << info.cross_validation;
+        fs << "}";
+        fs << "forest" << "{";
+        forest_->write(fs);
+        fs << "}";
+    } catch (const cv::Exception& e) {
+        error = path.string() + ": cannot write: " + e.what();
+        return false;
+    }
+    return true;
+}
+
+std::optional<PlantClassifier> PlantClassifier::load(const std::filesystem::path& path, std::string& error)
+{
+    const std::string name = path.string();
+    try {
+        cv::FileStorage fs(name, cv::FileStorage::READ);
+        if (!fs.isOpened()) {
+            error = name + ": cannot read the model file";
+            return std::nullopt;
+        }
+        const cv::FileNode meta = fs["stemd_plant_classifier"];
+        if (meta.empty() || !meta.isMap()) {
+            error = name + ": not a stemd plant classifier (no stemd_plant_classifier section)";
+            return std::nullopt;
+        }
+        PlantClassifier model;
+        ModelInfo& info = model.info_;
+        info.features_version = static_cast<int>(meta["features_version"]);
+        if (info.features_version != kPlantFeaturesVersion) {
+            error = name + ": features version " + std::to_string(info.features_version) + ", this build computes " +
+                    std::to_string(kPlantFeaturesVersion) + ": train the model again";
+            return std::nullopt;
+        }
+        for (const auto& n : meta["feature_names"])
+            info.feature_names.push_back(static_cast<std::string>(n));
+        if (info.feature_names != std::vector<std::string>(kFeatureNames.begin(), kFeatureNames.end())) {
+            error = name + ": its feature names differ from this build's: train the model again";
+            return std::nullopt;
+        }
+        info.gsd_mm_per_px = static_cast<double>(meta["gsd_mm_per_px"]);
+        const std::string channels = static_cast<std::string>(meta["channels"]);
+        if (channels != channels_name(false) && channels != channels_name(true)) {
+            error = name + ": channels '" + channels + "' is neither rgb nor rgb+nir";
+            return std::nullopt;
+        }
+        info.nir = channels == channels_name(true);
+        info.segmentation = static_cast<std::string>(meta["segmentation"]);
+        for (const auto& n : meta["recordings"])
+            info.recordings.push_back(static_cast<std::string>(n));
+        info.trained_utc = static_cast<std::string>(meta["trained_utc"]);
+        info.cross_validation = static_cast<std::string>(meta["cross_validation"]);
+        if (!(info.gsd_mm_per_px > 0)) {
+            error = name + ": no valid gsd_mm_per_px";
+            return std::nullopt;
+        }
+        model.forest_ = cv::ml::RTrees::create();
+        model.forest_->read(fs["forest"]);
+        if (!model.forest_->isTrained() || model.forest_->getVarCount() != kPlantFeatureCount) {
+            error = name + ": no trained forest of " + std::to_string(kPlantFeatureCount) + " features";
+            return std::nullopt;
+        }
+        model.trees_ = static_cast<float>(std::max<std::size_t>(model.forest_->getRoots().size(), 1));
+        info.trees = static_cast<int>(model.trees_);
+        return model;
+    } catch (const cv::Exception& e) {
+        error = name + ": unreadable model: " + e.what();
+        return std::nullopt;
+    }
+}
+
+std::optional<std::string> PlantClassifier::mismatch(double gsd_mm_per_px, bool nir, std::string_view model_name) const
+{
+    const std::string name(model_name);
+    if (!(gsd_mm_per_px > 0) || std::abs(info_.gsd_mm_per_px / gsd_mm_per_px - 1.0) > kModelGsdTolerance) {
+        char text[160];
+        std::snprintf(text, sizeof text,
+                      ": trained at camera.gsd_mm_per_px %.4g, configured %.4g (more than %.0f %% apart)",
+                      info_.gsd_mm_per_px, gsd_mm_per_px, kModelGsdTolerance * 100);
+        return name + text;
+    }
+    if (info_.nir != nir)
+        return name + ": trained on " + std::string(channels_name(info_.nir)) + " frames, the configuration reads " +
+               std::string(channels_name(nir)) + " (segment.method)";
+    return std::nullopt;
+}
+
+}  // namespace stemd::vision

@@ -1,0 +1,85 @@
+#!/usr/bin/env bash
+# The crop/weed classifier as a user scripts it: stemd-train on a generated
+# strip (its class column), then stemd-detect with the model: the csv's
+# class columns, class maps, and the refusals (GSD, channels, no model).
+#   classify_test.sh TOOLS_DIR SOURCE_DIR
+set -euo pipefail
+tools=$1
+src=$2
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+"$tools/stemd-synth" --strip --out "$tmp/rec" --length-mm 1500 --width 640 --height 480 --seed 5 >/dev/null
+
+"$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" --folds 3 --trees 20 "$tmp/rec" \
+  >"$tmp/train.txt" 2>&1 || fail "stemd-train exited $?: $(cat "$tmp/train.txt")"
+grep -q '^3-fold cross-validation by frame' "$tmp/train.txt" || fail "no cross-validation figures"
+grep -q 'crop safety: [0-9]* of [0-9]* crop plants called weed' "$tmp/train.txt" || fail "no crop-safety figure"
+grep -q 'balanced accuracy' "$tmp/train.txt" || fail "no per-pixel figure"
+grep -q '^stemd_plant_classifier:' "$tmp/model.yaml" || fail "model file has no metadata section"
+grep -q 'channels: rgb$' "$tmp/model.yaml" || fail "model file does not say rgb"
+grep -Eq 'gsd_mm_per_px: (0?\.33$|3\.30*[0-9]*e-01)' "$tmp/model.yaml" || fail "model file does not hold the GSD"
+grep -q "$tmp/rec" "$tmp/model.yaml" || fail "model file does not name its recording"
+
+# Same data, same seed: the same forest.
+"$tools/stemd-train" --out "$tmp/again.yaml" --config "$src/config/stemd.yaml" --folds 3 --trees 20 "$tmp/rec" \
+  >/dev/null 2>&1 || fail "second training"
+diff <(sed -n '/^forest:/,$p' "$tmp/model.yaml") <(sed -n '/^forest:/,$p' "$tmp/again.yaml") >/dev/null \
+  || fail "training is not deterministic"
+
+"$tools/stemd-detect" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" \
+  --csv "$tmp/pred.csv" --class-out "$tmp/class" "$tmp/rec" >/dev/null 2>"$tmp/err.txt" \
+  || fail "detect with a model exited $?: $(cat "$tmp/err.txt")"
+[ "$(head -1 "$tmp/pred.csv")" = "image,plant,x,y,method,leaves,area_px,estimator,confidence,class,weed_probability" ] \
+  || fail "csv header: $(head -1 "$tmp/pred.csv")"
+[ "$(wc -l <"$tmp/pred.csv")" -gt 1 ] || fail "no plants"
+awk -F, 'NR > 1 && (($10 != "crop" && $10 != "weed" && $10 != "unknown") || $11 < 0 || $11 > 1 ||
+  ($10 == "weed" && $11 < 0.6) || ($10 == "crop" && $11 > 0.4) || ($10 == "unknown" && ($11 >= 0.6 || $11 <= 0.4))) \
+  { print "bad row " NR ": " $0; bad = 1 } END { exit bad }' "$tmp/pred.csv" || fail "class columns disagree with min_confidence 0.6"
+frames=$(($(wc -l <"$tmp/rec/frames.csv") - 1))
+[ "$(ls "$tmp/class" | wc -l)" -eq "$frames" ] || fail "class maps: $(ls "$tmp/class" | wc -l) for $frames frames"
+[ -s "$tmp/class/000000.png" ] || fail "class map not named like its input"
+
+# min_confidence 1: no plant is sure enough, every one is unknown.
+"$tools/stemd-detect" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" \
+  --set classify.min_confidence=1 --csv "$tmp/sure.csv" "$tmp/rec" >/dev/null 2>&1 || fail "min_confidence 1 run"
+awk -F, 'NR > 1 && $10 != "unknown" && !($11 == 1 || $11 == 0) { bad = 1 } END { exit bad }' "$tmp/sure.csv" \
+  || fail "a plant below certainty was classed"
+
+# Refusals, each naming the model file.
+set +e
+"$tools/stemd-detect" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" \
+  --set camera.gsd_mm_per_px=0.5 "$tmp/rec" >/dev/null 2>"$tmp/gsd.txt"
+rc=$?
+set -e
+[ $rc -eq 2 ] || fail "a model of another GSD: exit $rc"
+grep -q "$tmp/model.yaml.*gsd" "$tmp/gsd.txt" || fail "GSD refusal: $(cat "$tmp/gsd.txt")"
+set +e
+"$tools/stemd-detect" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" \
+  --segment exg_and_ndvi "$tmp/rec" >/dev/null 2>"$tmp/nir.txt"
+rc=$?
+set -e
+[ $rc -eq 2 ] || fail "an rgb model on rgb+nir: exit $rc"
+grep -q "$tmp/model.yaml.*rgb+nir" "$tmp/nir.txt" || fail "channel refusal: $(cat "$tmp/nir.txt")"
+set +e
+"$tools/stemd-detect" --config "$src/config/stemd.yaml" --class-out "$tmp/none" "$tmp/rec" >/dev/null 2>"$tmp/nomodel.txt"
+rc=$?
+set -e
+[ $rc -eq 2 ] || fail "--class-out without a model: exit $rc"
+grep -q 'classify.model' "$tmp/nomodel.txt" || fail "no-model refusal: $(cat "$tmp/nomodel.txt")"
+
+# Without a model the csv keeps its columns.
+"$tools/stemd-detect" --config "$src/config/stemd.yaml" --csv "$tmp/plain.csv" "$tmp/rec" >/dev/null 2>&1
+[ "$(head -1 "$tmp/plain.csv")" = "image,plant,x,y,method,leaves,area_px,estimator,confidence" ] \
+  || fail "csv header without a model: $(head -1 "$tmp/plain.csv")"
+
+# A recording without a class column cannot train.
+"$tools/stemd-synth" --out "$tmp/plain" --frames 3 --width 320 --height 240 >/dev/null
+set +e
+"$tools/stemd-train" --out "$tmp/no.yaml" "$tmp/plain" >/dev/null 2>"$tmp/noclass.txt"
+rc=$?
+set -e
+[ $rc -eq 2 ] || fail "training without a class column: exit $rc"
+grep -q 'no frame with a class image' "$tmp/noclass.txt" || fail "no-class refusal: $(cat "$tmp/noclass.txt")"
+echo "classify_test: ok"

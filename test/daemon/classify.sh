@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# End to end with the crop/weed classifier and no class column: a model
+# trained by stemd-train on one generated strip, the daemon replaying
+# another strip whose frames.csv has no class column. scheduler.policy auto
+# with a model treats weeds only: no TARGET may come near a crop (or any
+# plant that is not a weed), every crop in the plant map is held back by
+# policy, and with classify.min_confidence 1 the unsure plants are unknown
+# and never commanded.
+# Usage: classify.sh STEMD TOOLS_DIR SOURCE_DIR
+set -euo pipefail
+stemd=$1 tools=$2 src=$3
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+"$tools/stemd-synth" --strip --out "$tmp/train" --preset early --seed 6 --fragment 0 --length-mm 3000 \
+  --fps 15 --speed-kmh 2.5 >/dev/null
+"$tools/stemd-synth" --strip --out "$tmp/strip" --preset early --seed 5 --fragment 0 --length-mm 2000 \
+  --fps 15 --speed-kmh 2.5 >/dev/null
+"$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" "$tmp/train" >"$tmp/train.txt" 2>&1 ||
+  fail "stemd-train exited $?: $(cat "$tmp/train.txt")"
+# The replayed strip without its class column (t_ns,rgb,nir,mask,odom_mm).
+head -1 "$tmp/strip/frames.csv" | grep -q '^t_ns,rgb,nir,mask,odom_mm,class$' || fail "unexpected strip columns"
+awk -F, -v OFS=, '{ NF = 5; print }' "$tmp/strip/frames.csv" >"$tmp/frames.csv"
+mv "$tmp/frames.csv" "$tmp/strip/frames.csv"
+
+"$stemd" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" --replay "$tmp/strip" --once \
+  --can-log "$tmp/can.log" --map "$tmp/map.jsonl" 2>"$tmp/err" || fail "stemd exited $?: $(tail -5 "$tmp/err")"
+grep -q "classify.model $tmp/model.yaml" "$tmp/err" || fail "the model is not named at start"
+
+# No command near anything but a weed (plants of every size), and some weeds treated.
+"$tools/stemd-eval" --targets "$tmp/strip/plants.csv" "$tmp/can.log" --config "$src/config/stemd.yaml" \
+  --treat weeds --tol-mm 5 >"$tmp/score" 2>&1 || true
+cat "$tmp/score"
+grep -q '^extra            0 commands near no plant' "$tmp/score" || fail "a command for a plant that is no weed"
+matched=$(sed -n 's/^matched *\([0-9]*\) plants.*/\1/p' "$tmp/score")
+[ -n "$matched" ] && [ "$matched" -gt 0 ] || fail "no weed treated"
+# The plant map: crops are never sent.
+grep -q '"class":"crop"' "$tmp/map.jsonl" || fail "no plant classed crop in the map"
+if grep '"class":"crop"' "$tmp/map.jsonl" | grep -q '"reason":"sent"'; then fail "a crop was sent"; fi
+
+# Only certainty counts: below a weed probability of 1 a plant is unknown,
+# and no unknown plant is commanded under auto.
+"$stemd" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" \
+  --set classify.min_confidence=1 --replay "$tmp/strip" --once --can-log "$tmp/unsure.log" \
+  --map "$tmp/unsure.jsonl" 2>"$tmp/unsure.err" || fail "stemd (min_confidence 1) exited $?"
+if grep '"class":"unknown"' "$tmp/unsure.jsonl" | grep -q '"reason":"sent"'; then fail "an unknown plant was sent"; fi
+if grep '"reason":"sent"' "$tmp/unsure.jsonl" | grep -vq '"class":"weed"'; then fail "a plant that is no weed was sent"; fi
+grep -q '"class":"unknown"' "$tmp/unsure.jsonl" || fail "no unknown plant in the map"
+
+# A model for another GSD is refused at start, naming the file.
+set +e
+"$stemd" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" --set camera.gsd_mm_per_px=0.2 \
+  --replay "$tmp/strip" --once --check-config >/dev/null 2>"$tmp/gsd.err"
+rc=$?
+set -e
+[ $rc -eq 2 ] || fail "a model of another GSD: exit $rc"
+grep -q "$tmp/model.yaml.*gsd" "$tmp/gsd.err" || fail "GSD refusal: $(cat "$tmp/gsd.err")"
+echo "PASS: $matched weeds treated, no crop commanded"

@@ -1,0 +1,367 @@
+// The crop/weed classifier: per-plant features on detect()'s plants, the
+// forest's weed probability, the class decision, model files and their
+// refusal.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include <opencv2/imgproc.hpp>
+
+#include "stemd/vision/classify.hpp"
+#include "vision_test_util.hpp"
+
+namespace fs = std::filesystem;
+using namespace stemd;
+using namespace stemd::vision;
+
+namespace {
+
+// Green plants on brown soil: discs (round, "crop") and thin lines
+// ("weed"), some of them drawn as pieces a few pixels apart that detect()
+// groups into one plant.
+cv::Mat plants_frame(cv::Size size, std::uint64_t seed)
+{
+    cv::Mat bgr(size, CV_8UC3, cv::Scalar(60, 80, 110));
+    cv::RNG rng(seed);
+    for (int i = 0; i < 12; ++i) {
+        const cv::Point c(rng.uniform(30, size.width - 30), rng.uniform(30, size.height - 30));
+        cv::circle(bgr, c, rng.uniform(8, 18), cv::Scalar(40, 170, 60), cv::FILLED);
+        // A leaf drawn apart from its disc: one plant once grouped.
+        cv::circle(bgr, c + cv::Point(22, 0), 4, cv::Scalar(40, 170, 60), cv::FILLED);
+    }
+    for (int i = 0; i < 12; ++i) {
+        const cv::Point c(rng.uniform(30, size.width - 30), rng.uniform(30, size.height - 30));
+        cv::line(bgr, c, c + cv::Point(rng.uniform(-25, 25), rng.uniform(-25, 25)), cv::Scalar(50, 150, 90), 3);
+    }
+    return bgr;
+}
+
+Params test_params()
+{
+    Params params;
+    params.gsd_mm_per_px = 0.3;
+    params.min_plant_area_mm2 = 2;
+    params.group_gap_mm = 3;
+    return params;
+}
+
+// Two separable clouds of feature rows: crop with large area, weed small.
+void toy_data(int rows, std::uint32_t seed, cv::Mat& samples, cv::Mat& labels)
+{
+    std::mt19937 rng(seed);
+    std::normal_distribution<float> noise(0, 0.15f);
+    samples.create(rows, kPlantFeatureCount, CV_32FC1);
+    labels.create(rows, 1, CV_32SC1);
+    for (int i = 0; i < rows; ++i) {
+        const bool weed = i % 3 == 0;   // unbalanced on purpose
+        for (int f = 0; f < kPlantFeatureCount; ++f)
+            samples.at<float>(i, f) = noise(rng);
+        samples.at<float>(i, f_log_area_mm2) += weed ? 1.0f : 2.5f;
+        samples.at<float>(i, f_g_mean) += weed ? 0.4f : 0.5f;
+        labels.at<int>(i) = weed ? to_value(PlantClass::Weed) : to_value(PlantClass::Crop);
+    }
+}
+
+fs::path temp_path(const std::string& name)
+{
+    return fs::temp_directory_path() / ("stemd-classify-" + std::to_string(::getpid()) + "-" + name);
+}
+
+}  // namespace
+
+TEST(Classify, EveryPlantGetsExactlyItsOwnPixels)
+{
+    const cv::Size size(400, 300);
+    const Params params = test_params();
+    for (std::uint64_t seed = 1; seed <= 5; ++seed) {
+        const cv::Mat bgr = plants_frame(size, seed);
+        Workspace ws(size, params);
+        Detections det;
+        detect({.bgr = bgr}, params, ws, det);
+        ASSERT_EQ(det.status, DetectStatus::ok);
+        ASSERT_GT(det.plants.size(), 5u);
+        ClassifyWorkspace cws(size, params);
+        plant_features({.bgr = bgr}, params, ws, det, cws);
+        ASSERT_EQ(cws.features().size(), det.plants.size());
+        std::vector<int> counted(det.plants.size() + 1, 0);
+        for (int y = 0; y < size.height; ++y)
+            for (int x = 0; x < size.width; ++x) {
+                const int id = cws.plant_index().at<std::uint16_t>(y, x);
+                ASSERT_LE(id, static_cast<int>(det.plants.size()));
+                ++counted[static_cast<std::size_t>(id)];
+                if (id > 0) {
+                    const cv::Rect& box = det.plants[static_cast<std::size_t>(id - 1)].bbox;
+                    EXPECT_TRUE(box.contains({x, y})) << "pixel outside its plant's box";
+                }
+            }
+        for (std::size_t i = 0; i < det.plants.size(); ++i)
+            EXPECT_EQ(counted[i + 1], det.plants[i].area_px) << "plant " << i << " seed " << seed;
+    }
+}
+
+TEST(Classify, ShapeFeaturesTellADiscFromALine)
+{
+    const cv::Size size(300, 200);
+    cv::Mat bgr(size, CV_8UC3, cv::Scalar(60, 80, 110));
+    cv::circle(bgr, {80, 100}, 20, cv::Scalar(40, 170, 60), cv::FILLED);
+    cv::line(bgr, {180, 40}, {260, 160}, cv::Scalar(40, 170, 60), 3);
+    const Params params = test_params();
+    Workspace ws(size, params);
+    Detections det;
+    detect({.bgr = bgr}, params, ws, det);
+    ASSERT_EQ(det.plants.size(), 2u);
+    ClassifyWorkspace cws(size, params);
+    plant_features({.bgr = bgr}, params, ws, det, cws);
+    // Plants come in raster order of their top-most pixel: the line first.
+    const std::size_t disc_index = det.plants[0].centre_of_mass.x < 150 ? 0 : 1;
+    const FeatureRow& disc = cws.features()[disc_index];
+    const FeatureRow& line = cws.features()[1 - disc_index];
+    // Disc of radius 20 px at 0.3 mm/px: pi 400 0.09 = 113 mm².
+    EXPECT_NEAR(std::pow(10.0f, disc[f_log_area_mm2]), 113.1, 113.1 * 0.05);
+    EXPECT_NEAR(disc[f_elongation], 1.0, 0.05);
+    EXPECT_GT(line[f_elongation], 10);
+    EXPECT_GT(disc[f_compactness], line[f_compactness]);
+    // Both are the same green: chromatic g of (40, 170, 60) is 170 / 270.
+    EXPECT_NEAR(disc[f_g_mean], 170.0 / 270.0, 0.01);
+    EXPECT_LT(disc[f_lateral], 0.5f);
+    EXPECT_GT(line[f_lateral], 0.5f);
+    EXPECT_EQ(disc[f_ndvi_mean], 0.0f) << "no NIR plane: NDVI features are 0";
+}
+
+TEST(Classify, NdviFeaturesComeFromTheNirPlane)
+{
+    const cv::Size size(200, 200);
+    cv::Mat bgr(size, CV_8UC3, cv::Scalar(60, 80, 110));
+    cv::circle(bgr, {100, 100}, 20, cv::Scalar(40, 170, 60), cv::FILLED);
+    cv::Mat nir(size, CV_8UC1, cv::Scalar(180));   // (180 - 60) / (180 + 60) = 0.5 on the plant
+    const Params params = test_params();
+    Workspace ws(size, params);
+    Detections det;
+    detect({.bgr = bgr, .nir = nir}, params, ws, det);
+    ASSERT_EQ(det.plants.size(), 1u);
+    ClassifyWorkspace cws(size, params);
+    plant_features({.bgr = bgr, .nir = nir}, params, ws, det, cws);
+    EXPECT_NEAR(cws.features()[0][f_ndvi_mean], 0.5, 1e-4);
+    EXPECT_NEAR(cws.features()[0][f_ndvi_std], 0.0, 1e-4);
+}
+
+TEST(Classify, DecisionLeavesTheUnsureMiddleUnknown)
+{
+    EXPECT_EQ(decide_class(0.9f, 0.7), PlantClass::Weed);
+    EXPECT_EQ(decide_class(0.7f, 0.7), PlantClass::Weed);
+    EXPECT_EQ(decide_class(0.69f, 0.7), PlantClass::Unknown);
+    EXPECT_EQ(decide_class(0.31f, 0.7), PlantClass::Unknown);
+    EXPECT_EQ(decide_class(0.25f, 0.7), PlantClass::Crop);
+    EXPECT_EQ(decide_class(0.5f, 0.5), PlantClass::Weed);
+    EXPECT_EQ(decide_class(0.49f, 0.5), PlantClass::Crop);
+    EXPECT_EQ(decide_class(0.9f, 1.0), PlantClass::Unknown);
+}
+
+TEST(Classify, ClassMapPaintsEachVegetationPixelWithItsPlantsClass)
+{
+    const cv::Size size(300, 200);
+    cv::Mat bgr(size, CV_8UC3, cv::Scalar(60, 80, 110));
+    cv::circle(bgr, {80, 100}, 20, cv::Scalar(40, 170, 60), cv::FILLED);
+    cv::circle(bgr, {220, 100}, 20, cv::Scalar(40, 170, 60), cv::FILLED);
+    const Params params = test_params();
+    Workspace ws(size, params);
+    Detections det;
+    detect({.bgr = bgr}, params, ws, det);
+    ASSERT_EQ(det.plants.size(), 2u);
+    ClassifyWorkspace cws(size, params);
+    plant_features({.bgr = bgr}, params, ws, det, cws);
+    const std::array classes{PlantClass::Crop, PlantClass::Weed};
+    cv::Mat map;
+    class_map(ws, cws, classes, map);
+    ASSERT_EQ(map.size(), size);
+    EXPECT_EQ(map.at<std::uint8_t>(100, 80), 1);
+    EXPECT_EQ(map.at<std::uint8_t>(100, 220), 2);
+    EXPECT_EQ(map.at<std::uint8_t>(10, 10), 0);
+    cv::Mat veg;
+    unpack_mask(ws.vegetation(), veg);
+    EXPECT_EQ(cv::countNonZero(map), cv::countNonZero(veg)) << "every vegetation pixel of a plant, nothing else";
+}
+
+TEST(Classify, TrainingIsDeterministicAndSeparatesSeparableClasses)
+{
+    cv::Mat samples, labels;
+    toy_data(300, 7, samples, labels);
+    std::string error;
+    const auto a = PlantClassifier::train(samples, labels, {}, error);
+    ASSERT_TRUE(a) << error;
+    const auto b = PlantClassifier::train(samples, labels, {}, error);
+    ASSERT_TRUE(b) << error;
+    cv::Mat test_samples, test_labels;
+    toy_data(90, 8, test_samples, test_labels);
+    int right = 0;
+    for (int i = 0; i < test_samples.rows; ++i) {
+        FeatureRow row;
+        for (int f = 0; f < kPlantFeatureCount; ++f)
+            row[static_cast<std::size_t>(f)] = test_samples.at<float>(i, f);
+        const float p = a->weed_probability(row);
+        EXPECT_EQ(p, b->weed_probability(row)) << "same data, same forest";
+        EXPECT_GE(p, 0.0f);
+        EXPECT_LE(p, 1.0f);
+        right += (p >= 0.5f) == (test_labels.at<int>(i) == to_value(PlantClass::Weed));
+    }
+    // The clouds are 10 standard deviations apart on one feature.
+    EXPECT_EQ(right, test_samples.rows);
+}
+
+TEST(Classify, WeedProbabilityIsTheFractionOfTreesVotingWeed)
+{
+    cv::Mat samples, labels;
+    toy_data(200, 3, samples, labels);
+    // Overlapping clouds, so that some votes are split.
+    samples.col(f_log_area_mm2) *= 0.05;
+    std::string error;
+    const auto model = PlantClassifier::train(samples, labels, {.trees = 25}, error);
+    ASSERT_TRUE(model) << error;
+    const fs::path path = temp_path("votes.yaml");
+    ASSERT_TRUE(model->save(path, {.gsd_mm_per_px = 0.3}, error)) << error;
+    // The same forest through OpenCV's own vote count.
+    cv::FileStorage fs(path.string(), cv::FileStorage::READ);
+    auto forest = cv::ml::RTrees::create();
+    forest->read(fs["forest"]);
+    cv::Mat votes;
+    forest->getVotes(samples, votes, 0);
+    // getVotes: a header row of class labels (0 crop, 1 weed), then counts.
+    ASSERT_EQ(votes.cols, 2);
+    ASSERT_EQ(votes.at<int>(0, 1), 1);
+    int split = 0;
+    for (int i = 0; i < samples.rows; ++i) {
+        FeatureRow row;
+        for (int f = 0; f < kPlantFeatureCount; ++f)
+            row[static_cast<std::size_t>(f)] = samples.at<float>(i, f);
+        const int weed_votes = votes.at<int>(i + 1, 1);
+        split += weed_votes > 0 && weed_votes < 25;
+        EXPECT_FLOAT_EQ(model->weed_probability(row), weed_votes / 25.0f);
+    }
+    EXPECT_GT(split, 0) << "the check needs some split votes";
+    fs::remove(path);
+}
+
+TEST(Classify, ModelFileRoundTripsWithItsMetadata)
+{
+    cv::Mat samples, labels;
+    toy_data(150, 11, samples, labels);
+    std::string error;
+    const auto model = PlantClassifier::train(samples, labels, {.trees = 20}, error);
+    ASSERT_TRUE(model) << error;
+    for (const char* ext : {".yaml", ".json"}) {
+        const fs::path path = temp_path(std::string("model") + ext);
+        ModelInfo info;
+        info.gsd_mm_per_px = 0.11;
+        info.nir = true;
+        info.segmentation = "exg_and_ndvi";
+        info.recordings = {"a/rec", "b/rec"};
+        info.trained_utc = "2026-11-24T04:00:00Z";
+        info.cross_validation = "balanced accuracy 0.9";
+        ASSERT_TRUE(model->save(path, info, error)) << error;
+        const auto loaded = PlantClassifier::load(path, error);
+        ASSERT_TRUE(loaded) << error;
+        EXPECT_EQ(loaded->info().gsd_mm_per_px, 0.11);
+        EXPECT_TRUE(loaded->info().nir);
+        EXPECT_EQ(loaded->info().segmentation, "exg_and_ndvi");
+        EXPECT_EQ(loaded->info().recordings, info.recordings);
+        EXPECT_EQ(loaded->info().trained_utc, info.trained_utc);
+        EXPECT_EQ(loaded->info().cross_validation, info.cross_validation);
+        EXPECT_EQ(loaded->info().trees, 20);
+        ASSERT_EQ(loaded->info().feature_names.size(), static_cast<std::size_t>(kPlantFeatureCount));
+        EXPECT_EQ(loaded->info().feature_names[f_texture], "texture");
+        for (int i = 0; i < samples.rows; ++i) {
+            FeatureRow row;
+            for (int f = 0; f < kPlantFeatureCount; ++f)
+                row[static_cast<std::size_t>(f)] = samples.at<float>(i, f);
+            EXPECT_EQ(loaded->weed_probability(row), model->weed_probability(row));
+        }
+        fs::remove(path);
+    }
+}
+
+TEST(Classify, MismatchedGsdOrChannelsAreRefusedNamingTheFile)
+{
+    cv::Mat samples, labels;
+    toy_data(90, 5, samples, labels);
+    std::string error;
+    auto model = PlantClassifier::train(samples, labels, {.trees = 5}, error);
+    ASSERT_TRUE(model) << error;
+    const fs::path path = temp_path("rgb.yaml");
+    ASSERT_TRUE(model->save(path, {.gsd_mm_per_px = 0.11, .nir = false}, error)) << error;
+    const auto loaded = PlantClassifier::load(path, error);
+    ASSERT_TRUE(loaded) << error;
+    EXPECT_FALSE(loaded->mismatch(0.11, false, "m.yaml"));
+    EXPECT_FALSE(loaded->mismatch(0.11 * (1 + kModelGsdTolerance * 0.9), false, "m.yaml"));
+    const auto gsd = loaded->mismatch(0.33, false, "m.yaml");
+    ASSERT_TRUE(gsd);
+    EXPECT_NE(gsd->find("m.yaml"), std::string::npos) << *gsd;
+    EXPECT_NE(gsd->find("gsd"), std::string::npos) << *gsd;
+    const auto channels = loaded->mismatch(0.11, true, "m.yaml");
+    ASSERT_TRUE(channels);
+    EXPECT_NE(channels->find("m.yaml"), std::string::npos) << *channels;
+    EXPECT_NE(channels->find("rgb+nir"), std::string::npos) << *channels;
+    fs::remove(path);
+}
+
+TEST(Classify, UnusableModelFilesAreRefusedNamingTheFile)
+{
+    const fs::path missing = temp_path("missing.yaml");
+    std::string error;
+    EXPECT_FALSE(PlantClassifier::load(missing, error));
+    EXPECT_NE(error.find(missing.string()), std::string::npos) << error;
+
+    const fs::path other = temp_path("other.yaml");
+    std::ofstream(other) << "%YAML:1.0\n---\nsomething: 1\n";
+    EXPECT_FALSE(PlantClassifier::load(other, error));
+    EXPECT_NE(error.find(other.string()), std::string::npos) << error;
+    fs::remove(other);
+
+    const fs::path old = temp_path("old.yaml");
+    std::ofstream(old) << "%YAML:1.0\n---\nstemd_plant_classifier:\n  features_version: 0\n  gsd_mm_per_px: 0.1\n";
+    EXPECT_FALSE(PlantClassifier::load(old, error));
+    EXPECT_NE(error.find("features version"), std::string::npos) << error;
+    fs::remove(old);
+
+    const fs::path garbage = temp_path("garbage.yaml");
+    std::ofstream(garbage) << "\x01\x02 not yaml {{{";
+    EXPECT_FALSE(PlantClassifier::load(garbage, error));
+    EXPECT_NE(error.find(garbage.string()), std::string::npos) << error;
+    fs::remove(garbage);
+}
+
+TEST(Classify, TrainingRefusesOneClassOrBadLabels)
+{
+    cv::Mat samples, labels;
+    toy_data(30, 5, samples, labels);
+    std::string error;
+    cv::Mat crops(labels.size(), CV_32SC1, cv::Scalar(to_value(PlantClass::Crop)));
+    EXPECT_FALSE(PlantClassifier::train(samples, crops, {}, error));
+    EXPECT_NE(error.find("crop and weed"), std::string::npos) << error;
+    labels.at<int>(0) = 0;
+    EXPECT_FALSE(PlantClassifier::train(samples, labels, {}, error));
+    EXPECT_FALSE(PlantClassifier::train(samples.colRange(0, 3), labels, {}, error));
+}
+
+TEST(Classify, AFrameWithoutItsRgbImageGivesNoFeatures)
+{
+    const cv::Size size(200, 200);
+    cv::Mat bgr(size, CV_8UC3, cv::Scalar(60, 80, 110));
+    cv::circle(bgr, {100, 100}, 20, cv::Scalar(40, 170, 60), cv::FILLED);
+    const Params params = test_params();
+    Workspace ws(size, params);
+    Detections det;
+    detect({.bgr = bgr}, params, ws, det);
+    ASSERT_EQ(det.plants.size(), 1u);
+    ClassifyWorkspace cws(size, params);
+    plant_features({.bgr = bgr}, params, ws, det, cws);
+    ASSERT_EQ(cws.features().size(), 1u);
+    plant_features({}, params, ws, det, cws);
+    EXPECT_TRUE(cws.features().empty());
+    EXPECT_EQ(cv::countNonZero(cws.plant_index()), 0);
+    ClassifyWorkspace other(cv::Size(100, 100), params);
+    plant_features({.bgr = bgr}, params, ws, det, other);
+    EXPECT_TRUE(other.features().empty()) << "a workspace of another size";
+}
