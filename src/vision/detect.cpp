@@ -109,11 +109,13 @@ void compute_index(const FrameView& frame, Segmentation method, const Params& pa
 }
 
 // The index `method` computes, thresholded automatically into `bits`; the
-// threshold and the class separation go into `stats`.
+// threshold and the class separation go into `stats`. `t_indexed_ns`: when
+// the index (and its smoothing) was done, for the stage times.
 void threshold_index(const FrameView& frame, Segmentation method, const Params& params, Workspace& ws,
-                     DetectStats& stats, BitMask& bits)
+                     DetectStats& stats, BitMask& bits, std::int64_t& t_indexed_ns)
 {
     compute_index(frame, method, params, ws);
+    t_indexed_ns = base::monotonic_ns();
     stats.threshold = auto_threshold(ws.histogram_, params.threshold, params.soil_sigmas);
     const double separation = class_separation(ws.histogram_, stats.threshold);
     stats.class_separation = static_cast<float>(separation);
@@ -192,11 +194,10 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
             // are far less green than a sugar-beet leaf, hence the low bar.
             compute_index(frame, Segmentation::chromatic_exg, params, ws);
             threshold_to_bits(ws.index_, soil_noise_threshold(ws.histogram_, kGreenerThanSoilSigmas), ws.second_);
-            threshold_index(frame, Segmentation::ndvi, params, ws, out.stats, ws.thresholded_);
+            threshold_index(frame, Segmentation::ndvi, params, ws, out.stats, ws.thresholded_, t_index);
         } else {
-            threshold_index(frame, params.segmentation, params, ws, out.stats, ws.thresholded_);
+            threshold_index(frame, params.segmentation, params, ws, out.stats, ws.thresholded_, t_index);
         }
-        t_index = base::monotonic_ns();
         // Specks and fringes vanish under the opening; whatever survives it
         // keeps its whole component, thin petioles and grass blades included.
         // From RGB alone, a seed must also have a leaf's colour: more green

@@ -43,7 +43,8 @@ public:
 private:
     friend void detect(const FrameView&, const Params&, Workspace&, Detections&, StageTimes*);
     friend void compute_index(const FrameView&, Segmentation, const Params&, Workspace&);
-    friend void threshold_index(const FrameView&, Segmentation, const Params&, Workspace&, DetectStats&, BitMask&);
+    friend void threshold_index(const FrameView&, Segmentation, const Params&, Workspace&, DetectStats&, BitMask&,
+                                std::int64_t&);
     cv::Size frame_size_;
     int reserved_radius_px_ = 0;
     NdviTable ndvi_table_;

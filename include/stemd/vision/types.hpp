@@ -217,8 +217,8 @@ struct Detections {
 
 // Wall time of each stage of one detect() call, CLOCK_MONOTONIC nanoseconds.
 struct StageTimes {
-    std::int64_t index_ns = 0;
-    std::int64_t threshold_ns = 0;
+    std::int64_t index_ns = 0;       // the index and its smoothing (exg_and_ndvi: both indices)
+    std::int64_t threshold_ns = 0;   // histogram threshold, opening, seeds, mixed edges
     std::int64_t closing_ns = 0;
     std::int64_t plants_ns = 0;
     std::int64_t leaves_ns = 0;   // contours, hulls, defects, leaves and stems
