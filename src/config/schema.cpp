@@ -135,7 +135,7 @@ constexpr std::array kSchema{
             "which image direction points in the direction of travel (up: plants move down the image)"}),
     bind<STEMD_KEY(camera.calibration_file)>(
         {"camera.calibration_file", text, "", 0, 0, "none", "",
-            "calibrated: OpenCV calibration YAML (camera_matrix, distortion_coefficients, image_width, image_height); none: not set"}),
+            "calibrated: OpenCV calibration YAML (camera_matrix, distortion_coefficients, image_width, image_height; stemd-calibrate writes one) or ROS camera_info YAML; none: not set"}),
     bind<STEMD_KEY(camera.pose.height_mm)>(
         {"camera.height_mm", real, "mm", 10, 5000, "500", "",
             "calibrated: height of the optical centre above the ground"}),

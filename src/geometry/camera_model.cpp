@@ -1,9 +1,13 @@
 #include "stemd/geometry/camera_model.hpp"
 
+#include <cctype>
 #include <cmath>
 #include <exception>
+#include <fstream>
+#include <string_view>
 
 #include <opencv2/core/persistence.hpp>
+#include <yaml-cpp/yaml.h>
 
 namespace stemd::geometry {
 
@@ -259,8 +263,140 @@ std::optional<cv::Point2d> CameraModel::ground_to_pixel(double x_mm, double y_mm
     return distort_normalised({p[0] / p[2], p[1] / p[2]});
 }
 
+namespace {
+
+// ROS camera_info YAML (camera_calibration_parsers):
+//   image_width: 1296
+//   image_height: 966
+//   camera_matrix: {rows: 3, cols: 3, data: [fx, 0, cx, 0, fy, cy, 0, 0, 1]}
+//   distortion_model: plumb_bob
+//   distortion_coefficients: {rows: 1, cols: 5, data: [k1, k2, p1, p2, k3]}
+// rectification_matrix and projection_matrix describe a rectified stereo
+// image, not the raw frames stemd reads, and are not used.
+std::optional<Intrinsics> read_ros_camera_info(const std::string& path, std::string* error)
+{
+    const auto fail = [&](const std::string& what) -> std::optional<Intrinsics> {
+        set_error(error, path + ": " + what);
+        return std::nullopt;
+    };
+    YAML::Node root;
+    try {
+        root = YAML::LoadFile(path);
+    } catch (const YAML::BadFile&) {
+        return fail("cannot open the calibration file");
+    } catch (const YAML::ParserException& e) {
+        return fail("line " + std::to_string(e.mark.line + 1) + ": invalid YAML: " + e.msg);
+    } catch (const std::exception& e) {
+        return fail("cannot read: " + one_line(e.what()));
+    }
+    if (!root.IsMap())
+        return fail("not a map of calibration nodes (camera_matrix, distortion_coefficients, image_width, image_height)");
+    try {
+        Intrinsics k;
+        const auto read_int = [&](const char* name, int& out) -> std::optional<std::string> {
+            const YAML::Node node = root[name];
+            if (!node)
+                return std::string("missing node '") + name + "'";
+            int v = 0;
+            if (!node.IsScalar() || !YAML::convert<int>::decode(node, v))
+                return std::string("node '") + name + "' is not an integer";
+            out = v;
+            return std::nullopt;
+        };
+        if (auto bad = read_int("image_width", k.image_size.width))
+            return fail(*bad);
+        if (auto bad = read_int("image_height", k.image_size.height))
+            return fail(*bad);
+        if (k.image_size.width <= 0 || k.image_size.height <= 0)
+            return fail("image_width and image_height must be positive");
+
+        // A matrix node: rows, cols and rows * cols numbers in data (row-major).
+        const auto read_matrix = [&](const char* name, int& rows, int& cols,
+                                     std::vector<double>& data) -> std::optional<std::string> {
+            const std::string key = std::string("node '") + name + "'";
+            const YAML::Node node = root[name];
+            if (!node)
+                return "missing " + key;
+            if (!node.IsMap())
+                return key + " is not a map with rows, cols and data";
+            const YAML::Node r = node["rows"], c = node["cols"], d = node["data"];
+            if (!r || !r.IsScalar() || !YAML::convert<int>::decode(r, rows) || rows < 0)
+                return key + ": missing or bad 'rows'";
+            if (!c || !c.IsScalar() || !YAML::convert<int>::decode(c, cols) || cols < 0)
+                return key + ": missing or bad 'cols'";
+            if (!d || !d.IsSequence())
+                return key + ": missing 'data' list";
+            if (d.size() != static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols))
+                return key + ": 'data' has " + std::to_string(d.size()) + " values, rows x cols is " +
+                       std::to_string(rows * cols);
+            data.clear();
+            for (std::size_t i = 0; i < d.size(); ++i) {
+                double v = 0;
+                if (!d[i].IsScalar() || !YAML::convert<double>::decode(d[i], v) || !finite(v))
+                    return key + ": 'data' value " + std::to_string(i) + " is not a finite number";
+                data.push_back(v);
+            }
+            return std::nullopt;
+        };
+        int rows = 0, cols = 0;
+        std::vector<double> data;
+        if (auto bad = read_matrix("camera_matrix", rows, cols, data))
+            return fail(*bad);
+        if (rows != 3 || cols != 3)
+            return fail("node 'camera_matrix' is not a 3x3 matrix");
+        k.fx = data[0];
+        k.fy = data[4];
+        k.cx = data[2];
+        k.cy = data[5];
+        if (!(k.fx > 0) || !(k.fy > 0))
+            return fail("node 'camera_matrix' has a non-positive focal length");
+
+        if (const YAML::Node model = root["distortion_model"]) {
+            const std::string name = model.IsScalar() ? model.Scalar() : std::string();
+            if (name != "plumb_bob" && name != "rational_polynomial")
+                return fail("node 'distortion_model': '" + name +
+                            "' is not supported (plumb_bob or rational_polynomial, OpenCV's model)");
+        }
+        if (auto bad = read_matrix("distortion_coefficients", rows, cols, data))
+            return fail(*bad);
+        const std::size_t n = data.size();
+        if ((rows != 1 && cols != 1 && n != 0) || n == 14)
+            return fail(n == 14 ? "node 'distortion_coefficients': the tilted-sensor model (14 values) is not supported"
+                                : "node 'distortion_coefficients' is not a vector");
+        // ROS leaves the list empty for a camera without distortion.
+        if (n != 0 && n != 4 && n != 5 && n != 8 && n != 12)
+            return fail("node 'distortion_coefficients' must hold 0, 4, 5, 8 or 12 values");
+        for (std::size_t i = 0; i < n; ++i)
+            k.dist[i] = data[i];
+        return k;
+    } catch (const std::exception& e) {
+        return fail("cannot read: " + one_line(e.what()));
+    }
+}
+
+// OpenCV's own files start with its "%YAML:1.0" line (not valid YAML 1.2),
+// are XML, or are JSON; the rest is read as ROS camera_info YAML.
+bool is_opencv_storage(const std::string& path)
+{
+    std::ifstream in(path, std::ios::binary);
+    if (!in)
+        return true;  // let the reader report the file
+    std::string head(64, '\0');
+    in.read(head.data(), static_cast<std::streamsize>(head.size()));
+    head.resize(static_cast<std::size_t>(in.gcount()));
+    std::size_t i = 0;
+    while (i < head.size() && std::isspace(static_cast<unsigned char>(head[i])))
+        ++i;
+    const std::string_view start = std::string_view(head).substr(i);
+    return start.rfind("%YAML:", 0) == 0 || start.rfind("<?xml", 0) == 0 || start.rfind("{", 0) == 0;
+}
+
+}  // namespace
+
 std::optional<Intrinsics> read_calibration(const std::string& path, std::string* error)
 {
+    if (!is_opencv_storage(path))
+        return read_ros_camera_info(path, error);
     const auto fail = [&](const std::string& what) -> std::optional<Intrinsics> {
         set_error(error, path + ": " + what);
         return std::nullopt;

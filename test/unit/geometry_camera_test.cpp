@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <unistd.h>
@@ -441,6 +442,111 @@ TEST_F(CalibrationFileTest, MissingNodesAndBadFilesAreClearErrors)
     }
     EXPECT_FALSE(read_calibration(no_size.string(), &error));
     EXPECT_EQ(error, no_size.string() + ": missing or non-integer node 'image_width'");
+}
+
+TEST_F(CalibrationFileTest, ReadsRosCameraInfo)
+{
+    const fs::path path = dir_ / "camera_info.yaml";
+    std::ofstream(path) << "image_width: 1280\n"
+                           "image_height: 960\n"
+                           "camera_name: test\n"
+                           "camera_matrix:\n"
+                           "  rows: 3\n"
+                           "  cols: 3\n"
+                           "  data: [1000, 0, 640.3, 0, 1005, 480.7, 0, 0, 1]\n"
+                           "distortion_model: rational_polynomial\n"
+                           "distortion_coefficients:\n"
+                           "  rows: 1\n"
+                           "  cols: 8\n"
+                           "  data: [-0.12, 0.05, 0.001, -0.0015, -0.01, 0.02, -0.005, 0.001]\n"
+                           "rectification_matrix: {rows: 3, cols: 3, data: [1, 0, 0, 0, 1, 0, 0, 0, 1]}\n"
+                           "projection_matrix: {rows: 3, cols: 4, data: [1000, 0, 640.3, 0, 0, 1005, 480.7, 0, 0, 0, "
+                           "1, 0]}\n";
+    std::string error;
+    const auto k = read_calibration(path.string(), &error);
+    ASSERT_TRUE(k) << error;
+    const Intrinsics expected = test_intrinsics(8);
+    EXPECT_EQ(k->fx, expected.fx);
+    EXPECT_EQ(k->fy, expected.fy);
+    EXPECT_EQ(k->cx, expected.cx);
+    EXPECT_EQ(k->cy, expected.cy);
+    EXPECT_EQ(k->dist, expected.dist);
+    EXPECT_EQ(k->image_size, cv::Size(1280, 960));
+
+    // ROS leaves the list empty for a camera without distortion.
+    const fs::path empty = dir_ / "no_distortion.yaml";
+    std::ofstream(empty) << "image_width: 640\nimage_height: 480\n"
+                            "camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n"
+                            "distortion_coefficients: {rows: 1, cols: 0, data: []}\n";
+    const auto none = read_calibration(empty.string(), &error);
+    ASSERT_TRUE(none) << error;
+    EXPECT_EQ(none->dist, (std::array<double, 12>{}));
+}
+
+TEST_F(CalibrationFileTest, MalformedRosCameraInfoNamesFileAndKey)
+{
+    const std::string size = "image_width: 640\nimage_height: 480\n";
+    const std::string matrix = "camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n";
+    const std::string dist = "distortion_coefficients: {rows: 1, cols: 5, data: [0, 0, 0, 0, 0]}\n";
+    struct Case {
+        std::string text;
+        std::string message;
+    };
+    const Case cases[] = {
+        {size + dist, "missing node 'camera_matrix'"},
+        {size + matrix, "missing node 'distortion_coefficients'"},
+        {"image_height: 480\n" + matrix + dist, "missing node 'image_width'"},
+        {"image_width: wide\nimage_height: 480\n" + matrix + dist, "node 'image_width' is not an integer"},
+        {size + "camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0]}\n" + dist,
+         "node 'camera_matrix': 'data' has 8 values, rows x cols is 9"},
+        {size + "camera_matrix: {rows: 2, cols: 2, data: [500, 0, 0, 500]}\n" + dist,
+         "node 'camera_matrix' is not a 3x3 matrix"},
+        {size + "camera_matrix: {rows: 3, cols: 3, data: [500, 0, x, 0, 500, 240, 0, 0, 1]}\n" + dist,
+         "node 'camera_matrix': 'data' value 2 is not a finite number"},
+        {size + "camera_matrix: [500, 0, 320, 0, 500, 240, 0, 0, 1]\n" + dist,
+         "node 'camera_matrix' is not a map with rows, cols and data"},
+        {size + matrix + "distortion_model: equidistant\n" + dist,
+         "node 'distortion_model': 'equidistant' is not supported (plumb_bob or rational_polynomial, OpenCV's "
+         "model)"},
+        {size + matrix + "distortion_coefficients: {rows: 1, cols: 3, data: [0, 0, 0]}\n",
+         "node 'distortion_coefficients' must hold 0, 4, 5, 8 or 12 values"},
+        {size + "camera_matrix: {rows: 3, cols: 3, data: [-500, 0, 320, 0, 500, 240, 0, 0, 1]}\n" + dist,
+         "node 'camera_matrix' has a non-positive focal length"},
+        {size + matrix + dist + "image_width: [\n", "line 6: invalid YAML: "},
+        {"- a list\n", "not a map of calibration nodes (camera_matrix, distortion_coefficients, image_width, "
+                       "image_height)"},
+    };
+    int n = 0;
+    for (const Case& c : cases) {
+        const fs::path path = dir_ / ("bad" + std::to_string(n++) + ".yaml");
+        std::ofstream(path) << c.text;
+        std::string error;
+        EXPECT_FALSE(read_calibration(path.string(), &error)) << c.text;
+        EXPECT_EQ(error.rfind(path.string() + ": " + c.message, 0), 0u) << error;
+        EXPECT_EQ(error.find('\n'), std::string::npos) << error;
+    }
+}
+
+// The camera_info shipped with the BoniRob data set (../shared/data or
+// STEMD_REAL_DATA).
+TEST(RealCalibrationFile, BonirobCameraInfoLoads)
+{
+    const char* env = std::getenv("STEMD_REAL_DATA");
+    const fs::path data = env ? fs::path(env) : fs::path(STEMD_SOURCE_DIR) / ".." / "shared" / "data";
+    const fs::path path = data / "bonirob" / "jai_camera_rgb.yaml";
+    if (!fs::exists(path))
+        GTEST_SKIP() << path.string() << " is absent (set STEMD_REAL_DATA to the folder holding bonirob/)";
+    std::string error;
+    const auto k = read_calibration(path.string(), &error);
+    ASSERT_TRUE(k) << error;
+    EXPECT_EQ(k->image_size, cv::Size(1296, 966));
+    EXPECT_DOUBLE_EQ(k->fx, 2150.03686);
+    EXPECT_DOUBLE_EQ(k->fy, 2150.03686);
+    EXPECT_DOUBLE_EQ(k->cx, 649.2291);
+    EXPECT_DOUBLE_EQ(k->cy, 480.680634);
+    EXPECT_EQ(k->dist, (std::array<double, 12>{}));
+    // The daemon's default frame size is this camera's.
+    EXPECT_TRUE(CameraModel::calibrated(*k, {800, 0, 0, 0}, {}, &error)) << error;
 }
 
 // --- field positions ----------------------------------------------------------

@@ -142,10 +142,16 @@ private:
 // The camera -> machine rotation of a pose and mount (see the conventions).
 cv::Matx33d camera_to_machine_rotation(Forward forward, const Pose& pose);
 
-// Reads OpenCV's calibration YAML/XML (as its calibration sample writes):
-// camera_matrix (3x3), distortion_coefficients (4, 5, 8 or 12 values),
-// image_width, image_height. Errors as one line of text naming the file and
-// the missing or bad node; never throws.
+// Reads a camera calibration file, either
+//  - OpenCV's calibration YAML/XML (as its calibration sample and
+//    stemd-calibrate write it, starting "%YAML:1.0"): camera_matrix (3x3),
+//    distortion_coefficients (4, 5, 8 or 12 values), image_width,
+//    image_height; or
+//  - ROS camera_info YAML, what robot cameras ship with: the same nodes,
+//    matrices as {rows, cols, data}, distortion_model plumb_bob or
+//    rational_polynomial (an empty distortion list: none).
+// Errors as one line of text naming the file and the missing or bad node;
+// never throws.
 std::optional<Intrinsics> read_calibration(const std::string& path, std::string* error);
 
 }  // namespace stemd::geometry
