@@ -11,6 +11,8 @@
 #include <opencv2/core/persistence.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "one_line.hpp"
+
 namespace stemd::geometry {
 
 namespace {
@@ -39,19 +41,7 @@ cv::Matx33d camera_matrix(const Intrinsics& k) { return {k.fx, 0, k.cx, 0, k.fy,
 
 std::vector<double> dist_vector(const Intrinsics& k) { return {k.dist.begin(), k.dist.end()}; }
 
-std::string one_line(std::string_view text)
-{
-    std::string out;
-    for (const char c : text) {
-        const bool space = c == '\n' || c == '\r' || c == '\t';
-        if (space && (out.empty() || out.back() == ' '))
-            continue;
-        out += space ? ' ' : c;
-    }
-    while (!out.empty() && out.back() == ' ')
-        out.pop_back();
-    return out;
-}
+using detail::one_line;
 
 double wrap_deg(double a)
 {

@@ -9,6 +9,8 @@
 #include <opencv2/core/persistence.hpp>
 #include <yaml-cpp/yaml.h>
 
+#include "one_line.hpp"
+
 namespace stemd::geometry {
 
 namespace {
@@ -59,20 +61,7 @@ cv::Matx33d forward_rotation(Forward forward)
 
 bool finite(double v) { return std::isfinite(v); }
 
-// OpenCV's messages span lines; errors here are one line.
-std::string one_line(std::string_view text)
-{
-    std::string out;
-    for (const char c : text) {
-        const bool space = c == '\n' || c == '\r' || c == '\t';
-        if (space && (out.empty() || out.back() == ' '))
-            continue;
-        out += space ? ' ' : c;
-    }
-    while (!out.empty() && out.back() == ' ')
-        out.pop_back();
-    return out;
-}
+using detail::one_line;
 
 }  // namespace
 

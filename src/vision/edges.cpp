@@ -9,21 +9,6 @@
 
 namespace stemd::vision {
 
-int histogram_mode(const Histogram& histogram)
-{
-    int mode = 0;
-    std::uint64_t best = 0;
-    for (int v = 0; v < 256; ++v) {
-        const std::uint64_t smoothed = static_cast<std::uint64_t>(histogram[v]) + (v > 0 ? histogram[v - 1] : 0) +
-                                       (v < 255 ? histogram[v + 1] : 0);
-        if (smoothed > best) {
-            best = smoothed;
-            mode = v;
-        }
-    }
-    return mode;
-}
-
 void EdgeScratch::reserve(int width_px, int height_px)
 {
     const auto width = static_cast<std::size_t>(std::max(width_px, 0));

@@ -144,10 +144,8 @@ int min_error_threshold(const Histogram& histogram)
     return best < 0 ? otsu_threshold(histogram) : best;
 }
 
-int soil_noise_threshold(const Histogram& histogram, double sigmas)
+int histogram_mode(const Histogram& histogram)
 {
-    // The mode of the histogram smoothed over three levels, so that a
-    // quantisation comb does not pick a spike.
     int mode = 0;
     std::uint64_t best = 0;
     for (int v = 0; v < 256; ++v) {
@@ -158,8 +156,14 @@ int soil_noise_threshold(const Histogram& histogram, double sigmas)
             mode = v;
         }
     }
-    if (best == 0)
+    return mode;
+}
+
+int soil_noise_threshold(const Histogram& histogram, double sigmas)
+{
+    if (std::all_of(histogram.begin(), histogram.end(), [](auto count) { return count == 0; }))
         return 255;
+    const int mode = histogram_mode(histogram);
     // Half-normal spread of the levels at and below the mode.
     double n = 0, squares = 0;
     for (int v = 0; v <= mode; ++v) {

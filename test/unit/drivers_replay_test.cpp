@@ -135,24 +135,11 @@ TEST_F(ReplayTest, MissingFileIsCountedAsCorrupt)
     EXPECT_EQ(source.counters().corrupt, 1u);
 }
 
-TEST_F(ReplayTest, LoopsStartOver)
-{
-    write_recording(2, 1'000'000);
-    auto source = make(ReplayOptions::Pacing::fast, true);
-    ASSERT_TRUE(source.open());
-    ASSERT_TRUE(source.start());
-    Frame f = slot();
-    for (int i = 0; i < 5; ++i) {
-        ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
-        EXPECT_EQ(f.t_recorded_ns, (i % 2) * 1'000'000);
-    }
-    EXPECT_EQ(source.counters().loops, 2u);
-}
-
 TEST_F(ReplayTest, LoopingDrivesTheStripAgainWithTheOdometerGoingOn)
 {
-    // Three frames 12.5 mm apart: a pass covers 25 mm, and the next pass
-    // starts one step (12.5 mm) after the last frame, as the time does.
+    // Three frames 12.5 mm apart: each pass starts the recording over, and
+    // its odometer goes on from one step (12.5 mm) after the last frame, as
+    // the time does.
     write_recording(3, 1'000'000);
     auto source = make(ReplayOptions::Pacing::fast, true);
     ASSERT_TRUE(source.open());
@@ -160,8 +147,10 @@ TEST_F(ReplayTest, LoopingDrivesTheStripAgainWithTheOdometerGoingOn)
     Frame f = slot();
     for (int i = 0; i < 7; ++i) {
         ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+        EXPECT_EQ(f.t_recorded_ns, (i % 3) * 1'000'000);
         EXPECT_EQ(f.odom_mm, 12.5 * i) << "frame " << i << " of the looping replay";
     }
+    EXPECT_EQ(source.counters().loops, 2u);
 }
 
 TEST_F(ReplayTest, LoopingWithoutAnOdometerHasNone)

@@ -13,10 +13,6 @@
 
 namespace stemd::vision {
 
-// The soil's index level: the mode of the histogram smoothed over three
-// levels (the soil covers more of the frame than any leaf level does).
-int histogram_mode(const Histogram& histogram);
-
 // Scratch for one frame size, allocated once.
 class EdgeScratch {
 public:

@@ -33,6 +33,11 @@ int min_error_threshold(const Histogram& histogram);
 // vegetation (above) does not reach. Valid for any small vegetation cover,
 // where Otsu and min_error split the soil itself.
 int soil_noise_threshold(const Histogram& histogram, double sigmas);
+
+// The soil's index level: the mode of the histogram smoothed over three
+// levels, so that a quantisation comb does not pick a spike (the soil
+// covers more of the frame than any leaf level does). 0 when empty.
+int histogram_mode(const Histogram& histogram);
 // Otsu where it separates two classes, never inside the soil's spread.
 int above_soil_threshold(const Histogram& histogram, double sigmas);
 // `soil_sigmas` is used by above_soil only.
