@@ -98,9 +98,7 @@ void ActuationStage::on_frame(const FrameResult& r, std::int64_t now_ns) noexcep
     bump(counters_.frames);
     for (const actuation::Target& t : targets) {
         bump(counters_.targets);
-        const std::uint64_t sent_before = counters_.sent.load(std::memory_order_relaxed);
-        sender_.schedule(t, now_ns, r.has_class_map, enabled());
-        if (counters_.sent.load(std::memory_order_relaxed) != sent_before)
+        if (sender_.schedule(t, now_ns, r.has_class_map, enabled()))
             counters_.send_latency.record(now_ns - r.t_sample_ns);
     }
     write_retired(tracker_.retired());

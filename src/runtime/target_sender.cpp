@@ -33,7 +33,7 @@ TargetSender::TargetSender(actuation::Scheduler scheduler, std::optional<actuati
 {
 }
 
-void TargetSender::schedule(const actuation::Target& target, std::int64_t now_ns, bool class_map,
+bool TargetSender::schedule(const actuation::Target& target, std::int64_t now_ns, bool class_map,
                             bool enabled) noexcept
 {
     MapEntry& entry = outcomes_[target.target_id];
@@ -44,7 +44,7 @@ void TargetSender::schedule(const actuation::Target& target, std::int64_t now_ns
     if (!odometry_.odometer_at(now_ns, odom_now)) {
         entry.reason = MapReason::no_odometry;
         bump(counters_.no_odometry);
-        return;
+        return false;
     }
     actuation::ScheduleNow now;
     now.now_ns = now_ns;
@@ -61,10 +61,10 @@ void TargetSender::schedule(const actuation::Target& target, std::int64_t now_ns
         entry.fire_odom_mm = d.fire_odom_mm;
     }
     switch (d.outcome) {
-    case actuation::ScheduleOutcome::policy: bump(counters_.policy); return;
-    case actuation::ScheduleOutcome::no_tool: bump(counters_.no_tool); return;
-    case actuation::ScheduleOutcome::disabled: bump(counters_.disabled); return;
-    case actuation::ScheduleOutcome::deadline_miss: bump(counters_.deadline_misses); return;
+    case actuation::ScheduleOutcome::policy: bump(counters_.policy); return false;
+    case actuation::ScheduleOutcome::no_tool: bump(counters_.no_tool); return false;
+    case actuation::ScheduleOutcome::disabled: bump(counters_.disabled); return false;
+    case actuation::ScheduleOutcome::deadline_miss: bump(counters_.deadline_misses); return false;
     case actuation::ScheduleOutcome::send: break;
     }
     protocol::CanFrame frame;
@@ -72,10 +72,10 @@ void TargetSender::schedule(const actuation::Target& target, std::int64_t now_ns
         // The scheduler keeps every field in range; count it if not.
         entry.reason = MapReason::bus_error;
         bump(counters_.bus_errors);
-        return;
+        return false;
     }
     switch (bus_.send(frame, d.deadline_ns)) {
-    case drivers::SendResult::sent: bump(counters_.sent); break;
+    case drivers::SendResult::sent: bump(counters_.sent); return true;
     case drivers::SendResult::deadline_passed:
         entry.reason = MapReason::bus_deadline;
         bump(counters_.bus_deadline);
@@ -85,6 +85,7 @@ void TargetSender::schedule(const actuation::Target& target, std::int64_t now_ns
         bump(counters_.bus_errors);
         break;
     }
+    return false;
 }
 
 }  // namespace stemd::runtime

@@ -29,7 +29,8 @@ public:
                  drivers::CanBus& bus, protocol::CanIds ids, const OdometryInput& odometry,
                  ActuationCounters& counters);
 
-    void schedule(const actuation::Target& target, std::int64_t now_ns, bool class_map, bool enabled) noexcept;
+    // True when the bus took the TARGET frame.
+    bool schedule(const actuation::Target& target, std::int64_t now_ns, bool class_map, bool enabled) noexcept;
     // What became of target_id's last target.
     const MapEntry& outcome(std::uint16_t target_id) const { return outcomes_[target_id]; }
 
