@@ -15,14 +15,15 @@ std::unique_ptr<CanBus> make_can_bus(const CanBusSpec& spec, const MakeLogger& m
 {
     if (spec.interface.empty()) {
         CanLogOptions options;
-        options.path = spec.log_file == "-" ? "/dev/stdout" : spec.log_file;
+        options.path = spec.log_file;
         options.clock = spec.log_monotonic ? CanLogOptions::Clock::monotonic : CanLogOptions::Clock::realtime;
         auto bus = std::make_unique<CanLogBus>(options, make_logger("canlog"));
         if (!bus->open()) {
             error = "cannot open the CAN log " + options.path.string();
             return nullptr;
         }
-        log.info("no CAN interface: commands go to {} (candump -L format)", options.path.string());
+        log.info("no CAN interface: commands go to {} (candump -L format)",
+                 spec.log_file == CanLogOptions::kStandardOutput ? "standard output" : options.path.string());
         return bus;
     }
     SocketCanOptions options;

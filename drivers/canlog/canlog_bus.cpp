@@ -39,7 +39,10 @@ bool CanLogBus::open()
                     name_, options_.interface);
         return false;
     }
-    if (const int e = file_.open(options_.path.c_str(), options_.append); e != 0) {
+    const bool standard_output = options_.path == CanLogOptions::kStandardOutput;
+    if (const int e = standard_output ? file_.open_duplicate(STDOUT_FILENO)
+                                      : file_.open(options_.path.c_str(), options_.append);
+        e != 0) {
         log_->error("{}: cannot open {}: {} (errno {})", name_, options_.path.string(), std::strerror(e), e);
         return false;
     }

@@ -9,7 +9,8 @@
 // CLOCK_MONOTONIC, to line the log up with the daemon's own monotonic times.
 // Deadlines are CLOCK_MONOTONIC like every CanBus (see can_bus.hpp).
 //
-// The file is opened (truncated, or appended to) by open(), and each frame is
+// The file is opened (truncated, or appended to; standard output is shared
+// as it is) by open(), and each frame is
 // one line written with one write(2) (base::RecordFile): a frame send()
 // reports as sent is in the file, a kill tears no line, and a write that
 // fails (a full disk: ENOSPC) is the send's error, counted like a bus error.
@@ -31,6 +32,9 @@
 namespace stemd::drivers {
 
 struct CanLogOptions {
+    // kStandardOutput writes to the process's standard output as it is
+    // (a terminal, a pipe, or a file the shell opened), after what is there.
+    static constexpr const char* kStandardOutput = "-";
     std::filesystem::path path;
     std::string interface = "can0";  // the interface name written in each line
     enum class Clock : std::uint8_t { realtime, monotonic } clock = Clock::realtime;

@@ -2,7 +2,11 @@
 // actuation candump parser; timestamps; one write per line, write failures; deadlines; receive timeout.
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
 #include <time.h>
+#include <unistd.h>
+
+#include <cstdio>
 
 #include <filesystem>
 #include <fstream>
@@ -215,4 +219,48 @@ TEST_F(CanLogTest, OpenFailuresAndInvalidFramesAreErrorsNotCrashes)
               SendResult::error);
     EXPECT_EQ(bus.counters().errors, 2U);
     EXPECT_EQ(bus.counters().sent, 0U);
+}
+
+// "-" is the process's standard output as the shell opened it: what is
+// already there stays, and the frames follow it (reopening /dev/stdout
+// would truncate a redirected file and write from its start).
+TEST_F(CanLogTest, StandardOutputKeepsWhatTheRedirectedFileHeld)
+{
+    const auto path = dir_ / "stdout.txt";
+    const int file = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    ASSERT_GE(file, 0);
+    std::fflush(stdout);
+    const int saved_stdout = ::dup(STDOUT_FILENO);
+    ASSERT_GE(saved_stdout, 0);
+    ASSERT_EQ(::dup2(file, STDOUT_FILENO), STDOUT_FILENO);
+    ::close(file);
+    const std::string before = "written before the log opened\n";
+    const bool wrote_before = ::write(STDOUT_FILENO, before.data(), before.size()) ==
+                              static_cast<ssize_t>(before.size());
+    const auto frames = sample_frames();
+    bool opened = false;
+    {
+        CanLogOptions options = to(CanLogOptions::kStandardOutput);
+        CanLogBus bus(options, quiet_logger());
+        opened = bus.open();
+        for (const auto& f : frames) {
+            if (opened) {
+                EXPECT_EQ(bus.send(f, stemd::base::monotonic_ns() + kSecond), SendResult::sent);
+            }
+        }
+    }
+    ASSERT_EQ(::dup2(saved_stdout, STDOUT_FILENO), STDOUT_FILENO);
+    ::close(saved_stdout);
+    ASSERT_TRUE(wrote_before);
+    ASSERT_TRUE(opened);
+
+    const auto lines = read_lines(path);
+    ASSERT_EQ(lines.size(), 1 + frames.size());
+    EXPECT_EQ(lines[0] + "\n", before);
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+        protocol::CandumpRecord rec;
+        std::string error;
+        ASSERT_TRUE(protocol::parse_candump_line(lines[1 + i], rec, error)) << error;
+        EXPECT_EQ(rec.frame, frames[i]);
+    }
 }

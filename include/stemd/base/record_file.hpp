@@ -31,6 +31,20 @@ public:
         fd_ = std::move(fd);
         return 0;
     }
+    // Shares an already open descriptor (standard output): a duplicate of it,
+    // so the file is neither truncated nor written from offset 0 over what
+    // the shell or another writer put there. Never cut back after a failed
+    // write: others may have written after our last record. 0 or the errno.
+    int open_duplicate(int fd) noexcept
+    {
+        UniqueFd copy(::fcntl(fd, F_DUPFD_CLOEXEC, 0));
+        if (!copy.valid())
+            return errno;
+        regular_ = false;
+        size_ = 0;
+        fd_ = std::move(copy);
+        return 0;
+    }
     bool is_open() const noexcept { return fd_.valid(); }
     void close() noexcept { fd_.reset(); }
 
