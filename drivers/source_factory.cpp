@@ -21,6 +21,7 @@ std::unique_ptr<FrameSource> make_frame_source(const SourceSpec& spec, const Mak
         // The schema allows only the formats the source knows.
         v4l2.pixel_format = parse_v4l2_pixel_format(spec.v4l2_pixel_format).value_or(V4l2PixelFormat::yuyv);
         v4l2.buffers = spec.v4l2_buffers;
+        v4l2.backoff_max = std::chrono::microseconds(std::llround(spec.reopen_backoff_max_ms * 1000));
         v4l2.size = spec.frame_size;
         v4l2.fps = spec.fps;
         if (!spec.nir_device.empty()) {

@@ -261,6 +261,9 @@ constexpr std::array kSchema{
     bind<STEMD_KEY(daemon.v4l2_buffers)>(
         {"source.v4l2_buffers", integer, "count", 2, 32, "4", "",
             "v4l2: mmap buffers asked of the driver"}),
+    bind<STEMD_KEY(daemon.reopen_backoff_max_ms)>(
+        {"source.reopen_backoff_max_ms", real, "ms", 100, 60000, "500", "",
+            "v4l2: a lost camera is reopened after 100 ms, then at doubling intervals up to this; it bounds how long frames take to resume once the camera is back"}),
     bind<STEMD_KEY(daemon.nir_device)>(
         {"source.nir_device", text, "", 0, 0, "none", "",
             "v4l2: a second, monochrome camera for NIR (segment.method ndvi), paired to each RGB frame by capture time; none: no NIR camera"}),
@@ -306,6 +309,10 @@ constexpr std::array kSchema{
     bind<STEMD_KEY(daemon.mlockall)>(
         {"threads.mlockall", boolean, "", 0, 0, "false", "",
             "lock all current and future memory (mlockall) so that page faults cannot stall the threads"}),
+
+    bind<STEMD_KEY(daemon.stall_processing_after_frames)>(
+        {"debug.stall_processing_after_frames", integer, "frames", 0, 1000000000, "0", "",
+            "for tests only: after this many frames the processing thread stops making progress (a stuck thread: the systemd watchdog is no longer fed); 0: never"}),
 
     bind<STEMD_KEY(daemon.status_interval_s)>(
         {"status.interval_s", real, "s", 0.1, 3600, "5", "",

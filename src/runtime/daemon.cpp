@@ -273,7 +273,16 @@ void Daemon::processing_loop()
     const bool can_wait = !source_->realtime();
     vision::StageTimes times;
     drivers::Frame* frame = nullptr;
+    std::size_t processed = 0;
     while (!stopping()) {
+        if (config_.stall_processing_after_frames > 0 && processed >= config_.stall_processing_after_frames) {
+            // A stuck thread on purpose (debug.*): no beat, so the watchdog
+            // goes unfed; a stop still ends it, so tests can shut down.
+            processing_log_->warn("debug.stall_processing_after_frames: stalling after {} frames", processed);
+            while (!stopping())
+                base::sleep_for_ns(10'000'000);
+            break;
+        }
         beat(kProcessing);
         if (!frames_.try_pop(frame)) {
             // capture_done_ is set after its last push: seen set, an empty
@@ -328,6 +337,7 @@ void Daemon::processing_loop()
                 bump(counters_->processing.bad_class,
                      classify_plants(frame->plant_class, result->detections, result->plant_class));
             bump(counters_->processing.frames);
+            ++processed;
             counters_->processing.pipeline.record(times.total_ns);
             if (result->detections.status == vision::DetectStatus::ok) {
                 if (result->detections.stats.no_vegetation)
@@ -414,6 +424,9 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
     s.late = source.late;
     s.worst_lateness_ms = source.worst_lateness_ms;
     s.bad_class = counters_->processing.bad_class.load(std::memory_order_relaxed);
+    s.source_timeouts = source.timeouts;
+    s.source_errors = source.errors;
+    s.source_reopens = source.reopens;
     if (actuation_) {
         const ActuationCounters& a = actuation_->counters();
         const auto get = [](const std::atomic<std::uint64_t>& c) { return c.load(std::memory_order_relaxed); };

@@ -50,6 +50,7 @@ std::unique_ptr<drivers::FrameSource> make_frame_source(const DaemonConfig& conf
     spec.v4l2_device = config.v4l2_device;
     spec.v4l2_pixel_format = config.v4l2_pixel_format;
     spec.v4l2_buffers = config.v4l2_buffers;
+    spec.reopen_backoff_max_ms = config.reopen_backoff_max_ms;
     spec.nir_device = config.nir_device;
     spec.nir_tolerance_ms = config.nir_tolerance_ms;
     spec.libcamera_camera = config.libcamera_camera;

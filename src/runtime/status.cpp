@@ -23,6 +23,16 @@ std::string drops(const StatusSnapshot& now, const StatusSnapshot& before)
     return buf;
 }
 
+std::string source(const StatusSnapshot& now, const StatusSnapshot& before)
+{
+    char buf[128];
+    std::snprintf(buf, sizeof buf, " | source: timeouts %llu, errors %llu, reopens %llu",
+                  static_cast<unsigned long long>(now.source_timeouts - before.source_timeouts),
+                  static_cast<unsigned long long>(now.source_errors - before.source_errors),
+                  static_cast<unsigned long long>(now.source_reopens - before.source_reopens));
+    return buf;
+}
+
 // What was seen but not reported, and how far a paced replay fell behind
 // (the worst lateness is the whole run's).
 std::string behind(const StatusSnapshot& now, const StatusSnapshot& before)
@@ -75,7 +85,7 @@ std::string format_status(const StatusSnapshot& now, const StatusSnapshot& befor
                   static_cast<double>(now.frames_in - before.frames_in) / dt_s,
                   static_cast<double>(now.frames_out - before.frames_out) / dt_s,
                   static_cast<unsigned long long>(now.no_vegetation - before.no_vegetation));
-    return buf + behind(now, before) + " | " + drops(now, before) + actuation(now, before) + " | " + durations(now);
+    return buf + behind(now, before) + " | " + drops(now, before) + source(now, before) + actuation(now, before) + " | " + durations(now);
 }
 
 std::string format_summary(const StatusSnapshot& end, double run_s)
@@ -87,7 +97,7 @@ std::string format_summary(const StatusSnapshot& end, double run_s)
                   run_s > 0 ? static_cast<double>(end.frames_out) / run_s : 0.0,
                   static_cast<unsigned long long>(end.no_vegetation));
     return buf + behind(end, StatusSnapshot{}) + " | " + drops(end, StatusSnapshot{}) +
-           actuation(end, StatusSnapshot{}) + " | " + durations(end);
+           source(end, StatusSnapshot{}) + actuation(end, StatusSnapshot{}) + " | " + durations(end);
 }
 
 }  // namespace stemd::runtime

@@ -44,3 +44,22 @@ TEST(Status, WithoutActuationThereIsNoSendLatency)
     EXPECT_EQ(line.find("capture to send"), std::string::npos) << line;
     EXPECT_EQ(line.find("targets"), std::string::npos) << line;
 }
+
+// A camera unplugged and replugged: the line shows the interval's source
+// timeouts, errors and reopens, the summary the whole run's.
+TEST(Status, SourceTimeoutsErrorsAndReopensAreShown)
+{
+    StatusSnapshot before;
+    before.t_ns = 1'000'000'000;
+    before.source_timeouts = 2;
+    before.source_errors = 1;
+    StatusSnapshot now = before;
+    now.t_ns = 2'000'000'000;
+    now.source_timeouts = 7;
+    now.source_errors = 4;
+    now.source_reopens = 1;
+    const std::string line = format_status(now, before);
+    EXPECT_NE(line.find("source: timeouts 5, errors 3, reopens 1"), std::string::npos) << line;
+    const std::string summary = format_summary(now, 2.0);
+    EXPECT_NE(summary.find("source: timeouts 7, errors 4, reopens 1"), std::string::npos) << summary;
+}

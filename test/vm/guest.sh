@@ -12,7 +12,8 @@
 # Host binaries (probes, can-utils, gpiod tools) run through `hostrun` (chroot
 # into the host root); busybox covers the rest.
 
-check_timeout=60
+# A check that hangs is killed after this (its own waits end long before).
+check_timeout=400
 
 mode=$1
 shift
@@ -34,6 +35,25 @@ done
 die() { echo "FAILED: $*"; exit 1; }
 skip() { echo "SKIP: $*"; exit 77; }
 uptime_s() { cut -d' ' -f1 /proc/uptime; }
+# Waits are for a condition, with deadlines far beyond what an idle host
+# needs: the guest's CPU is emulated (QEMU TCG) and shares the host with
+# whatever else runs there, so it may run several times slower than usual,
+# while the guest's clocks follow the host's.
+# stamp: $cs = uptime in centiseconds (builtins only: no fork under TCG).
+stamp() { read -r up _ < /proc/uptime; cs=$((${up%.*}${up#*.})); }
+# secs CS: centiseconds as seconds.
+secs() { printf '%d.%02d' $(($1 / 100)) $(($1 % 100)); }
+# within S CMD...: runs CMD every 50 ms until it succeeds (0) or S seconds passed (1).
+within() {
+  stamp
+  _end=$((cs + $1 * 100))
+  shift
+  until "$@"; do
+    stamp
+    [ $cs -lt $_end ] || return 1
+    sleep 0.05
+  done
+}
 
 # --- SocketCAN on vcan0 ------------------------------------------------------
 check_can() {
@@ -157,7 +177,7 @@ socketcan=
 for kv in "$@"; do
   case $kv in socketcan=*) socketcan=${kv#socketcan=} ;; esac
 done
-socketcan_timeout=20
+socketcan_timeout=120
 check_socketcan() {
   [ -n "$socketcan" ] || skip "socketcan check not built"
   sc() { timeout -s KILL "$socketcan_timeout" hostrun "$socketcan" "$@"; }
@@ -230,7 +250,7 @@ gpiod=
 for kv in "$@"; do
   case $kv in gpiod=*) gpiod=${kv#gpiod=} ;; esac
 done
-gpiod_timeout=20
+gpiod_timeout=120
 check_gpiod() {
   [ -n "$gpiod" ] || skip "gpiod check not built: libgpiod-dev (1.x) was missing when CMake configured"
   gc() { timeout -s KILL "$gpiod_timeout" hostrun "$gpiod" "$@"; }
@@ -351,16 +371,6 @@ for kv in "$@"; do
     stemd=*) stemd=${kv#stemd=} ;;
   esac
 done
-# wait_until N CMD...: runs CMD every 50 ms until it succeeds (0) or N tries failed (1).
-wait_until() {
-  n=$1
-  shift
-  until "$@"; do
-    n=$((n - 1))
-    [ $n -gt 0 ] || return 1
-    sleep 0.05
-  done
-}
 check_daemon() {
   [ -n "$daemon" ] && [ -n "$stemd" ] || skip "daemon check not built: libgpiod-dev (1.x) was missing when CMake configured"
   grep -q '^vivid ' /proc/modules || modprobe vivid n_devs=1 node_types=0x101 || die "modprobe vivid"
@@ -385,12 +395,12 @@ check_daemon() {
   t0=$(uptime_s)
   hostrun "$daemon" feed "$cap" "$outn" -- sh -c 'echo "pull-$2" > "$1"' sh "$pull" > /tmp/feeder.log 2>&1 &
   feeder=$!
-  wait_until 200 grep -q '^ready' /tmp/feeder.log || die "feeder did not get ready: $(cat /tmp/feeder.log)"
+  within 120 grep -q '^ready' /tmp/feeder.log || die "feeder did not get ready: $(cat /tmp/feeder.log)"
   echo "t=$(uptime_s) s: $(cat /tmp/feeder.log)"
   hostrun candump -L vcan0 > /tmp/daemon.candump 2> /tmp/candump.err &
   dump=$!
   # As check_can: candump is ready once its socket is on vcan0's receive list.
-  wait_until 100 grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all || die "candump did not start listening on vcan0"
+  within 60 grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all || die "candump did not start listening on vcan0"
   sets=
   for s in $(hostrun "$daemon" config) source.v4l2_device="$cap" can.interface=vcan0 gpio.chip="$chip" gpio.enable_line=0; do
     sets="$sets --set $s"
@@ -400,24 +410,17 @@ check_daemon() {
   hostrun "$stemd" $sets --map "$out/daemon-map.jsonl" > /tmp/stemd.log 2>&1 &
   daemon_pid=$!
   # Active once it has frames (HEARTBEAT byte 1: state << 4 | counter).
-  n=0
-  until grep -q ' vcan0 303#..[23]' /tmp/daemon.candump; do
-    n=$((n + 1))
-    if [ $n -gt 500 ] || ! kill -0 $daemon_pid 2>/dev/null; then
-      cat /tmp/stemd.log; kill $feeder $dump 2>/dev/null; die "stemd did not become active"
-    fi
-    sleep 0.05
-  done
+  # Ends the wait early when stemd has exited.
+  daemon_active() { grep -q ' vcan0 303#..[23]' /tmp/daemon.candump || ! kill -0 $daemon_pid 2>/dev/null; }
+  if ! within 180 daemon_active || ! grep -q ' vcan0 303#..[23]' /tmp/daemon.candump; then
+    cat /tmp/stemd.log; kill $feeder $dump 2>/dev/null; die "stemd did not become active (within 180 s)"
+  fi
   echo "t=$(uptime_s) s: stemd active; feeding the field"
   kill -USR1 $feeder
-  n=0
-  until grep -q '^done' /tmp/feeder.log; do
-    n=$((n + 1))
-    if [ $n -gt 600 ] || ! kill -0 $feeder 2>/dev/null; then
-      cat /tmp/feeder.log /tmp/stemd.log; kill $daemon_pid $dump 2>/dev/null; die "feeder did not finish"
-    fi
-    sleep 0.05
-  done
+  feeder_done() { grep -q '^done' /tmp/feeder.log || ! kill -0 $feeder 2>/dev/null; }
+  if ! within 180 feeder_done || ! grep -q '^done' /tmp/feeder.log; then
+    cat /tmp/feeder.log /tmp/stemd.log; kill $daemon_pid $dump 2>/dev/null; die "feeder did not finish (within 180 s)"
+  fi
   sleep 1  # the last plants' outcomes reach a heartbeat
   echo "== SIGTERM stemd"
   ts=$(uptime_s)
@@ -448,6 +451,231 @@ check_daemon() {
 }
 extra_checks="$extra_checks daemon"
 
+# --- faults: the real stemd through three driver faults, in one run ---
+# Same binaries as check_daemon (KEYs daemon, stemd). stemd runs on vivid
+# (the check's `loop` feeder scrolls the field past over and over, so plants,
+# and with them TARGETs, keep coming while it is enabled), vcan0 and the
+# enable line 0 of its own gpio-sim chip (label stemd-faults: it comes back
+# under another gpiochipN). In turn:
+#   can:    vcan0 down, then up: errors counted, sending (heartbeats and
+#           TARGETs) resumes;
+#   gpio:   the enable line's chip goes away (live = 0): enable forced off,
+#           plants counted as not treated and no TARGET; then back;
+#   camera: vivid unbound (camera unplugged): no TARGET during the gap, the
+#           source's errors counted; bound again: frames resume within 1 s.
+# The check writes one result per fault (fault_can, fault_gpio,
+# fault_camera); guest.sh's own result for `faults` is the run's.
+# Markers on the bus (cansend 7F0..7F6, ids stemd neither sends nor reads)
+# cut candump's log into the phases.
+# The loop feeder scrolls at 60 mm/s (the daemon check at 30).
+fault_settings="status.interval_s=0.2 odometry.speed_mm_per_s=60"
+# count_between ID FROM TO: frames with ID after marker FROM, before marker TO.
+count_between() {
+  awk -v id="$1#" -v from="$2#" -v to="$3#" '
+    index($3, from) == 1 { on = 1; next }
+    index($3, to) == 1 { on = 0 }
+    on && index($3, id) == 1 { n++ }
+    END { print n + 0 }' /tmp/faults.candump
+}
+# states_between FROM TO: the HEARTBEAT states (byte 1's high nibble) between two markers.
+states_between() {
+  awk -v from="$2#" -v to="$3#" '
+    index($3, from) == 1 { on = 1; next }
+    index($3, to) == 1 { on = 0 }
+    on && index($3, "303#") == 1 { s[substr($3, 7, 1)] = 1 }
+    END { for (k in s) printf "%s", k }' /tmp/faults.candump
+}
+marker() { hostrun cansend vcan0 "$1#01" || fdie "cansend marker $1"; }
+# gone PID: the background job PID has ended (ash reaps it while `within`
+# runs its sleeps, so a dead one does not linger as a zombie).
+gone() { ! kill -0 "$1" 2>/dev/null; }
+# log_after MARK PATTERN: stemd's log lines after line MARK match PATTERN.
+log_after() { tail -n +$(($1 + 1)) /tmp/faults-stemd.log | grep -qE "$2"; }
+log_lines() { wc -l < /tmp/faults-stemd.log; }
+# fault_fail NAME MESSAGE: that fault failed; the run ends.
+fault_fail() {
+  echo "FAILED: $2"
+  result "$1" 1
+  fdie "$2"
+}
+# result NAME RC: one fault's result (test/vm/check.sh reads it).
+result() {
+  cp "/host$out/faults.log" "/host$out/fault_$1.log" 2>/dev/null
+  echo "$2" > "/host$out/fault_$1.rc"
+  echo "fault_$1: rc=$2"
+}
+check_faults() {
+  rm -f "/host$out"/fault_*.rc "/host$out"/fault_*.log
+  if [ -z "$daemon" ] || [ -z "$stemd" ]; then
+    for f in can gpio camera; do
+      echo "SKIP: daemon check not built: libgpiod-dev (1.x) was missing when CMake configured" > "/host$out/fault_$f.log"
+      echo 77 > "/host$out/fault_$f.rc"
+    done
+    skip "daemon check not built: libgpiod-dev (1.x) was missing when CMake configured"
+  fi
+  # A fresh vivid with one instance: the checks before leave it routed and
+  # streaming to their liking.
+  if grep -q '^vivid ' /proc/modules; then rmmod vivid || die "rmmod vivid"; fi
+  modprobe vivid n_devs=1 node_types=0x101 || die "modprobe vivid"
+  vivid_dev=$(ls /sys/bus/platform/drivers/vivid | grep '^vivid') || die "vivid's platform device"
+  cap=$(v4l_node vivid-000-vid-cap) || die "no vivid capture node"
+  outn=$(v4l_node vivid-000-vid-out) || die "no vivid output node"
+  modprobe can-raw && modprobe vcan || die "modprobe can-raw vcan"
+  ip link show vcan0 > /dev/null 2>&1 || ip link add dev vcan0 type vcan || die "creating vcan0"
+  ip link set vcan0 up || die "vcan0 up"
+  modprobe gpio-sim || die "modprobe gpio-sim"
+  grep -q ' /sys/kernel/config configfs ' /proc/mounts ||
+    mount -t configfs none /sys/kernel/config || die "mount configfs"
+  c=/sys/kernel/config/gpio-sim/stemd_faults
+  mkdir "$c" "$c/bank0" "$c/bank0/line0" || die "gpio-sim configfs"
+  echo 2 > "$c/bank0/num_lines"
+  echo stemd-faults > "$c/bank0/label"
+  echo enable > "$c/bank0/line0/name"
+  echo 1 > "$c/live" || die "gpio-sim: going live"
+  pull_up() { echo pull-up > "/sys/devices/platform/$(cat "$c/dev_name")/$(cat "$c/bank0/chip_name")/sim_gpio0/pull"; }
+  pull_up || die "pull-up enable"
+  echo "vivid $vivid_dev: $outn -> $cap, vcan0, gpio-sim $(cat "$c/bank0/chip_name") (stemd-faults) line 0 (enable) pulled up"
+
+  hostrun "$daemon" loop "$cap" "$outn" > /tmp/faults-feeder.log 2>&1 &
+  feeder=$!
+  within 120 grep -q '^ready' /tmp/faults-feeder.log || die "feeder did not get ready: $(cat /tmp/faults-feeder.log)"
+  hostrun candump -L vcan0 > /tmp/faults.candump 2> /tmp/faults-candump.err &
+  dump=$!
+  within 60 grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all || die "candump did not start listening on vcan0"
+  sets=
+  for s in $(hostrun "$daemon" config) $fault_settings source.v4l2_device="$cap" can.interface=vcan0 gpio.chip=stemd-faults gpio.enable_line=0; do
+    sets="$sets --set $s"
+  done
+  stamp; t0=$cs
+  echo "== t=$(secs $cs) s: stemd$sets"
+  # shellcheck disable=SC2086  # one word per setting
+  hostrun "$stemd" $sets > /tmp/faults-stemd.log 2>&1 &
+  daemon_pid=$!
+  # Everything after this leaves the daemon, feeder and candump to the end.
+  fault_end() {
+    kill -TERM $daemon_pid 2>/dev/null
+    within 30 gone $daemon_pid || kill -KILL $daemon_pid 2>/dev/null
+    wait $daemon_pid; src=$?
+    kill -TERM $feeder 2>/dev/null; wait $feeder
+    kill -INT $dump 2>/dev/null; wait $dump
+    cp /tmp/faults.candump "/host$out/faults.candump"
+    cp /tmp/faults-stemd.log "/host$out/faults-stemd.log"
+    echo "--- stemd log (status lines: every 20th)"
+    awk '!/ status +info / || (++n % 20) == 1' /tmp/faults-stemd.log; echo "---"
+    echo "--- feeder"; cat /tmp/faults-feeder.log; echo "---"
+    return $src
+  }
+  fdie() { echo "FAILED: $*"; fault_end; exit 1; }
+  alive() { kill -0 $daemon_pid 2>/dev/null || fdie "stemd exited: $(tail -5 /tmp/faults-stemd.log)"; }
+  # A TARGET after the marker: plants seen, enabled, sent on the bus.
+  target_after() { alive; [ "$(count_between 301 "$1" 7FF)" -gt 0 ]; }
+  active() { alive; grep -q ' vcan0 303#..[23]' /tmp/faults.candump; }
+  within 180 active || fdie "stemd did not become active"
+  stamp; echo "t=$(secs $cs) s: active after $(secs $((cs - t0))) s"
+  marker 7F0
+  within 120 target_after 7F0 || fdie "no TARGET within 120 s of the start (plants pass every 11 s)"
+  stamp; echo "t=$(secs $cs) s: TARGETs on the bus"
+
+  echo "== can: vcan0 down, errors counted, up: sending resumes"
+  mark=$(log_lines)
+  ip link set vcan0 down || fdie "vcan0 down"
+  stamp; echo "t=$(secs $cs) s: vcan0 down"
+  errors_counted() { alive; log_after $mark 'heartbeat_errors [1-9]|bus_errors [1-9]'; }
+  if ! within 60 errors_counted; then
+    ip link set vcan0 up
+    fault_fail can "can: no bus or heartbeat error counted in a status line within 60 s of vcan0 down"
+  fi
+  ip link set vcan0 up || fdie "vcan0 up"
+  stamp; echo "t=$(secs $cs) s: vcan0 up; $(tail -n +$((mark + 1)) /tmp/faults-stemd.log | grep -oE 'bus_errors [0-9]+, heartbeat_errors [0-9]+' | grep -vx 'bus_errors 0, heartbeat_errors 0' | head -1) in a status line while down"
+  # candump keeps listening through a down interface; a new one if it did not.
+  if ! kill -0 $dump 2>/dev/null; then
+    echo "candump ended with vcan0 down ($(cat /tmp/faults-candump.err)); a new one"
+    hostrun candump -L vcan0 >> /tmp/faults.candump 2>> /tmp/faults-candump.err &
+    dump=$!
+    within 60 grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all || fdie "candump did not start listening again"
+  fi
+  marker 7F1
+  heartbeat_after() { alive; [ "$(count_between 303 7F1 7FF)" -gt 0 ]; }
+  if ! within 30 heartbeat_after; then fault_fail can "can: no HEARTBEAT within 30 s of vcan0 up"; fi
+  if ! within 120 target_after 7F1; then fault_fail can "can: no TARGET within 120 s of vcan0 up"; fi
+  stamp; echo "t=$(secs $cs) s: heartbeats and TARGETs again after up"
+  result can 0
+
+  echo "== gpio: the enable line's chip goes away: enable forced off, no TARGET; then back"
+  mark=$(log_lines)
+  echo 0 > "$c/live" || fdie "gpio-sim: live = 0"
+  stamp; echo "t=$(secs $cs) s: gpio-sim stemd-faults gone"
+  forced_off() { alive; log_after $mark 'enable forced off'; }
+  if ! within 60 forced_off; then fault_fail gpio "gpio: stemd did not force enable off within 60 s"; fi
+  marker 7F2
+  stamp; echo "t=$(secs $cs) s: stemd: $(tail -n +$((mark + 1)) /tmp/faults-stemd.log | grep -m1 'enable forced off')"
+  # Plants keep passing: each is counted as not treated, none is commanded.
+  mark=$(log_lines)
+  untreated() { alive; log_after $mark 'not_treated [1-9]'; }
+  if ! within 120 untreated; then fault_fail gpio "gpio: no plant counted as not treated within 120 s"; fi
+  marker 7F3
+  n=$(count_between 301 7F2 7F3); st=$(states_between 7F2 7F3)
+  stamp; echo "t=$(secs $cs) s: while the chip was gone: $n TARGET(s), heartbeat states '$st' (1 = idle), plants not treated"
+  if [ "$n" != 0 ]; then fault_fail gpio "gpio: $n TARGET(s) with the enable line's chip gone"; fi
+  if [ "$st" != 1 ]; then fault_fail gpio "gpio: heartbeat states '$st' with the chip gone, want idle (1) only"; fi
+  mark=$(log_lines)
+  echo 1 > "$c/live" || fdie "gpio-sim: live = 1"
+  pull_up || fdie "pull-up enable on the chip back as $(cat "$c/bank0/chip_name")"
+  reopened_gpio() { alive; log_after $mark 'lines reopened'; }
+  if ! within 60 reopened_gpio; then fault_fail gpio "gpio: stemd did not reopen the chip within 60 s"; fi
+  marker 7F4
+  if ! within 120 target_after 7F4; then fault_fail gpio "gpio: no TARGET within 120 s of the chip's return"; fi
+  stamp; echo "t=$(secs $cs) s: chip back as $(cat "$c/bank0/chip_name"), TARGETs again"
+  result gpio 0
+
+  echo "== camera: vivid unbound: no TARGET during the gap, counted; bound again: frames within 1 s"
+  mark=$(log_lines)
+  echo "$vivid_dev" > /sys/bus/platform/drivers/vivid/unbind || fdie "unbind $vivid_dev"
+  stamp; t_unbind=$cs; echo "t=$(secs $cs) s: $vivid_dev unbound"
+  lost() { alive; log_after $mark 'reopening in'; }
+  if ! within 60 lost; then fault_fail camera "camera: stemd did not notice the camera gone within 60 s"; fi
+  marker 7F5
+  stamp; echo "t=$(secs $cs) s: stemd: $(tail -n +$((mark + 1)) /tmp/faults-stemd.log | grep -m1 'reopening in')"
+  # The device number comes back only once the old nodes are closed:
+  # the feeder dies on its lost output, stemd closed the capture above.
+  within 60 gone $feeder || kill -KILL $feeder
+  wait $feeder
+  # The gap: counted in status lines while it lasts.
+  mark=$(log_lines)
+  # Reopen attempts on a missing node: errors (timeouts also happen now and
+  # then with a camera there, under an emulated CPU).
+  counted() { alive; log_after $mark 'source: timeouts [0-9]+, errors [1-9]'; }
+  if ! within 60 counted; then fault_fail camera "camera: no source error counted during the gap"; fi
+  sleep 1   # the gap lasts a while: several status lines, several reopen attempts
+  marker 7F6
+  mark=$(log_lines)
+  echo "$vivid_dev" > /sys/bus/platform/drivers/vivid/bind || fdie "bind $vivid_dev"
+  stamp; t_bind=$cs
+  n=$(count_between 301 7F5 7F6)
+  echo "t=$(secs $cs) s: $vivid_dev bound again after a $(secs $((t_bind - t_unbind))) s gap: $n TARGET(s) in it"
+  [ "$(v4l_node vivid-000-vid-cap)" = "$cap" ] || fdie "camera: the capture node came back as $(v4l_node vivid-000-vid-cap), not $cap"
+  reopened_cam() { alive; log_after $mark 'reopened, streaming again'; }
+  if ! within 60 reopened_cam; then fault_fail camera "camera: stemd did not reopen $cap within 60 s of the bind"; fi
+  stamp; t_reopen=$cs
+  # A status line ("HH:MM:SS.mmm status     info  in N fps, ...") with frames in.
+  streaming() { alive; tail -n +$(($1 + 1)) /tmp/faults-stemd.log | grep -E ' status +info +in ' | grep -qvE ' in 0\.0 fps'; }
+  mark2=$(log_lines)
+  if ! within 30 streaming $mark2; then fault_fail camera "camera: no frames in a status line after the reopen"; fi
+  stamp; t_frames=$cs
+  echo "t=$(secs $cs) s: reopened $(secs $((t_reopen - t_bind))) s after the bind (seen in the log), frames in a status line $(secs $((t_frames - t_bind))) s after the bind"
+  echo "status lines since the bind: $(sed -n "$((mark + 1)),\$p" /tmp/faults-stemd.log | grep -cE ' status +info +in '); the last intervals with source counters: $(grep -oE 'source: timeouts [0-9]+, errors [0-9]+, reopens [0-9]+' /tmp/faults-stemd.log | grep -v 'timeouts 0, errors 0, reopens 0' | tail -n 6 | tr '\n' ';')"
+  if [ "$n" != 0 ]; then fault_fail camera "camera: $n TARGET(s) while the camera was gone"; fi
+  if [ $((t_reopen - t_bind)) -gt 100 ]; then fault_fail camera "camera: frames resumed $(secs $((t_reopen - t_bind))) s after the bind, more than 1 s"; fi
+  result camera 0
+
+  echo "== SIGTERM stemd"
+  fault_end || die "stemd exited $? on SIGTERM"
+  grep -q 'total: .*source: timeouts [0-9]*, errors [1-9][0-9]*, reopens [1-9]' "/host$out/faults-stemd.log" ||
+    die "the summary line does not count the camera's errors and reopen"
+  grep 'total:' "/host$out/faults-stemd.log"
+}
+extra_checks="$extra_checks faults"
+
 if [ "$mode" = one ]; then
   "check_$check"
   exit $?
@@ -458,7 +686,10 @@ for c in can v4l2 gpio libcamera $extra_checks; do
   t0=$(uptime_s)
   timeout -s KILL "$check_timeout" sh "$0" one "$c" "$@" > "/host$out/$c.log" 2>&1
   rc=$?
-  [ $rc -ne 137 ] || echo "FAILED: timed out after ${check_timeout}s" >> "/host$out/$c.log"
+  if [ $rc -eq 137 ]; then
+    # What was still running, for the next one to read.
+    { echo "FAILED: timed out after ${check_timeout}s; load $(cat /proc/loadavg); processes:"; ps; } >> "/host$out/$c.log"
+  fi
   echo "$rc" > "/host$out/$c.rc" || status=1
   echo "check $c: rc=$rc (t=$t0..$(uptime_s) s)"
 done

@@ -25,6 +25,7 @@ struct SourceSpec {
     std::string v4l2_device;
     std::string v4l2_pixel_format = "yuyv";  // yuyv | bgr24 | grey; unknown: yuyv
     unsigned v4l2_buffers = 4;
+    double reopen_backoff_max_ms = 5000;   // v4l2: cap of the reopen backoff
     std::string nir_device;                // v4l2 only; empty: no NIR camera
     double nir_tolerance_ms = 8;
     std::string libcamera_camera;

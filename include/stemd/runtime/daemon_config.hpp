@@ -39,6 +39,7 @@ struct DaemonConfig {
     std::string v4l2_device = "/dev/video0";
     std::string v4l2_pixel_format = "yuyv";   // yuyv | bgr24 | grey
     unsigned v4l2_buffers = 4;
+    double reopen_backoff_max_ms = 500;       // v4l2: longest wait between reopen attempts
     std::string nir_device;                   // empty: no NIR camera (none)
     double nir_tolerance_ms = 8;
     std::string libcamera_camera = "0";       // libcamera: index, id, or unique part of the id
@@ -54,6 +55,9 @@ struct DaemonConfig {
     // status.*, log.*
     double status_interval_s = 5.0;
     std::string log_level = "info";
+    // debug.*: after this many frames the processing thread stops making
+    // progress (0: never), to test the systemd watchdog contract.
+    std::size_t stall_processing_after_frames = 0;
     // Allocate a class-map plane per frame slot (replay of recordings with a
     // class column, for the actuation's policy).
     bool class_maps = false;

@@ -65,6 +65,9 @@ struct StatusSnapshot {
     std::uint64_t late = 0;            // paced replay: frames the source came to late
     double worst_lateness_ms = 0;      // paced replay: the most a frame was late (whole run)
     std::uint64_t bad_class = 0;       // plants with class-map values other than 0, 1, 2
+    // The source's own: waits without a frame, failures (a camera unplugged),
+    // successful reopens after one.
+    std::uint64_t source_timeouts = 0, source_errors = 0, source_reopens = 0;
     // Actuation (when a CAN side is configured).
     bool actuation = false;
     std::uint64_t targets = 0, sent = 0, deadline_misses = 0, no_odometry = 0, not_treated = 0, bus_errors = 0,
@@ -76,6 +79,7 @@ struct StatusSnapshot {
 
 // "in 30.0 fps, out 30.0 fps, bare soil 0, over_capacity 0, late 0 (worst 0.3 ms) |
 //  drops: ring_full 0, overwritten 0, results_full 0, corrupt 1, bad_size 0, failed 0 |
+//  source: timeouts 0, errors 0, reopens 0 |
 //  latency p50 1.62 p99 2.31 ms | pipeline p50 1.35 p99 1.90 ms"
 std::string format_status(const StatusSnapshot& now, const StatusSnapshot& before);
 // The run's totals for the last line: frames, drops, whole-run percentiles.
