@@ -4,7 +4,7 @@
 // and plant map).
 //   stemd [--config FILE] [--set KEY=VALUE]... [--check-config]
 //         [--replay DIR] [--once] [--detections-csv FILE]
-//         [--can-log FILE] [--map FILE]
+//         [--can-log FILE] [--map FILE] [--map-geojson FILE]
 // Exit: 0 on SIGTERM/SIGINT or, with --once, after the last frame; 1 when the
 // source or an output fails; 2 on bad arguments or configuration.
 #include <chrono>
@@ -28,6 +28,7 @@
 #include "stemd/runtime/sd_notify.hpp"
 #include "stemd/runtime/detection_sink.hpp"
 #include "stemd/runtime/logging.hpp"
+#include "stemd/runtime/plant_geojson.hpp"
 #include "stemd/runtime/signals.hpp"
 #include "stemd/runtime/source_factory.hpp"
 #include "stemd/runtime/status.hpp"
@@ -43,7 +44,7 @@ constexpr int kUsageError = 2;
 const char* const kUsage =
     "usage: stemd [--config FILE] [--set KEY=VALUE]... [--check-config]\n"
     "             [--replay DIR] [--once] [--detections-csv FILE]\n"
-    "             [--can-log FILE] [--map FILE]\n"
+    "             [--can-log FILE] [--map FILE] [--map-geojson FILE]\n"
     "  --config          configuration file (see config/stemd.yaml)\n"
     "  --set             override one configuration key, e.g. --set ring.capacity=8\n"
     "  --check-config    validate the configuration and exit (0 ok, 2 error)\n"
@@ -51,7 +52,9 @@ const char* const kUsage =
     "  --once            play the recording once; exit 0 after its last frame\n"
     "  --detections-csv  write the stemd-detect CSV with a leading t_ns column\n"
     "  --can-log         write the CAN frames to FILE (candump -L format) instead of a bus\n"
-    "  --map             write the plant map (JSON lines) to FILE\n";
+    "  --map             write the plant map (JSON lines) to FILE\n"
+    "  --map-geojson     also write it as GeoJSON points (WGS84, with gnss.source) to FILE,\n"
+    "                    rewritten every 30 s and at exit\n";
 
 struct Args {
     config::ConfigArgs config;
@@ -61,6 +64,7 @@ struct Args {
     std::string detections_csv;
     std::string can_log;
     std::string map;
+    std::string map_geojson;
 };
 
 std::optional<Args> parse_args(int argc, char** argv, std::string& error)
@@ -93,6 +97,8 @@ std::optional<Args> parse_args(int argc, char** argv, std::string& error)
             if (!value(args.can_log)) return std::nullopt;
         } else if (a == "--map") {
             if (!value(args.map)) return std::nullopt;
+        } else if (a == "--map-geojson") {
+            if (!value(args.map_geojson)) return std::nullopt;
         } else {
             error = "unknown argument " + a;
             return std::nullopt;
@@ -148,6 +154,10 @@ int run(int argc, char** argv, Phase& phase)
     }
     if (!args->map.empty())
         actuation_config.map_file = args->map;
+    if (!args->map_geojson.empty() && actuation_config.map_file.empty()) {
+        std::cerr << "stemd: --map-geojson is made from the plant map: give --map FILE (or map.file) too\n";
+        return kUsageError;
+    }
     runtime::ConfigProblem problem;
     const auto camera = runtime::camera_model(settings.camera, daemon_config.vision.gsd_mm_per_px,
                                               daemon_config.frame_size, problem);
@@ -203,6 +213,19 @@ int run(int argc, char** argv, Phase& phase)
         return 1;
     }
 
+    // The GeoJSON is rebuilt from the plant map's lines on this thread.
+    std::optional<runtime::PlantGeojson> geojson;
+    if (!args->map_geojson.empty())
+        geojson.emplace(actuation_config.map_file);
+    const auto update_geojson = [&] {
+        std::string geojson_error;
+        if (geojson && !(geojson->update(geojson_error) && geojson->write(args->map_geojson, geojson_error))) {
+            log->error("{}", geojson_error);
+            return false;
+        }
+        return true;
+    };
+
     std::unique_ptr<runtime::Daemon> daemon;
     try {
         daemon = std::make_unique<runtime::Daemon>(daemon_config, std::move(source), std::move(sink),
@@ -232,6 +255,8 @@ int run(int argc, char** argv, Phase& phase)
     runtime::StatusSnapshot last = daemon->snapshot(false);
     last.t_ns = t_start_ns;
     std::int64_t next_status_ns = t_start_ns + interval.count();
+    constexpr std::int64_t kGeojsonIntervalNs = 30'000'000'000;
+    std::int64_t next_geojson_ns = t_start_ns + kGeojsonIntervalNs;
     int exit_code = 0;
     // systemd (Type=notify): READY=1 once the source delivers, WATCHDOG=1
     // only while all three threads make progress, STATUS= the status line.
@@ -272,6 +297,10 @@ int run(int argc, char** argv, Phase& phase)
             }
             next_watchdog_ns = now_ns + watchdog_ns / 4;
         }
+        if (geojson && now_ns >= next_geojson_ns) {
+            update_geojson();
+            next_geojson_ns = now_ns + kGeojsonIntervalNs;
+        }
         if (now_ns >= next_status_ns) {
             const runtime::StatusSnapshot now = daemon->snapshot(false);
             const std::string line = runtime::format_status(now, last);
@@ -287,6 +316,13 @@ int run(int argc, char** argv, Phase& phase)
         exit_code = 1;
     if (daemon->source_failed())
         exit_code = 1;
+    // After join(): the map holds every plant.
+    if (geojson) {
+        if (update_geojson())
+            log->info("{}: {} plants, {} with a position", args->map_geojson, geojson->features(), geojson->placed());
+        else
+            exit_code = 1;
+    }
     const double run_s = static_cast<double>(base::monotonic_ns() - t_start_ns) / 1e9;
     status_log->info("total: {}", runtime::format_summary(daemon->snapshot(true), run_s));
     return exit_code;

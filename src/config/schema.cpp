@@ -28,6 +28,8 @@ std::string cat(const Parts&... parts)
 using enum ValueType;
 using geometry::Forward;
 using geometry::ModelKind;
+using runtime::GnssSourceKind;
+using runtime::GnssTime;
 using runtime::OdometrySource;
 using runtime::OverflowPolicy;
 using runtime::PolicyChoice;
@@ -418,6 +420,34 @@ constexpr std::array kSchema{
     bind<STEMD_KEY(actuation.map_file)>(
         {"map.file", text, "", 0, 0, "none", "",
             "plant map written as JSON lines, one per target; none: no map (--map FILE sets it)"}),
+
+    bind_choice<STEMD_KEY(actuation.gnss.source), std::array{GnssSourceKind::none, GnssSourceKind::gpsd}>(
+        {"gnss.source", choice, "", 0, 0, "none", "none|gpsd",
+            "GNSS receiver for the plant map's latitude and longitude: gpsd (libgps), or none"}),
+    bind<STEMD_KEY(actuation.gnss.host)>(
+        {"gnss.host", text, "", 0, 0, "localhost", "",
+            "host gpsd listens on"}),
+    bind<STEMD_KEY(actuation.gnss.port)>(
+        {"gnss.port", integer, "port", 1, 65535, "2947", "",
+            "TCP port gpsd listens on"}),
+    bind<STEMD_KEY(actuation.gnss.antenna_x_mm)>(
+        {"gnss.antenna_x_mm", real, "mm", -20000, 20000, "0", "",
+            "the antenna's position in the machine frame, forward (measured to the antenna's phase centre)"}),
+    bind<STEMD_KEY(actuation.gnss.antenna_y_mm)>(
+        {"gnss.antenna_y_mm", real, "mm", -20000, 20000, "0", "",
+            "the antenna's position in the machine frame, left"}),
+    bind<STEMD_KEY(actuation.gnss.max_age_ns), kNsPerMs>(
+        {"gnss.max_age_ms", real, "ms", 10, 600000, "1000", "",
+            "a fix older than this is not used to extrapolate; a plant past the newest fix is then stale"}),
+    bind_choice<STEMD_KEY(actuation.gnss.time), std::array{GnssTime::receive, GnssTime::gnss}>(
+        {"gnss.time", choice, "", 0, 0, "receive", "receive|gnss",
+            "the time that finds a fix's odometer reading: when stemd received it, or the fix's own UTC time through the system clock (needs the clock synchronised to GNSS)"}),
+    bind<STEMD_KEY(actuation.gnss.heading_baseline_mm)>(
+        {"gnss.heading_baseline_mm", real, "mm", 100, 100000, "2000", "",
+            "the heading is the direction of the track over this much travel (longer: less GNSS noise, slower to follow curves)"}),
+    bind<STEMD_KEY(actuation.gnss.max_extrapolation_mm)>(
+        {"gnss.max_extrapolation_mm", real, "mm", 0, 10000, "500", "",
+            "a plant at most this far past the newest fix is placed along the heading (georef extrapolated)"}),
 };
 
 constexpr std::array kSections{
@@ -448,6 +478,7 @@ constexpr std::array kSections{
     SectionSpec{"can", "", "The CAN bus of the tool controllers (SocketCAN), or a candump log instead."},
     SectionSpec{"gpio", "", "GPIO lines (libgpiod): the operator's enable input, a camera trigger, a wheel encoder."},
     SectionSpec{"map", "", "The plant map: one JSON line per plant, with what became of it."},
+    SectionSpec{"gnss", "", "GNSS through gpsd: every plant in the map gets its latitude and longitude (README, \"Georeferenced plant map\")."},
     SectionSpec{"tools", "", ""},
 };
 

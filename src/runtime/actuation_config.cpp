@@ -4,6 +4,10 @@ namespace stemd::runtime {
 
 std::optional<ConfigProblem> check_actuation_config(const ActuationConfig& c)
 {
+#ifndef STEMD_HAVE_LIBGPS
+    if (c.gnss.source == GnssSourceKind::gpsd)
+        return ConfigProblem{"gnss.source", "gpsd, but this stemd was built without libgps (apt install libgps-dev, rebuild)"};
+#endif
     const bool encoder = c.encoder_mode != "none";
     if (c.gpio_chip.empty()) {
         if (c.enable_line >= 0)

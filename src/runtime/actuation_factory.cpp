@@ -3,6 +3,7 @@
 #include <utility>
 
 #include "stemd/drivers/actuation_factory.hpp"
+#include "stemd/drivers/gnss_factory.hpp"
 #include "stemd/runtime/logging.hpp"
 
 namespace stemd::runtime {
@@ -53,6 +54,16 @@ std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, co
             return nullptr;
         }
         parts.map = std::move(map);
+    }
+    if (config.gnss.source == GnssSourceKind::gpsd) {
+        drivers::GnssSpec spec;
+        spec.host = config.gnss.host;
+        spec.port = static_cast<std::uint16_t>(config.gnss.port);
+        parts.gnss = drivers::make_gpsd_source(spec, make_logger("gnss"), error);
+        if (!parts.gnss)
+            return nullptr;
+        // Its own thread: it connects, and reconnects, without holding anyone up.
+        parts.gnss->start();
     }
     return ActuationStage::make(config, camera, frame_size, std::move(parts), log, error);
 }

@@ -1,5 +1,8 @@
 #include "stemd/runtime/actuation_stage.hpp"
 
+#include <time.h>
+
+#include "stemd/base/clock.hpp"
 #include "stemd/runtime/status.hpp"
 
 namespace stemd::runtime {
@@ -51,12 +54,13 @@ std::unique_ptr<ActuationStage> ActuationStage::make(const ActuationConfig& conf
         scheduler_all =
             actuation::Scheduler::make(config.tools, with_policy(config.scheduler, actuation::TreatPolicy::all));
     return std::unique_ptr<ActuationStage>(new ActuationStage(config, std::move(parts), *projector, *scheduler,
-                                                              scheduler_all, *ids, std::move(log)));
+                                                              scheduler_all, *ids, std::move(log),
+                                                              camera.mount().x_mm));
 }
 
 ActuationStage::ActuationStage(const ActuationConfig& config, Parts parts, PlantProjector projector,
                                actuation::Scheduler scheduler, std::optional<actuation::Scheduler> scheduler_all,
-                               protocol::CanIds ids, std::shared_ptr<spdlog::logger> log)
+                               protocol::CanIds ids, std::shared_ptr<spdlog::logger> log, double principal_x_mm)
     : config_(config),
       parts_(std::move(parts)),
       log_(std::move(log)),
@@ -66,6 +70,19 @@ ActuationStage::ActuationStage(const ActuationConfig& config, Parts parts, Plant
       sender_(scheduler, scheduler_all, *parts_.bus, ids, odometry_, counters_),
       link_(*parts_.bus, ids, config.heartbeat_interval_ns, odometry_, counters_)
 {
+    if (parts_.gnss)
+        gnss_.emplace(config.gnss, principal_x_mm);
+}
+
+void ActuationStage::poll_gnss(std::int64_t now_ns) noexcept
+{
+    if (!gnss_)
+        return;
+    // The clocks' offset now, for fixes placed by their own (UTC) time.
+    timespec rt{};
+    clock_gettime(CLOCK_REALTIME, &rt);
+    const std::int64_t realtime_ns = static_cast<std::int64_t>(rt.tv_sec) * 1'000'000'000 + rt.tv_nsec;
+    gnss_->poll(*parts_.gnss, odometry_, now_ns, realtime_ns - base::monotonic_ns());
 }
 
 ActuationStage::~ActuationStage()
@@ -87,6 +104,13 @@ void ActuationStage::on_frame(const FrameResult& r, std::int64_t now_ns) noexcep
         bump(counters_.no_odometry);
         return;
     }
+    if (!odometry_announced_) {
+        // Once: where the odometer starts on CLOCK_MONOTONIC (what a GNSS
+        // log or another recorder is lined up with).
+        odometry_announced_ = true;
+        log_->info("odometry: first frame captured at t_ns {} (CLOCK_MONOTONIC), odometer {:.1f} mm, {:.1f} mm/s",
+                   r.t_sample_ns, odom_at_capture, odometry_.speed_mm_per_s());
+    }
     actuation::TrackFrame frame;
     frame.seq = r.seq;
     frame.t_sample_ns = r.t_sample_ns;
@@ -101,10 +125,11 @@ void ActuationStage::on_frame(const FrameResult& r, std::int64_t now_ns) noexcep
         if (sender_.schedule(t, now_ns, r.has_class_map, enabled()))
             counters_.send_latency.record(now_ns - r.t_sample_ns);
     }
-    write_retired(tracker_.retired());
+    poll_gnss(now_ns);
+    write_retired(tracker_.retired(), now_ns);
 }
 
-void ActuationStage::write_retired(std::span<const actuation::RetiredTrack> retired) noexcept
+void ActuationStage::write_retired(std::span<const actuation::RetiredTrack> retired, std::int64_t now_ns) noexcept
 {
     if (!parts_.map)
         return;
@@ -114,6 +139,8 @@ void ActuationStage::write_retired(std::span<const actuation::RetiredTrack> reti
             entry = sender_.outcome(t.target_id);
         else
             entry.reason = MapReason::unconfirmed;
+        if (gnss_)
+            entry.georef = gnss_->place(t.s_mm, t.y_mm, now_ns);
         if (!parts_.map->write(t, entry))
             bump(counters_.map_errors);
     }
@@ -125,6 +152,7 @@ void ActuationStage::poll(std::int64_t now_ns) noexcept
     if (config_.odometry == OdometrySource::encoder)
         odometry_.add_encoder(now_ns, parts_.gpio->encoder().ticks);
     link_.heartbeat_if_due(now_ns, last_frame_ns_ >= 0, enabled());
+    poll_gnss(now_ns);
 }
 
 bool ActuationStage::finish() noexcept
@@ -137,9 +165,20 @@ bool ActuationStage::finish() noexcept
         bus_loss_reported_ = true;
         ok = false;
     }
+    if (gnss_ && !gnss_reported_) {
+        gnss_reported_ = true;
+        const std::int64_t now_ns = base::monotonic_ns();
+        poll_gnss(now_ns);
+        const GnssCountersView g = gnss_->counters();
+        const drivers::GnssCounters d = parts_.gnss->counters();
+        log_->info("{}: {} fixes ({} without a position, {} dropped), {} on the track, {} without an odometer "
+                   "reading; {} connections, {} failures",
+                   parts_.gnss->name(), g.fixes, d.no_fix, d.dropped, g.on_track, g.unplaced, d.connects,
+                   d.failures);
+    }
     if (!parts_.map)
         return ok;
-    write_retired(tracker_.drain());
+    write_retired(tracker_.drain(), base::monotonic_ns());
     ok = parts_.map->close() && counters_.map_errors.load(std::memory_order_relaxed) == 0 && ok;
     parts_.map.reset();
     return ok;

@@ -96,6 +96,11 @@ bool OdometryInput::odometer_at(std::int64_t t_ns, double& odom_mm) const noexce
     return true;
 }
 
+bool OdometryInput::covers(std::int64_t t_ns) const noexcept
+{
+    return constant_now_ || (!ring_.empty() && t_ns <= ring_.newest().t_ns);
+}
+
 double OdometryInput::speed_mm_per_s() const noexcept
 {
     return constant_now_ ? speed_mm_per_s_ : ring_.speed_mm_per_s(kSpeedWindowNs);

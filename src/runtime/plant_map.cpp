@@ -68,6 +68,16 @@ bool PlantMap::write(const actuation::RetiredTrack& t, const MapEntry& e)
         n += std::snprintf(line + n, capacity - static_cast<std::size_t>(n),
                            ",\"tool\":%u,\"lane\":%u,\"fire_odom_mm\":%.1f", static_cast<unsigned>(e.tool),
                            static_cast<unsigned>(e.lane), e.fire_odom_mm);
+    if (n >= 0 && static_cast<std::size_t>(n) < capacity && e.georef.status != GeorefStatus::off) {
+        const std::string_view g = to_string(e.georef.status);
+        const bool placed = e.georef.status == GeorefStatus::fix || e.georef.status == GeorefStatus::extrapolated;
+        n += placed ? std::snprintf(line + n, capacity - static_cast<std::size_t>(n),
+                                    ",\"lat_deg\":%.9f,\"lon_deg\":%.9f,\"georef\":\"%.*s\"", e.georef.lat_deg,
+                                    e.georef.lon_deg, static_cast<int>(g.size()), g.data())
+                    : std::snprintf(line + n, capacity - static_cast<std::size_t>(n),
+                                    ",\"lat_deg\":null,\"lon_deg\":null,\"georef\":\"%.*s\"",
+                                    static_cast<int>(g.size()), g.data());
+    }
     if (n >= 0 && static_cast<std::size_t>(n) < capacity)
         n += std::snprintf(line + n, capacity - static_cast<std::size_t>(n), "}\n");
     if (n < 0 || static_cast<std::size_t>(n) >= capacity)

@@ -408,7 +408,7 @@ TEST_F(ConfigListTest, UnknownSectionListsTheListSectionsToo)
     const auto error = config.load_file(write("capture:\n  fps: 30\n"));
     ASSERT_TRUE(error);
     EXPECT_NE(error->message.find("the sections are: camera, "), std::string::npos) << error->message;
-    EXPECT_NE(error->message.find(", tracker, scheduler, odometry, can, gpio, map, tools"), std::string::npos)
+    EXPECT_NE(error->message.find(", tracker, scheduler, odometry, can, gpio, map, gnss, tools"), std::string::npos)
         << error->message;
 }
 

@@ -21,6 +21,7 @@
 #include "replay/replay_source.hpp"
 #include "runtime_test_util.hpp"
 #include "canlog/canlog_bus.hpp"
+#include "stemd/base/clock.hpp"
 #include "stemd/runtime/actuation_stage.hpp"
 #include "stemd/runtime/daemon.hpp"
 #include "stemd/runtime/logging.hpp"
@@ -30,6 +31,31 @@
 using namespace stemd;
 
 namespace {
+
+// A GNSS receiver with a fix every 100 ms of CLOCK_MONOTONIC, moving north.
+class PacedGnss final : public drivers::GnssSource {
+public:
+    std::string_view name() const override { return "paced"; }
+    bool start() override { return true; }
+    void stop() override {}
+    bool try_pop(drivers::GnssFix& out) noexcept override
+    {
+        const std::int64_t now = base::monotonic_ns();
+        if (now < next_ns_)
+            return false;
+        next_ns_ = now + 100'000'000;
+        out = {};
+        out.timestamp_sample_ns = now;
+        out.mode = 3;
+        out.lat_deg = 50.6 + static_cast<double>(now % 1'000'000'000'000) * 1e-17;
+        out.lon_deg = 7.0;
+        return true;
+    }
+    drivers::GnssCounters counters() const override { return {}; }
+
+private:
+    std::int64_t next_ns_ = 0;
+};
 
 // A recording of `frames` synthetic late-stage frames, with an odom_mm column.
 std::filesystem::path write_recording(int frames, cv::Size size)
@@ -106,7 +132,8 @@ TEST(DaemonRealTime, ActuationAllocatesNothingPerFrame)
 {
     // The same steady state with the actuation on: field positions, the
     // tracker, the scheduler, TARGET and HEARTBEAT frames into a candump
-    // log, and the plant map, all written to files through their buffers.
+    // log, GNSS fixes onto the track, and the plant map with positions, all
+    // written to files through their buffers.
     // A short strip driven slowly (0.5 km/h, 4.6 mm per frame at 30 fps),
     // replayed at its recorded pace and looped: each pass drives it again
     // with the odometer going on, so every pass brings new plants to track
@@ -142,6 +169,7 @@ TEST(DaemonRealTime, ActuationAllocatesNothingPerFrame)
     parts.bus = std::move(bus);
     parts.map = std::make_unique<runtime::PlantMap>(runtime::make_logger("map"));
     ASSERT_TRUE(parts.map->open(dir / "map.jsonl"));
+    parts.gnss = std::make_unique<PacedGnss>();
     geometry::NadirParams nadir;
     nadir.principal_px = geometry::image_centre(size);
     nadir.gsd_mm_per_px = strip.gsd_mm_per_px;
@@ -175,6 +203,8 @@ TEST(DaemonRealTime, ActuationAllocatesNothingPerFrame)
                                  << ", odometry_rejected " << c.odometry_rejected;
     EXPECT_EQ(stage_view.counters().no_odometry.load(), 0u);
     EXPECT_GT(std::filesystem::file_size(dir / "map.jsonl"), 0u);
+    ASSERT_NE(stage_view.gnss(), nullptr);
+    EXPECT_GT(stage_view.gnss()->counters().on_track, 0u) << "the GNSS path was exercised";
     std::filesystem::remove_all(dir);
 }
 

@@ -1,5 +1,5 @@
 // The actuation side of the configuration, typed: the tools list and the
-// tracker.*, scheduler.*, odometry.*, can.*, gpio.* and map.* keys, filled
+// tracker.*, scheduler.*, odometry.*, can.*, gpio.*, map.* and gnss.* keys, filled
 // by config::Config.
 #pragma once
 
@@ -25,6 +25,26 @@ enum class OdometrySource : std::uint8_t {
 // scheduler.policy: auto = weeds_only when the frames carry a class map or
 // classify.model is set (the daemon then gives every result one), all without.
 enum class PolicyChoice : std::uint8_t { automatic, weeds_only, all };
+
+// gnss.*: a GNSS receiver through gpsd, for the plant map's WGS84 positions.
+enum class GnssSourceKind : std::uint8_t { none, gpsd };
+// gnss.time: which time of a fix finds its odometer reading.
+enum class GnssTime : std::uint8_t {
+    receive,   // CLOCK_MONOTONIC when stemd received it (includes the receiver's and gpsd's latency)
+    gnss,      // the fix's own UTC time, through the system clock (needs it synchronised: chrony + gpsd)
+};
+
+struct GnssConfig {
+    GnssSourceKind source = GnssSourceKind::none;
+    std::string host = "localhost";
+    int port = 2947;
+    double antenna_x_mm = 0;              // the antenna's phase centre, machine frame
+    double antenna_y_mm = 0;
+    std::int64_t max_age_ns = 1'000'000'000;
+    GnssTime time = GnssTime::receive;
+    double heading_baseline_mm = 2000;
+    double max_extrapolation_mm = 500;
+};
 
 struct ActuationConfig {
     // tools: the list (1..16 entries, ids unique: checked by the loader).
@@ -61,6 +81,8 @@ struct ActuationConfig {
 
     // map.file (empty: none); --map FILE sets it
     std::string map_file;
+
+    GnssConfig gnss;
 };
 
 // What the schema cannot check key by key: GPIO lines without a chip, a

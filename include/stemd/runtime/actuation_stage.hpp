@@ -11,9 +11,10 @@
 //  3. Tracker::update: each plant becomes one target, once.
 //  4. For each new target, TargetSender: scheduled with the odometer and
 //     speed NOW, sent before its deadline or counted.
-//  5. Tracks that ended go to the plant map, with what became of them.
+//  5. Tracks that ended go to the plant map, with what became of them (and,
+//     with a GNSS receiver, where they are: GnssInput).
 // Between frames (poll): received ODOMETRY / TOOL_STATUS and the HEARTBEAT
-// (CanLink), encoder samples (OdometryInput).
+// (CanLink), encoder samples (OdometryInput), GNSS fixes (GnssInput).
 //
 // Everything is allocated in make(); on_frame() and poll() do not allocate,
 // lock or throw. File I/O (the plant map, the candump log) is one write(2)
@@ -31,12 +32,14 @@
 
 #include "stemd/actuation/tracker.hpp"
 #include "stemd/drivers/can_bus.hpp"
+#include "stemd/drivers/gnss_source.hpp"
 #include "stemd/drivers/gpio_lines.hpp"
 #include "stemd/geometry/camera_model.hpp"
 #include "stemd/runtime/actuation_config.hpp"
 #include "stemd/runtime/actuation_counters.hpp"
 #include "stemd/runtime/can_link.hpp"
 #include "stemd/runtime/detection_sink.hpp"
+#include "stemd/runtime/gnss_input.hpp"
 #include "stemd/runtime/odometry_input.hpp"
 #include "stemd/runtime/plant_map.hpp"
 #include "stemd/runtime/plant_projector.hpp"
@@ -52,6 +55,7 @@ public:
         std::unique_ptr<drivers::CanBus> bus;
         std::unique_ptr<drivers::GpioLines> gpio;
         std::unique_ptr<PlantMap> map;   // optional
+        std::unique_ptr<drivers::GnssSource> gnss;   // optional, started: positions for the map
     };
 
     // nullopt-like: nullptr with `error` set when the tools or parameters
@@ -91,14 +95,16 @@ public:
     double view_forward_min_mm() const { return projector_.view_forward_min_mm(); }
     double view_forward_max_mm() const { return projector_.view_forward_max_mm(); }
     const OdometryInput& odometry() const { return odometry_; }
+    const GnssInput* gnss() const { return gnss_ ? &*gnss_ : nullptr; }
 
 private:
     ActuationStage(const ActuationConfig& config, Parts parts, PlantProjector projector,
                    actuation::Scheduler scheduler, std::optional<actuation::Scheduler> scheduler_all,
-                   protocol::CanIds ids, std::shared_ptr<spdlog::logger> log);
+                   protocol::CanIds ids, std::shared_ptr<spdlog::logger> log, double principal_x_mm);
 
     bool enabled() const noexcept { return parts_.gpio ? parts_.gpio->enabled() : true; }
-    void write_retired(std::span<const actuation::RetiredTrack> retired) noexcept;
+    void write_retired(std::span<const actuation::RetiredTrack> retired, std::int64_t now_ns) noexcept;
+    void poll_gnss(std::int64_t now_ns) noexcept;
 
     const ActuationConfig config_;
     Parts parts_;
@@ -110,6 +116,9 @@ private:
     actuation::Tracker tracker_;
     TargetSender sender_;
     CanLink link_;
+    std::optional<GnssInput> gnss_;
+    bool gnss_reported_ = false;
+    bool odometry_announced_ = false;
     std::int64_t last_frame_ns_ = -1;
 };
 

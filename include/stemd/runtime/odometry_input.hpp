@@ -30,6 +30,9 @@ public:
     // False without a usable reading (none yet, stale).
     bool odometer_at(std::int64_t t_ns, double& odom_mm) const noexcept;
     double speed_mm_per_s() const noexcept;
+    // True when t_ns is not past the newest sample (a constant speed covers
+    // every instant): odometer_at(t_ns) then interpolates, it does not guess.
+    bool covers(std::int64_t t_ns) const noexcept;
 
 private:
     void push(const geometry::OdomSample& sample) noexcept;

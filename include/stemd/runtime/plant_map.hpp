@@ -15,6 +15,9 @@
 // deadline_miss (the scheduler: it could not be on time), bus_deadline (the
 // bus could not take it before its deadline), bus_error, no_odometry,
 // unconfirmed. tool, lane, fire_odom_mm: when a tool was chosen.
+// With gnss.source set, three more keys end the line: "lat_deg", "lon_deg"
+// (WGS84, 1e-9 degree; null without a position) and "georef" (fix,
+// extrapolated, no_fix, stale, no_heading: runtime/gnss_input.hpp).
 //
 // Written by the actuator thread, one write(2) per line (base::RecordFile),
 // formatted into a fixed buffer without allocating: a kill loses no plant
@@ -32,6 +35,7 @@
 
 #include "stemd/actuation/tracker.hpp"
 #include "stemd/base/record_file.hpp"
+#include "stemd/runtime/gnss_input.hpp"
 
 namespace stemd::runtime {
 
@@ -46,6 +50,7 @@ struct MapEntry {
     std::uint8_t tool = 0;
     std::uint8_t lane = 0;
     double fire_odom_mm = 0;
+    GeorefResult georef;   // status off: no georef keys
 };
 
 class PlantMap {

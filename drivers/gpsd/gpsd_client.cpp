@@ -1,0 +1,229 @@
+#include "gpsd/gpsd_client.hpp"
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+
+#include <gps.h>
+#include <netdb.h>
+#include <pthread.h>
+#include <signal.h>
+#include <sys/socket.h>
+
+#include "stemd/base/clock.hpp"
+#include "stemd/base/unique_fd.hpp"
+
+#if GPSD_API_MAJOR_VERSION < 9
+#error "drivers/gpsd needs gpsd API 9 or later (timespec fix times; Debian 12 has 11)"
+#endif
+
+namespace stemd::drivers {
+
+namespace {
+
+constexpr int kWaitUs = 100'000;   // longest wait for data: stop() latency
+constexpr std::int64_t kPollNs = 50'000'000;
+
+double or_unknown(double v)
+{
+    return std::isfinite(v) ? v : -1;
+}
+
+// libgps reports a failed connection as its own code (errno = NL_NOCONNECT
+// and the like), which hides why: one plain connect() finds the system's
+// errno (ECONNREFUSED, EHOSTUNREACH...) for the log line. 0 if it connects.
+int connect_errno(const std::string& host, std::uint16_t port)
+{
+    addrinfo hints{};
+    hints.ai_family = AF_UNSPEC;
+    hints.ai_socktype = SOCK_STREAM;
+    addrinfo* found = nullptr;
+    if (::getaddrinfo(host.c_str(), std::to_string(port).c_str(), &hints, &found) != 0 || found == nullptr)
+        return EHOSTUNREACH;
+    int err = 0;
+    for (addrinfo* a = found; a != nullptr; a = a->ai_next) {
+        const base::UniqueFd fd(::socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC, a->ai_protocol));
+        if (!fd.valid()) {
+            err = errno;
+            continue;
+        }
+        if (::connect(fd.get(), a->ai_addr, a->ai_addrlen) == 0) {
+            err = 0;
+            break;
+        }
+        err = errno;
+    }
+    ::freeaddrinfo(found);
+    return err;
+}
+
+}  // namespace
+
+struct GpsdClient::Session {
+    gps_data_t data{};
+};
+
+GpsdClient::GpsdClient(GnssSpec spec, std::shared_ptr<spdlog::logger> log, std::size_t ring_capacity)
+    : spec_(std::move(spec)),
+      name_("gpsd " + spec_.host + ":" + std::to_string(spec_.port)),
+      log_(std::move(log)),
+      ring_(ring_capacity)
+{
+}
+
+GpsdClient::~GpsdClient()
+{
+    stop();
+}
+
+bool GpsdClient::start()
+{
+    if (thread_.joinable())
+        return true;
+    stop_.store(false);
+    thread_ = std::thread([this] { run(); });
+    return true;
+}
+
+void GpsdClient::stop()
+{
+    stop_.store(true);
+    if (thread_.joinable())
+        thread_.join();
+}
+
+GnssCounters GpsdClient::counters() const
+{
+    GnssCounters c;
+    c.fixes = fixes_.load(std::memory_order_relaxed);
+    c.no_fix = no_fix_.load(std::memory_order_relaxed);
+    c.dropped = ring_.dropped();
+    c.connects = connects_.load(std::memory_order_relaxed);
+    c.failures = failures_.load(std::memory_order_relaxed);
+    return c;
+}
+
+void GpsdClient::run()
+{
+    // libgps writes with write(2): to a gpsd that has gone away that would
+    // raise SIGPIPE and end the process. Blocked in this thread, the write
+    // fails with EPIPE instead.
+    sigset_t pipe;
+    sigemptyset(&pipe);
+    sigaddset(&pipe, SIGPIPE);
+    pthread_sigmask(SIG_BLOCK, &pipe, nullptr);
+    while (!stop_.load(std::memory_order_relaxed)) {
+        if (state_ == State::closed) {
+            const std::int64_t now = base::monotonic_ns();
+            if (!backoff_.due(now)) {
+                base::sleep_for_ns(std::min(backoff_.wait_ns(now), kPollNs));
+                continue;
+            }
+            if (!connect())
+                backoff_.on_failure(base::monotonic_ns());
+            continue;
+        }
+        read_once();
+    }
+    if (state_ == State::streaming) {
+        gps_stream(&session_->data, WATCH_DISABLE, nullptr);
+        disconnect();
+    }
+}
+
+bool GpsdClient::connect()
+{
+    auto session = std::make_unique<Session>();
+    const std::string port = std::to_string(spec_.port);
+    errno = 0;
+    if (gps_open(spec_.host.c_str(), port.c_str(), &session->data) != 0) {
+        const int code = errno;
+        failures_.fetch_add(1, std::memory_order_relaxed);
+        if (!failure_logged_) {
+            const int err = connect_errno(spec_.host, spec_.port);
+            log_->warn("gpsd {}:{}: cannot connect: {} ({}, errno {}); retrying every {:.1f} s at most", spec_.host,
+                       spec_.port, gps_errstr(code), std::strerror(err), err,
+                       static_cast<double>(backoff_.max_ns()) / 1e9);
+        }
+        failure_logged_ = true;
+        return false;
+    }
+    if (gps_stream(&session->data, WATCH_ENABLE | WATCH_JSON, nullptr) != 0) {
+        const int err = errno;
+        failures_.fetch_add(1, std::memory_order_relaxed);
+        if (!failure_logged_)
+            log_->warn("gpsd {}:{}: cannot start the watch stream: {} (errno {})", spec_.host, spec_.port,
+                       std::strerror(err), err);
+        failure_logged_ = true;
+        gps_close(&session->data);
+        return false;
+    }
+    session_ = std::move(session);
+    state_ = State::streaming;
+    failure_logged_ = false;
+    backoff_.on_success();
+    connects_.fetch_add(1, std::memory_order_relaxed);
+    log_->info("gpsd {}:{}: connected, watching", spec_.host, spec_.port);
+    return true;
+}
+
+void GpsdClient::disconnect()
+{
+    if (session_) {
+        gps_close(&session_->data);
+        session_.reset();
+    }
+    state_ = State::closed;
+}
+
+void GpsdClient::read_once()
+{
+    gps_data_t& d = session_->data;
+    if (!gps_waiting(&d, kWaitUs))
+        return;   // nothing within the wait (a closed socket is readable: gps_read reports it)
+    d.set = 0;
+    errno = 0;
+    const int n = gps_read(&d, nullptr, 0);
+    const std::int64_t received_ns = base::monotonic_ns();
+    if (n <= 0) {
+        const int err = errno;
+        failures_.fetch_add(1, std::memory_order_relaxed);
+        log_->warn("gpsd {}:{}: connection lost: {} (errno {}); reconnecting", spec_.host, spec_.port,
+                   err != 0 ? std::strerror(err) : "end of stream", err);
+        disconnect();
+        backoff_.on_failure(received_ns);
+        return;
+    }
+    if ((d.set & MODE_SET) == 0)
+        return;   // not a position report (SKY, VERSION, DEVICES...)
+    if (d.fix.mode < MODE_2D || (d.set & LATLON_SET) == 0 || !std::isfinite(d.fix.latitude) ||
+        !std::isfinite(d.fix.longitude)) {
+        no_fix_.fetch_add(1, std::memory_order_relaxed);
+        return;
+    }
+    GnssFix fix;
+    fix.timestamp_sample_ns = received_ns;
+    if ((d.set & TIME_SET) != 0)
+        fix.gnss_time_ns = static_cast<std::int64_t>(d.fix.time.tv_sec) * 1'000'000'000 + d.fix.time.tv_nsec;
+    if (fix.gnss_time_ns != 0 && fix.gnss_time_ns == last_fix_time_ns_)
+        return;   // the same epoch reported again
+    last_fix_time_ns_ = fix.gnss_time_ns;
+    fix.mode = static_cast<std::uint8_t>(d.fix.mode);
+    fix.quality = static_cast<std::uint8_t>(d.fix.status);
+    fix.lat_deg = d.fix.latitude;
+    fix.lon_deg = d.fix.longitude;
+    fix.height_m = d.fix.mode >= MODE_3D && std::isfinite(d.fix.altHAE) ? d.fix.altHAE : 0;
+    fix.eph_m = or_unknown(d.fix.eph);
+    fix.epx_m = or_unknown(d.fix.epx);
+    fix.epy_m = or_unknown(d.fix.epy);
+    if (ring_.try_push(fix))
+        fixes_.fetch_add(1, std::memory_order_relaxed);
+}
+
+std::unique_ptr<GnssSource> make_gpsd_source(const GnssSpec& spec, std::shared_ptr<spdlog::logger> log,
+                                             std::string&)
+{
+    return std::make_unique<GpsdClient>(spec, std::move(log));
+}
+
+}  // namespace stemd::drivers

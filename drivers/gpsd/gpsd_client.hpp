@@ -1,0 +1,71 @@
+// gpsd client (libgps, Debian's libgps-dev; gpsd API 11 = gpsd 3.22): a
+// thread of its own connects to gpsd at host:port, asks for the JSON watch
+// stream, and publishes each position report (TPV with mode 2D or 3D) into a
+// lock-free SPSC ring (base::SpscRing) that the actuator thread drains with
+// try_pop(): the processing and actuator threads never wait on gpsd.
+//
+// State machine (the client's thread; counters() from any thread):
+//
+//   closed --gps_open + gps_stream ok--> streaming --read error / EOF--> closed
+//     ^  |                                                                |
+//     |  +--fail: retry at ReopenBackoff's schedule (0.2 s doubling to 5 s)
+//     +-------------------------------------------------------------------+
+//
+// Each transition is logged once, naming host:port and errno (a refused
+// connection while gpsd is down is logged on the first failure only, then
+// once when it comes back). The thread waits at most 100 ms at a time
+// (gps_waiting), so stop() returns within about that.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include <spdlog/logger.h>
+
+#include "stemd/base/spsc_ring.hpp"
+#include "stemd/drivers/gnss_factory.hpp"
+#include "stemd/drivers/gnss_source.hpp"
+#include "stemd/drivers/reopen_backoff.hpp"
+
+namespace stemd::drivers {
+
+class GpsdClient final : public GnssSource {
+public:
+    GpsdClient(GnssSpec spec, std::shared_ptr<spdlog::logger> log, std::size_t ring_capacity = 256);
+    ~GpsdClient() override;
+    GpsdClient(const GpsdClient&) = delete;
+    GpsdClient& operator=(const GpsdClient&) = delete;
+
+    std::string_view name() const override { return name_; }
+    bool start() override;
+    void stop() override;
+    bool try_pop(GnssFix& out) noexcept override { return ring_.try_pop(out); }
+    GnssCounters counters() const override;
+
+private:
+    enum class State : std::uint8_t { closed, streaming };
+
+    void run();
+    bool connect();       // closed -> streaming, or a logged failure
+    void disconnect();    // streaming -> closed
+    void read_once();     // one report, published if it is a position
+
+    const GnssSpec spec_;
+    const std::string name_;
+    const std::shared_ptr<spdlog::logger> log_;
+    base::SpscRing<GnssFix> ring_;
+    ReopenBackoff backoff_{200'000'000, 5'000'000'000};
+    State state_ = State::closed;
+    bool failure_logged_ = false;
+    struct Session;              // gps_data_t, kept out of this header
+    std::unique_ptr<Session> session_;
+    std::int64_t last_fix_time_ns_ = -1;
+    std::atomic<bool> stop_{false};
+    std::thread thread_;
+    std::atomic<std::uint64_t> fixes_{0}, no_fix_{0}, connects_{0}, failures_{0};
+};
+
+}  // namespace stemd::drivers
