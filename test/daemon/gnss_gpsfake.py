@@ -258,8 +258,10 @@ def with_gpsfake(stemd, src, rec, tmp):
         with open(fake_log, "w") as fl:
             # -W: gpsfake lingers this long after the log (then exits 1):
             # it is stopped below, once the plants are in.
+            # TMPDIR: gpsd's control socket goes into the scratch folder.
             fake = subprocess.Popen(["gpsfake", "-1", "-q", "-W", "600", "-P", str(port), "-c", "0.004",
-                                     "-s", "115200", nmea], stdout=fl, stderr=subprocess.STDOUT)
+                                     "-s", "115200", nmea], stdout=fl, stderr=subprocess.STDOUT,
+                                    env=dict(os.environ, TMPDIR=tmp))
         procs.append(("gpsfake", fake, fake_log))
         # gpsfake feeds its pty from the start, client or not: what it fed
         # before stemd connected is lost. A watcher connected after stemd
