@@ -16,7 +16,8 @@
    GNSS error of the truth: the track at the plant's s_mm, plus the
    machine-frame offset from the antenna to (camera.x_mm, y_mm) rotated by
    the track's heading. The GeoJSON is read back with Python's json (and
-   GDAL's ogrinfo when installed).
+   GDAL's ogrinfo when installed), once while stemd runs (its 30 s
+   rewrite) and once after it exits.
 usage: gnss_gpsfake.py STEMD TOOLS_DIR SOURCE_DIR
 """
 import calendar
@@ -257,8 +258,10 @@ def with_gpsfake(stemd, src, rec, tmp):
         with open(fake_log, "w") as fl:
             # -W: gpsfake lingers this long after the log (then exits 1):
             # it is stopped below, once the plants are in.
+            # TMPDIR: gpsd's control socket goes into the scratch folder.
             fake = subprocess.Popen(["gpsfake", "-1", "-q", "-W", "600", "-P", str(port), "-c", "0.004",
-                                     "-s", "115200", nmea], stdout=fl, stderr=subprocess.STDOUT)
+                                     "-s", "115200", nmea], stdout=fl, stderr=subprocess.STDOUT,
+                                    env=dict(os.environ, TMPDIR=tmp))
         procs.append(("gpsfake", fake, fake_log))
         # gpsfake feeds its pty from the start, client or not: what it fed
         # before stemd connected is lost. A watcher connected after stemd
@@ -278,6 +281,12 @@ def with_gpsfake(stemd, src, rec, tmp):
                     (watcher.first_ns - offset - t0) * 1e-9 * SPEED_MM_PER_S + HEADING_BASELINE_MM)
         wait_for("%d plants past s_mm %.0f" % (MIN_PLANTS_AFTER_FEED, s_fed),
                  lambda: sum(p["s_mm"] > s_fed for p in map_lines(m)) >= MIN_PLANTS_AFTER_FEED, procs=procs[:1])
+        # While it runs, the GeoJSON is rewritten every 30 s through a
+        # rename: whenever it is there, it is a whole document.
+        wait_for("the periodic GeoJSON", lambda: os.path.exists(g), procs=procs[:1])
+        periodic = json.load(open(g))
+        if periodic.get("type") != "FeatureCollection" or not periodic["features"]:
+            fail("the periodic GeoJSON: %s with %d features" % (periodic.get("type"), len(periodic["features"])))
         daemon.send_signal(signal.SIGTERM)
         rc = daemon.wait(timeout=WAIT_S)
         if rc != 0:
