@@ -10,6 +10,7 @@
 // and again.
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <map>
@@ -18,6 +19,7 @@
 #include <vector>
 
 #include <benchmark/benchmark.h>
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -25,6 +27,7 @@
 #include "stemd/runtime/logging.hpp"
 #include "stemd/synth/synth.hpp"
 #include "stemd/vision/detect.hpp"
+#include "tool_cli.hpp"
 
 using namespace stemd;
 
@@ -148,12 +151,19 @@ public:
     }
     void Print(int frames, const std::string& preset, int radius, std::size_t workspace_bytes) const
     {
-        std::printf("{\"frame_width_px\":1296,\"frame_height_px\":966,\"preset\":\"%s\",\"closing_radius_px\":%d,"
-                    "\"frames\":%d,\"workspace_mib\":%.2f",
-                    preset.c_str(), radius, frames, static_cast<double>(workspace_bytes) / (1024.0 * 1024.0));
+        // A MiB to 0.01, a time to 0.1 us; dividing by the exact power of ten
+        // gives the double nearest the decimal, which dumps as that decimal.
+        auto rounded = [](double v, double per_unit) { return std::round(v * per_unit) / per_unit; };
+        nlohmann::ordered_json json{
+            {"frame_width_px", 1296},
+            {"frame_height_px", 966},
+            {"preset", preset},
+            {"closing_radius_px", radius},
+            {"frames", frames},
+            {"workspace_mib", rounded(static_cast<double>(workspace_bytes) / (1024.0 * 1024.0), 100)}};
         for (const auto& [key, value] : values_)
-            std::printf(",\"%s\":%.4f", key.c_str(), value);
-        std::printf("}\n");
+            json[key] = rounded(value, 1e4);
+        std::printf("%s\n", json.dump().c_str());
     }
 
 private:
@@ -168,29 +178,30 @@ int main(int argc, char** argv)
     std::string preset_name = "late";
     int frame_count = 8, radius = vision::Params{}.closing_radius_px, repetitions = 200;
     int edge_radius = vision::Params{}.edge_radius_px;
+    CLI::App app{"stemd-bench: per-stage and whole-pipeline timings on synthetic 1296x966 frames; other arguments "
+                 "go to Google Benchmark (--benchmark_filter=REGEX, ...)"};
+    app.add_flag("--json", json, "one line of JSON: medians and p90 of every stage");
+    app.add_option("--preset", preset_name, "early, late, dense or seedling")
+        ->check(CLI::Validator(
+            [](std::string& name) {
+                return synth::parse_preset(name) ? std::string() : "'" + name + "' is not early, late, dense or seedling";
+            },
+            "PRESET"));
+    const auto positive = tools::value_check<int>("a positive integer", [](int n) { return n > 0; });
+    app.add_option("--frames", frame_count, "frames to cycle through")->check(positive);
+    app.add_option("--repetitions", repetitions, "repetitions of every benchmark (one frame each)")->check(positive);
+    app.add_option("--radius", radius, "closing radius, px")
+        ->check(tools::value_check<int>("a closing radius in [0, " + std::to_string(vision::kMaxClosingRadiusPx) + "]",
+                                        [](int r) { return r >= 0 && r <= vision::kMaxClosingRadiusPx; }));
+    app.add_option("--edge-radius", edge_radius, "mixed-edge radius, px (0: off)")
+        ->check(tools::value_check<int>("an integer", [](int) { return true; }));
+    if (const auto exit_code = tools::parse(app, argc, argv, {.tool = "stemd-bench", .pass_unknown = true}))
+        return *exit_code;
+    std::vector<std::string> rest_args = app.remaining();
     std::vector<char*> rest{argv[0]};
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        auto next_int = [&](int& out) {
-            if (i + 1 >= argc || (out = std::atoi(argv[i + 1]), out <= 0 && a != "--radius" && a != "--edge-radius")) {
-                std::fprintf(stderr, "stemd-bench: %s needs a positive integer\n", a.c_str());
-                std::exit(2);
-            }
-            ++i;
-        };
-        if (a == "--json") json = true;
-        else if (a == "--preset" && i + 1 < argc) preset_name = argv[++i];
-        else if (a == "--frames") next_int(frame_count);
-        else if (a == "--radius") next_int(radius);
-        else if (a == "--repetitions") next_int(repetitions);
-        else if (a == "--edge-radius") next_int(edge_radius);
-        else rest.push_back(argv[i]);
-    }
+    for (std::string& a : rest_args)
+        rest.push_back(a.data());
     const auto preset = synth::parse_preset(preset_name);
-    if (!preset || radius < 0 || radius > vision::kMaxClosingRadiusPx) {
-        std::fprintf(stderr, "stemd-bench: bad --preset or --radius\n");
-        return 2;
-    }
     cv::setNumThreads(1);
 
     Setup setup;

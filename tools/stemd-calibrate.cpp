@@ -15,14 +15,13 @@
 #include <system_error>
 #include <vector>
 
-#include <CLI/CLI.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "stemd/config/config.hpp"
 #include "stemd/geometry/calibration.hpp"
 #include "stemd/geometry/camera_model.hpp"
-#include "tool_config.hpp"
+#include "tool_cli.hpp"
 
 namespace fs = std::filesystem;
 using namespace stemd;
@@ -31,7 +30,7 @@ namespace {
 
 constexpr int kOk = 0;
 constexpr int kFailed = 1;      // the board was not found, too few views, no pose, output not written
-constexpr int kUsageError = 2;  // bad arguments, unreadable or malformed input
+using tools::kUsageError;  // bad arguments, unreadable or malformed input
 
 // Below this many views calibrateCamera runs but pins little down.
 constexpr std::size_t kRecommendedViews = 10;
@@ -302,14 +301,9 @@ int main(int argc, char** argv)
     gnd->add_option("--out", ground.out, "config fragment to write")->required();
     gnd->add_option("image", ground.image, "the view of the board on the ground")->required();
 
-    try {
-        app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
-        if (e.get_exit_code() == 0)
-            return app.exit(e);  // --help
-        std::cerr << "stemd-calibrate: " << e.what() << "\n(stemd-calibrate --help for usage)\n";
-        return kUsageError;
-    }
+    if (const auto exit_code =
+            tools::parse(app, argc, argv, {.tool = "stemd-calibrate", .after = "\n(stemd-calibrate --help for usage)"}))
+        return *exit_code;
     try {
         if (intr->parsed())
             return run_intrinsics(intrinsics);

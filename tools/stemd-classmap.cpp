@@ -8,12 +8,12 @@
 #include <iostream>
 #include <string>
 
-#include <CLI/CLI.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "stemd/base/plant_class.hpp"
 #include "stemd/io/recording.hpp"
+#include "tool_cli.hpp"
 
 using namespace stemd;
 
@@ -46,11 +46,8 @@ int main(int argc, char** argv)
         ->check(CLI::IsMember({"zero", "nonzero"}));
     app.add_option("ANNOTATION", annotation_path, "colour annotation image")->required();
     app.add_option("OUT", out_path, "class map PNG to write")->required();
-    try {
-        app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
-        return app.exit(e) == 0 ? 0 : 2;
-    }
+    if (const auto exit_code = tools::parse(app, argc, argv, {.tool = "stemd-classmap", .after = " (see --help)"}))
+        return *exit_code;
     cv::Vec3b crop, weed;
     if (!parse_bgr(crop_text, crop) || !parse_bgr(weed_text, weed) || crop == weed) {
         std::cerr << "stemd-classmap: --crop and --weed take two different B,G,R triples of 0..255\n";

@@ -3,15 +3,15 @@
 // key table; or a check that config/stemd.yaml is exactly the generated text.
 #include <iostream>
 #include <string>
-#include <string_view>
 
 #include "generated_file.hpp"
+#include "tool_cli.hpp"
 #include "stemd/config/config.hpp"
 #include "stemd/config/schema.hpp"
 
-namespace {
+using namespace stemd;
 
-constexpr int kUsageError = 2;
+namespace {
 
 const char* const kUsage =
     "usage: stemd-config yaml [--out FILE | --check FILE]\n"
@@ -25,22 +25,20 @@ const char* const kUsage =
 
 int main(int argc, char** argv)
 {
-    const std::string_view what = argc >= 2 ? argv[1] : "";
-    const std::string_view option = argc >= 3 ? argv[2] : "";
-    if (argc == 2 && (what == "-h" || what == "--help")) {
-        std::cout << kUsage;
-        return 0;
-    }
-    const bool yaml_ok = what == "yaml" && (argc == 2 || (argc == 4 && (option == "--out" || option == "--check")));
-    if (!yaml_ok && !(what == "markdown" && argc == 2)) {
-        std::cerr << kUsage;
-        return kUsageError;
-    }
+    CLI::App app{"stemd-config"};
+    app.require_subcommand(1);
+    std::string out, check;
+    CLI::App* const yaml = app.add_subcommand("yaml");
+    yaml->add_option("--out", out)->excludes(yaml->add_option("--check", check));
+    app.add_subcommand("markdown");
+    if (const auto exit_code = tools::parse(app, argc, argv, {.tool = "stemd-config", .usage = kUsage,
+                                                               .usage_after_error = true}))
+        return *exit_code;
     using stemd::config::Config;
-    const std::string text = what == "markdown" ? stemd::config::schema_markdown()
-                                                : Config{}.to_yaml(Config::YamlComments::documentation);
-    const std::string path = argc == 4 ? argv[3] : "";
-    return stemd::tools::write_or_check_generated("stemd-config", text, path, option == "--check",
-                                                  "the configuration schema (src/config/schema.cpp)",
-                                                  std::string(argv[0]) + " yaml --out " + path);
+    const std::string text = yaml->parsed() ? Config{}.to_yaml(Config::YamlComments::documentation)
+                                            : stemd::config::schema_markdown();
+    const std::string& path = check.empty() ? out : check;
+    return tools::write_or_check_generated("stemd-config", text, path, !check.empty(),
+                                           "the configuration schema (src/config/schema.cpp)",
+                                           std::string(argv[0]) + " yaml --out " + path);
 }

@@ -3,14 +3,14 @@
 #include <iostream>
 #include <sstream>
 #include <string>
-#include <string_view>
 
 #include "generated_file.hpp"
+#include "tool_cli.hpp"
 #include "stemd/protocol/dbc_writer.hpp"
 
-namespace {
+using namespace stemd;
 
-constexpr int kUsageError = 2;
+namespace {
 
 const char* const kUsage =
     "usage: stemd-dbc [--out FILE | --check FILE]\n"
@@ -22,19 +22,16 @@ const char* const kUsage =
 
 int main(int argc, char** argv)
 {
-    const std::string_view option = argc >= 2 ? argv[1] : "";
-    if (argc == 2 && (option == "-h" || option == "--help")) {
-        std::cout << kUsage;
-        return 0;
-    }
-    if (!(argc == 1 || (argc == 3 && (option == "--out" || option == "--check")))) {
-        std::cerr << kUsage;
-        return kUsageError;
-    }
+    CLI::App app{"stemd-dbc"};
+    std::string out, check;
+    app.add_option("--out", out)->excludes(app.add_option("--check", check));
+    if (const auto exit_code = tools::parse(app, argc, argv, {.tool = "stemd-dbc", .usage = kUsage,
+                                                               .usage_after_error = true}))
+        return *exit_code;
     std::ostringstream text;
-    stemd::protocol::write_dbc(text);
-    const std::string path = argc == 3 ? argv[2] : "";
-    return stemd::tools::write_or_check_generated("stemd-dbc", text.str(), path, option == "--check",
-                                                  "the message table (src/protocol/messages.cpp)",
-                                                  std::string(argv[0]) + " --out " + path);
+    protocol::write_dbc(text);
+    const std::string& path = check.empty() ? out : check;
+    return tools::write_or_check_generated("stemd-dbc", text.str(), path, !check.empty(),
+                                           "the message table (src/protocol/messages.cpp)",
+                                           std::string(argv[0]) + " --out " + path);
 }

@@ -23,8 +23,7 @@
 #include "stemd/vision/classify.hpp"
 #include "stemd/vision/detect.hpp"
 #include "stemd/viz/overlay.hpp"
-#include "stemd/config/command_line.hpp"
-#include "tool_config.hpp"
+#include "tool_cli.hpp"
 #include "tool_frames.hpp"
 
 namespace fs = std::filesystem;
@@ -32,7 +31,7 @@ using namespace stemd;
 
 namespace {
 
-constexpr int kUsageError = 2;
+using tools::kUsageError;
 
 const char* const kUsage =
     "usage: stemd-detect [--config FILE] [--set KEY=VALUE]... [--segment METHOD]\n"
@@ -63,49 +62,28 @@ struct Args {
     std::vector<std::string> inputs;
 };
 
-std::optional<Args> parse_args(int argc, char** argv, std::string& error)
+const tools::CommandLine kCommandLine{.tool = "stemd-detect", .usage = kUsage, .usage_after_error = true};
+
+// The arguments into `args` and the configuration they name into `config`;
+// the exit code after --help, a usage error or a configuration error.
+std::optional<int> parse_args(int argc, char** argv, Args& args, config::Config& config)
 {
-    Args args;
-    config::ArgReader in(argc, argv);
-    while (in.next()) {
-        const std::string a = in.arg();
-        auto value = [&](std::string& out) {
-            if (in.value(out))
-                return true;
-            error = in.error();
-            return false;
-        };
-        std::string v;
-        if (in.config_option(args.config)) {
-            if (in.failed()) {
-                error = in.error();
-                return std::nullopt;
-            }
-        } else if (a == "--segment") {
-            if (!value(v)) return std::nullopt;
-            args.config.sets.push_back("segment.method=" + v);
-        } else if (a == "--csv") {
-            if (!value(args.csv_path)) return std::nullopt;
-        } else if (a == "--mask-out") {
-            if (!value(args.mask_dir)) return std::nullopt;
-        } else if (a == "--class-out") {
-            if (!value(args.class_dir)) return std::nullopt;
-        } else if (a == "--overlay") {
-            if (!value(args.overlay_dir)) return std::nullopt;
-        } else if (a == "--timing") {
-            args.timing = true;
-        } else if (a.size() > 1 && a[0] == '-') {
-            error = "unknown option " + a;
-            return std::nullopt;
-        } else {
-            args.inputs.push_back(a);
-        }
-    }
-    if (args.inputs.empty()) {
-        error = "no INPUT given";
-        return std::nullopt;
-    }
-    return args;
+    CLI::App app{"stemd-detect"};
+    tools::add_config_options(app, args.config);
+    app.add_option_function<std::string>(
+           "--segment", [&](const std::string& method) { args.config.sets.push_back("segment.method=" + method); })
+        ->trigger_on_parse();
+    app.add_option("--csv", args.csv_path);
+    app.add_option("--mask-out", args.mask_dir);
+    app.add_option("--class-out", args.class_dir);
+    app.add_option("--overlay", args.overlay_dir);
+    app.add_flag("--timing", args.timing);
+    app.add_option("INPUT", args.inputs);
+    if (const auto exit_code = tools::parse(app, argc, argv, kCommandLine))
+        return *exit_code;
+    if (args.inputs.empty())
+        return tools::usage_error(kCommandLine, "no INPUT given");
+    return tools::load_config(kCommandLine, args.config, config);
 }
 
 double median(std::vector<double> v)
@@ -131,21 +109,11 @@ bool ensure_dir(const std::string& dir, std::string& error)
 
 int main(int argc, char** argv)
 {
-    if (config::wants_help(argc, argv)) {
-        std::cout << kUsage;
-        return 0;
-    }
-    std::string error;
-    const auto args = parse_args(argc, argv, error);
-    if (!args) {
-        std::cerr << "stemd-detect: " << error << "\n" << kUsage;
-        return kUsageError;
-    }
+    Args args;
     config::Config config;
-    if (const auto config_error = config::build_config(args->config, config)) {
-        std::cerr << "stemd-detect: " << config_error->to_string() << "\n";
-        return kUsageError;
-    }
+    if (const auto exit_code = parse_args(argc, argv, args, config))
+        return *exit_code;
+    std::string error;
     const vision::Params params = config.settings().daemon.vision;
     const runtime::ClassifyConfig& classify = config.settings().daemon.classify;
     std::optional<vision::PlantClassifier> model;
@@ -160,17 +128,17 @@ int main(int argc, char** argv)
             return kUsageError;
         }
     }
-    if (!args->class_dir.empty() && !model) {
+    if (!args.class_dir.empty() && !model) {
         std::cerr << "stemd-detect: --class-out needs classify.model (train one with stemd-train)\n";
         return kUsageError;
     }
 
     std::vector<tools::FrameJob> jobs;
-    if (!tools::collect_frames(args->inputs, params.segmentation, jobs, error)) {
+    if (!tools::collect_frames(args.inputs, params.segmentation, jobs, error)) {
         std::cerr << "stemd-detect: " << error << "\n";
         return kUsageError;
     }
-    for (const std::string* dir : {&args->mask_dir, &args->class_dir, &args->overlay_dir}) {
+    for (const std::string* dir : {&args.mask_dir, &args.class_dir, &args.overlay_dir}) {
         if (!dir->empty() && !ensure_dir(*dir, error)) {
             std::cerr << "stemd-detect: " << error << "\n";
             return 1;
@@ -179,17 +147,17 @@ int main(int argc, char** argv)
 
     std::ofstream csv_file;
     std::ostream* csv = nullptr;
-    if (args->csv_path == "-") {
+    if (args.csv_path == "-") {
         csv = &std::cout;
-    } else if (!args->csv_path.empty()) {
-        csv_file.open(args->csv_path);
+    } else if (!args.csv_path.empty()) {
+        csv_file.open(args.csv_path);
         if (!csv_file) {
-            std::cerr << "stemd-detect: " << args->csv_path << ": cannot write\n";
+            std::cerr << "stemd-detect: " << args.csv_path << ": cannot write\n";
             return 1;
         }
         csv = &csv_file;
     }
-    std::ostream& report = args->csv_path == "-" ? std::cerr : std::cout;
+    std::ostream& report = args.csv_path == "-" ? std::cerr : std::cout;
     if (csv)
         *csv << "image,plant,x,y,method,leaves,area_px,estimator,confidence" << (model ? ",class,weed_probability" : "")
              << "\n";
@@ -206,7 +174,7 @@ int main(int argc, char** argv)
     long long over_capacity_total = 0;   // plants beyond the per-frame capacity: found, not reported
     tools::LoadedFrame frame;
     for (const tools::FrameJob& job : jobs) {
-        if (!tools::load_frame(job, params.segmentation, !args->overlay_dir.empty() || model.has_value(), frame, error)) {
+        if (!tools::load_frame(job, params.segmentation, !args.overlay_dir.empty() || model.has_value(), frame, error)) {
             std::cerr << "stemd-detect: skipped frame: " << error << "\n";
             ++skipped;
             continue;
@@ -271,37 +239,37 @@ int main(int argc, char** argv)
                << " centre of mass), " << d.stats.stemless << " stemless, threshold " << d.stats.threshold << "\n";
 
         const std::string out_name = fs::path(job.image).filename().replace_extension(".png").string();
-        if (!args->mask_dir.empty()) {
+        if (!args.mask_dir.empty()) {
             cv::Mat veg;
             vision::unpack_mask(workspace->vegetation(), veg);
-            const auto path = (fs::path(args->mask_dir) / out_name).string();
+            const auto path = (fs::path(args.mask_dir) / out_name).string();
             if (!cv::imwrite(path, veg)) {
                 std::cerr << "stemd-detect: " << path << ": cannot write\n";
                 return 1;
             }
         }
-        if (!args->class_dir.empty()) {
+        if (!args.class_dir.empty()) {
             vision::class_map(*workspace, *classify_workspace, {plant_class.data(), d.plants.size()}, class_image);
-            const auto path = (fs::path(args->class_dir) / out_name).string();
+            const auto path = (fs::path(args.class_dir) / out_name).string();
             if (!cv::imwrite(path, class_image)) {
                 std::cerr << "stemd-detect: " << path << ": cannot write\n";
                 return 1;
             }
         }
-        if (!args->overlay_dir.empty()) {
+        if (!args.overlay_dir.empty()) {
             cv::Mat canvas;
             if (!bgr.empty())
                 canvas = bgr.clone();
             else
                 cv::cvtColor(mask, canvas, cv::COLOR_GRAY2BGR);
             viz::draw_overlay(canvas, d, workspace->closed());
-            const auto path = (fs::path(args->overlay_dir) / out_name).string();
+            const auto path = (fs::path(args.overlay_dir) / out_name).string();
             if (!cv::imwrite(path, canvas)) {
                 std::cerr << "stemd-detect: " << path << ": cannot write\n";
                 return 1;
             }
         }
-        if (args->timing) {
+        if (args.timing) {
             const double ms[6] = {times.index_ns / 1e6,  times.threshold_ns / 1e6, times.closing_ns / 1e6,
                                   times.plants_ns / 1e6, times.leaves_ns / 1e6,    times.total_ns / 1e6};
             for (int s = 0; s < 6; ++s)
@@ -311,13 +279,13 @@ int main(int argc, char** argv)
                          job.image.c_str(), ms[0], ms[1], ms[2], ms[3], ms[4], ms[5]);
         }
     }
-    if (args->timing && !stage_ms[5].empty())
+    if (args.timing && !stage_ms[5].empty())
         std::fprintf(stderr,
                      "timing median over %zu frames: index %.3f threshold %.3f closing %.3f plants %.3f leaves %.3f "
                      "total %.3f ms\n",
                      stage_ms[5].size(), median(stage_ms[0]), median(stage_ms[1]), median(stage_ms[2]),
                      median(stage_ms[3]), median(stage_ms[4]), median(stage_ms[5]));
-    if (args->timing && !classify_ms.empty())
+    if (args.timing && !classify_ms.empty())
         std::fprintf(stderr, "timing median over %zu frames: classify %.3f ms (features, forest, decision)\n",
                      classify_ms.size(), median(classify_ms));
     report << jobs.size() - skipped << " frames, " << plants_total << " stems, " << stemless_total

@@ -23,6 +23,7 @@
 #include <system_error>
 #include <vector>
 
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -32,14 +33,15 @@
 #include "stemd/io/recording.hpp"
 #include "stemd/config/config.hpp"
 #include "stemd/vision/detect.hpp"
-#include "stemd/config/command_line.hpp"
-#include "tool_config.hpp"
+#include "tool_cli.hpp"
 #include "tool_frames.hpp"
 
 namespace fs = std::filesystem;
 using namespace stemd;
 
 namespace {
+
+using tools::fixed;
 
 constexpr int kOk = 0;
 constexpr int kError = 2;  // bad arguments, unreadable or malformed input
@@ -135,111 +137,85 @@ std::string number(double v)
     return ec == std::errc() ? std::string(buf, end) : std::string("0");
 }
 
-std::string fixed(double v, int decimals)
+// The --json line's fields in the order written.
+using Json = nlohmann::ordered_json;
+
+// A whole number as an integer ("5", as the text summary writes it, not
+// "5.0"); any other as the shortest text that reads back as the same double.
+Json json_number(double v)
 {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
-    return buf;
+    if (std::isfinite(v) && v == std::trunc(v) && std::fabs(v) < 9.0e15)
+        return static_cast<std::int64_t>(v);
+    return v;
 }
 
-bool parse_positive(std::string_view text, double& out)
+void print_json(const Json& json)
 {
-    const char* const end = text.data() + text.size();
-    const auto [ptr, ec] = std::from_chars(text.data(), end, out);
-    return !text.empty() && ec == std::errc() && ptr == end && std::isfinite(out) && out > 0;
+    std::cout << json.dump() << "\n";
 }
 
-std::optional<Args> parse_args(int argc, char** argv, std::string& error)
+const tools::CommandLine kCommandLine{.tool = "stemd-eval", .usage = kUsage, .after = " (see stemd-eval --help)"};
+
+// A comma-separated list of closing radii.
+std::vector<int> parse_radii(std::string_view text)
 {
-    Args args;
-    bool options_done = false;
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        if (options_done || a.size() < 2 || a[0] != '-') {
-            args.positional.push_back(a);
-            continue;
-        }
-        if (a == "--") {
-            options_done = true;
-            continue;
-        }
-        args.options.insert(a);
-        const char* value = nullptr;
-        if (a == "--tol-mm" || a == "--gsd-mm-per-px" || a == "--gt-vegetation" || a == "--config" || a == "--set" ||
-            a == "--radii" || a == "--treat" || a == "--min-radius-mm") {
-            if (i + 1 >= argc) {
-                error = a + " needs a value";
-                return std::nullopt;
-            }
-            value = argv[++i];
-        }
-        if (a == "--iou") {
-            args.mode = Mode::iou;
-        } else if (a == "--sweep") {
-            args.mode = Mode::sweep;
-        } else if (a == "--targets") {
-            args.mode = Mode::targets;
-        } else if (a == "--min-radius-mm") {
-            if (!parse_positive(value, args.min_radius_mm)) {
-                error = a + ": '" + value + "' is not a number > 0";
-                return std::nullopt;
-            }
-        } else if (a == "--require-exact") {
-            args.require_exact = true;
-        } else if (a == "--treat") {
-            const std::string v = value;
-            if (v != "all" && v != "weeds") {
-                error = "--treat: '" + v + "' is neither all nor weeds";
-                return std::nullopt;
-            }
-            args.treat_weeds_only = v == "weeds";
-        } else if (a == "--config") {
-            args.config.file = value;
-        } else if (a == "--set") {
-            args.config.sets.emplace_back(value);
-        } else if (a == "--radii") {
-            args.radii.clear();
-            std::string_view rest = value;
-            while (!rest.empty()) {
-                const auto comma = rest.find(',');
-                const std::string item(rest.substr(0, comma));
-                long r = -1;
-                if (!tools::parse_int(item, r) || r < 0 || r > vision::kMaxClosingRadiusPx) {
-                    error = "--radii: '" + item + "' is not a radius in [0, " +
-                            std::to_string(vision::kMaxClosingRadiusPx) + "] px";
-                    return std::nullopt;
-                }
-                args.radii.push_back(static_cast<int>(r));
-                rest = comma == std::string_view::npos ? std::string_view{} : rest.substr(comma + 1);
-            }
-            if (args.radii.empty()) {
-                error = "--radii: no radius given";
-                return std::nullopt;
-            }
-        } else if (a == "--json") {
-            args.json = true;
-        } else if (a == "--tol-mm" || a == "--gsd-mm-per-px") {
-            double& out = a == "--tol-mm" ? args.tol_mm : args.gsd_mm_per_px;
-            if (!parse_positive(value, out)) {
-                error = a + ": '" + value + "' is not a number > 0";
-                return std::nullopt;
-            }
-        } else if (a == "--gt-vegetation") {
-            const std::string v = value;
-            if (v == "nonzero") {
-                args.gt_vegetation = Vegetation::nonzero;
-            } else if (v == "zero") {
-                args.gt_vegetation = Vegetation::zero;
-            } else {
-                error = "--gt-vegetation: '" + v + "' is neither nonzero nor zero";
-                return std::nullopt;
-            }
-        } else {
-            error = "unknown option " + a;
-            return std::nullopt;
-        }
+    std::vector<int> radii;
+    while (!text.empty()) {
+        const auto comma = text.find(',');
+        const std::string item(text.substr(0, comma));
+        long r = -1;
+        if (!tools::parse_int(item, r) || r < 0 || r > vision::kMaxClosingRadiusPx)
+            throw CLI::ValidationError("--radii", "'" + item + "' is not a radius in [0, " +
+                                                      std::to_string(vision::kMaxClosingRadiusPx) + "] px");
+        radii.push_back(static_cast<int>(r));
+        text = comma == std::string_view::npos ? std::string_view{} : text.substr(comma + 1);
     }
-    return args;
+    if (radii.empty())
+        throw CLI::ValidationError("--radii", "no radius given");
+    return radii;
+}
+
+// One of two words: the text is `yes` or `no`, else "'<text>' is neither <yes> nor <no>".
+CLI::Validator either(const std::string& yes, const std::string& no)
+{
+    return CLI::Validator(
+        [yes, no](std::string& text) {
+            return text == yes || text == no ? std::string() : "'" + text + "' is neither " + yes + " nor " + no;
+        },
+        yes + "|" + no);
+}
+
+// The arguments into `args`; the exit code after --help or a usage error.
+std::optional<int> parse_args(int argc, char** argv, Args& args)
+{
+    CLI::App app{"stemd-eval"};
+    std::string treat = "all", gt_vegetation = "nonzero";
+    const auto positive = tools::value_check<double>("a number > 0", [](double v) { return v > 0; });
+    CLI::Option* const mode_flags[] = {app.add_flag("--iou"), app.add_flag("--sweep"), app.add_flag("--targets")};
+    app.add_option("--tol-mm", args.tol_mm)->check(positive);
+    app.add_option("--gsd-mm-per-px", args.gsd_mm_per_px)->check(positive);
+    app.add_option("--min-radius-mm", args.min_radius_mm)->check(positive);
+    app.add_option("--gt-vegetation", gt_vegetation)->check(either("nonzero", "zero"));
+    app.add_option("--treat", treat)->check(either("all", "weeds"));
+    app.add_option_function<std::string>("--radii", [&](const std::string& text) { args.radii = parse_radii(text); });
+    app.add_flag("--require-exact", args.require_exact);
+    app.add_flag("--json", args.json);
+    tools::add_config_options(app, args.config);
+    app.add_option("operands", args.positional);
+    if (const auto exit_code = tools::parse(app, argc, argv, kCommandLine))
+        return *exit_code;
+    args.treat_weeds_only = treat == "weeds";
+    args.gt_vegetation = gt_vegetation == "zero" ? Vegetation::zero : Vegetation::nonzero;
+    // The last mode flag given chooses the mode; check_mode refuses the others.
+    const Mode modes[] = {Mode::iou, Mode::sweep, Mode::targets};
+    for (const CLI::Option* option : app.parse_order())
+        for (std::size_t m = 0; m < std::size(modes); ++m)
+            if (option == mode_flags[m])
+                args.mode = modes[m];
+    for (const CLI::Option* option : app.get_options())
+        if (option->nonpositional() && option->count() > 0)
+            args.options.insert(option->get_name());
+    return std::nullopt;
 }
 
 // Options and operands that fit the chosen mode.
@@ -304,11 +280,15 @@ int run_stems(const Args& args)
 
     const eval::MatchResult r = eval::match_stems(*gt, *pred, args.tol_mm, args.gsd_mm_per_px);
     if (args.json) {
-        std::cout << "{\"ground_truth\":" << r.ground_truth << ",\"predictions\":" << r.predictions
-                  << ",\"true_positives\":" << r.true_positives << ",\"precision\":" << number(r.precision)
-                  << ",\"recall\":" << number(r.recall) << ",\"f1\":" << number(r.f1)
-                  << ",\"mean_error_mm\":" << number(r.mean_error_mm) << ",\"tol_mm\":" << number(args.tol_mm)
-                  << ",\"gsd_mm_per_px\":" << number(args.gsd_mm_per_px) << "}\n";
+        print_json({{"ground_truth", r.ground_truth},
+                    {"predictions", r.predictions},
+                    {"true_positives", r.true_positives},
+                    {"precision", json_number(r.precision)},
+                    {"recall", json_number(r.recall)},
+                    {"f1", json_number(r.f1)},
+                    {"mean_error_mm", json_number(r.mean_error_mm)},
+                    {"tol_mm", json_number(args.tol_mm)},
+                    {"gsd_mm_per_px", json_number(args.gsd_mm_per_px)}});
         return kOk;
     }
     std::cout << "ground truth    " << r.ground_truth << " stems\n"
@@ -375,8 +355,9 @@ int run_iou(const Args& args)
     }
     const double mean = sum / static_cast<double>(results.size());
     if (args.json) {
-        std::cout << "{\"frames\":" << results.size() << ",\"mean_iou\":" << number(mean)
-                  << ",\"min_iou\":" << number(worst->iou.iou) << "}\n";
+        print_json({{"frames", results.size()},
+                    {"mean_iou", json_number(mean)},
+                    {"min_iou", json_number(worst->iou.iou)}});
         return kOk;
     }
     for (const FrameIou& r : results)
@@ -468,16 +449,19 @@ int run_sweep(const Args& args)
         rows.push_back(row);
     }
     if (args.json) {
-        std::cout << "{\"tol_mm\":" << number(args.tol_mm) << ",\"gsd_mm_per_px\":" << number(base.gsd_mm_per_px)
-                  << ",\"frames\":" << frames.size() << ",\"ground_truth\":" << gt->size() << ",\"rows\":[";
-        for (std::size_t i = 0; i < rows.size(); ++i) {
-            const auto& r = rows[i];
-            std::cout << (i ? "," : "") << "{\"method\":\"" << vision::to_string(r.estimator)
-                      << "\",\"closing_radius_px\":" << r.radius_px << ",\"recall\":" << number(r.result.recall)
-                      << ",\"precision\":" << number(r.result.precision) << ",\"f1\":" << number(r.result.f1)
-                      << ",\"mean_error_mm\":" << number(r.result.mean_error_mm) << "}";
-        }
-        std::cout << "]}\n";
+        Json json_rows = Json::array();
+        for (const auto& r : rows)
+            json_rows.push_back({{"method", std::string(vision::to_string(r.estimator))},
+                                 {"closing_radius_px", r.radius_px},
+                                 {"recall", json_number(r.result.recall)},
+                                 {"precision", json_number(r.result.precision)},
+                                 {"f1", json_number(r.result.f1)},
+                                 {"mean_error_mm", json_number(r.result.mean_error_mm)}});
+        print_json({{"tol_mm", json_number(args.tol_mm)},
+                    {"gsd_mm_per_px", json_number(base.gsd_mm_per_px)},
+                    {"frames", frames.size()},
+                    {"ground_truth", gt->size()},
+                    {"rows", std::move(json_rows)}});
         return kOk;
     }
     std::printf("%zu frames, %zu ground-truth stems, tolerance %s mm at %s mm/px\n", frames.size(), gt->size(),
@@ -530,13 +514,21 @@ int run_targets(const Args& args)
     const eval::TargetScore s = eval::score_targets(*plants, commands, offsets, args.tol_mm);
     const double per_plant = s.plants > 0 ? static_cast<double>(s.matched + s.duplicates) / static_cast<double>(s.plants) : 0;
     if (args.json) {
-        std::cout << "{\"plants\":" << s.plants << ",\"commands\":" << s.commands << ",\"matched\":" << s.matched
-                  << ",\"missed\":" << s.missed << ",\"duplicates\":" << s.duplicates << ",\"extra\":" << s.extra
-                  << ",\"bad_targets\":" << log->bad_targets << ",\"commands_per_plant\":" << number(per_plant)
-                  << ",\"error_p50_mm\":" << number(s.error_p50_mm) << ",\"error_p95_mm\":" << number(s.error_p95_mm)
-                  << ",\"error_max_mm\":" << number(s.error_max_mm) << ",\"along_p50_mm\":" << number(s.along_p50_mm)
-                  << ",\"lateral_p50_mm\":" << number(s.lateral_p50_mm) << ",\"tol_mm\":" << number(args.tol_mm)
-                  << ",\"exact\":" << (s.exact() ? "true" : "false") << "}\n";
+        print_json({{"plants", s.plants},
+                    {"commands", s.commands},
+                    {"matched", s.matched},
+                    {"missed", s.missed},
+                    {"duplicates", s.duplicates},
+                    {"extra", s.extra},
+                    {"bad_targets", log->bad_targets},
+                    {"commands_per_plant", json_number(per_plant)},
+                    {"error_p50_mm", json_number(s.error_p50_mm)},
+                    {"error_p95_mm", json_number(s.error_p95_mm)},
+                    {"error_max_mm", json_number(s.error_max_mm)},
+                    {"along_p50_mm", json_number(s.along_p50_mm)},
+                    {"lateral_p50_mm", json_number(s.lateral_p50_mm)},
+                    {"tol_mm", json_number(args.tol_mm)},
+                    {"exact", s.exact()}});
     } else {
         std::cout << "plants to treat  " << s.plants << (args.treat_weeds_only ? " (weeds)" : "") << "\n"
                   << "TARGET commands  " << s.commands << " counted of " << log->targets.size() << " in the log ("
@@ -579,21 +571,14 @@ int run(const Args& args)
 
 int main(int argc, char** argv)
 {
-    for (int i = 1; i < argc; ++i) {
-        const std::string_view a = argv[i];
-        if (a == "--")
-            break;
-        if (a == "--help" || a == "-h") {
-            std::cout << kUsage;
-            return kOk;
-        }
-    }
+    Args args;
+    if (const auto exit_code = parse_args(argc, argv, args))
+        return *exit_code;
     std::string error;
-    const auto args = parse_args(argc, argv, error);
-    if (!args || !check_mode(*args, error))
-        return fail(error + " (see stemd-eval --help)");
+    if (!check_mode(args, error))
+        return tools::usage_error(kCommandLine, error);
     try {
-        return run(*args);
+        return run(args);
     } catch (const std::exception& e) {  // e.g. cv::Exception, std::bad_alloc
         return fail(e.what());
     }

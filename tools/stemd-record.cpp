@@ -50,8 +50,7 @@
 #include "stemd/runtime/status.hpp"
 #include "stemd/io/recording.hpp"
 #include "stemd/io/recording_writer.hpp"
-#include "stemd/config/command_line.hpp"
-#include "tool_config.hpp"
+#include "tool_cli.hpp"
 #include "stemd/base/clock.hpp"
 
 using namespace stemd;
@@ -60,7 +59,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr int kUsageError = 2;
+using tools::kUsageError;
 constexpr long kDefaultSlots = 8;
 
 const char* const kUsage =
@@ -84,56 +83,27 @@ struct Args {
     long slots = kDefaultSlots;
 };
 
-std::optional<Args> parse_args(int argc, char** argv, std::string& error)
+const tools::CommandLine kCommandLine{.tool = "stemd-record", .usage = kUsage, .usage_after_error = true};
+
+// The arguments into `args` and the configuration they name into `config`;
+// the exit code after --help, a usage error or a configuration error.
+std::optional<int> parse_args(int argc, char** argv, Args& args, config::Config& config)
 {
-    Args args;
-    config::ArgReader in(argc, argv);
-    while (in.next()) {
-        const std::string a = in.arg();
-        auto value = [&](std::string& out) {
-            if (in.value(out))
-                return true;
-            error = in.error();
-            return false;
-        };
-        std::string v;
-        if (in.config_option(args.config)) {
-            if (in.failed()) {
-                error = in.error();
-                return std::nullopt;
-            }
-        } else if (a == "--out") {
-            if (!value(args.out)) return std::nullopt;
-        } else if (a == "--frames") {
-            if (!value(v)) return std::nullopt;
-            if (!tools::parse_int(v, args.frames) || args.frames < 1) {
-                error = "--frames: '" + v + "' is not a positive integer";
-                return std::nullopt;
-            }
-        } else if (a == "--seconds") {
-            if (!value(v)) return std::nullopt;
-            if (!tools::parse_number(v, args.seconds) || args.seconds <= 0) {
-                error = "--seconds: '" + v + "' is not a positive number";
-                return std::nullopt;
-            }
-        } else if (a == "--replay") {
-            if (!value(args.replay_dir)) return std::nullopt;
-        } else if (a == "--slots") {
-            if (!value(v)) return std::nullopt;
-            if (!tools::parse_int(v, args.slots) || args.slots < 2 || args.slots > 1024) {
-                error = "--slots: '" + v + "' is not an integer in [2, 1024]";
-                return std::nullopt;
-            }
-        } else {
-            error = "unknown argument " + a;
-            return std::nullopt;
-        }
-    }
-    if (args.out.empty()) {
-        error = "--out DIR is required";
-        return std::nullopt;
-    }
-    return args;
+    CLI::App app{"stemd-record"};
+    tools::add_config_options(app, args.config);
+    app.add_option("--out", args.out);
+    app.add_option("--frames", args.frames)
+        ->check(tools::value_check<long>("a positive integer", [](long n) { return n >= 1; }));
+    app.add_option("--seconds", args.seconds)
+        ->check(tools::value_check<double>("a positive number", [](double s) { return s > 0; }));
+    app.add_option("--replay", args.replay_dir);
+    app.add_option("--slots", args.slots)
+        ->check(tools::value_check<long>("an integer in [2, 1024]", [](long n) { return n >= 2 && n <= 1024; }));
+    if (const auto exit_code = tools::parse(app, argc, argv, kCommandLine))
+        return *exit_code;
+    if (args.out.empty())
+        return tools::usage_error(kCommandLine, "--out DIR is required");
+    return tools::load_config(kCommandLine, args.config, config);
 }
 
 // Refuses a `dir` that exists and is not an empty directory: a recording
@@ -187,38 +157,28 @@ io::FrameToWrite to_write(const drivers::Frame& frame)
 
 int main(int argc, char** argv)
 {
-    if (config::wants_help(argc, argv)) {
-        std::cout << kUsage;
-        return 0;
-    }
+    Args args;
+    config::Config config;
+    if (const auto exit_code = parse_args(argc, argv, args, config))
+        return *exit_code;
     // Before the writer thread exists, so that only the capture loop sees SIGTERM/SIGINT.
     runtime::ShutdownSignals signals;
 
     std::string error;
-    const auto args = parse_args(argc, argv, error);
-    if (!args) {
-        std::cerr << "stemd-record: " << error << "\n" << kUsage;
-        return kUsageError;
-    }
-    config::Config config;
-    if (const auto config_error = config::build_config(args->config, config)) {
-        std::cerr << "stemd-record: " << config_error->to_string() << "\n";
-        return kUsageError;
-    }
     runtime::DaemonConfig daemon_config = config.settings().daemon;
-    if (!args->replay_dir.empty()) {
+    if (!args.replay_dir.empty()) {
         daemon_config.source_kind = "replay";
-        daemon_config.replay_dir = args->replay_dir;
+        daemon_config.replay_dir = args.replay_dir;
     }
     daemon_config.replay_loop = false;   // a recording is recorded once
-    if (const auto problem = runtime::check_source_config(daemon_config, config, !args->replay_dir.empty())) {
+    if (const auto problem = runtime::check_source_config(daemon_config, config, !args.replay_dir.empty())) {
         std::cerr << "stemd-record: " << *problem << "\n";
         return kUsageError;
     }
     // Cameras deliver bgr only; a replay fills the planes the segmentation reads.
     const vision::Segmentation planes =
         daemon_config.source_kind == "replay" ? daemon_config.vision.segmentation : vision::Segmentation::exg;
-    const fs::path out = args->out;
+    const fs::path out = args.out;
     io::RecordingColumns columns;
     if (daemon_config.source_kind == "replay")
         columns = replayed_columns(daemon_config.replay_dir);
@@ -235,7 +195,7 @@ int main(int argc, char** argv)
     runtime::set_log_level(daemon_config.log_level);
     const auto log = runtime::make_logger("record");
 
-    const auto slot_count = static_cast<std::size_t>(args->slots);
+    const auto slot_count = static_cast<std::size_t>(args.slots);
     std::unique_ptr<runtime::FramePool> pool;
     try {
         pool = std::make_unique<runtime::FramePool>(daemon_config.frame_size, planes, slot_count, columns.plant_class);
@@ -287,7 +247,7 @@ int main(int argc, char** argv)
 
     const std::int64_t t_start_ns = base::monotonic_ns();
     const std::int64_t t_end_ns =
-        args->seconds > 0 ? t_start_ns + static_cast<std::int64_t>(args->seconds * 1e9) : INT64_MAX;
+        args.seconds > 0 ? t_start_ns + static_cast<std::int64_t>(args.seconds * 1e9) : INT64_MAX;
     bool stop_signalled = false;
     auto stop_requested = [&] {
         if (!stop_signalled) {
@@ -302,7 +262,7 @@ int main(int argc, char** argv)
     std::uint64_t writer_behind = 0;   // frames dropped: no free slot
     int exit_code = 0;
     while (!stop_requested()) {
-        if (args->frames > 0 && queued >= static_cast<std::uint64_t>(args->frames))
+        if (args.frames > 0 && queued >= static_cast<std::uint64_t>(args.frames))
             break;
         const std::int64_t now_ns = base::monotonic_ns();
         if (now_ns >= t_end_ns)

@@ -10,8 +10,6 @@
 //   DIR/strip.txt    the parameters (gsd, speed, fps, camera pose)
 //   DIR/class/NNNNNN.png   0 soil, 1 crop, 2 weed (grass too)
 #include <algorithm>
-#include <charconv>
-#include <iterator>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -30,13 +28,15 @@
 #include "stemd/io/csv.hpp"
 #include "stemd/io/recording_writer.hpp"
 #include "stemd/synth/synth.hpp"
+#include "tool_cli.hpp"
 
 namespace fs = std::filesystem;
 using namespace stemd;
 
 namespace {
 
-constexpr int kUsageError = 2;
+using tools::fixed;
+using tools::kUsageError;
 constexpr int kWriteError = 1;
 constexpr int kMaxFrames = 1000000;   // file names have six digits
 
@@ -65,124 +65,67 @@ const char* const kUsage =
     "  --length-mm       --strip: length of the planted strip, mm (default 3000)\n"
     "  --speed-kmh       --strip: driving speed, km/h (default 5)\n";
 
-// Every option but --strip takes a value.
-constexpr std::string_view kOptions[] = {"--out",   "--preset", "--frames",         "--seed", "--fragment",
-                                         "--width", "--height", "--gsd-mm-per-px", "--fps",  "--gsd",
-                                         "--length-mm", "--speed-kmh"};
-
 struct Args {
     fs::path out;
     synth::Options options;
     int frames = 10;
     double fps = 10;
     bool strip = false;
-    bool frames_set = false;
-    bool fps_set = false;
-    bool strip_only_set = false;   // --length-mm or --speed-kmh given
     double length_mm = 3000;
     double speed_kmh = 5;
 };
 
-template <typename T>
-bool parse_number(std::string_view text, T& out)
+const tools::CommandLine kCommandLine{.tool = "stemd-synth", .usage = kUsage, .after = " (see --help)"};
+
+// A number in (0, max].
+CLI::Validator up_to(double max, const std::string& what)
 {
-    const char* end = text.data() + text.size();
-    const auto [ptr, ec] = std::from_chars(text.data(), end, out);
-    return ec == std::errc() && ptr == end;
+    return tools::value_check<double>(what, [max](double v) { return v > 0 && v <= max; });
 }
 
-// Each option's value check; false + error on a bad value.
-bool apply_option(Args& args, const std::string& name, const std::string& value, std::string& error)
+// The arguments into `args`; the exit code after --help or a usage error.
+std::optional<int> parse_args(int argc, char** argv, Args& args)
 {
-    auto bad = [&](const char* what) {
-        error = name + " " + value + ": " + what;
-        return false;
-    };
     synth::Options& o = args.options;
-    if (name == "--out") {
-        if (value.empty()) return bad("must not be empty");
-        args.out = value;
-    } else if (name == "--preset") {
-        const auto preset = synth::parse_preset(value);
-        if (!preset) return bad("expected early, late or dense");
-        o.preset = *preset;
-    } else if (name == "--frames") {
-        if (!parse_number(value, args.frames) || args.frames < 1 || args.frames > kMaxFrames)
-            return bad("expected an integer 1..1000000");
-        args.frames_set = true;
-    } else if (name == "--seed") {
-        if (!parse_number(value, o.seed)) return bad("expected an unsigned 64-bit integer");
-    } else if (name == "--fragment") {
-        if (!parse_number(value, o.fragmentation) || !(o.fragmentation >= 0 && o.fragmentation <= 1))
-            return bad("expected a number 0..1");
-    } else if (name == "--width" || name == "--height") {
-        int& px = name == "--width" ? o.width_px : o.height_px;
-        if (!parse_number(value, px) || px < 16 || px > 32768) return bad("expected an integer 16..32768");
-    } else if (name == "--gsd-mm-per-px" || name == "--gsd") {
-        if (!parse_number(value, o.gsd_mm_per_px) || !(o.gsd_mm_per_px > 0 && o.gsd_mm_per_px <= 100))
-            return bad("expected a number in (0, 100]");
-    } else if (name == "--fps") {
-        if (!parse_number(value, args.fps) || !(args.fps > 0 && args.fps <= 1e6))
-            return bad("expected a number in (0, 1000000]");
-        args.fps_set = true;
-    } else if (name == "--length-mm") {
-        if (!parse_number(value, args.length_mm) || !(args.length_mm > 0 && args.length_mm <= 1e6))
-            return bad("expected a number in (0, 1000000]");
-        args.strip_only_set = true;
-    } else if (name == "--speed-kmh") {
-        if (!parse_number(value, args.speed_kmh) || !(args.speed_kmh > 0 && args.speed_kmh <= 1000))
-            return bad("expected a number in (0, 1000]");
-        args.strip_only_set = true;
-    } else {
-        error = "unknown option " + name;
-        return false;
-    }
-    return true;
-}
-
-std::optional<Args> parse_args(int argc, char** argv, std::string& error)
-{
-    Args args;
-    for (int i = 1; i < argc; ++i) {
-        const std::string name = argv[i];
-        if (name == "--strip") {
-            args.strip = true;
-            continue;
-        }
-        if (name.rfind("--", 0) != 0) {
-            error = "unexpected argument " + name;
-            return std::nullopt;
-        }
-        if (std::find(std::begin(kOptions), std::end(kOptions), name) == std::end(kOptions)) {
-            error = "unknown option " + name;
-            return std::nullopt;
-        }
-        if (i + 1 >= argc) {
-            error = name + " needs a value";
-            return std::nullopt;
-        }
-        if (!apply_option(args, name, argv[++i], error))
-            return std::nullopt;
-    }
-    if (args.out.empty()) {
-        error = "--out DIR is required";
-        return std::nullopt;
-    }
-    if (args.strip && args.frames_set) {
-        error = "--frames does not go with --strip (the strip's length and speed set the frames)";
-        return std::nullopt;
-    }
-    if (!args.strip && args.strip_only_set) {
-        error = "--length-mm and --speed-kmh need --strip";
-        return std::nullopt;
-    }
-    if (args.strip && !args.fps_set)
+    CLI::App app{"stemd-synth"};
+    std::string out;
+    app.add_option("--out", out)->check(CLI::Validator(
+        [](std::string& dir) { return dir.empty() ? std::string("must not be empty") : std::string(); }, "DIR"));
+    app.add_option_function<std::string>("--preset", [&](const std::string& name) { o.preset = *synth::parse_preset(name); })
+        ->check(CLI::Validator(
+            [](std::string& name) {
+                return synth::parse_preset(name) ? std::string() : "'" + name + "' is not early, late, dense or seedling";
+            },
+            "PRESET"));
+    CLI::Option* const frames = app.add_option("--frames", args.frames)
+        ->check(tools::value_check<int>("an integer 1..1000000", [](int n) { return n >= 1 && n <= kMaxFrames; }));
+    app.add_option("--seed", o.seed)
+        ->check(tools::value_check<std::uint64_t>("an unsigned 64-bit integer", [](std::uint64_t) { return true; }));
+    app.add_option("--fragment", o.fragmentation)
+        ->check(tools::value_check<double>("a number 0..1", [](double f) { return f >= 0 && f <= 1; }));
+    const auto size_px = tools::value_check<int>("an integer 16..32768", [](int px) { return px >= 16 && px <= 32768; });
+    app.add_option("--width", o.width_px)->check(size_px);
+    app.add_option("--height", o.height_px)->check(size_px);
+    app.add_option("--gsd-mm-per-px,--gsd", o.gsd_mm_per_px)->check(up_to(100, "a number in (0, 100]"));
+    CLI::Option* const fps = app.add_option("--fps", args.fps)->check(up_to(1e6, "a number in (0, 1000000]"));
+    CLI::Option* const length = app.add_option("--length-mm", args.length_mm)->check(up_to(1e6, "a number in (0, 1000000]"));
+    CLI::Option* const speed = app.add_option("--speed-kmh", args.speed_kmh)->check(up_to(1000, "a number in (0, 1000]"));
+    app.add_flag("--strip", args.strip);
+    if (const auto exit_code = tools::parse(app, argc, argv, kCommandLine))
+        return *exit_code;
+    args.out = out;
+    if (args.out.empty())
+        return tools::usage_error(kCommandLine, "--out DIR is required");
+    if (args.strip && frames->count() > 0)
+        return tools::usage_error(kCommandLine,
+                                  "--frames does not go with --strip (the strip's length and speed set the frames)");
+    if (!args.strip && (length->count() > 0 || speed->count() > 0))
+        return tools::usage_error(kCommandLine, "--length-mm and --speed-kmh need --strip");
+    if (args.strip && fps->count() == 0)
         args.fps = 30;
-    if (args.strip && args.fps > 10000) {
-        error = "--fps " + std::to_string(args.fps) + ": --strip takes at most 10000";
-        return std::nullopt;
-    }
-    return args;
+    if (args.strip && args.fps > 10000)
+        return tools::usage_error(kCommandLine, "--fps " + std::to_string(args.fps) + ": --strip takes at most 10000");
+    return std::nullopt;
 }
 
 bool write_text(const fs::path& path, const std::string& text, std::string& error)
@@ -247,13 +190,6 @@ std::string exact(double value)
     char text[64];
     const auto [end, ec] = std::to_chars(text, text + sizeof text, value);
     return ec == std::errc() ? std::string(text, end) : std::string("nan");
-}
-
-std::string fixed(double value, int decimals)
-{
-    char text[64];
-    std::snprintf(text, sizeof text, "%.*f", decimals, value);
-    return text;
 }
 
 int run_strip(const Args& args)
@@ -347,18 +283,8 @@ int run_strip(const Args& args)
 
 int main(int argc, char** argv)
 {
-    for (int i = 1; i < argc; ++i) {
-        const std::string_view a = argv[i];
-        if (a == "--help" || a == "-h") {
-            std::cout << kUsage;
-            return 0;
-        }
-    }
-    std::string error;
-    const auto args = parse_args(argc, argv, error);
-    if (!args) {
-        std::cerr << "stemd-synth: " << error << " (see --help)\n";
-        return kUsageError;
-    }
-    return args->strip ? run_strip(*args) : run(*args);
+    Args args;
+    if (const auto exit_code = parse_args(argc, argv, args))
+        return *exit_code;
+    return args.strip ? run_strip(args) : run(args);
 }

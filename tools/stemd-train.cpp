@@ -16,7 +16,6 @@
 #include <string>
 #include <vector>
 
-#include <CLI/CLI.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -25,6 +24,7 @@
 #include "stemd/io/recording.hpp"
 #include "stemd/vision/classify.hpp"
 #include "stemd/vision/detect.hpp"
+#include "tool_cli.hpp"
 #include "tool_frames.hpp"
 
 namespace fs = std::filesystem;
@@ -32,7 +32,7 @@ using namespace stemd;
 
 namespace {
 
-constexpr int kUsageError = 2;
+using tools::kUsageError;
 
 // One plant of one frame: its features, the class the human class image
 // gives it (by majority of its vegetation pixels), and those pixels' counts.
@@ -246,9 +246,7 @@ int main(int argc, char** argv)
     int folds = 5;
     vision::ForestOptions forest;
     app.add_option("--out", out_path, "model file to write (.yaml or .json)")->required();
-    app.add_option("--config", config_args.file, "configuration file (see config/stemd.yaml)");
-    app.add_option("--set", config_args.sets, "override one configuration key, e.g. camera.gsd_mm_per_px=0.11")
-        ->allow_extra_args(false);
+    tools::add_config_options(app, config_args);
     app.add_option("--folds", folds, "cross-validation folds; frame i is in fold i mod N")
         ->check(CLI::Range(2, 100));
     app.add_option("--trees", forest.trees, "trees in the forest")->check(CLI::Range(1, 1000));
@@ -260,11 +258,8 @@ int main(int argc, char** argv)
     app.add_option("--test-set", test_sets, "a configuration override for the --test-on recordings only")
         ->allow_extra_args(false);
     app.add_option("RECORDING", recordings, "recording directories with a class column")->required();
-    try {
-        app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
-        return app.exit(e) == 0 ? 0 : kUsageError;
-    }
+    if (const auto exit_code = tools::parse(app, argc, argv, {.tool = "stemd-train", .after = " (see --help)"}))
+        return *exit_code;
 
     std::vector<FrameSamples> frames;
     vision::Params params;

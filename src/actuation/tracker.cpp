@@ -79,12 +79,10 @@ void Tracker::emit(Track& t, const TrackFrame& frame, bool by_exit) noexcept
     next_id_ = (next_id_ + 1) % (protocol::kMaxTargetId + 1u);
     o.s_mm = t.s_mm;
     o.y_mm = t.y_mm;
-    o.plant_class = t.weed_w > t.crop_w   ? PlantClass::Weed
-                    : t.crop_w > t.weed_w ? PlantClass::Crop
-                                          : PlantClass::Unknown;
+    o.plant_class = t.plant_class();
     o.sightings = t.sightings;
     o.leaves = t.leaves;
-    o.confidence = t.sightings > 0 ? static_cast<float>(t.conf_sum / t.sightings) : 0.0f;
+    o.confidence = t.mean_confidence();
     o.by_exit = by_exit;
     o.t_emit_ns = frame.t_sample_ns;
     o.first_seq = t.first_seq;
@@ -107,12 +105,10 @@ void Tracker::retire(std::size_t i) noexcept
     r.target_id = t.target_id;
     r.s_mm = t.s_mm;
     r.y_mm = t.y_mm;
-    r.plant_class = t.weed_w > t.crop_w   ? PlantClass::Weed
-                    : t.crop_w > t.weed_w ? PlantClass::Crop
-                                          : PlantClass::Unknown;
+    r.plant_class = t.plant_class();
     r.sightings = t.sightings;
     r.leaves = t.leaves;
-    r.confidence = t.sightings > 0 ? static_cast<float>(t.conf_sum / t.sightings) : 0.0f;
+    r.confidence = t.mean_confidence();
     r.first_seq = t.first_seq;
     r.last_seq = t.last_seq;
     t = Track{};

@@ -19,20 +19,6 @@ constexpr std::array<std::string_view, kPlantFeatureCount> kFeatureNames{
     "g_std",        "exg_mean",     "brightness_rel", "texture", "ndvi_mean", "ndvi_std", "lateral",
 };
 
-// The grouping of detect(): pieces of the closed mask closer than the group
-// gap are one plant, joined on 4 px cells dilated by half the gap. It is
-// repeated here (from the closed mask) rather than exported from detect();
-// a unit test checks that both give every plant the same area.
-constexpr int kGroupCellPx = 4;
-
-int group_radius_cells(const Params& params)
-{
-    if (params.group_gap_mm <= 0 || params.gsd_mm_per_px <= 0)
-        return 0;
-    const double radius_px = params.group_gap_mm / (2.0 * params.gsd_mm_per_px);
-    return std::clamp(static_cast<int>(std::ceil(radius_px / kGroupCellPx)), 1, kMaxClosingRadiusPx);
-}
-
 double sq(double v) { return v * v; }
 
 // Zeroes an image row by row: Mat::setTo allocates a scratch buffer.
@@ -59,24 +45,12 @@ std::string_view feature_name(int feature)
                                                         : std::string_view("?");
 }
 
-ClassifyWorkspace::ClassifyWorkspace(cv::Size frame_size, const Params& params)
+ClassifyWorkspace::ClassifyWorkspace(cv::Size frame_size, const Params&)
     : frame_size_(frame_size)
 {
     const int width = std::max(frame_size.width, 0);
     const int height = std::max(frame_size.height, 0);
     plant_index_.create(height, width, CV_16UC1);
-    labels_.reserve(width, height);
-    const std::size_t max_components =
-        static_cast<std::size_t>((width + 1) / 2) * static_cast<std::size_t>((height + 1) / 2);
-    pieces_.reserve(max_components);
-    groups_.reserve(max_components);
-    piece_group_.reserve(max_components);
-    group_plant_.reserve(max_components);
-    cells_.reset(width / kGroupCellPx + 1, height / kGroupCellPx + 1);
-    grouped_.reset(cells_.width(), cells_.height());
-    group_labels_.reserve(cells_.width(), cells_.height());
-    if (width > 0 && height > 0)
-        dilate_mask(cells_, group_radius_cells(params), grouped_, grouping_);
     reciprocal_[0] = 0;   // a black pixel has no chromaticity: counted as 0
     for (std::size_t i = 1; i < reciprocal_.size(); ++i)
         reciprocal_[i] = 1.0f / static_cast<float>(i);
@@ -95,39 +69,10 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
     ws.plants_ = det.plants.size();
     const BitMask& closed = dws.closed();
     const BitMask& vegetation = dws.vegetation();
+    const std::span<const std::uint16_t> piece_plant = dws.piece_plant();
     const bool has_nir = !frame.nir.empty() && frame.nir.size() == ws.frame_size_ && frame.nir.type() == CV_8UC1;
 
-    // 1. Which plant each piece of the closed mask belongs to.
-    label_components(closed, ws.labels_, ws.pieces_);
-    const int pieces = static_cast<int>(ws.pieces_.size());
-    ws.piece_group_.resize(static_cast<std::size_t>(pieces));
-    std::size_t groups = static_cast<std::size_t>(pieces);
-    const int group_radius = group_radius_cells(params);
-    if (group_radius > 0 && pieces > 1) {
-        reduce_labelled_mask(ws.labels_, kGroupCellPx, ws.cells_);
-        dilate_mask(ws.cells_, group_radius, ws.grouped_, ws.grouping_);
-        label_components(ws.grouped_, ws.group_labels_, ws.groups_);
-        groups = ws.groups_.size();
-        for (int i = 0; i < pieces; ++i) {
-            const cv::Point first = ws.pieces_[static_cast<std::size_t>(i)].first_pixel;
-            ws.piece_group_[static_cast<std::size_t>(i)] =
-                component_at(ws.group_labels_, {first.x / kGroupCellPx, first.y / kGroupCellPx});
-        }
-    } else {
-        for (int i = 0; i < pieces; ++i)
-            ws.piece_group_[static_cast<std::size_t>(i)] = i;
-    }
-    ws.group_plant_.assign(groups, 0);
-    for (std::size_t p = 0; p < ws.plants_; ++p) {
-        const int piece = component_at(ws.labels_, det.plants[p].first_pixel);
-        if (piece < 0)
-            continue;
-        const int group = ws.piece_group_[static_cast<std::size_t>(piece)];
-        if (group >= 0)
-            ws.group_plant_[static_cast<std::size_t>(group)] = static_cast<std::uint16_t>(p + 1);
-    }
-
-    // 2. One pass over the closed mask: each run gets its plant once. Its
+    // One pass over the closed mask: each run gets its plant once. Its
     // moments follow from its ends in closed form; colour and texture add
     // up in locals and go to the plant's sums once per run (adding into the
     // array pixel by pixel would chain every add through memory).
@@ -189,9 +134,9 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
                 bits &= bits - 1;
                 if (x != run_end + 1) {
                     flush();
-                    const int piece = component_at(ws.labels_, {x, y});
-                    const int group = piece >= 0 ? ws.piece_group_[static_cast<std::size_t>(piece)] : -1;
-                    id = group >= 0 ? ws.group_plant_[static_cast<std::size_t>(group)] : 0;
+                    // The plant detect() made of this piece.
+                    const int piece = component_at(dws.pieces(), {x, y});
+                    id = piece >= 0 ? piece_plant[static_cast<std::size_t>(piece)] : 0;
                     run_start = x;
                 }
                 run_end = x;

@@ -161,25 +161,47 @@ void morph_pass(const BitMask& src, BitMask& dst, const Kernel& kernel, std::uin
     }
 }
 
+// Radius 0 (or an empty mask): out = in. Returns whether it copied.
+bool copy_if_trivial(const BitMask& in, int radius_px, BitMask& out)
+{
+    if (out.width() != in.width() || out.height() != in.height())
+        out.reset(in.width(), in.height());
+    if (radius_px > 0 && in.width() > 0 && in.height() > 0)
+        return false;
+    for (int y = 0; y < in.height(); ++y)
+        std::copy(in.row(y), in.row(y) + in.words_per_row(), out.row(y));
+    return true;
+}
+
 }  // namespace
 
 struct MorphologyAccess {
     // Sizes the scratch for `in` and sets the kernel up for `radius_px` (> 0).
     // Allocates only when the size or a larger radius is new.
     static Kernel prepare_kernel(const BitMask& in, int radius_px, ClosingScratch& scratch);
-    // `op` from `in` into the scratch's intermediate mask, then the other one into `out`.
-    template <Op op>
-    static void run_one(const BitMask& in, const Kernel& kernel, BitMask& out, ClosingScratch& scratch)
+    // `ops` (one or two) in turn from `in` to `out` with a kernel of
+    // `radius_px`, two through the scratch's intermediate mask. Radius 0 or
+    // an empty mask copies.
+    template <Op first, Op... second>
+    static void apply(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch)
     {
-        morph_pass<op>(in, out, kernel, scratch.ring_.data(), scratch.row_tmp_.data(), scratch.row_clear_.get());
+        static_assert(sizeof...(second) <= 1);
+        CV_Assert(&in != &out);
+        radius_px = std::max(radius_px, 0);
+        if (copy_if_trivial(in, radius_px, out))
+            return;
+        const Kernel kernel = prepare_kernel(in, radius_px, scratch);
+        if constexpr (sizeof...(second) == 0) {
+            pass<first>(in, out, kernel, scratch);
+        } else {
+            pass<first>(in, scratch.dilated_, kernel, scratch);
+            pass<second...>(scratch.dilated_, out, kernel, scratch);
+        }
     }
-    template <Op first, Op second>
-    static void run(const BitMask& in, const Kernel& kernel, BitMask& out, ClosingScratch& scratch)
+    template <Op op>
+    static void pass(const BitMask& from, BitMask& to, const Kernel& kernel, ClosingScratch& scratch)
     {
-        morph_pass<first>(in, scratch.dilated_, kernel, scratch.ring_.data(), scratch.row_tmp_.data(),
-                          scratch.row_clear_.get());
-        morph_pass<second>(scratch.dilated_, out, kernel, scratch.ring_.data(), scratch.row_tmp_.data(),
-                           scratch.row_clear_.get());
+        morph_pass<op>(from, to, kernel, scratch.ring_.data(), scratch.row_tmp_.data(), scratch.row_clear_.get());
     }
 };
 
@@ -210,50 +232,20 @@ Kernel MorphologyAccess::prepare_kernel(const BitMask& in, int radius_px, Closin
     return Kernel{radius_px, scratch.width_slot_, scratch.slot_half_width_};
 }
 
-namespace {
-
-// Radius 0 (or an empty mask): out = in. Returns whether it copied.
-bool copy_if_trivial(const BitMask& in, int radius_px, BitMask& out)
-{
-    if (out.width() != in.width() || out.height() != in.height())
-        out.reset(in.width(), in.height());
-    if (radius_px > 0 && in.width() > 0 && in.height() > 0)
-        return false;
-    for (int y = 0; y < in.height(); ++y)
-        std::copy(in.row(y), in.row(y) + in.words_per_row(), out.row(y));
-    return true;
-}
-
-}  // namespace
 
 void close_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch)
 {
-    CV_Assert(&in != &out);
-    radius_px = std::max(radius_px, 0);
-    if (copy_if_trivial(in, radius_px, out))
-        return;
-    const Kernel kernel = MorphologyAccess::prepare_kernel(in, radius_px, scratch);
-    MorphologyAccess::run<Op::dilate, Op::erode>(in, kernel, out, scratch);
+    MorphologyAccess::apply<Op::dilate, Op::erode>(in, radius_px, out, scratch);
 }
 
 void open_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch)
 {
-    CV_Assert(&in != &out);
-    radius_px = std::max(radius_px, 0);
-    if (copy_if_trivial(in, radius_px, out))
-        return;
-    const Kernel kernel = MorphologyAccess::prepare_kernel(in, radius_px, scratch);
-    MorphologyAccess::run<Op::erode, Op::dilate>(in, kernel, out, scratch);
+    MorphologyAccess::apply<Op::erode, Op::dilate>(in, radius_px, out, scratch);
 }
 
 void dilate_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch)
 {
-    CV_Assert(&in != &out);
-    radius_px = std::max(radius_px, 0);
-    if (copy_if_trivial(in, radius_px, out))
-        return;
-    const Kernel kernel = MorphologyAccess::prepare_kernel(in, radius_px, scratch);
-    MorphologyAccess::run_one<Op::dilate>(in, kernel, out, scratch);
+    MorphologyAccess::apply<Op::dilate>(in, radius_px, out, scratch);
 }
 
 }  // namespace stemd::vision

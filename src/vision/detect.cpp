@@ -151,6 +151,7 @@ Workspace::Workspace(cv::Size frame_size, const Params& params)
     piece_group_.reserve(max_components);
     piece_order_.reserve(max_components);
     group_rank_.reserve(max_components);
+    piece_plant_.reserve(max_components);
     keep_.reserve(max_components);
     cells_.reset(width / kGroupCellPx + 1, height / kGroupCellPx + 1);
     grouped_.reset(cells_.width(), cells_.height());
@@ -259,6 +260,7 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
     out.stats.components = pieces;
     ws.piece_group_.resize(static_cast<std::size_t>(pieces));
     ws.piece_order_.resize(static_cast<std::size_t>(pieces));
+    ws.piece_plant_.assign(static_cast<std::size_t>(pieces), 0);
     const int group_radius = group_radius_cells(params);
     if (group_radius > 0 && pieces > 1) {
         reduce_labelled_mask(ws.labels_, kGroupCellPx, ws.cells_);
@@ -301,6 +303,11 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
             ++end;
         const std::span<const int> members(ws.piece_order_.data() + begin, static_cast<std::size_t>(end - begin));
         begin = end;
+        auto add_plant = [&](const Plant& plant) {
+            out.plants.push_back(plant);
+            for (const int m : members)
+                ws.piece_plant_[static_cast<std::size_t>(m)] = static_cast<std::uint16_t>(out.plants.size());
+        };
 
         long area_px = 0;
         double sum_x = 0, sum_y = 0;
@@ -369,7 +376,7 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
                 plant.confidence = 0;
                 plant.has_stem = false;
                 ++out.stats.stemless;
-                out.plants.push_back(plant);
+                add_plant(plant);
                 continue;
             }
             plant.hull_fill = static_cast<float>(static_cast<double>(area_px) / std::max(hull_area_px, 1.0));
@@ -397,7 +404,7 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
             plant.has_stem = false;
             ++out.stats.stemless;
         }
-        out.plants.push_back(plant);
+        add_plant(plant);
     }
     const std::int64_t t_leaves = base::monotonic_ns();
     if (times) {
@@ -417,7 +424,8 @@ std::size_t Workspace::reserved_bytes() const
            vegetation_.reserved_bytes() + thresholded_.reserved_bytes() + second_.reserved_bytes() + opened_.reserved_bytes() + edged_.reserved_bytes() + edges_.reserved_bytes() + keep_.capacity() + closed_.reserved_bytes() +
            opening_.reserved_bytes() + closing_.reserved_bytes() + cells_.reserved_bytes() +
            grouped_.reserved_bytes() + grouping_.reserved_bytes() + group_labels_.reserved_bytes() + (groups_.capacity()) * sizeof(Component) +
-           (piece_group_.capacity() + piece_order_.capacity() + group_rank_.capacity()) * sizeof(int) + labels_.reserved_bytes() + components_.capacity() * sizeof(Component) +
+           (piece_group_.capacity() + piece_order_.capacity() + group_rank_.capacity()) * sizeof(int) +
+           piece_plant_.capacity() * sizeof(std::uint16_t) + labels_.reserved_bytes() + components_.capacity() * sizeof(Component) +
            contour_.capacity() * sizeof(cv::Point) + (hull_.capacity() + hull_order_.capacity()) * sizeof(int) +
            defects_.capacity() * sizeof(Defect) + sizeof(NdviTable);
 }

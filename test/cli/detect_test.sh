@@ -77,6 +77,17 @@ grep -q "000002.png" "$tmp/broken.csv" || fail "frame after the corrupt one miss
 set +e
 "$tools/stemd-detect" >/dev/null 2>&1; rc1=$?
 "$tools/stemd-detect" --segment ndvi "$tmp/rec/rgb/000001.png" >/dev/null 2>&1; rc2=$?
+"$tools/stemd-detect" --csv - --bogus "$tmp/rec" >/dev/null 2>"$tmp/e3"; rc3=$?
+"$tools/stemd-detect" "$tmp/rec" --csv >/dev/null 2>"$tmp/e4"; rc4=$?
 set -e
 [ $rc1 -eq 2 ] && [ $rc2 -eq 2 ] || fail "usage errors exited $rc1 $rc2"
+[ $rc3 -eq 2 ] && grep -q "^stemd-detect: unknown option --bogus$" "$tmp/e3" || fail "unknown option: $rc3 $(cat "$tmp/e3")"
+[ $rc4 -eq 2 ] && grep -q "^stemd-detect: --csv needs a value$" "$tmp/e4" || fail "missing value: $rc4 $(cat "$tmp/e4")"
+# --segment and --set take effect in the order given: the last method wins
+# (ndvi needs a nir plane, which a lone rgb image has not).
+"$tools/stemd-detect" --segment ndvi --set segment.method=chromatic_exg "$tmp/rec/rgb/000001.png" >/dev/null 2>&1 ||
+  fail "--set after --segment did not win"
+rc5=0
+"$tools/stemd-detect" --set segment.method=chromatic_exg --segment ndvi "$tmp/rec/rgb/000001.png" >/dev/null 2>&1 || rc5=$?
+[ $rc5 -ne 0 ] || fail "--segment after --set did not win"
 echo "detect_test: ok ($rows plants)"

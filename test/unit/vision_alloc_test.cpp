@@ -18,15 +18,29 @@
 
 using namespace stemd::vision;
 
+namespace {
+
+// A busy frame: many plants (bright in the NIR plane too), noise,
+// vegetation on the border.
+struct BusyFrame {
+    BusyFrame(cv::Size size, std::uint64_t seed)
+        : plants(stemd::test::random_blob_mask(size, seed, 150, 0.001)),
+          bgr(size, CV_8UC3, cv::Scalar(60, 80, 110)),
+          nir(size, CV_8UC1, cv::Scalar(80))
+    {
+        bgr.setTo(cv::Scalar(40, 160, 50), plants);
+        nir.setTo(220, plants);
+    }
+    cv::Mat plants, bgr, nir;
+};
+
+}  // namespace
+
 TEST(RealTime, DetectAllocatesNothingOnceTheWorkspaceExists)
 {
     const cv::Size size(1296, 966);
-    // A busy frame: many plants, noise, vegetation on the border.
-    cv::Mat bgr(size, CV_8UC3, cv::Scalar(60, 80, 110));
-    const cv::Mat plants = stemd::test::random_blob_mask(size, 77, 150, 0.001);
-    bgr.setTo(cv::Scalar(40, 160, 50), plants);
-    cv::Mat nir(size, CV_8UC1, cv::Scalar(80));
-    nir.setTo(220, plants);
+    const BusyFrame busy(size, 77);
+    const cv::Mat &bgr = busy.bgr, &nir = busy.nir, &plants = busy.plants;
 
     Params params;
     params.min_plant_area_mm2 = 0;
@@ -66,11 +80,8 @@ TEST(RealTime, TheCounterSeesAllocations)
 TEST(RealTime, ClassifierAllocatesNothingOnceWarm)
 {
     const cv::Size size(1296, 966);
-    cv::Mat bgr(size, CV_8UC3, cv::Scalar(60, 80, 110));
-    const cv::Mat plants = stemd::test::random_blob_mask(size, 78, 150, 0.001);
-    bgr.setTo(cv::Scalar(40, 160, 50), plants);
-    cv::Mat nir(size, CV_8UC1, cv::Scalar(80));
-    nir.setTo(220, plants);
+    const BusyFrame busy(size, 78);
+    const cv::Mat &bgr = busy.bgr, &nir = busy.nir;
     Params params;
     auto ws = std::make_unique<Workspace>(size, params);
     auto out = std::make_unique<Detections>();

@@ -48,6 +48,19 @@ Params test_params()
     return params;
 }
 
+// detect() then plant_features() on one frame; the workspaces stay for the checks.
+struct Classified {
+    Classified(const cv::Mat& bgr, const Params& params, const cv::Mat& nir = {})
+        : ws(bgr.size(), params), cws(bgr.size(), params)
+    {
+        detect({.bgr = bgr, .nir = nir}, params, ws, det);
+        plant_features({.bgr = bgr, .nir = nir}, params, ws, det, cws);
+    }
+    Workspace ws;
+    Detections det;
+    ClassifyWorkspace cws;
+};
+
 // Two separable clouds of feature rows: crop with large area, weed small.
 void toy_data(int rows, std::uint32_t seed, cv::Mat& samples, cv::Mat& labels)
 {
@@ -78,27 +91,23 @@ TEST(Classify, EveryPlantGetsExactlyItsOwnPixels)
     const Params params = test_params();
     for (std::uint64_t seed = 1; seed <= 5; ++seed) {
         const cv::Mat bgr = plants_frame(size, seed);
-        Workspace ws(size, params);
-        Detections det;
-        detect({.bgr = bgr}, params, ws, det);
-        ASSERT_EQ(det.status, DetectStatus::ok);
-        ASSERT_GT(det.plants.size(), 5u);
-        ClassifyWorkspace cws(size, params);
-        plant_features({.bgr = bgr}, params, ws, det, cws);
-        ASSERT_EQ(cws.features().size(), det.plants.size());
-        std::vector<int> counted(det.plants.size() + 1, 0);
+        const Classified c(bgr, params);
+        ASSERT_EQ(c.det.status, DetectStatus::ok);
+        ASSERT_GT(c.det.plants.size(), 5u);
+        ASSERT_EQ(c.cws.features().size(), c.det.plants.size());
+        std::vector<int> counted(c.det.plants.size() + 1, 0);
         for (int y = 0; y < size.height; ++y)
             for (int x = 0; x < size.width; ++x) {
-                const int id = cws.plant_index().at<std::uint16_t>(y, x);
-                ASSERT_LE(id, static_cast<int>(det.plants.size()));
+                const int id = c.cws.plant_index().at<std::uint16_t>(y, x);
+                ASSERT_LE(id, static_cast<int>(c.det.plants.size()));
                 ++counted[static_cast<std::size_t>(id)];
                 if (id > 0) {
-                    const cv::Rect& box = det.plants[static_cast<std::size_t>(id - 1)].bbox;
+                    const cv::Rect& box = c.det.plants[static_cast<std::size_t>(id - 1)].bbox;
                     EXPECT_TRUE(box.contains({x, y})) << "pixel outside its plant's box";
                 }
             }
-        for (std::size_t i = 0; i < det.plants.size(); ++i)
-            EXPECT_EQ(counted[i + 1], det.plants[i].area_px) << "plant " << i << " seed " << seed;
+        for (std::size_t i = 0; i < c.det.plants.size(); ++i)
+            EXPECT_EQ(counted[i + 1], c.det.plants[i].area_px) << "plant " << i << " seed " << seed;
     }
 }
 
@@ -109,16 +118,12 @@ TEST(Classify, ShapeFeaturesTellADiscFromALine)
     cv::circle(bgr, {80, 100}, 20, cv::Scalar(40, 170, 60), cv::FILLED);
     cv::line(bgr, {180, 40}, {260, 160}, cv::Scalar(40, 170, 60), 3);
     const Params params = test_params();
-    Workspace ws(size, params);
-    Detections det;
-    detect({.bgr = bgr}, params, ws, det);
-    ASSERT_EQ(det.plants.size(), 2u);
-    ClassifyWorkspace cws(size, params);
-    plant_features({.bgr = bgr}, params, ws, det, cws);
+    Classified c(bgr, params);
+    ASSERT_EQ(c.det.plants.size(), 2u);
     // Plants come in raster order of their top-most pixel: the line first.
-    const std::size_t disc_index = det.plants[0].centre_of_mass.x < 150 ? 0 : 1;
-    const FeatureRow& disc = cws.features()[disc_index];
-    const FeatureRow& line = cws.features()[1 - disc_index];
+    const std::size_t disc_index = c.det.plants[0].centre_of_mass.x < 150 ? 0 : 1;
+    const FeatureRow& disc = c.cws.features()[disc_index];
+    const FeatureRow& line = c.cws.features()[1 - disc_index];
     // Disc of radius 20 px at 0.3 mm/px: pi 400 0.09 = 113 mm².
     EXPECT_NEAR(std::pow(10.0f, disc[f_log_area_mm2]), 113.1, 113.1 * 0.05);
     EXPECT_NEAR(disc[f_elongation], 1.0, 0.05);
@@ -138,14 +143,10 @@ TEST(Classify, NdviFeaturesComeFromTheNirPlane)
     cv::circle(bgr, {100, 100}, 20, cv::Scalar(40, 170, 60), cv::FILLED);
     cv::Mat nir(size, CV_8UC1, cv::Scalar(180));   // (180 - 60) / (180 + 60) = 0.5 on the plant
     const Params params = test_params();
-    Workspace ws(size, params);
-    Detections det;
-    detect({.bgr = bgr, .nir = nir}, params, ws, det);
-    ASSERT_EQ(det.plants.size(), 1u);
-    ClassifyWorkspace cws(size, params);
-    plant_features({.bgr = bgr, .nir = nir}, params, ws, det, cws);
-    EXPECT_NEAR(cws.features()[0][f_ndvi_mean], 0.5, 1e-4);
-    EXPECT_NEAR(cws.features()[0][f_ndvi_std], 0.0, 1e-4);
+    Classified c(bgr, params, nir);
+    ASSERT_EQ(c.det.plants.size(), 1u);
+    EXPECT_NEAR(c.cws.features()[0][f_ndvi_mean], 0.5, 1e-4);
+    EXPECT_NEAR(c.cws.features()[0][f_ndvi_std], 0.0, 1e-4);
 }
 
 TEST(Classify, DecisionLeavesTheUnsureMiddleUnknown)
@@ -167,21 +168,17 @@ TEST(Classify, ClassMapPaintsEachVegetationPixelWithItsPlantsClass)
     cv::circle(bgr, {80, 100}, 20, cv::Scalar(40, 170, 60), cv::FILLED);
     cv::circle(bgr, {220, 100}, 20, cv::Scalar(40, 170, 60), cv::FILLED);
     const Params params = test_params();
-    Workspace ws(size, params);
-    Detections det;
-    detect({.bgr = bgr}, params, ws, det);
-    ASSERT_EQ(det.plants.size(), 2u);
-    ClassifyWorkspace cws(size, params);
-    plant_features({.bgr = bgr}, params, ws, det, cws);
+    Classified c(bgr, params);
+    ASSERT_EQ(c.det.plants.size(), 2u);
     const std::array classes{PlantClass::Crop, PlantClass::Weed};
     cv::Mat map;
-    class_map(ws, cws, classes, map);
+    class_map(c.ws, c.cws, classes, map);
     ASSERT_EQ(map.size(), size);
     EXPECT_EQ(map.at<std::uint8_t>(100, 80), 1);
     EXPECT_EQ(map.at<std::uint8_t>(100, 220), 2);
     EXPECT_EQ(map.at<std::uint8_t>(10, 10), 0);
     cv::Mat veg;
-    unpack_mask(ws.vegetation(), veg);
+    unpack_mask(c.ws.vegetation(), veg);
     EXPECT_EQ(cv::countNonZero(map), cv::countNonZero(veg)) << "every vegetation pixel of a plant, nothing else";
 }
 
@@ -351,17 +348,13 @@ TEST(Classify, AFrameWithoutItsRgbImageGivesNoFeatures)
     cv::Mat bgr(size, CV_8UC3, cv::Scalar(60, 80, 110));
     cv::circle(bgr, {100, 100}, 20, cv::Scalar(40, 170, 60), cv::FILLED);
     const Params params = test_params();
-    Workspace ws(size, params);
-    Detections det;
-    detect({.bgr = bgr}, params, ws, det);
-    ASSERT_EQ(det.plants.size(), 1u);
-    ClassifyWorkspace cws(size, params);
-    plant_features({.bgr = bgr}, params, ws, det, cws);
-    ASSERT_EQ(cws.features().size(), 1u);
-    plant_features({}, params, ws, det, cws);
-    EXPECT_TRUE(cws.features().empty());
-    EXPECT_EQ(cv::countNonZero(cws.plant_index()), 0);
+    Classified c(bgr, params);
+    ASSERT_EQ(c.det.plants.size(), 1u);
+    ASSERT_EQ(c.cws.features().size(), 1u);
+    plant_features({}, params, c.ws, c.det, c.cws);
+    EXPECT_TRUE(c.cws.features().empty());
+    EXPECT_EQ(cv::countNonZero(c.cws.plant_index()), 0);
     ClassifyWorkspace other(cv::Size(100, 100), params);
-    plant_features({.bgr = bgr}, params, ws, det, other);
+    plant_features({.bgr = bgr}, params, c.ws, c.det, other);
     EXPECT_TRUE(other.features().empty()) << "a workspace of another size";
 }

@@ -20,15 +20,22 @@ cv::Mat opencv_close(const cv::Mat& mask, int radius)
     return out;
 }
 
-cv::Mat our_close(const cv::Mat& mask, int radius)
+// `morphology` (close_mask, open_mask, dilate_mask) of a 0/255 mask.
+using Morphology = void (*)(const BitMask&, int, BitMask&, ClosingScratch&);
+cv::Mat ours(Morphology morphology, const cv::Mat& mask, int radius)
 {
     BitMask in, out;
     ClosingScratch scratch;
     pack_mask(mask, MaskVegetation::nonzero, in);
-    close_mask(in, radius, out, scratch);
+    morphology(in, radius, out, scratch);
     cv::Mat result;
     unpack_mask(out, result);
     return result;
+}
+
+cv::Mat our_close(const cv::Mat& mask, int radius)
+{
+    return ours(close_mask, mask, radius);
 }
 
 }  // namespace
@@ -110,12 +117,7 @@ TEST(Opening, BitExactWithOpenCvOnRandomMasks)
                     cv::morphologyEx(mask, expected, cv::MORPH_OPEN,
                                      cv::getStructuringElement(cv::MORPH_ELLIPSE,
                                                                cv::Size(2 * radius + 1, 2 * radius + 1)));
-                BitMask in, out;
-                ClosingScratch scratch;
-                pack_mask(mask, MaskVegetation::nonzero, in);
-                open_mask(in, radius, out, scratch);
-                cv::Mat actual;
-                unpack_mask(out, actual);
+                const cv::Mat actual = ours(open_mask, mask, radius);
                 ASSERT_EQ(cv::countNonZero(expected != actual), 0)
                     << "size " << size << " radius " << radius << " salt " << salt;
             }
@@ -149,12 +151,7 @@ TEST(Dilation, BitExactWithOpenCv)
             if (radius > 0)
                 cv::dilate(mask, expected,
                            cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1)));
-            BitMask in, out;
-            ClosingScratch scratch;
-            pack_mask(mask, MaskVegetation::nonzero, in);
-            dilate_mask(in, radius, out, scratch);
-            cv::Mat actual;
-            unpack_mask(out, actual);
+            const cv::Mat actual = ours(dilate_mask, mask, radius);
             ASSERT_EQ(cv::countNonZero(expected != actual), 0) << "size " << size << " radius " << radius;
         }
     }

@@ -26,12 +26,8 @@ TEST(Contour, SamePointsInSameOrderAsFindContours)
 {
     for (std::uint64_t seed = 1; seed <= 40; ++seed) {
         const cv::Mat mask = stemd::test::random_blob_mask({120, 80}, seed, 12, seed % 3 ? 0.0 : 0.01);
-        BitMask bits;
-        pack_mask(mask, MaskVegetation::nonzero, bits);
-        LabelScratch scratch;
-        scratch.reserve(mask.cols, mask.rows);
-        std::vector<Component> components;
-        label_components(bits, scratch, components);
+        const stemd::test::LabelledMask labelled(mask);
+        const std::vector<Component>& components = labelled.components;
 
         std::vector<std::vector<cv::Point>> expected;
         cv::findContours(mask.clone(), expected, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);

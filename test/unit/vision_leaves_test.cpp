@@ -24,6 +24,16 @@ std::vector<cv::Point> largest_contour(const cv::Mat& mask)
     return contours.empty() ? std::vector<cv::Point>{} : contours[best];
 }
 
+// A plus: two 21 px wide bars across a 101 x 101 mask, its inner corners
+// at (40|60, 40|60).
+cv::Mat plus_mask()
+{
+    cv::Mat mask = cv::Mat::zeros(101, 101, CV_8UC1);
+    mask(cv::Rect(40, 0, 21, 101)).setTo(255);
+    mask(cv::Rect(0, 40, 101, 21)).setTo(255);
+    return mask;
+}
+
 std::vector<int> hull_of(const std::vector<cv::Point>& contour)
 {
     std::vector<int> hull, order;
@@ -56,10 +66,7 @@ TEST(Hull, SameVerticesAsOpenCv)
 
 TEST(Defects, PlusShapeHasFourDeepCuts)
 {
-    cv::Mat mask = cv::Mat::zeros(101, 101, CV_8UC1);
-    mask(cv::Rect(40, 0, 21, 101)).setTo(255);
-    mask(cv::Rect(0, 40, 101, 21)).setTo(255);
-    const auto contour = largest_contour(mask);
+    const auto contour = largest_contour(plus_mask());
     const auto hull = hull_of(contour);
     std::vector<Defect> defects;
     defects.reserve(64);
@@ -86,10 +93,7 @@ TEST(Defects, PlusShapeHasFourDeepCuts)
 
 TEST(Defects, ThresholdIsStrict)
 {
-    cv::Mat mask = cv::Mat::zeros(101, 101, CV_8UC1);
-    mask(cv::Rect(40, 0, 21, 101)).setTo(255);
-    mask(cv::Rect(0, 40, 101, 21)).setTo(255);
-    const auto contour = largest_contour(mask);
+    const auto contour = largest_contour(plus_mask());
     const auto hull = hull_of(contour);
     std::vector<Defect> defects;
     defects.reserve(64);

@@ -14,13 +14,7 @@ namespace {
 
 std::vector<Component> label(const cv::Mat& mask)
 {
-    BitMask bits;
-    pack_mask(mask, MaskVegetation::nonzero, bits);
-    LabelScratch scratch;
-    scratch.reserve(mask.cols, mask.rows);
-    std::vector<Component> out;
-    label_components(bits, scratch, out);
-    return out;
+    return stemd::test::LabelledMask(mask).components;
 }
 
 }  // namespace
@@ -87,12 +81,9 @@ TEST(Plants, ComponentAtFindsThePixelsComponent)
 {
     for (const std::uint64_t seed : {1u, 2u, 3u}) {
         const cv::Mat mask = stemd::test::random_blob_mask({131, 67}, seed, 10, 0.05);
-        BitMask bits;
-        pack_mask(mask, MaskVegetation::nonzero, bits);
-        LabelScratch scratch;
-        scratch.reserve(mask.cols, mask.rows);
-        std::vector<Component> components;
-        label_components(bits, scratch, components);
+        const stemd::test::LabelledMask labelled(mask);
+        const std::vector<Component>& components = labelled.components;
+        const LabelScratch& scratch = labelled.scratch;
         cv::Mat labels;
         const int n = cv::connectedComponents(mask, labels, 8, CV_32S, cv::CCL_DEFAULT);
         ASSERT_EQ(static_cast<int>(components.size()), n - 1);

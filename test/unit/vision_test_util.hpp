@@ -1,10 +1,15 @@
-// Helpers shared by the vision tests: deterministic random masks.
+// Helpers shared by the vision tests: deterministic random masks, and a
+// mask's pieces as the pipeline labels them.
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+
+#include "stemd/vision/bitmask.hpp"
+#include "stemd/vision/plants.hpp"
 
 namespace stemd::test {
 
@@ -28,5 +33,19 @@ inline cv::Mat random_blob_mask(cv::Size size, std::uint64_t seed, int blobs, do
         mask.at<std::uint8_t>(rng.uniform(0, size.height), rng.uniform(0, size.width)) = 255;
     return mask;
 }
+
+// A mask (nonzero = set) packed and labelled into its 8-connected pieces;
+// the packed mask and the labels stay for the checks.
+struct LabelledMask {
+    explicit LabelledMask(const cv::Mat& mask)
+    {
+        vision::pack_mask(mask, vision::MaskVegetation::nonzero, bits);
+        scratch.reserve(mask.cols, mask.rows);
+        vision::label_components(bits, scratch, components);
+    }
+    vision::BitMask bits;
+    vision::LabelScratch scratch;
+    std::vector<vision::Component> components;
+};
 
 }  // namespace stemd::test

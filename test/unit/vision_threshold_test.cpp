@@ -33,9 +33,8 @@ cv::Mat test_image(int kind, std::uint64_t seed)
     return img;
 }
 
-}  // namespace
-
-TEST(Threshold, OtsuEqualsOpenCv)
+// `ours` gives OpenCV's threshold for `opencv_method` on every test image.
+void expect_equals_opencv(int (*ours)(const Histogram&), int opencv_method)
 {
     for (int kind = 0; kind < 5; ++kind) {
         for (std::uint64_t seed = 1; seed <= 20; ++seed) {
@@ -43,25 +42,22 @@ TEST(Threshold, OtsuEqualsOpenCv)
             Histogram h;
             compute_histogram(img, h);
             cv::Mat ignored;
-            const int expected = static_cast<int>(cv::threshold(img, ignored, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU));
-            EXPECT_EQ(otsu_threshold(h), expected) << "kind " << kind << " seed " << seed;
+            const int expected = static_cast<int>(cv::threshold(img, ignored, 0, 255, cv::THRESH_BINARY | opencv_method));
+            EXPECT_EQ(ours(h), expected) << "kind " << kind << " seed " << seed;
         }
     }
 }
 
+}  // namespace
+
+TEST(Threshold, OtsuEqualsOpenCv)
+{
+    expect_equals_opencv(otsu_threshold, cv::THRESH_OTSU);
+}
+
 TEST(Threshold, TriangleEqualsOpenCv)
 {
-    for (int kind = 0; kind < 5; ++kind) {
-        for (std::uint64_t seed = 1; seed <= 20; ++seed) {
-            const cv::Mat img = test_image(kind, seed);
-            Histogram h;
-            compute_histogram(img, h);
-            cv::Mat ignored;
-            const int expected =
-                static_cast<int>(cv::threshold(img, ignored, 0, 255, cv::THRESH_BINARY | cv::THRESH_TRIANGLE));
-            EXPECT_EQ(triangle_threshold(h), expected) << "kind " << kind << " seed " << seed;
-        }
-    }
+    expect_equals_opencv(triangle_threshold, cv::THRESH_TRIANGLE);
 }
 
 TEST(Threshold, DegenerateHistogramsDoNotCrash)

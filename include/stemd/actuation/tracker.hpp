@@ -191,6 +191,13 @@ private:
         double extent_mm = 0;         // largest along-track half-size seen
         std::uint64_t first_seq = 0;
         std::uint64_t last_seq = 0;
+
+        // The class of more weight among the sightings; a tie is Unknown.
+        PlantClass plant_class() const
+        {
+            return weed_w > crop_w ? PlantClass::Weed : crop_w > weed_w ? PlantClass::Crop : PlantClass::Unknown;
+        }
+        float mean_confidence() const { return sightings > 0 ? static_cast<float>(conf_sum / sightings) : 0.0f; }
     };
     struct Candidate {
         double d2;

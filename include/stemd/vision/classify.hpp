@@ -90,15 +90,6 @@ private:
     };
     cv::Size frame_size_;
     cv::Mat plant_index_;
-    LabelScratch labels_;
-    std::vector<Component> pieces_;
-    BitMask cells_;
-    BitMask grouped_;
-    ClosingScratch grouping_;
-    LabelScratch group_labels_;
-    std::vector<Component> groups_;
-    std::vector<int> piece_group_;
-    std::vector<std::uint16_t> group_plant_;   // 1 + plant index, 0 = dropped
     std::array<Sums, kMaxPlants> sums_{};
     std::array<FeatureRow, kMaxPlants> features_{};
     std::size_t plants_ = 0;

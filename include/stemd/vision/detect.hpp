@@ -2,6 +2,8 @@
 // edge pixels -> closing -> plants -> leaves -> stems.
 #pragma once
 
+#include <cstdint>
+#include <span>
 #include <vector>
 
 #include <opencv2/core/mat.hpp>
@@ -39,6 +41,12 @@ public:
     const cv::Mat& index() const { return index_; }
     const BitMask& vegetation() const { return vegetation_; }
     const BitMask& closed() const { return closed_; }
+    // The pieces (connected components) of the closed mask, and per piece
+    // 1 + the index of the plant it belongs to in detect()'s output, 0 for
+    // pieces of no plant (too small, over capacity): how classify finds each
+    // closed pixel's plant without grouping the pieces again.
+    const LabelScratch& pieces() const { return labels_; }
+    std::span<const std::uint16_t> piece_plant() const { return piece_plant_; }
 
 private:
     friend void detect(const FrameView&, const Params&, Workspace&, Detections&, StageTimes*);
@@ -72,6 +80,7 @@ private:
     std::vector<int> piece_group_;          // per piece: its group
     std::vector<int> piece_order_;          // pieces sorted by group
     std::vector<int> group_rank_;           // per group: its rank by first piece
+    std::vector<std::uint16_t> piece_plant_;   // per piece: 1 + its plant's index, 0 = none
     std::vector<cv::Point> contour_;
     std::vector<int> hull_;
     std::vector<int> hull_order_;
