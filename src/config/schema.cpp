@@ -264,7 +264,7 @@ constexpr std::array kSchema{
         {"source.v4l2_buffers", integer, "count", 2, 32, "4", "",
             "v4l2: mmap buffers asked of the driver"}),
     bind<STEMD_KEY(daemon.reopen_backoff_max_ms)>(
-        {"source.reopen_backoff_max_ms", real, "ms", 100, 60000, "500", "",
+        {"source.reopen_backoff_max_ms", real, "ms", 100, 60000, "250", "",
             "v4l2: a lost camera is reopened after 100 ms, then at doubling intervals up to this; it bounds how long frames take to resume once the camera is back"}),
     bind<STEMD_KEY(daemon.nir_device)>(
         {"source.nir_device", text, "", 0, 0, "none", "",

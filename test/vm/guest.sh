@@ -447,7 +447,10 @@ check_daemon() {
   [ $rc = 0 ] || die "stemd exited $rc on SIGTERM"
   [ $frc = 0 ] || die "feeder exited $frc"
   echo "== the bus: $(wc -l < /tmp/daemon.candump) frames"
-  hostrun "$daemon" verify "$out/daemon.candump" "$out/daemon-map.jsonl" || die "the daemon's CAN frames"
+  # The summary's heartbeat_errors (the last of the status lines' figures):
+  # heartbeats stemd could not send, which the alive counter skips.
+  hb_errors=$(grep -o 'heartbeat_errors [0-9]*' /tmp/stemd.log | tail -n 1 | cut -d' ' -f2)
+  hostrun "$daemon" verify "$out/daemon.candump" "$out/daemon-map.jsonl" "${hb_errors:-0}" || die "the daemon's CAN frames"
 }
 extra_checks="$extra_checks daemon"
 
@@ -562,7 +565,7 @@ check_faults() {
     cp /tmp/faults-stemd.log "/host$out/faults-stemd.log"
     echo "--- stemd log (status lines: every 20th)"
     awk '!/ status +info / || (++n % 20) == 1' /tmp/faults-stemd.log; echo "---"
-    echo "--- feeder"; cat /tmp/faults-feeder.log; echo "---"
+    echo "--- feeder (its end: the camera unplugged)"; cat /tmp/faults-feeder.log; echo "---"
     return $src
   }
   fdie() { echo "FAILED: $*"; fault_end; exit 1; }
@@ -640,6 +643,7 @@ check_faults() {
   # the feeder dies on its lost output, stemd closed the capture above.
   within 60 gone $feeder || kill -KILL $feeder
   wait $feeder
+  echo "the feeder ended with its output node, as it should: $(tail -n 1 /tmp/faults-feeder.log)"
   # The gap: counted in status lines while it lasts.
   mark=$(log_lines)
   # Reopen attempts on a missing node: errors (timeouts also happen now and
@@ -662,10 +666,28 @@ check_faults() {
   mark2=$(log_lines)
   if ! within 30 streaming $mark2; then fault_fail camera "camera: no frames in a status line after the reopen"; fi
   stamp; t_frames=$cs
-  echo "t=$(secs $cs) s: reopened $(secs $((t_reopen - t_bind))) s after the bind (seen in the log), frames in a status line $(secs $((t_frames - t_bind))) s after the bind"
+  # The guest's polling above forks a few processes per look, which on a
+  # loaded host adds up to a second. So the bound is judged on stemd's own
+  # log stamp of the reopen against the kernel's stamp on the 7F6 marker
+  # sent just before the bind: both the guest's CLOCK_REALTIME, which
+  # nothing steps during the run (stemd logs local time: the offset).
+  tail -n +$((mark + 1)) /tmp/faults-stemd.log > /tmp/faults-after-bind.log
+  lag_ms=$(awk -v tz="$(hostrun date +%z)" '
+    FNR == 1 { file++ }
+    file == 1 && index($3, "7F6#") == 1 { gsub(/[()]/, "", $1); m = $1 }
+    file == 2 && r == "" && /reopened, streaming again/ { split($1, a, ":"); r = a[1] * 3600 + a[2] * 60 + a[3] }
+    END {
+      off = (substr(tz, 2, 2) * 3600 + substr(tz, 4, 2) * 60) * (substr(tz, 1, 1) == "-" ? -1 : 1)
+      d = r - ((m + off) % 86400)
+      if (d < -43200) d += 86400
+      printf "%d", d * 1000
+    }' /tmp/faults.candump /tmp/faults-after-bind.log)
+  echo "t=$(secs $cs) s: reopened $lag_ms ms after the bind by stemd's log (the guest saw it after $(secs $((t_reopen - t_bind))) s), frames in a status line $(secs $((t_frames - t_bind))) s after the bind"
   echo "status lines since the bind: $(sed -n "$((mark + 1)),\$p" /tmp/faults-stemd.log | grep -cE ' status +info +in '); the last intervals with source counters: $(grep -oE 'source: timeouts [0-9]+, errors [0-9]+, reopens [0-9]+' /tmp/faults-stemd.log | grep -v 'timeouts 0, errors 0, reopens 0' | tail -n 6 | tr '\n' ';')"
   if [ "$n" != 0 ]; then fault_fail camera "camera: $n TARGET(s) while the camera was gone"; fi
-  if [ $((t_reopen - t_bind)) -gt 100 ]; then fault_fail camera "camera: frames resumed $(secs $((t_reopen - t_bind))) s after the bind, more than 1 s"; fi
+  if [ -z "$lag_ms" ] || [ "$lag_ms" -lt 0 ] || [ "$lag_ms" -gt 1000 ]; then
+    fault_fail camera "camera: streaming again ${lag_ms:-?} ms after the bind, more than 1 s (or not measured)"
+  fi
   result camera 0
 
   echo "== SIGTERM stemd"
