@@ -5,6 +5,12 @@
 
 namespace stemd::geometry {
 
+namespace {
+// Long enough to hold several samples of any source (frames at 10-30 fps,
+// CAN odometry at 100-500 Hz), short against a machine's change of speed.
+constexpr std::int64_t kExtrapolationSpeedWindowNs = 100'000'000;
+}  // namespace
+
 std::string_view to_string(OdomStatus v)
 {
     switch (v) {
@@ -74,7 +80,12 @@ OdomQuery OdometryRing::odom_at(std::int64_t t_ns) const noexcept
             return {OdomStatus::ok, last.odom_mm};
         if (past > max_extrapolation_ns_)
             return {OdomStatus::stale, last.odom_mm};
-        return {OdomStatus::extrapolated, last.odom_mm + last_speed_mm_per_s() * static_cast<double>(past) * 1e-9};
+        // The speed over the newest samples spanning kExtrapolationSpeedWindowNs:
+        // two samples a few ms apart (a frame delivered late, then the next
+        // on time) give a speed that is mostly their timing noise, and
+        // extrapolating it ran the odometer hundreds of mm ahead.
+        return {OdomStatus::extrapolated,
+                last.odom_mm + speed_mm_per_s(kExtrapolationSpeedWindowNs) * static_cast<double>(past) * 1e-9};
     }
     if (t_ns < oldest().t_ns)
         return {OdomStatus::before_history, oldest().odom_mm};

@@ -140,3 +140,22 @@ TEST(Odometry, StatusNames)
     EXPECT_EQ(to_string(OdomStatus::stale), "stale");
     EXPECT_EQ(to_string(OdomStatus::before_history), "before_history");
 }
+
+// A sample stamped late (a frame delivered late) and the next one on time
+// are a few ms apart: the extrapolation must not take their quotient as the
+// speed. 700 mm/s at 15 fps; sample 10 stamped 60 ms late.
+TEST(Odometry, ExtrapolationIsNotThrownByOneLateStamp)
+{
+    OdometryRing ring({64, 100 * kMs});
+    const double speed_mm_per_s = 700;
+    const std::int64_t period_ns = 1'000'000'000 / 15;
+    for (int i = 0; i <= 11; ++i) {
+        const std::int64_t t_ns = i * period_ns + (i == 10 ? 60 * kMs : 0);
+        ASSERT_TRUE(ring.push({t_ns, speed_mm_per_s * static_cast<double>(i * period_ns) * 1e-9}));
+    }
+    const std::int64_t t_query_ns = 11 * period_ns + 50 * kMs;
+    const OdomQuery q = ring.odom_at(t_query_ns);
+    ASSERT_EQ(q.status, OdomStatus::extrapolated);
+    const double truth_mm = speed_mm_per_s * static_cast<double>(t_query_ns) * 1e-9;
+    EXPECT_NEAR(q.odom_mm, truth_mm, 10.0);
+}
