@@ -38,7 +38,7 @@ std::unique_ptr<ActuationStage> ActuationStage::make(const ActuationConfig& conf
     }
     const auto ids = protocol::CanIds::make(config.can_base_id);
     if (!ids) {
-        error = "can.base_id " + std::to_string(config.can_base_id) + " leaves no room for the four identifiers";
+        error = "can.base_id " + std::to_string(config.can_base_id) + " leaves no room for the five identifiers";
         return nullptr;
     }
     auto projector = PlantProjector::make(camera, frame_size);
@@ -64,7 +64,7 @@ ActuationStage::ActuationStage(const ActuationConfig& config, Parts parts, Plant
       projector_(projector),
       tracker_(config.tracker),
       sender_(scheduler, scheduler_all, *parts_.bus, ids, odometry_, counters_),
-      link_(*parts_.bus, ids, config.heartbeat_interval_ns, odometry_, counters_)
+      link_(*parts_.bus, ids, config.heartbeat_interval_ns, odometry_, sender_, counters_)
 {
 }
 
@@ -114,8 +114,46 @@ void ActuationStage::write_retired(std::span<const actuation::RetiredTrack> reti
             entry = sender_.outcome(t.target_id);
         else
             entry.reason = MapReason::unconfirmed;
-        if (!parts_.map->write(t, entry))
-            bump(counters_.map_errors);
+        // A tool that reports its strikes: the line waits for this one's.
+        if (entry.reason == MapReason::sent && !entry.fired && sender_.reports_fired(entry.tool) &&
+            n_waiting_ < waiting_.size()) {
+            for (Waiting& w : waiting_)
+                if (!w.used) {
+                    w = Waiting{true, t, entry};
+                    ++n_waiting_;
+                    break;
+                }
+            continue;
+        }
+        write_line(t, entry);
+    }
+}
+
+void ActuationStage::write_line(const actuation::RetiredTrack& track, const MapEntry& entry) noexcept
+{
+    if (!parts_.map->write(track, entry))
+        bump(counters_.map_errors);
+}
+
+void ActuationStage::write_waiting(std::int64_t now_ns, bool all) noexcept
+{
+    if (!parts_.map || n_waiting_ == 0)
+        return;
+    double odom = 0;
+    const bool have_odom = odometry_.odometer_at(now_ns, odom);
+    for (Waiting& w : waiting_) {
+        if (!w.used)
+            continue;
+        const MapEntry& now = sender_.outcome(w.track.target_id);
+        // Still this plant's outcome (target ids wrap at 4096)?
+        const bool same = now.reason == MapReason::sent && now.tool == w.entry.tool &&
+                          now.aim_odom_mm == w.entry.aim_odom_mm;
+        const bool gave_up = have_odom && odom > w.entry.fire_odom_mm + kFiredWaitMm;
+        if (!all && same && !now.fired && !gave_up)
+            continue;
+        write_line(w.track, same ? now : w.entry);
+        w.used = false;
+        --n_waiting_;
     }
 }
 
@@ -125,6 +163,7 @@ void ActuationStage::poll(std::int64_t now_ns) noexcept
     if (config_.odometry == OdometrySource::encoder)
         odometry_.add_encoder(now_ns, parts_.gpio->encoder().ticks);
     link_.heartbeat_if_due(now_ns, last_frame_ns_ >= 0, enabled());
+    write_waiting(now_ns, false);
 }
 
 bool ActuationStage::finish() noexcept
@@ -140,6 +179,7 @@ bool ActuationStage::finish() noexcept
     if (!parts_.map)
         return ok;
     write_retired(tracker_.drain());
+    write_waiting(0, true);
     ok = parts_.map->close() && counters_.map_errors.load(std::memory_order_relaxed) == 0 && ok;
     parts_.map.reset();
     return ok;

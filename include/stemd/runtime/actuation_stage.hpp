@@ -11,9 +11,13 @@
 //  3. Tracker::update: each plant becomes one target, once.
 //  4. For each new target, TargetSender: scheduled with the odometer and
 //     speed NOW, sent before its deadline or counted.
-//  5. Tracks that ended go to the plant map, with what became of them.
-// Between frames (poll): received ODOMETRY / TOOL_STATUS and the HEARTBEAT
-// (CanLink), encoder samples (OdometryInput).
+//  5. Tracks that ended go to the plant map, with what became of them; a
+//     sent one for a tool that reports its strikes waits (a fixed number of
+//     lines) for its TOOL_FIRED, until the odometer is kFiredWaitMm past its
+//     point.
+// Between frames (poll): received ODOMETRY / TOOL_STATUS / TOOL_FIRED and
+// the HEARTBEAT (CanLink), encoder samples (OdometryInput), the map lines
+// whose strike came back.
 //
 // Everything is allocated in make(); on_frame() and poll() do not allocate,
 // lock or throw. File I/O (the plant map, the candump log) is one write(2)
@@ -21,6 +25,7 @@
 // Single-threaded (the actuator thread); counters() from any thread.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -97,8 +102,14 @@ private:
                    actuation::Scheduler scheduler, std::optional<actuation::Scheduler> scheduler_all,
                    protocol::CanIds ids, std::shared_ptr<spdlog::logger> log);
 
+    static constexpr std::size_t kWaitingLines = 256;
+    static constexpr double kFiredWaitMm = 1000.0;
+
     bool enabled() const noexcept { return parts_.gpio ? parts_.gpio->enabled() : true; }
     void write_retired(std::span<const actuation::RetiredTrack> retired) noexcept;
+    void write_line(const actuation::RetiredTrack& track, const MapEntry& entry) noexcept;
+    // Writes the waiting lines whose TOOL_FIRED came or will not come (all: every one).
+    void write_waiting(std::int64_t now_ns, bool all) noexcept;
 
     const ActuationConfig config_;
     Parts parts_;
@@ -111,6 +122,14 @@ private:
     TargetSender sender_;
     CanLink link_;
     std::int64_t last_frame_ns_ = -1;
+    // Map lines of sent plants waiting for their TOOL_FIRED.
+    struct Waiting {
+        bool used = false;
+        actuation::RetiredTrack track;
+        MapEntry entry;   // as it was when the track ended
+    };
+    std::array<Waiting, kWaitingLines> waiting_{};
+    std::size_t n_waiting_ = 0;
 };
 
 }  // namespace stemd::runtime
