@@ -305,6 +305,8 @@ int run(int argc, char** argv, Phase& phase)
             const runtime::StatusSnapshot now = daemon->snapshot(false);
             const std::string line = runtime::format_status(now, last);
             status_log->info("{}", line);
+            if (const std::string changed = runtime::format_latency_changes(now, last); !changed.empty())
+                log->info("{}", changed);
             notify("STATUS=" + line);
             last = now;
             next_status_ns += interval.count();

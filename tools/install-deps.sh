@@ -7,7 +7,7 @@ packages=(
   g++ cmake ninja-build pkg-config
   libopencv-dev libspdlog-dev
   libyaml-cpp-dev  # the config file reader (src/config/config.cpp), ROS camera_info files
-  libcli11-dev nlohmann-json3-dev  # the tools' arguments and JSON output (header-only)
+  libcli11-dev nlohmann-json3-dev  # the tools' arguments (stemd-toolsim's too) and JSON output (header-only)
   libgtest-dev libgmock-dev libbenchmark-dev
   libgpiod-dev libcamera-dev  # APIs the VM driver probes (test/vm) build against
   can-utils python3-canmatrix  # third-party readers of our candump logs and DBC (cross-check tests)

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "stemd/actuation/fire_lag.hpp"
+
 namespace stemd::actuation {
 
 std::string_view to_string(TreatPolicy p)
@@ -61,6 +63,11 @@ std::optional<Scheduler> Scheduler::make(std::span<const ToolSpec> tools, const 
             return fail("tool span empty or not finite (y_min_mm < y_max_mm)");
         if (t.lanes < 1 || t.lanes > protocol::kMaxLane + 1)
             return fail("tool lanes outside 1..16");
+        if (!std::isfinite(t.latency_ms) || t.latency_ms < 0 || t.latency_ms > kMaxLatencyMs)
+            return fail("tool latency_ms outside 0..1000");
+        if (t.learn_latency &&
+            !(t.latency_min_ms >= 0 && t.latency_min_ms <= t.latency_max_ms && t.latency_max_ms <= kMaxLatencyMs))
+            return fail("tool latency_min_ms .. latency_max_ms not within 0..1000 and ordered");
     }
     const auto finite_nonneg = [](double v) { return std::isfinite(v) && v >= 0; };
     if (!finite_nonneg(params.lead_ms) || !finite_nonneg(params.send_budget_ms))
@@ -76,6 +83,18 @@ std::optional<Scheduler> Scheduler::make(std::span<const ToolSpec> tools, const 
     if (error)
         *error = {};
     return s;
+}
+
+bool Scheduler::set_latency_ms(std::uint8_t tool_id, double latency_ms) noexcept
+{
+    if (!std::isfinite(latency_ms))
+        return false;
+    for (std::size_t i = 0; i < n_tools_; ++i)
+        if (tools_[i].id == tool_id) {
+            tools_[i].latency_ms = std::clamp(latency_ms, 0.0, kMaxLatencyMs);
+            return true;
+        }
+    return false;
 }
 
 ScheduleDecision Scheduler::schedule(const Target& target, const ScheduleNow& now) noexcept
@@ -117,7 +136,9 @@ ScheduleDecision Scheduler::schedule(const Target& target, const ScheduleNow& no
         const double f = std::floor((y - t.y_min_mm) / width);
         const long lane = std::clamp<long>(static_cast<long>(f), 0, t.lanes - 1);
         dec.command.lane = static_cast<std::uint8_t>(lane);
-        dec.fire_odom_mm = target.s_mm + t.offset_mm;
+        dec.aim_odom_mm = target.s_mm + t.offset_mm;
+        dec.lead_mm = compensation_mm(now.speed_mm_per_s, t.latency_ms, params_.standing_speed_mm_per_s);
+        dec.fire_odom_mm = dec.aim_odom_mm - dec.lead_mm;
         // The 32-bit odometer scale (encode truncates to 18 bits): modulo 2^32.
         const double wrapped = std::fmod(std::round(dec.fire_odom_mm), 4294967296.0);
         dec.command.fire_odom_mm =
@@ -168,6 +189,11 @@ ScheduleDecision Scheduler::schedule(const Target& target, const ScheduleNow& no
     fill(tools_[first]);
     {
         const double d = dec.fire_odom_mm - now.odom_mm;
+        const double d_aim = dec.aim_odom_mm - now.odom_mm;
+        if (dec.lead_mm > 0 && d_aim >= 0 && (standing || d_aim * 1000.0 >= need_ms * v)) {
+            dec.compensation_miss = true;
+            ++counters_.compensation_misses;
+        }
         dec.time_to_arrival_ms = standing ? (d < 0 ? -std::numeric_limits<double>::infinity()
                                                    : std::numeric_limits<double>::infinity())
                                           : d / v * 1000.0;

@@ -374,8 +374,8 @@ constexpr std::array kSchema{
         {"can.interface", text, "", 0, 0, "none", "",
             "SocketCAN interface of the tool controllers (e.g. can0); none: no bus, commands are written to can.log_file"}),
     bind<STEMD_KEY(actuation.can_base_id)>(
-        {"can.base_id", integer, "id", 0, 2044, "768", "",
-            "first of the four 11-bit CAN ids (base .. base+3) of the stemd messages; 768 = 0x300"}),
+        {"can.base_id", integer, "id", 0, 2043, "768", "",
+            "first of the five 11-bit CAN ids (base .. base+4) of the stemd messages; 768 = 0x300"}),
     bind<STEMD_KEY(actuation.can_log_file)>(
         {"can.log_file", text, "", 0, 0, "-", "",
             "candump -L log of the commands when can.interface is none (and for --can-log FILE); -: standard output"}),
@@ -507,6 +507,18 @@ constexpr std::array kItemSchema{
     bind<STEMD_ITEM(actuation.tools, lanes)>(
         {"tools[].lanes", integer, "count", 1, 16, "1", "",
             "nozzles side by side across the span, each a lane of equal width; 1 for a stamp"}),
+    bind<STEMD_ITEM(actuation.tools, latency_ms)>(
+        {"tools[].latency_ms", real, "ms", 0, 1000, "0", "",
+            "time from the odometer reaching the fire point to the strike taking effect (valve, stamp); commands go out earlier by speed x latency_ms"}),
+    bind<STEMD_ITEM(actuation.tools, learn_latency)>(
+        {"tools[].learn_latency", boolean, "", 0, 0, "false", "",
+            "learn latency_ms from the tool's TOOL_FIRED reports (median of the last 15 lags in ms), starting from latency_ms"}),
+    bind<STEMD_ITEM(actuation.tools, latency_min_ms)>(
+        {"tools[].latency_min_ms", real, "ms", 0, 1000, "0", "",
+            "learn_latency: the learned latency never goes below this"}),
+    bind<STEMD_ITEM(actuation.tools, latency_max_ms)>(
+        {"tools[].latency_max_ms", real, "ms", 0, 1000, "200", "",
+            "learn_latency: the learned latency never goes above this (at least latency_min_ms)"}),
 };
 
 }  // namespace

@@ -26,7 +26,7 @@ constexpr std::array kOdometrySignals{kCrc, kCounter, kOdomMm, kSpeed};
 constexpr std::array kPlantClassNames{ValueName{0, "UNKNOWN"}, ValueName{1, "CROP"}, ValueName{2, "WEED"}};
 constexpr SignalDef kToolId{"tool_id", 12, 4, false, 0, kMaxToolId, "", "The tool that is to fire."};
 constexpr SignalDef kTargetId{"target_id", 16, 12, false, 0, kMaxTargetId, "",
-                              "Target number assigned by stemd, modulo 4096; echoed in TOOL_STATUS.last_target_id."};
+                              "Target number assigned by stemd, modulo 4096; echoed in TOOL_STATUS.last_target_id and TOOL_FIRED."};
 constexpr SignalDef kLane{"lane", 28, 4, false, 0, kMaxLane, "", "Crop row (lane) of the target."};
 constexpr SignalDef kFireOdom{"fire_odom_mm", 32, kFireOdomBits, false, 0, kFireOdomModulo - 1, "mm",
                               "ODOMETRY.odom_mm reading at which to fire, modulo 2^18 mm. Compare with odom_mm "
@@ -68,6 +68,16 @@ constexpr SignalDef kRxRejected{"rx_rejected", 56, 8, false, 0, 255, "",
                                 "Received frames rejected (E2E or decode); saturates at 255."};
 constexpr std::array kHeartbeatSignals{kCrc, kCounter, kState, kSent, kDeadlineMisses, kDropped, kRxRejected};
 
+// TOOL_FIRED repeats the TARGET's bits for the fields it echoes.
+constexpr SignalDef kFiredToolId{"tool_id", 12, 4, false, 0, kMaxToolId, "", "TARGET.tool_id of the command executed."};
+constexpr SignalDef kFiredTargetId{"target_id", 16, 12, false, 0, kMaxTargetId, "",
+                                   "TARGET.target_id of the command executed."};
+constexpr SignalDef kFiredLane{"lane", 28, 4, false, 0, kMaxLane, "", "TARGET.lane of the command executed."};
+constexpr SignalDef kFiredOdom{"fired_odom_mm", 32, kFireOdomBits, false, 0, kFireOdomModulo - 1, "mm",
+                               "ODOMETRY.odom_mm reading when the strike took effect (valve open, stamp down), "
+                               "modulo 2^18 mm. Minus TARGET.fire_odom_mm: the tool's lag in mm."};
+constexpr std::array kToolFiredSignals{kCrc, kCounter, kFiredToolId, kFiredTargetId, kFiredLane, kFiredOdom};
+
 constexpr std::array kNodes{
     NodeDef{"STEMD", "The stem-detection daemon: sends weeding targets and its heartbeat."},
     NodeDef{"DRIVE", "The drive controller: sends odometry."},
@@ -88,12 +98,15 @@ constexpr std::array<MessageDef, kMessageKindCount> kMessages{
                "Status of the weeding tool controller."},
     MessageDef{MessageKind::Heartbeat, "HEARTBEAT", 3, "STEMD", kToDriveAndTool, kHeartbeatSignals,
                "Heartbeat of stemd."},
+    MessageDef{MessageKind::ToolFired, "TOOL_FIRED", 4, "TOOL", kToStemd, kToolFiredSignals,
+               "One per executed TARGET: the odometer reading at which the strike took effect, for stemd's "
+               "lag statistics and latency compensation."},
 };
 
 constexpr std::string_view kProtocolComment =
     "stemd weeding-robot CAN protocol. Classic CAN, 11-bit identifiers, DLC 8, little-endian (Intel) signals, "
-    "factor 1. Identifiers are base + offset: ODOMETRY +0, TARGET +1, TOOL_STATUS +2, HEARTBEAT +3. This file is "
-    "written for the default base 0x300; stemd's base is configurable (at most 0x7FC). Every message is protected "
+    "factor 1. Identifiers are base + offset: ODOMETRY +0, TARGET +1, TOOL_STATUS +2, HEARTBEAT +3, TOOL_FIRED +4. "
+    "This file is written for the default base 0x300; stemd's base is configurable (at most 0x7FB). Every message is protected "
     "like AUTOSAR E2E profile 11 (DataIDMode BOTH): byte 0 is a CRC-8 SAE J1850 (poly 0x1D, init 0xFF, xor-out "
     "0xFF) over the Data ID low byte, the Data ID high byte and data bytes 1..7; the Data ID is the message's CAN "
     "identifier and is not transmitted. The low nibble of byte 1 is an alive counter 0..14, +1 per frame, 14 -> 0 "
@@ -393,6 +406,34 @@ CodecResult decode(const CanFrame& frame, const CanIds& ids, Heartbeat& out)
     m.deadline_misses = static_cast<std::uint64_t>(u.get(kDeadlineMisses));
     m.targets_dropped = static_cast<std::uint64_t>(u.get(kDropped));
     m.rx_rejected = static_cast<std::uint64_t>(u.get(kRxRejected));
+    if (CodecResult r = u.result(); !r)
+        return r;
+    out = m;
+    return {};
+}
+
+// ---- TOOL_FIRED ----
+
+CodecResult encode(const ToolFired& msg, std::uint8_t counter, const CanIds& ids, CanFrame& out)
+{
+    Packer p;
+    p.put(kFiredToolId, msg.tool_id);
+    p.put(kFiredTargetId, msg.target_id);
+    p.put(kFiredLane, msg.lane);
+    p.put(kFiredOdom, msg.fired_odom_mm & (kFireOdomModulo - 1));  // modulo 2^18 by design
+    return p.finish(ids, MessageKind::ToolFired, counter, out);
+}
+
+CodecResult decode(const CanFrame& frame, const CanIds& ids, ToolFired& out)
+{
+    if (CodecResult r = check_frame(frame, ids, MessageKind::ToolFired); !r)
+        return r;
+    Unpacker u(frame.data);
+    ToolFired m;
+    m.tool_id = narrow<std::uint8_t>(u.get(kFiredToolId));
+    m.target_id = narrow<std::uint16_t>(u.get(kFiredTargetId));
+    m.lane = narrow<std::uint8_t>(u.get(kFiredLane));
+    m.fired_odom_mm = narrow<std::uint32_t>(u.get(kFiredOdom));
     if (CodecResult r = u.result(); !r)
         return r;
     out = m;

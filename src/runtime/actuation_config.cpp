@@ -8,6 +8,10 @@ std::optional<ConfigProblem> check_actuation_config(const ActuationConfig& c)
     if (c.gnss.source == GnssSourceKind::gpsd)
         return ConfigProblem{"gnss.source", "gpsd, but this stemd was built without libgps (apt install libgps-dev, rebuild)"};
 #endif
+    for (std::size_t i = 0; i < c.tools.size(); ++i)
+        if (c.tools[i].learn_latency && c.tools[i].latency_min_ms > c.tools[i].latency_max_ms)
+            return ConfigProblem{"tools[" + std::to_string(i) + "].latency_max_ms",
+                                 "below latency_min_ms: the learned latency has no room"};
     const bool encoder = c.encoder_mode != "none";
     if (c.gpio_chip.empty()) {
         if (c.enable_line >= 0)

@@ -26,7 +26,8 @@ std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, co
     can.interface = config.can_interface;
     can.log_file = config.can_log_file;
     can.log_monotonic = config.can_log_monotonic;
-    can.rx_ids = {ids->id(protocol::MessageKind::Odometry), ids->id(protocol::MessageKind::ToolStatus)};
+    can.rx_ids = {ids->id(protocol::MessageKind::Odometry), ids->id(protocol::MessageKind::ToolStatus),
+                  ids->id(protocol::MessageKind::ToolFired)};
     parts.bus = drivers::make_can_bus(can, make_logger, *log, error);
     if (!parts.bus)
         return nullptr;

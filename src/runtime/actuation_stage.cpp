@@ -41,7 +41,7 @@ std::unique_ptr<ActuationStage> ActuationStage::make(const ActuationConfig& conf
     }
     const auto ids = protocol::CanIds::make(config.can_base_id);
     if (!ids) {
-        error = "can.base_id " + std::to_string(config.can_base_id) + " leaves no room for the four identifiers";
+        error = "can.base_id " + std::to_string(config.can_base_id) + " leaves no room for the five identifiers";
         return nullptr;
     }
     auto projector = PlantProjector::make(camera, frame_size);
@@ -68,7 +68,7 @@ ActuationStage::ActuationStage(const ActuationConfig& config, Parts parts, Plant
       projector_(projector),
       tracker_(config.tracker),
       sender_(scheduler, scheduler_all, *parts_.bus, ids, odometry_, counters_),
-      link_(*parts_.bus, ids, config.heartbeat_interval_ns, odometry_, counters_)
+      link_(*parts_.bus, ids, config.heartbeat_interval_ns, odometry_, sender_, counters_)
 {
     if (parts_.gnss)
         gnss_.emplace(config.gnss, principal_x_mm);
@@ -139,10 +139,50 @@ void ActuationStage::write_retired(std::span<const actuation::RetiredTrack> reti
             entry = sender_.outcome(t.target_id);
         else
             entry.reason = MapReason::unconfirmed;
-        if (gnss_)
-            entry.georef = gnss_->place(t.s_mm, t.y_mm, now_ns);
-        if (!parts_.map->write(t, entry))
-            bump(counters_.map_errors);
+        // A tool that reports its strikes: the line waits for this one's.
+        if (entry.reason == MapReason::sent && !entry.fired && sender_.reports_fired(entry.tool) &&
+            n_waiting_ < waiting_.size()) {
+            for (Waiting& w : waiting_)
+                if (!w.used) {
+                    w = Waiting{true, t, entry};
+                    ++n_waiting_;
+                    break;
+                }
+            continue;
+        }
+        write_line(t, entry, now_ns);
+    }
+}
+
+void ActuationStage::write_line(const actuation::RetiredTrack& track, const MapEntry& entry,
+                                std::int64_t now_ns) noexcept
+{
+    MapEntry placed = entry;
+    if (gnss_)
+        placed.georef = gnss_->place(track.s_mm, track.y_mm, now_ns);
+    if (!parts_.map->write(track, placed))
+        bump(counters_.map_errors);
+}
+
+void ActuationStage::write_waiting(std::int64_t now_ns, bool all) noexcept
+{
+    if (!parts_.map || n_waiting_ == 0)
+        return;
+    double odom = 0;
+    const bool have_odom = odometry_.odometer_at(now_ns, odom);
+    for (Waiting& w : waiting_) {
+        if (!w.used)
+            continue;
+        const MapEntry& now = sender_.outcome(w.track.target_id);
+        // Still this plant's outcome (target ids wrap at 4096)?
+        const bool same = now.reason == MapReason::sent && now.tool == w.entry.tool &&
+                          now.aim_odom_mm == w.entry.aim_odom_mm;
+        const bool gave_up = have_odom && odom > w.entry.fire_odom_mm + kFiredWaitMm;
+        if (!all && same && !now.fired && !gave_up)
+            continue;
+        write_line(w.track, same ? now : w.entry, now_ns);
+        w.used = false;
+        --n_waiting_;
     }
 }
 
@@ -153,6 +193,7 @@ void ActuationStage::poll(std::int64_t now_ns) noexcept
         odometry_.add_encoder(now_ns, parts_.gpio->encoder().ticks);
     link_.heartbeat_if_due(now_ns, last_frame_ns_ >= 0, enabled());
     poll_gnss(now_ns);
+    write_waiting(now_ns, false);
 }
 
 bool ActuationStage::finish() noexcept
@@ -178,7 +219,9 @@ bool ActuationStage::finish() noexcept
     }
     if (!parts_.map)
         return ok;
-    write_retired(tracker_.drain(), base::monotonic_ns());
+    const std::int64_t end_ns = base::monotonic_ns();
+    write_retired(tracker_.drain(), end_ns);
+    write_waiting(end_ns, true);
     ok = parts_.map->close() && counters_.map_errors.load(std::memory_order_relaxed) == 0 && ok;
     parts_.map.reset();
     return ok;

@@ -7,14 +7,16 @@
 namespace stemd::runtime {
 
 CanLink::CanLink(drivers::CanBus& bus, protocol::CanIds ids, std::int64_t heartbeat_interval_ns,
-                 OdometryInput& odometry, ActuationCounters& counters)
+                 OdometryInput& odometry, TargetSender& sender, ActuationCounters& counters)
     : bus_(bus),
       ids_(ids),
       heartbeat_interval_ns_(heartbeat_interval_ns),
       odometry_(odometry),
+      sender_(sender),
       counters_(counters),
       odometry_checker_(ids.id(protocol::MessageKind::Odometry), 3),
-      tool_status_checker_(ids.id(protocol::MessageKind::ToolStatus), 3)
+      tool_status_checker_(ids.id(protocol::MessageKind::ToolStatus), 3),
+      tool_fired_checker_(ids.id(protocol::MessageKind::ToolFired), 3)
 {
 }
 
@@ -38,6 +40,18 @@ void CanLink::receive() noexcept
                 continue;
             bump(counters_.rx_tool_status);
             counters_.tools_ready_mask.store(m.tools_ready_mask, std::memory_order_relaxed);
+        } else if (*kind == protocol::MessageKind::ToolFired) {
+            protocol::ToolFired m;
+            if (!accepted(frame, tool_fired_checker_, m))
+                continue;
+            switch (sender_.on_fired(m, odometry_.speed_mm_per_s())) {
+            case TargetSender::Fired::matched: bump(counters_.rx_tool_fired); break;
+            case TargetSender::Fired::unmatched:
+                bump(counters_.rx_tool_fired);
+                bump(counters_.fired_unmatched);
+                break;
+            case TargetSender::Fired::unknown_tool: bump(counters_.rx_rejected); break;
+            }
         }
     }
 }

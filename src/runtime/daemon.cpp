@@ -438,6 +438,23 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
         s.no_odometry = get(a.no_odometry);
         s.bus_errors = get(a.bus_errors);
         s.heartbeat_errors = get(a.heartbeat_errors);
+        s.rx_tool_fired = get(a.rx_tool_fired);
+        s.fired_unmatched = get(a.fired_unmatched);
+        s.compensation_misses = get(a.compensation_misses);
+        for (const ToolTimingCounters& c : a.tool_timing) {
+            if (!c.configured.load(std::memory_order_acquire) || s.n_tools >= s.tool_timing.size())
+                break;
+            StatusSnapshot::ToolTiming& t = s.tool_timing[s.n_tools++];
+            t.tool_id = c.tool_id.load(std::memory_order_relaxed);
+            t.learning = c.learning.load(std::memory_order_relaxed);
+            t.latency_ms = c.latency_ms.load(std::memory_order_relaxed);
+            t.fired = get(c.fired);
+            t.lag_mean_mm = c.lag_mean_mm.load(std::memory_order_relaxed);
+            t.lag_p95_mm = c.lag_p95_mm.load(std::memory_order_relaxed);
+            t.lag_mean_ms = c.lag_mean_ms.load(std::memory_order_relaxed);
+            t.lag_p95_ms = c.lag_p95_ms.load(std::memory_order_relaxed);
+            t.strike_p95_mm = c.strike_p95_mm.load(std::memory_order_relaxed);
+        }
         DurationHistogram& send = actuation_->counters().send_latency;
         s.send = whole_run ? send.total() : send.take_interval();
     }

@@ -1,10 +1,33 @@
 #include "stemd/runtime/plant_map.hpp"
 
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 
 namespace stemd::runtime {
+
+namespace {
+
+// The tool-timing columns (see plant_map.hpp) at line + n; the new length.
+int append_fire_timing(char* line, std::size_t capacity, int n, const MapEntry& e)
+{
+    if (n < 0 || static_cast<std::size_t>(n) >= capacity || e.reason != MapReason::sent)
+        return n;
+    n += std::snprintf(line + n, capacity - static_cast<std::size_t>(n), ",\"fire_lead_mm\":%.1f", e.lead_mm);
+    if (!e.fired || n < 0 || static_cast<std::size_t>(n) >= capacity)
+        return n;
+    char* const at = line + n;
+    const std::size_t room = capacity - static_cast<std::size_t>(n);
+    const int m = std::isfinite(e.fire_lag_ms)
+        ? std::snprintf(at, room, ",\"fired_odom_mm\":%.1f,\"fire_lag_mm\":%.1f,\"fire_lag_ms\":%.1f,\"strike_mm\":%.1f",
+                        e.fired_odom_mm, e.fire_lag_mm, e.fire_lag_ms, e.strike_mm)
+        : std::snprintf(at, room, ",\"fired_odom_mm\":%.1f,\"fire_lag_mm\":%.1f,\"fire_lag_ms\":null,\"strike_mm\":%.1f",
+                        e.fired_odom_mm, e.fire_lag_mm, e.strike_mm);
+    return m < 0 ? m : n + m;
+}
+
+}  // namespace
 
 std::string_view to_string(MapReason r)
 {
@@ -68,6 +91,7 @@ bool PlantMap::write(const actuation::RetiredTrack& t, const MapEntry& e)
         n += std::snprintf(line + n, capacity - static_cast<std::size_t>(n),
                            ",\"tool\":%u,\"lane\":%u,\"fire_odom_mm\":%.1f", static_cast<unsigned>(e.tool),
                            static_cast<unsigned>(e.lane), e.fire_odom_mm);
+    n = append_fire_timing(line, capacity, n, e);
     if (n >= 0 && static_cast<std::size_t>(n) < capacity && e.georef.status != GeorefStatus::off) {
         const std::string_view g = to_string(e.georef.status);
         const bool placed = e.georef.status == GeorefStatus::fix || e.georef.status == GeorefStatus::extrapolated;

@@ -63,6 +63,35 @@ std::string actuation(const StatusSnapshot& now, const StatusSnapshot& before)
     return buf;
 }
 
+// Tool timing, whole run: per tool that fired or leads its commands, e.g.
+// " | tool 0: fired 12, lag 55.6 mm 40.0 ms (p95 56.0 mm 40.25 ms), strike p95 1.0 mm, latency 40.0 ms learned".
+std::string tool_timing(const StatusSnapshot& s)
+{
+    if (!s.actuation)
+        return "";
+    std::string out;
+    char buf[256];
+    for (std::size_t i = 0; i < s.n_tools && i < s.tool_timing.size(); ++i) {
+        const StatusSnapshot::ToolTiming& t = s.tool_timing[i];
+        if (t.fired == 0 && t.latency_ms == 0 && !t.learning)
+            continue;
+        std::snprintf(buf, sizeof buf,
+                      " | tool %u: fired %llu, lag %.1f mm %.1f ms (p95 %.1f mm %.2f ms), strike p95 %.2f mm, "
+                      "latency %.1f ms%s",
+                      static_cast<unsigned>(t.tool_id), static_cast<unsigned long long>(t.fired), t.lag_mean_mm,
+                      t.lag_mean_ms, t.lag_p95_mm, t.lag_p95_ms, t.strike_p95_mm, t.latency_ms,
+                      t.learning ? " learned" : "");
+        out += buf;
+    }
+    if (s.rx_tool_fired > 0 || s.compensation_misses > 0) {
+        std::snprintf(buf, sizeof buf, " | fired_unmatched %llu, compensation_misses %llu",
+                      static_cast<unsigned long long>(s.fired_unmatched),
+                      static_cast<unsigned long long>(s.compensation_misses));
+        out += buf;
+    }
+    return out;
+}
+
 std::string durations(const StatusSnapshot& s)
 {
     char buf[280];
@@ -85,7 +114,24 @@ std::string format_status(const StatusSnapshot& now, const StatusSnapshot& befor
                   static_cast<double>(now.frames_in - before.frames_in) / dt_s,
                   static_cast<double>(now.frames_out - before.frames_out) / dt_s,
                   static_cast<unsigned long long>(now.no_vegetation - before.no_vegetation));
-    return buf + behind(now, before) + " | " + drops(now, before) + source(now, before) + actuation(now, before) + " | " + durations(now);
+    return buf + behind(now, before) + " | " + drops(now, before) + source(now, before) + actuation(now, before) + " | " + durations(now) +
+           tool_timing(now);
+}
+
+std::string format_latency_changes(const StatusSnapshot& now, const StatusSnapshot& before)
+{
+    std::string out;
+    char buf[128];
+    for (std::size_t i = 0; i < now.n_tools && i < now.tool_timing.size(); ++i) {
+        const StatusSnapshot::ToolTiming& t = now.tool_timing[i];
+        const double was = i < before.n_tools ? before.tool_timing[i].latency_ms : t.latency_ms;
+        if (t.latency_ms == was)
+            continue;
+        std::snprintf(buf, sizeof buf, "%stool %u: latency %.1f ms (%s, was %.1f ms)", out.empty() ? "" : "; ",
+                      static_cast<unsigned>(t.tool_id), t.latency_ms, t.learning ? "learned" : "set", was);
+        out += buf;
+    }
+    return out;
 }
 
 std::string format_summary(const StatusSnapshot& end, double run_s)
@@ -97,7 +143,8 @@ std::string format_summary(const StatusSnapshot& end, double run_s)
                   run_s > 0 ? static_cast<double>(end.frames_out) / run_s : 0.0,
                   static_cast<unsigned long long>(end.no_vegetation));
     return buf + behind(end, StatusSnapshot{}) + " | " + drops(end, StatusSnapshot{}) +
-           source(end, StatusSnapshot{}) + actuation(end, StatusSnapshot{}) + " | " + durations(end);
+           source(end, StatusSnapshot{}) + actuation(end, StatusSnapshot{}) + " | " + durations(end) +
+           tool_timing(end);
 }
 
 }  // namespace stemd::runtime

@@ -1,5 +1,7 @@
 #include "stemd/runtime/target_sender.hpp"
 
+#include <cmath>
+
 #include "stemd/runtime/status.hpp"
 
 namespace stemd::runtime {
@@ -31,6 +33,56 @@ TargetSender::TargetSender(actuation::Scheduler scheduler, std::optional<actuati
       odometry_(odometry),
       counters_(counters)
 {
+    const auto tools = scheduler_.tools();
+    for (std::size_t i = 0; i < tools.size(); ++i) {
+        const actuation::ToolSpec& t = tools[i];
+        learners_[i] = actuation::LatencyLearner(t.latency_ms, t.latency_min_ms, t.latency_max_ms);
+        ToolTimingCounters& c = counters_.tool_timing[i];
+        c.tool_id.store(t.id, std::memory_order_relaxed);
+        c.learning.store(t.learn_latency, std::memory_order_relaxed);
+        c.latency_ms.store(t.latency_ms, std::memory_order_relaxed);
+        c.configured.store(true, std::memory_order_release);
+    }
+}
+
+TargetSender::Fired TargetSender::on_fired(const protocol::ToolFired& fired, double speed_mm_per_s) noexcept
+{
+    const auto tools = scheduler_.tools();
+    std::size_t slot = tools.size();
+    for (std::size_t i = 0; i < tools.size(); ++i)
+        if (tools[i].id == fired.tool_id)
+            slot = i;
+    if (slot == tools.size())
+        return Fired::unknown_tool;
+    MapEntry& e = outcomes_[fired.target_id];
+    if (e.reason != MapReason::sent || !e.has_tool || e.tool != fired.tool_id || e.fired)
+        return Fired::unmatched;
+    const double lag_mm = protocol::fire_distance_mm(fired.fired_odom_mm, e.command_fire_raw);
+    reports_fired_[fired.tool_id] = true;
+    e.fired = true;
+    e.fired_odom_mm = std::round(e.fire_odom_mm) + lag_mm;
+    e.fire_lag_mm = lag_mm;
+    e.fire_lag_ms = actuation::lag_ms_of(lag_mm, speed_mm_per_s);
+    e.strike_mm = e.fired_odom_mm - e.aim_odom_mm;
+    actuation::LagStats& stats = lag_[slot];
+    stats.record(e.fire_lag_mm, e.fire_lag_ms, e.strike_mm);
+
+    ToolTimingCounters& c = counters_.tool_timing[slot];
+    if (tools[slot].learn_latency && learners_[slot].add(e.fire_lag_ms)) {
+        const double learned = learners_[slot].latency_ms();
+        scheduler_.set_latency_ms(fired.tool_id, learned);
+        if (scheduler_all_)
+            scheduler_all_->set_latency_ms(fired.tool_id, learned);
+        c.latency_ms.store(learned, std::memory_order_relaxed);
+    }
+    const actuation::LagSummary sum = stats.summary();
+    c.lag_mean_mm.store(sum.mean_mm, std::memory_order_relaxed);
+    c.lag_p95_mm.store(sum.p95_mm, std::memory_order_relaxed);
+    c.lag_mean_ms.store(sum.mean_ms, std::memory_order_relaxed);
+    c.lag_p95_ms.store(sum.p95_ms, std::memory_order_relaxed);
+    c.strike_p95_mm.store(sum.strike_p95_mm, std::memory_order_relaxed);
+    bump(c.fired);
+    return Fired::matched;
 }
 
 bool TargetSender::schedule(const actuation::Target& target, std::int64_t now_ns, bool class_map,
@@ -59,12 +111,19 @@ bool TargetSender::schedule(const actuation::Target& target, std::int64_t now_ns
         entry.tool = d.command.tool_id;
         entry.lane = d.command.lane;
         entry.fire_odom_mm = d.fire_odom_mm;
+        entry.command_fire_raw = d.command.fire_odom_mm;
+        entry.aim_odom_mm = d.aim_odom_mm;
+        entry.lead_mm = d.lead_mm;
     }
     switch (d.outcome) {
     case actuation::ScheduleOutcome::policy: bump(counters_.policy); return false;
     case actuation::ScheduleOutcome::no_tool: bump(counters_.no_tool); return false;
     case actuation::ScheduleOutcome::disabled: bump(counters_.disabled); return false;
-    case actuation::ScheduleOutcome::deadline_miss: bump(counters_.deadline_misses); return false;
+    case actuation::ScheduleOutcome::deadline_miss:
+        bump(counters_.deadline_misses);
+        if (d.compensation_miss)
+            bump(counters_.compensation_misses);
+        return false;
     case actuation::ScheduleOutcome::send: break;
     }
     protocol::CanFrame frame;

@@ -118,6 +118,13 @@ void heartbeat(Heartbeat h)
              field("targets_dropped", saturated(h.targets_dropped, 4095)) + field("rx_rejected", saturated(h.rx_rejected, 255)));
 }
 
+void tool_fired(ToolFired f)
+{
+    emit(f, MessageKind::ToolFired, "TOOL_FIRED",
+         field("tool_id", f.tool_id) + field("target_id", f.target_id) + field("lane", f.lane) +
+             field("fired_odom_mm", f.fired_odom_mm % 262144));
+}
+
 }  // namespace
 
 int main()
@@ -143,6 +150,11 @@ int main()
     heartbeat({DaemonState::Active, 65536, 4096, 4096, 256});  // wraps to 0; saturate
     heartbeat({DaemonState::Fault, 70000, 9999, 1u << 20, 300});
     heartbeat({DaemonState::Degraded, ~std::uint64_t{0}, ~std::uint64_t{0}, ~std::uint64_t{0}, ~std::uint64_t{0}});
+    tool_fired({0, 0, 0, 0});
+    tool_fired({4095, 15, 15, 262143});
+    tool_fired({0xA5A, 0xA, 0x5, 0x2A5A5});
+    tool_fired({1, 1, 1, 262144 + 17});       // fired_odom_mm past 2^18 -> 17
+    tool_fired({2, 2, 2, 0xFFFFFFFFu});       // the odometer's own wrap -> 262143
 
     // Seeded random values over each field's whole range.
     std::mt19937 rng(99);
@@ -154,6 +166,8 @@ int main()
         tool_status({static_cast<std::uint16_t>(rng()), static_cast<std::uint16_t>(rng() % 4096), rng() % 2 == 0,
                      static_cast<std::uint8_t>(rng()), static_cast<std::uint8_t>(rng())});
         heartbeat({static_cast<DaemonState>(rng() % 5), rng(), rng() % 5000, rng() % 5000, rng() % 300});
+        tool_fired({static_cast<std::uint16_t>(rng() % 4096), static_cast<std::uint8_t>(rng() % 16),
+                    static_cast<std::uint8_t>(rng() % 16), static_cast<std::uint32_t>(rng())});
     }
     return g_failures == 0 && std::fflush(stdout) == 0 ? 0 : 1;
 }

@@ -1,4 +1,4 @@
-// Received CAN frames (ODOMETRY, TOOL_STATUS from the bus; the rest for
+// Received CAN frames (ODOMETRY, TOOL_STATUS, TOOL_FIRED from the bus; the rest for
 // completeness): any identifier, DLC and payload decodes or is rejected.
 #include <cstddef>
 #include <cstdint>
@@ -14,8 +14,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (size < 3)
         return 0;
     p::CanFrame frame;
-    // The identifier picks one of the four messages or something else.
-    frame.id = p::CanIds{}.id(p::MessageKind::Target) + (data[0] % 6) - 1;
+    // The identifier picks one of the five messages or something else.
+    frame.id = p::CanIds{}.id(p::MessageKind::Target) + (data[0] % 7) - 1;
     frame.dlc = data[1];   // out-of-range DLCs must be refused, not read past
     std::memcpy(frame.data.data(), data + 2, std::min<std::size_t>(size - 2, frame.data.size()));
     const p::CanIds ids;
@@ -23,10 +23,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     p::TargetCommand target;
     p::ToolStatus tool_status;
     p::Heartbeat heartbeat;
+    p::ToolFired tool_fired;
     (void)p::decode(frame, ids, odometry);
     (void)p::decode(frame, ids, target);
     (void)p::decode(frame, ids, tool_status);
     (void)p::decode(frame, ids, heartbeat);
+    (void)p::decode(frame, ids, tool_fired);
     (void)p::e2e_crc_ok(ids.id(p::MessageKind::Odometry), frame.data);
     return 0;
 }

@@ -181,7 +181,7 @@ TEST(ConfigListSchema, ActuationScalarKeys)
              {"odometry.max_extrapolation_ms", ValueType::real, "ms", 1, 10000, "100", ""},
              {"odometry.timeout_ms", ValueType::real, "ms", 10, 60000, "500", ""},
              {"can.interface", ValueType::text, "", 0, 0, "none", ""},
-             {"can.base_id", ValueType::integer, "id", 0, 2044, "768", ""},
+             {"can.base_id", ValueType::integer, "id", 0, 2043, "768", ""},
              {"can.log_file", ValueType::text, "", 0, 0, "-", ""},
              {"can.log_clock", ValueType::choice, "", 0, 0, "realtime", "realtime|monotonic"},
              {"can.heartbeat_ms", ValueType::real, "ms", 10, 10000, "100", ""},
@@ -311,7 +311,8 @@ TEST_F(ConfigListTest, UnknownAndDuplicateItemKeys)
     expect_error("tools:\n  - id: 0\n  - id: 1\n    offset: 900\n", 4, "tools[1].offset",
                  "unknown key; did you mean 'tools[1].offset_mm'?");
     expect_error("tools:\n  - colour: red\n", 2, "tools[0].colour",
-                 "unknown key; a tools item has: id, offset_mm, y_min_mm, y_max_mm, lanes");
+                 "unknown key; a tools item has: id, offset_mm, y_min_mm, y_max_mm, lanes, "
+                 "latency_ms, learn_latency, latency_min_ms, latency_max_ms");
     expect_error("tools:\n  - id: 0\n    lanes: 2\n    lanes: 3\n", 4, "tools[0].lanes",
                  "duplicate key (first on line 3)");
 }

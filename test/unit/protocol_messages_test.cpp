@@ -65,6 +65,7 @@ TEST(CanIds, DefaultBaseAndOffsets)
     EXPECT_EQ(kIds.id(MessageKind::Target), 0x301);
     EXPECT_EQ(kIds.id(MessageKind::ToolStatus), 0x302);
     EXPECT_EQ(kIds.id(MessageKind::Heartbeat), 0x303);
+    EXPECT_EQ(kIds.id(MessageKind::ToolFired), 0x304);
     for (MessageKind k : kAllMessageKinds)
         EXPECT_EQ(kIds.id(k), kIds.base() + message_def(k).id_offset);
 }
@@ -72,9 +73,9 @@ TEST(CanIds, DefaultBaseAndOffsets)
 TEST(CanIds, ConfigurableBaseStaysElevenBit)
 {
     ASSERT_TRUE(CanIds::make(0x000));
-    ASSERT_TRUE(CanIds::make(0x7FC));
-    EXPECT_EQ(CanIds::make(0x7FC)->id(MessageKind::Heartbeat), 0x7FF);
-    EXPECT_FALSE(CanIds::make(0x7FD));
+    ASSERT_TRUE(CanIds::make(0x7FB));
+    EXPECT_EQ(CanIds::make(0x7FB)->id(MessageKind::ToolFired), 0x7FF);
+    EXPECT_FALSE(CanIds::make(0x7FC));
     EXPECT_FALSE(CanIds::make(0x800));
     EXPECT_FALSE(CanIds::make(0xFFFFFFFF));
 }
@@ -88,6 +89,8 @@ TEST(CanIds, KindOf)
     f.id = 0x11F;
     EXPECT_FALSE(ids.kind_of(f));
     f.id = 0x124;
+    EXPECT_EQ(ids.kind_of(f), MessageKind::ToolFired);
+    f.id = 0x125;
     EXPECT_FALSE(ids.kind_of(f));
     f.id = 0x120;
     f.extended = true;
@@ -252,11 +255,11 @@ TEST(Messages, DecodeChecksIdLengthAndCrc)
 
 TEST(Messages, WorksWithAnyBase)
 {
-    const CanIds ids = *CanIds::make(0x7FC);
+    const CanIds ids = *CanIds::make(0x7FB);
     const TargetCommand t{4095, 15, 15, 5, 5, PlantClass::Crop};
     EXPECT_EQ(round_trip(t, 9, ids), t);
     CanFrame f;
-    ASSERT_TRUE(encode(Heartbeat{}, 0, ids, f));
+    ASSERT_TRUE(encode(ToolFired{}, 0, ids, f));
     EXPECT_EQ(f.id, 0x7FFu);
 }
 
@@ -312,8 +315,52 @@ TEST(Messages, RandomRoundTrips)
     }
 }
 
+TEST(Messages, ToolFiredPinnedFrameSharesTheTargetsBits)
+{
+    const ToolFired fired{0xABC, 5, 9, 0x12345};
+    CanFrame f;
+    ASSERT_TRUE(encode(fired, 3, kIds, f));
+    EXPECT_EQ(f.id, 0x304u);
+    // Computed independently (Python: bit layout + bitwise CRC-8 over 04 03 + bytes 1..7).
+    const std::array<std::uint8_t, 8> expected{0xDE, 0x53, 0xBC, 0x9A, 0x45, 0x23, 0x01, 0x00};
+    EXPECT_EQ(f.data, expected);
+    // tool_id, target_id, lane and the odometer sit where the TARGET has them.
+    CanFrame t;
+    ASSERT_TRUE(encode(TargetCommand{0xABC, 5, 9, 0x12345, 0, PlantClass::Unknown}, 3, kIds, t));
+    for (std::size_t i = 1; i < 6; ++i)
+        EXPECT_EQ(f.data[i], t.data[i]) << "byte " << i;
+    EXPECT_EQ(f.data[6] & 0x03, t.data[6] & 0x03);
+}
+
+TEST(Messages, ToolFiredRoundTripWrapsAndRejects)
+{
+    EXPECT_EQ(round_trip(ToolFired{}), ToolFired{});
+    const ToolFired hi{kMaxTargetId, kMaxToolId, kMaxLane, kFireOdomModulo - 1};
+    EXPECT_EQ(round_trip(hi, 14), hi);
+    // Any odometer reading goes out modulo 2^18, as fire_odom_mm does.
+    EXPECT_EQ(round_trip(ToolFired{1, 2, 3, 0xFFFFFFFFu}).fired_odom_mm, kFireOdomModulo - 1);
+    EXPECT_EQ(round_trip(ToolFired{1, 2, 3, kFireOdomModulo + 17}).fired_odom_mm, 17u);
+
+    CanFrame f;
+    EXPECT_EQ(encode(ToolFired{1, 16, 0, 0}, 0, kIds, f).signal, "tool_id");
+    EXPECT_EQ(encode(ToolFired{4096, 0, 0, 0}, 0, kIds, f).signal, "target_id");
+    ASSERT_TRUE(encode(ToolFired{7, 1, 0, 1000}, 0, kIds, f));
+    // Reserved bits 50..63 are sent as 0.
+    EXPECT_EQ(f.data[6] & 0xFC, 0);
+    EXPECT_EQ(f.data[7], 0);
+    ToolFired out{};
+    CanFrame bad = f;
+    bad.data[4] ^= 0x01;  // one odometer bit flipped: the CRC no longer holds
+    EXPECT_EQ(decode(bad, kIds, out).error, CodecError::WrongCrc);
+    EXPECT_EQ(out, ToolFired{});
+    CanFrame other = f;
+    other.id = kIds.id(MessageKind::ToolStatus);
+    EXPECT_EQ(decode(other, kIds, out).error, CodecError::WrongId);
+}
+
 TEST(Messages, Names)
 {
+    EXPECT_EQ(to_string(MessageKind::ToolFired), "TOOL_FIRED");
     EXPECT_EQ(to_string(MessageKind::ToolStatus), "TOOL_STATUS");
     EXPECT_EQ(to_string(CodecError::WrongCrc), "wrong CRC");
 }

@@ -63,3 +63,35 @@ TEST(Status, SourceTimeoutsErrorsAndReopensAreShown)
     const std::string summary = format_summary(now, 2.0);
     EXPECT_NE(summary.find("source: timeouts 7, errors 4, reopens 1"), std::string::npos) << summary;
 }
+
+TEST(Status, ToolTimingPerToolThatFiredOrLeads)
+{
+    StatusSnapshot s = with_actuation();
+    s.n_tools = 2;
+    s.tool_timing[0] = {.tool_id = 3, .learning = true, .latency_ms = 40.0, .fired = 12, .lag_mean_mm = 55.6,
+                        .lag_p95_mm = 57.0, .lag_mean_ms = 40.1, .lag_p95_ms = 40.5, .strike_p95_mm = 1.25};
+    s.tool_timing[1] = {.tool_id = 5};   // never fired, no latency: not shown
+    s.rx_tool_fired = 13;
+    s.fired_unmatched = 1;
+    s.compensation_misses = 2;
+    const std::string line = format_status(s, StatusSnapshot{});
+    EXPECT_NE(line.find("| tool 3: fired 12, lag 55.6 mm 40.1 ms (p95 57.0 mm 40.50 ms), strike p95 1.25 mm, "
+                        "latency 40.0 ms learned"),
+              std::string::npos)
+        << line;
+    EXPECT_EQ(line.find("tool 5"), std::string::npos) << line;
+    EXPECT_NE(line.find("fired_unmatched 1, compensation_misses 2"), std::string::npos) << line;
+    EXPECT_NE(format_summary(s, 2.0).find("| tool 3: fired 12"), std::string::npos);
+}
+
+TEST(Status, LatencyChangesAreNamedOncePerChange)
+{
+    StatusSnapshot before = with_actuation(), now = with_actuation();
+    before.n_tools = now.n_tools = 2;
+    before.tool_timing[0] = {.tool_id = 3, .learning = true, .latency_ms = 0.0};
+    before.tool_timing[1] = {.tool_id = 4, .latency_ms = 12.0};
+    now.tool_timing = before.tool_timing;
+    EXPECT_EQ(format_latency_changes(now, before), "");
+    now.tool_timing[0].latency_ms = 39.75;
+    EXPECT_EQ(format_latency_changes(now, before), "tool 3: latency 39.8 ms (learned, was 0.0 ms)");
+}

@@ -697,6 +697,41 @@ check_faults() {
   grep 'total:' "/host$out/faults-stemd.log"
 }
 extra_checks="$extra_checks faults"
+# --- toolsim: stemd-toolsim (the simulated tool controller) on vcan0 ---
+# KEY toolsim: host path of stemd-toolsim. It drives at 1400 mm/s from
+# odometer 0 (sending ODOMETRY) and fires with a 40 ms delay; cansend gives it
+# one TARGET (precomputed with the protocol encoder: tool 2, target 1234,
+# lane 5, fire_odom_mm 7000, weed; counter 0: 5 s of driving, room for a
+# slow emulated guest to send it in time). The strike must land 56 mm
+# (1.4 m/s x 40 ms) past it, reported on stdout and as TOOL_FIRED (base+4).
+toolsim=
+for kv in "$@"; do
+  case $kv in toolsim=*) toolsim=${kv#toolsim=} ;; esac
+done
+check_toolsim() {
+  [ -n "$toolsim" ] || skip "stemd-toolsim not built"
+  target=301#A820D254581B0080
+  modprobe can-raw && modprobe vcan || die "modprobe can-raw vcan"
+  ip link show vcan0 > /dev/null 2>&1 || ip link add dev vcan0 type vcan || die "creating vcan0"
+  ip link set vcan0 up || die "vcan0 up"
+  hostrun candump -L vcan0 > /tmp/toolsim.candump 2> /tmp/toolsim.candump.err &
+  dump=$!
+  within 60 grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all || die "candump did not start listening on vcan0"
+  hostrun "$toolsim" --interface vcan0 --delay-ms 40 --speed-mm-per-s 1400 --duration-s 8 > /tmp/toolsim.out 2>&1 &
+  sim=$!
+  # It listens once it drives (its first ODOMETRY, 300#, is on the bus).
+  within 60 grep -q ' vcan0 300#' /tmp/toolsim.candump || { kill $sim $dump; die "no ODOMETRY from stemd-toolsim"; }
+  hostrun cansend vcan0 "$target" || die "cansend $target"
+  wait $sim
+  rc=$?
+  kill -INT $dump; wait $dump
+  cat /tmp/toolsim.out
+  echo "candump: $(grep -c ' vcan0 304#' /tmp/toolsim.candump) TOOL_FIRED frames, $(wc -l < /tmp/toolsim.candump) in all"
+  [ $rc = 0 ] || die "stemd-toolsim exited $rc"
+  grep -qx 'fired tool 2 target 1234 lane 5 fired_odom_mm 7056' /tmp/toolsim.out || die "the strike was not at 7056 mm"
+  [ "$(grep -c ' vcan0 304#' /tmp/toolsim.candump)" -eq 1 ] || die "not exactly one TOOL_FIRED on vcan0"
+}
+extra_checks="$extra_checks toolsim"
 
 if [ "$mode" = one ]; then
   "check_$check"

@@ -6,8 +6,12 @@
 // odometer reads fire_odom_mm = s_mm + offset_mm (README, "Machine frame and
 // field coordinates"). The command must reach the tool controller at least
 // lead_ms before the plant arrives, and putting it on the bus takes up to
-// send_budget_ms. With d = fire_odom_mm - odom_mm (mm still to travel) and
-// v = speed_mm_per_s:
+// send_budget_ms. A tool that takes latency_ms to act is commanded earlier
+// by compensation_mm(v, latency_ms) = v × latency_ms (fire_lag.hpp; 0 when
+// standing): fire_odom_mm = aim_odom_mm - v × latency_ms, with aim_odom_mm =
+// s_mm + offset_mm, so that the strike lands on the stem at any speed. The
+// deadline is the command's, at the compensated point. With
+// d = fire_odom_mm - odom_mm (mm still to travel) and v = speed_mm_per_s:
 //   - d < 0: the fire position has passed: deadline miss.
 //   - v <= standing_speed_mm_per_s (standing, creeping, or reversing): no
 //     deadline pressure, the command is on time; its bus deadline is
@@ -30,7 +34,10 @@
 //   3. disabled: the enable input is inactive.
 //   4. deadline: as above. When several tools cover y_mm they are tried in
 //      table order and the first that can be on time is chosen; a miss
-//      means none could.
+//      means none could. A miss that the first tool could have made without
+//      its compensation is also counted as compensation_misses: the
+//      compensation moved its point into the past or too close. Such a
+//      command is dropped, never sent late.
 // Lane within a tool: lane_width = (y_max - y_min) / lanes,
 // lane = floor((y - y_min) / lane_width), y == y_max being in the last lane.
 //
@@ -49,12 +56,22 @@
 
 namespace stemd::actuation {
 
+inline constexpr double kMaxLatencyMs = 1000.0;  // a tool's latency_ms and its learning bounds
+
 struct ToolSpec {
     std::uint8_t id = 0;       // TARGET tool_id, 0..15
     double offset_mm = 0;      // behind the principal point (>= 0 for a tool behind the camera)
     double y_min_mm = 0;       // lateral span, machine y (left > 0)
     double y_max_mm = 0;       // > y_min_mm
     std::uint8_t lanes = 1;    // nozzles across the span, 1..16 (1 for a stamp)
+    // Time from the odometer reaching fire_odom_mm to the strike taking
+    // effect: commands go out earlier by speed × latency_ms.
+    double latency_ms = 0;     // 0..1000
+    // Learn latency_ms from the measured lag (TOOL_FIRED), within
+    // [latency_min_ms, latency_max_ms] (the runtime does; see fire_lag.hpp).
+    bool learn_latency = false;
+    double latency_min_ms = 0;
+    double latency_max_ms = 200;
 };
 
 enum class TreatPolicy : std::uint8_t { weeds_only, all };
@@ -85,9 +102,12 @@ struct ScheduleDecision {
     // send: ready for protocol::encode. Other outcomes: tool, lane and
     // fire position as far as they were determined (for logs).
     protocol::TargetCommand command;
-    double fire_odom_mm = 0;         // s_mm + offset_mm, unrounded
+    double aim_odom_mm = 0;          // s_mm + offset_mm: the stem under the tool
+    double lead_mm = 0;              // the latency's compensation (0 when standing)
+    double fire_odom_mm = 0;         // aim_odom_mm - lead_mm, unrounded: the commanded point
     double time_to_arrival_ms = 0;   // +inf when standing
     std::int64_t deadline_ns = 0;    // send: on the bus by then (CanBus::send)
+    bool compensation_miss = false;  // deadline_miss: on time without the latency lead
     bool ok() const { return outcome == ScheduleOutcome::send; }
 };
 
@@ -98,6 +118,7 @@ struct SchedulerCounters {
     std::uint64_t no_tool = 0;
     std::uint64_t disabled = 0;
     std::uint64_t deadline_misses = 0;
+    std::uint64_t compensation_misses = 0;  // of deadline_misses: on time without the compensation
 };
 
 class Scheduler {
@@ -106,11 +127,15 @@ public:
 
     // nullopt with `error` set when the table or the parameters are invalid:
     // no tools, more than 16, an id > 15 or repeated, an empty or non-finite
-    // span, lanes outside 1..16, a non-finite offset, negative lead or budget.
+    // span, lanes outside 1..16, a non-finite offset, negative lead or budget,
+    // a latency outside 0..1000 ms or (learning) outside its bounds.
     static std::optional<Scheduler> make(std::span<const ToolSpec> tools, const SchedulerParams& params,
                                          std::string_view* error = nullptr);
 
     ScheduleDecision schedule(const Target& target, const ScheduleNow& now) noexcept;
+    // A tool's latency from now on (a learned one), clamped to 0..1000 ms;
+    // false if no tool has that id or the value is not finite.
+    bool set_latency_ms(std::uint8_t tool_id, double latency_ms) noexcept;
 
     std::span<const ToolSpec> tools() const { return {tools_.data(), n_tools_}; }
     const SchedulerParams& params() const { return params_; }

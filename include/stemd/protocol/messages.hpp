@@ -9,7 +9,7 @@
 // DBC "@1"), factor 1, offset 0, so raw value = physical value. Start bits
 // count from bit 0 = LSB of byte 0.
 //
-// Identifier = base + offset; base is configurable (default 0x300, at most 0x7FC).
+// Identifier = base + offset; base is configurable (default 0x300, at most 0x7FB).
 //
 //   ODOMETRY     base+0  DRIVE -> STEMD, TOOL   highest priority: the time base of every fire
 //     0|8    e2e_crc
@@ -44,6 +44,22 @@
 //     32|12  deadline_misses    u12         saturating at 4095
 //     44|12  targets_dropped    u12         saturating at 4095
 //     56|8   rx_rejected        u8          received frames rejected (E2E or decode), saturating at 255
+//   TOOL_FIRED   base+4  TOOL -> STEMD          one per executed TARGET: where it took effect
+//     0|8    e2e_crc
+//     8|4    e2e_counter        0..14
+//     12|4   tool_id            u4          as in the TARGET (same bits)
+//     16|12  target_id          u12         as in the TARGET (same bits)
+//     28|4   lane               u4          as in the TARGET (same bits)
+//     32|18  fired_odom_mm      u18  mm     odometer reading when the strike took effect, modulo 2^18
+//     50|14  (reserved, 0)
+//
+// TOOL_FIRED has the TARGET's layout for the fields it echoes, so that a tool
+// controller copies them bit for bit. fired_odom_mm is the odometer (the
+// ODOMETRY scale, modulo 2^18 like fire_odom_mm) when the actuation took
+// effect: the valve opened, the stamp touched the ground. A controller that
+// cannot sense that reports the odometer when it switched its output plus its
+// own known delay times speed. stemd takes fired_odom_mm - fire_odom_mm
+// (fire_distance_mm) as the tool's lag.
 //
 // Reserved bits are sent as 0 and ignored on receive.
 //
@@ -74,10 +90,11 @@
 
 namespace stemd::protocol {
 
-enum class MessageKind : std::uint8_t { Odometry = 0, Target = 1, ToolStatus = 2, Heartbeat = 3 };
-inline constexpr std::size_t kMessageKindCount = 4;
+enum class MessageKind : std::uint8_t { Odometry = 0, Target = 1, ToolStatus = 2, Heartbeat = 3, ToolFired = 4 };
+inline constexpr std::size_t kMessageKindCount = 5;
 inline constexpr std::array<MessageKind, kMessageKindCount> kAllMessageKinds{
-    MessageKind::Odometry, MessageKind::Target, MessageKind::ToolStatus, MessageKind::Heartbeat};
+    MessageKind::Odometry, MessageKind::Target, MessageKind::ToolStatus, MessageKind::Heartbeat,
+    MessageKind::ToolFired};
 
 inline constexpr std::uint16_t kDefaultBaseId = 0x300;
 inline constexpr std::uint8_t kFrameDlc = 8;
@@ -213,6 +230,15 @@ struct ToolStatus {
     friend bool operator==(const ToolStatus&, const ToolStatus&) = default;
 };
 
+struct ToolFired {
+    std::uint16_t target_id = 0;      // 0..4095, the TARGET's
+    std::uint8_t tool_id = 0;         // 0..15, the TARGET's
+    std::uint8_t lane = 0;            // 0..15, the TARGET's
+    // Encode: any odometer reading (sent modulo 2^18). Decode: 0..262143.
+    std::uint32_t fired_odom_mm = 0;
+    friend bool operator==(const ToolFired&, const ToolFired&) = default;
+};
+
 struct Heartbeat {
     DaemonState state = DaemonState::Starting;
     // Encode: running totals; targets_sent is sent modulo 2^16, the others
@@ -247,6 +273,7 @@ CodecResult encode(const Odometry& msg, std::uint8_t counter, const CanIds& ids,
 CodecResult encode(const TargetCommand& msg, std::uint8_t counter, const CanIds& ids, CanFrame& out);
 CodecResult encode(const ToolStatus& msg, std::uint8_t counter, const CanIds& ids, CanFrame& out);
 CodecResult encode(const Heartbeat& msg, std::uint8_t counter, const CanIds& ids, CanFrame& out);
+CodecResult encode(const ToolFired& msg, std::uint8_t counter, const CanIds& ids, CanFrame& out);
 
 // Checks identifier, DLC, CRC and every signal's range (not the counter
 // sequence: see E2eChecker). On error `out` is left as it was.
@@ -254,5 +281,6 @@ CodecResult decode(const CanFrame& frame, const CanIds& ids, Odometry& out);
 CodecResult decode(const CanFrame& frame, const CanIds& ids, TargetCommand& out);
 CodecResult decode(const CanFrame& frame, const CanIds& ids, ToolStatus& out);
 CodecResult decode(const CanFrame& frame, const CanIds& ids, Heartbeat& out);
+CodecResult decode(const CanFrame& frame, const CanIds& ids, ToolFired& out);
 
 }  // namespace stemd::protocol

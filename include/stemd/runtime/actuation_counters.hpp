@@ -1,12 +1,26 @@
 // What the actuator's parts count, for the status line and the heartbeat.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 
 #include "stemd/runtime/duration_histogram.hpp"
 
 namespace stemd::runtime {
+
+// One tool's timing (tool timing, fire_lag.hpp), whole run: written by the
+// actuator thread after each TOOL_FIRED, read by the status line.
+struct ToolTimingCounters {
+    std::atomic<bool> configured{false};
+    std::atomic<std::uint8_t> tool_id{0};
+    std::atomic<bool> learning{false};
+    std::atomic<double> latency_ms{0};       // applied now (configured or learned)
+    std::atomic<std::uint64_t> fired{0};     // TOOL_FIRED matched to a TARGET
+    std::atomic<double> lag_mean_mm{0}, lag_p95_mm{0};
+    std::atomic<double> lag_mean_ms{0}, lag_p95_ms{0};
+    std::atomic<double> strike_p95_mm{0};    // |fired - aim|: how far from the stem
+};
 
 // Written by the actuator thread only (relaxed atomics), read by the status line.
 struct ActuationCounters {
@@ -26,6 +40,9 @@ struct ActuationCounters {
     std::atomic<std::uint64_t> heartbeat_errors{0}; // HEARTBEATs that could not be encoded or sent
     std::atomic<std::uint64_t> rx_odometry{0};      // ODOMETRY frames accepted
     std::atomic<std::uint64_t> rx_tool_status{0};   // TOOL_STATUS frames accepted
+    std::atomic<std::uint64_t> rx_tool_fired{0};    // TOOL_FIRED frames accepted (known tool)
+    std::atomic<std::uint64_t> fired_unmatched{0};  // TOOL_FIRED for no TARGET sent (or reported twice)
+    std::atomic<std::uint64_t> compensation_misses{0};  // deadline misses only because of a tool's latency lead
     std::atomic<std::uint64_t> rx_rejected{0};      // received frames rejected: E2E (CRC, counter) or decode
     std::atomic<std::uint64_t> odometry_rejected{0};  // samples the odometry ring refused (not monotonic)
     std::atomic<std::uint64_t> map_errors{0};
@@ -34,6 +51,8 @@ struct ActuationCounters {
     // moment its TARGET was decided and handed to the bus (the now_ns the
     // deadline was checked against): the whole chain's latency.
     DurationHistogram send_latency;
+    // Per tool, in the tools table's order.
+    std::array<ToolTimingCounters, 16> tool_timing;
 };
 
 }  // namespace stemd::runtime

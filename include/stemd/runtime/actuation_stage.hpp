@@ -12,9 +12,12 @@
 //  4. For each new target, TargetSender: scheduled with the odometer and
 //     speed NOW, sent before its deadline or counted.
 //  5. Tracks that ended go to the plant map, with what became of them (and,
-//     with a GNSS receiver, where they are: GnssInput).
-// Between frames (poll): received ODOMETRY / TOOL_STATUS and the HEARTBEAT
-// (CanLink), encoder samples (OdometryInput), GNSS fixes (GnssInput).
+//     with a GNSS receiver, where they are: GnssInput); a sent one for a
+//     tool that reports its strikes waits (a fixed number of lines) for its
+//     TOOL_FIRED, until the odometer is kFiredWaitMm past its point.
+// Between frames (poll): received ODOMETRY / TOOL_STATUS / TOOL_FIRED and
+// the HEARTBEAT (CanLink), encoder samples (OdometryInput), GNSS fixes
+// (GnssInput), the map lines whose strike came back.
 //
 // Everything is allocated in make(); on_frame() and poll() do not allocate,
 // lock or throw. File I/O (the plant map, the candump log) is one write(2)
@@ -22,6 +25,7 @@
 // Single-threaded (the actuator thread); counters() from any thread.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -102,9 +106,16 @@ private:
                    actuation::Scheduler scheduler, std::optional<actuation::Scheduler> scheduler_all,
                    protocol::CanIds ids, std::shared_ptr<spdlog::logger> log, double principal_x_mm);
 
+    static constexpr std::size_t kWaitingLines = 256;
+    static constexpr double kFiredWaitMm = 1000.0;
+
     bool enabled() const noexcept { return parts_.gpio ? parts_.gpio->enabled() : true; }
     void write_retired(std::span<const actuation::RetiredTrack> retired, std::int64_t now_ns) noexcept;
     void poll_gnss(std::int64_t now_ns) noexcept;
+    // One map line; with GNSS, placed on the track as it is at now_ns.
+    void write_line(const actuation::RetiredTrack& track, const MapEntry& entry, std::int64_t now_ns) noexcept;
+    // Writes the waiting lines whose TOOL_FIRED came or will not come (all: every one).
+    void write_waiting(std::int64_t now_ns, bool all) noexcept;
 
     const ActuationConfig config_;
     Parts parts_;
@@ -120,6 +131,14 @@ private:
     bool gnss_reported_ = false;
     bool odometry_announced_ = false;
     std::int64_t last_frame_ns_ = -1;
+    // Map lines of sent plants waiting for their TOOL_FIRED.
+    struct Waiting {
+        bool used = false;
+        actuation::RetiredTrack track;
+        MapEntry entry;   // as it was when the track ended
+    };
+    std::array<Waiting, kWaitingLines> waiting_{};
+    std::size_t n_waiting_ = 0;
 };
 
 }  // namespace stemd::runtime

@@ -1,6 +1,8 @@
 // The actuator's CAN traffic other than commands: received ODOMETRY (to the
-// odometry input, at each frame's receive time) and TOOL_STATUS, E2E-checked
-// (bad CRC or counter jumps are rejected and counted), and the HEARTBEAT on
+// odometry input, at each frame's receive time), TOOL_STATUS and TOOL_FIRED
+// (to the target sender's tool timing), E2E-checked (bad CRC or counter
+// jumps are rejected and counted; so is a TOOL_FIRED of a tool not in the
+// table), and the HEARTBEAT on
 // a fixed grid of can.heartbeat_ms. No allocation, locks or exceptions.
 #pragma once
 
@@ -11,13 +13,14 @@
 #include "stemd/protocol/messages.hpp"
 #include "stemd/runtime/actuation_counters.hpp"
 #include "stemd/runtime/odometry_input.hpp"
+#include "stemd/runtime/target_sender.hpp"
 
 namespace stemd::runtime {
 
 class CanLink {
 public:
     CanLink(drivers::CanBus& bus, protocol::CanIds ids, std::int64_t heartbeat_interval_ns, OdometryInput& odometry,
-            ActuationCounters& counters);
+            TargetSender& sender, ActuationCounters& counters);
 
     // Whatever is queued, without waiting; bounded so a flooded bus cannot
     // starve the frames.
@@ -37,9 +40,10 @@ private:
     const protocol::CanIds ids_;
     const std::int64_t heartbeat_interval_ns_;
     OdometryInput& odometry_;
+    TargetSender& sender_;
     ActuationCounters& counters_;
     protocol::E2eCounter heartbeat_counter_;
-    protocol::E2eChecker odometry_checker_, tool_status_checker_;
+    protocol::E2eChecker odometry_checker_, tool_status_checker_, tool_fired_checker_;
     std::int64_t next_heartbeat_ns_ = 0;
     std::uint64_t misses_at_last_heartbeat_ = 0;
 };

@@ -19,6 +19,16 @@
 // (WGS84, 1e-9 degree; null without a position) and "georef" (fix,
 // extrapolated, no_fix, stale, no_heading: runtime/gnss_input.hpp).
 //
+// Tool timing, appended after those when a TARGET was sent: fire_lead_mm
+// (how much earlier than the stem it was commanded, speed × latency_ms), and
+// once the tool's TOOL_FIRED came back fired_odom_mm, fire_lag_mm (fired -
+// commanded), fire_lag_ms (null when standing) and strike_mm (fired - stem:
+// > 0 late). Once a tool has reported a strike, the line of a plant sent to
+// it waits for its TOOL_FIRED, until the odometer is 1 m past its point
+// (then it is written without them): lines are then not always in the
+// order the tracks ended, and a kill loses the waiting ones. Plants that
+// left the view before their tool's first report have no such columns.
+//
 // Written by the actuator thread, one write(2) per line (base::RecordFile),
 // formatted into a fixed buffer without allocating: a kill loses no plant
 // whose track had ended, and leaves no torn line. A few lines a second cost
@@ -51,6 +61,17 @@ struct MapEntry {
     std::uint8_t lane = 0;
     double fire_odom_mm = 0;
     GeorefResult georef;   // status off: no georef keys
+    // Tool timing (sent only): the TARGET's fire_odom_mm as sent (32-bit
+    // scale), the stem's point and the latency lead.
+    std::uint32_t command_fire_raw = 0;
+    double aim_odom_mm = 0;
+    double lead_mm = 0;
+    // Set when the tool's TOOL_FIRED came back.
+    bool fired = false;
+    double fired_odom_mm = 0;   // unwrapped, the map's scale
+    double fire_lag_mm = 0;     // fired - commanded
+    double fire_lag_ms = 0;     // NaN: standing
+    double strike_mm = 0;       // fired - aim
 };
 
 class PlantMap {

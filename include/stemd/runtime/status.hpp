@@ -75,6 +75,17 @@ struct StatusSnapshot {
     DurationHistogram::Summary latency;    // interval, or whole run for the final line
     DurationHistogram::Summary pipeline;
     DurationHistogram::Summary send;       // actuation: capture -> TARGET on the bus
+    // Tool timing (whole run), per configured tool in table order.
+    struct ToolTiming {
+        std::uint8_t tool_id = 0;
+        bool learning = false;
+        double latency_ms = 0;
+        std::uint64_t fired = 0;
+        double lag_mean_mm = 0, lag_p95_mm = 0, lag_mean_ms = 0, lag_p95_ms = 0, strike_p95_mm = 0;
+    };
+    std::array<ToolTiming, 16> tool_timing{};
+    std::size_t n_tools = 0;
+    std::uint64_t rx_tool_fired = 0, fired_unmatched = 0, compensation_misses = 0;
 };
 
 // "in 30.0 fps, out 30.0 fps, bare soil 0, over_capacity 0, late 0 (worst 0.3 ms) |
@@ -84,5 +95,8 @@ struct StatusSnapshot {
 std::string format_status(const StatusSnapshot& now, const StatusSnapshot& before);
 // The run's totals for the last line: frames, drops, whole-run percentiles.
 std::string format_summary(const StatusSnapshot& end, double run_s);
+// "tool 0: latency 40.2 ms (learned, was 0.0 ms)" for each tool whose
+// applied latency changed since `before`, "; "-separated; "" if none did.
+std::string format_latency_changes(const StatusSnapshot& now, const StatusSnapshot& before);
 
 }  // namespace stemd::runtime

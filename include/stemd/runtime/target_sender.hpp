@@ -3,14 +3,20 @@
 // be on time is a deadline miss, counted and never sent. Sent ones are
 // encoded (E2E counter + CRC) and given to CanBus::send with their
 // deadline; the bus never sends after it (counted as bus_deadline). What
-// became of each target is kept by target_id for the plant map. No
-// allocation, locks or exceptions after construction.
+// became of each target is kept by target_id for the plant map.
+//
+// Tool timing: on_fired() matches a TOOL_FIRED to its TARGET (target_id and
+// tool_id), records the lag per tool (fire_lag.hpp) and publishes it to the
+// counters; for a tool with learn_latency it learns the latency and gives it
+// to the schedulers, so that the next commands lead by it. No allocation,
+// locks or exceptions after construction.
 #pragma once
 
 #include <array>
 #include <cstdint>
 #include <optional>
 
+#include "stemd/actuation/fire_lag.hpp"
 #include "stemd/actuation/scheduler.hpp"
 #include "stemd/actuation/tracker.hpp"
 #include "stemd/drivers/can_bus.hpp"
@@ -34,6 +40,12 @@ public:
     // What became of target_id's last target.
     const MapEntry& outcome(std::uint16_t target_id) const { return outcomes_[target_id]; }
 
+    enum class Fired : std::uint8_t { matched, unknown_tool, unmatched };
+    // A TOOL_FIRED, with the odometry's speed now (the strike was moments ago).
+    Fired on_fired(const protocol::ToolFired& fired, double speed_mm_per_s) noexcept;
+    // Whether the tool has reported a strike (TOOL_FIRED) in this run.
+    bool reports_fired(std::uint8_t tool_id) const { return tool_id <= protocol::kMaxToolId && reports_fired_[tool_id]; }
+
 private:
     actuation::Scheduler scheduler_;
     std::optional<actuation::Scheduler> scheduler_all_;
@@ -43,6 +55,10 @@ private:
     ActuationCounters& counters_;
     protocol::E2eCounter target_counter_;
     std::array<MapEntry, protocol::kMaxTargetId + 1> outcomes_{};
+    // Per tool, in table order.
+    std::array<actuation::LagStats, actuation::Scheduler::kMaxTools> lag_{};
+    std::array<actuation::LatencyLearner, actuation::Scheduler::kMaxTools> learners_{};
+    std::array<bool, protocol::kMaxToolId + 1> reports_fired_{};   // by tool id
 };
 
 }  // namespace stemd::runtime
