@@ -37,6 +37,7 @@
 #include "stemd/runtime/actuation_counters.hpp"
 #include "stemd/runtime/can_link.hpp"
 #include "stemd/runtime/detection_sink.hpp"
+#include "stemd/runtime/live_feed.hpp"
 #include "stemd/runtime/odometry_input.hpp"
 #include "stemd/runtime/plant_map.hpp"
 #include "stemd/runtime/plant_projector.hpp"
@@ -91,6 +92,9 @@ public:
     double view_forward_min_mm() const { return projector_.view_forward_min_mm(); }
     double view_forward_max_mm() const { return projector_.view_forward_max_mm(); }
     const OdometryInput& odometry() const { return odometry_; }
+    // Before the first frame: every plant the map gets (with or without a
+    // map file) is pushed to the live view's feed too (nullptr: none).
+    void set_live_feed(LiveFeed* feed) { live_feed_ = feed; }
 
 private:
     ActuationStage(const ActuationConfig& config, Parts parts, PlantProjector projector,
@@ -111,6 +115,7 @@ private:
     TargetSender sender_;
     CanLink link_;
     std::int64_t last_frame_ns_ = -1;
+    LiveFeed* live_feed_ = nullptr;
 };
 
 }  // namespace stemd::runtime
