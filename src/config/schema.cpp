@@ -317,7 +317,7 @@ constexpr std::array kSchema{
 
     bind<STEMD_KEY(daemon.web.listen)>(
         {"web.listen", text, "", 0, 0, "none", "",
-            "address and port of the live view (HTTP), e.g. 127.0.0.1:8080 or [::1]:8080; none: no server"}),
+            "address and port of the live view (HTTP), e.g. 127.0.0.1:8080 or \"[::1]:8080\" (quoted); none: no server"}),
     bind<STEMD_KEY(daemon.web.fps)>(
         {"web.fps", integer, "fps", 1, 30, "5", "",
             "most frames a second the live view is sent (each one is copied once off the processing path)"}),
