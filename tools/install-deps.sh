@@ -13,6 +13,8 @@ packages=(
   can-utils python3-canmatrix  # third-party readers of our candump logs and DBC (cross-check tests)
   clang libclang-rt-14-dev  # the libFuzzer build of the parsers (test/fuzz)
   systemd python3  # systemd-analyze verify of the unit; a stand-in notify socket in a daemon test
+  libcpp-httplib-dev nlohmann-json3-dev  # the live view's HTTP server and its JSON (src/web)
+  chromium python3-prometheus-client python3-pil  # the live view's tests: headless browser, /metrics parser, screenshot
 )
 
 missing=()
