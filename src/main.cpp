@@ -33,6 +33,10 @@
 #include "stemd/runtime/source_factory.hpp"
 #include "stemd/runtime/status.hpp"
 #include "stemd/base/clock.hpp"
+#include "stemd/runtime/live_feed.hpp"
+#include "stemd/runtime/web_config.hpp"
+#include "stemd/web/web_json.hpp"
+#include "stemd/web/web_server.hpp"
 
 using namespace stemd;
 using namespace std::chrono_literals;
@@ -174,6 +178,16 @@ int run(int argc, char** argv, Phase& phase)
         std::cerr << "stemd: " << *problem << "\n";
         return kUsageError;
     }
+    // The live view's address: a typo is a configuration error, not a view
+    // that silently never appears.
+    std::optional<runtime::ListenAddress> web_address;
+    if (!daemon_config.web.listen.empty()) {
+        web_address = runtime::parse_listen_address(daemon_config.web.listen, error);
+        if (!web_address) {
+            std::cerr << "stemd: " << config.blame("web.listen", error) << "\n";
+            return kUsageError;
+        }
+    }
     // The crop/weed model: refused at start, like any other bad setting,
     // when it is unreadable or made for another camera.
     std::optional<vision::PlantClassifier> classifier;
@@ -241,6 +255,14 @@ int run(int argc, char** argv, Phase& phase)
                   classifier->info().gsd_mm_per_px, vision::channels_name(classifier->info().nir));
         daemon->set_classifier(std::move(*classifier));
     }
+    // The live view's feed is allocated now, with everything else; its
+    // server starts once the daemon runs.
+    std::unique_ptr<runtime::LiveFeed> live_feed;
+    if (web_address) {
+        live_feed = std::make_unique<runtime::LiveFeed>(daemon_config.frame_size, daemon_config.web.fps,
+                                                        static_cast<std::size_t>(daemon_config.web.plants) + 256);
+        daemon->attach_live_feed(live_feed.get());
+    }
     if (!daemon->start()) {
         // A SIGTERM during a slow start (a long preload) is a stop, not a failure.
         if (const auto sig = signals.wait(0ms)) {
@@ -250,6 +272,19 @@ int run(int argc, char** argv, Phase& phase)
         return 1;
     }
 
+    std::unique_ptr<web::WebServer> web_server;
+    if (web_address) {
+        runtime::Daemon* const d = daemon.get();
+        web::WebSources sources{.feed = live_feed.get(),
+                                .totals = [d] { return d->snapshot(true); },
+                                .metrics = [d] { return web::collect_metrics(*d); },
+                                .config_yaml = config.to_yaml()};
+        web_server = std::make_unique<web::WebServer>(daemon_config.web, *web_address, std::move(sources),
+                                                      runtime::make_logger("web"));
+        // A taken port is logged with the address and errno; the daemon runs
+        // on without the view, and the status line says so.
+        web_server->start();
+    }
     const auto interval = std::chrono::nanoseconds(static_cast<std::int64_t>(daemon_config.status_interval_s * 1e9));
     const std::int64_t t_start_ns = base::monotonic_ns();
     runtime::StatusSnapshot last = daemon->snapshot(false);
@@ -303,7 +338,9 @@ int run(int argc, char** argv, Phase& phase)
         }
         if (now_ns >= next_status_ns) {
             const runtime::StatusSnapshot now = daemon->snapshot(false);
-            const std::string line = runtime::format_status(now, last);
+            std::string line = runtime::format_status(now, last);
+            if (web_server)
+                line += " | " + web_server->status_text();
             status_log->info("{}", line);
             if (const std::string changed = runtime::format_latency_changes(now, last); !changed.empty())
                 log->info("{}", changed);
@@ -313,6 +350,8 @@ int run(int argc, char** argv, Phase& phase)
         }
     }
     notify("STOPPING=1");
+    if (web_server)
+        web_server->stop();
     daemon->request_stop();
     if (!daemon->join())
         exit_code = 1;

@@ -324,6 +324,19 @@ constexpr std::array kSchema{
         {"log.level", choice, "", 0, 0, "info", "trace|debug|info|warn|error",
             "log level of every logger (debug: one line per frame's detections)"}),
 
+    bind<STEMD_KEY(daemon.web.listen)>(
+        {"web.listen", text, "", 0, 0, "none", "",
+            "address and port of the live view (HTTP), e.g. 127.0.0.1:8080 or \"[::1]:8080\" (quoted); none: no server"}),
+    bind<STEMD_KEY(daemon.web.fps)>(
+        {"web.fps", integer, "fps", 1, 30, "5", "",
+            "most frames a second the live view is sent (each one is copied once off the processing path)"}),
+    bind<STEMD_KEY(daemon.web.max_width_px)>(
+        {"web.max_width_px", integer, "px", 64, 4096, "640", "",
+            "frames wider than this are scaled down before JPEG encoding (on the web thread)"}),
+    bind<STEMD_KEY(daemon.web.plants)>(
+        {"web.plants", integer, "count", 1, 10000, "200", "",
+            "the last N plants of the plant map kept for the view's field strip and /api/plants"}),
+
     // --- actuation: one target per plant, deadline scheduling, odometry, CAN, GPIO ---
     bind<STEMD_KEY(actuation.tracker.association_radius_mm)>(
         {"tracker.association_radius_mm", real, "mm", 0.5, 500, "10", "",
@@ -469,6 +482,8 @@ constexpr std::array kSections{
     SectionSpec{"threads", "", "Real-time scheduling, CPU pinning and memory locking of the three threads."},
     SectionSpec{"status", "", "The status line."},
     SectionSpec{"log", "", "Logging (standard error, the journal under systemd)."},
+    SectionSpec{"web", "", "The live view: an HTTP server on a low-priority thread (README, \"Live view\"). Off by default; "
+                "bind it to loopback unless the robot's network is trusted."},
     SectionSpec{"tracker", "Actuation: one target per plant, deadlines, odometry, CAN, GPIO",
                 "One target per plant across overlapping frames. Coordinates: machine frame, x forward, y to the "
                 "left, millimetres; a plant's s_mm is the odometer reading when its stem is under the camera's "

@@ -131,7 +131,7 @@ void ActuationStage::on_frame(const FrameResult& r, std::int64_t now_ns) noexcep
 
 void ActuationStage::write_retired(std::span<const actuation::RetiredTrack> retired, std::int64_t now_ns) noexcept
 {
-    if (!parts_.map)
+    if (!parts_.map && live_feed_ == nullptr)
         return;
     for (const actuation::RetiredTrack& t : retired) {
         MapEntry entry;
@@ -139,6 +139,18 @@ void ActuationStage::write_retired(std::span<const actuation::RetiredTrack> reti
             entry = sender_.outcome(t.target_id);
         else
             entry.reason = MapReason::unconfirmed;
+        if (live_feed_ != nullptr)
+            live_feed_->push_plant({.id = t.emitted ? static_cast<std::int32_t>(t.target_id) : -1,
+                                    .s_mm = t.s_mm,
+                                    .y_mm = t.y_mm,
+                                    .plant_class = t.plant_class,
+                                    .leaves = t.leaves,
+                                    .sightings = t.sightings,
+                                    .first_frame = t.first_seq,
+                                    .last_frame = t.last_seq,
+                                    .entry = entry});
+        if (!parts_.map)
+            continue;
         // A tool that reports its strikes: the line waits for this one's.
         if (entry.reason == MapReason::sent && !entry.fired && sender_.reports_fired(entry.tool) &&
             n_waiting_ < waiting_.size()) {

@@ -97,6 +97,13 @@ Daemon::Daemon(const DaemonConfig& config, std::unique_ptr<drivers::FrameSource>
         free_slots_.try_push(&pool_[i]);
 }
 
+void Daemon::attach_live_feed(LiveFeed* feed)
+{
+    live_feed_ = feed;
+    if (actuation_)
+        actuation_->set_live_feed(feed);
+}
+
 void Daemon::set_classifier(vision::PlantClassifier model)
 {
     classify_workspace_ = std::make_unique<vision::ClassifyWorkspace>(config_.frame_size, config_.vision);
@@ -233,6 +240,7 @@ void Daemon::capture_loop()
             source_failed_.store(true, std::memory_order_release);
             break;
         }
+        const std::int64_t t_got_ns = base::monotonic_ns();
         hand->seq = seq++;
         bump(counters_->capture.frames);
         // The recording's odometer reaches the actuator now, not after the
@@ -263,6 +271,7 @@ void Daemon::capture_loop()
             drivers::Frame* evicted = nullptr;
             hand = frames_.try_push_overwrite(hand, evicted) ? evicted : nullptr;
         }
+        counters_->capture.cycle.record(base::monotonic_ns() - t_got_ns);
     }
     capture_done_.store(true, std::memory_order_release);
 }
@@ -295,6 +304,7 @@ void Daemon::processing_loop()
             }
         }
         idle.reset();
+        const std::int64_t t_start_ns = base::monotonic_ns();
         FrameResult* result = results_.claim();
         // A source that can wait loses nothing downstream either: wait for
         // the actuator rather than drop the result.
@@ -345,6 +355,15 @@ void Daemon::processing_loop()
                 bump(counters_->processing.plants_over_capacity,
                      static_cast<std::uint64_t>(result->detections.stats.plants_over_capacity));
                 results_.publish();
+                // After the publish, so the copy delays no result; the
+                // actuator only reads the published result, and this thread
+                // claims its cell again no sooner than its next frame.
+                if (live_feed_ != nullptr) {
+                    const std::int64_t now_ns = base::monotonic_ns();
+                    if (live_feed_->frame_due(now_ns))
+                        live_feed_->publish(*frame, result->detections, workspace_->closed(),
+                                            result->plant_class.data(), result->has_class_map, now_ns);
+                }
             } else {
                 bump(counters_->processing.failed);
                 if (processing_log_->should_log(spdlog::level::debug))
@@ -355,6 +374,7 @@ void Daemon::processing_loop()
         // The free ring holds every slot, so this push cannot fail.
         free_slots_.try_push(frame);
         frame = nullptr;
+        counters_->processing.cycle.record(base::monotonic_ns() - t_start_ns);
     }
     processing_done_.store(true, std::memory_order_release);
 }
@@ -387,7 +407,8 @@ void Daemon::actuator_loop()
             continue;
         }
         idle.reset();
-        const std::int64_t latency_ns = base::monotonic_ns() - result->t_sample_ns;
+        const std::int64_t t_start_ns = base::monotonic_ns();
+        const std::int64_t latency_ns = t_start_ns - result->t_sample_ns;
         counters_->actuator.latency.record(latency_ns);
         if (!sink_->consume(*result, latency_ns))
             bump(counters_->actuator.sink_errors);
@@ -399,6 +420,7 @@ void Daemon::actuator_loop()
         bump(counters_->actuator.stems, result->detections.plants.size() - static_cast<std::size_t>(result->detections.stats.stemless));
         bump(counters_->actuator.frames);
         results_.pop();
+        counters_->actuator.cycle.record(base::monotonic_ns() - t_start_ns);
     }
     if (actuation_ && !actuation_->finish())
         sink_ok_.store(false);

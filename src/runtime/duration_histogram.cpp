@@ -66,4 +66,23 @@ DurationHistogram::Summary DurationHistogram::total() const
                      total_.sum_ns.load(std::memory_order_relaxed));
 }
 
+DurationHistogram::Cumulative DurationHistogram::cumulative(std::span<const std::int64_t> upper_ns,
+                                                            std::span<std::uint64_t> out) const
+{
+    Cumulative c;
+    std::fill(out.begin(), out.end(), 0);
+    for (std::size_t i = 0; i <= kBuckets; ++i) {
+        const std::uint64_t n = total_.counts[i].load(std::memory_order_relaxed);
+        c.count += n;
+        if (i == kBuckets || n == 0)
+            continue;   // the overflow bucket is below no finite bound
+        const std::int64_t bucket_end_ns = static_cast<std::int64_t>(i + 1) * kBucketNs;
+        for (std::size_t b = 0; b < upper_ns.size() && b < out.size(); ++b)
+            if (bucket_end_ns <= upper_ns[b])
+                out[b] += n;
+    }
+    c.sum_ns = total_.sum_ns.load(std::memory_order_relaxed);
+    return c;
+}
+
 }  // namespace stemd::runtime

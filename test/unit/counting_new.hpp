@@ -11,9 +11,19 @@
 namespace stemd::test {
 
 inline std::atomic<long> g_allocations{0};
+// A thread that may allocate (the live view's server and its client, which
+// are not on the per-frame path) marks itself; its allocations are not counted.
+inline thread_local bool t_uncounted = false;
+inline void stop_counting_this_thread() { t_uncounted = true; }
 
-// Heap allocations so far in this process (every form of operator new).
+// Heap allocations so far in this process (every form of operator new),
+// except those of threads that called stop_counting_this_thread().
 inline long allocations() { return g_allocations.load(std::memory_order_relaxed); }
+inline void count_one()
+{
+    if (!t_uncounted)
+        g_allocations.fetch_add(1, std::memory_order_relaxed);
+}
 
 }  // namespace stemd::test
 
@@ -22,7 +32,7 @@ inline long allocations() { return g_allocations.load(std::memory_order_relaxed)
 
 void* operator new(std::size_t size)
 {
-    stemd::test::g_allocations.fetch_add(1, std::memory_order_relaxed);
+    stemd::test::count_one();
     if (void* p = std::malloc(size == 0 ? 1 : size))
         return p;
     throw std::bad_alloc();
@@ -33,13 +43,13 @@ void* operator new[](std::size_t size) { return operator new(size); }
 // matches its allocation under ASan.
 void* operator new(std::size_t size, const std::nothrow_t&) noexcept
 {
-    stemd::test::g_allocations.fetch_add(1, std::memory_order_relaxed);
+    stemd::test::count_one();
     return std::malloc(size == 0 ? 1 : size);
 }
 void* operator new[](std::size_t size, const std::nothrow_t& tag) noexcept { return operator new(size, tag); }
 void* operator new(std::size_t size, std::align_val_t align)
 {
-    stemd::test::g_allocations.fetch_add(1, std::memory_order_relaxed);
+    stemd::test::count_one();
     const auto a = static_cast<std::size_t>(align);
     if (void* p = std::aligned_alloc(a, (size + a - 1) / a * a))
         return p;

@@ -15,7 +15,9 @@
 #include <fstream>
 #include <memory>
 #include <new>
+#include <thread>
 
+#include <httplib.h>
 #include <opencv2/imgcodecs.hpp>
 
 #include "replay/replay_source.hpp"
@@ -24,7 +26,9 @@
 #include "stemd/base/clock.hpp"
 #include "stemd/runtime/actuation_stage.hpp"
 #include "stemd/runtime/daemon.hpp"
+#include "stemd/runtime/live_feed.hpp"
 #include "stemd/runtime/logging.hpp"
+#include "stemd/web/web_server.hpp"
 #include "stemd/synth/synth.hpp"
 
 
@@ -128,7 +132,44 @@ TEST(DaemonRealTime, RunningDaemonAllocatesNothingPerFrame)
     std::filesystem::remove_all(dir);
 }
 
-TEST(DaemonRealTime, ActuationAllocatesNothingPerFrame)
+namespace {
+
+// The web threads (server and client) may allocate: they are not on the
+// per-frame path. Everything else in the process is counted.
+void stop_counting() { stemd::test::stop_counting_this_thread(); }
+
+// What a browser does: the frame at 10 fps, the counters and plants every
+// second; how many JPEGs it received.
+struct WebClient {
+    explicit WebClient(int port)
+        : thread([this, port] {
+              stop_counting();
+              httplib::Client c("127.0.0.1", port);
+              c.set_read_timeout(10, 0);
+              for (int i = 0; !stop.load(); ++i) {
+                  if (const auto r = c.Get("/frame.jpg"); r && r->status == 200 && r->body.size() > 100)
+                      jpegs.fetch_add(1);
+                  if (i % 10 == 0) {
+                      c.Get("/api/status");
+                      c.Get("/api/plants");
+                      c.Get("/metrics");
+                  }
+                  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+              }
+          })
+    {
+    }
+    ~WebClient()
+    {
+        stop = true;
+        thread.join();
+    }
+    std::atomic<bool> stop{false};
+    std::atomic<int> jpegs{0};
+    std::thread thread;
+};
+
+void run_actuation(bool with_web_view)
 {
     // The same steady state with the actuation on: field positions, the
     // tracker, the scheduler, TARGET and HEARTBEAT frames into a candump
@@ -178,19 +219,67 @@ TEST(DaemonRealTime, ActuationAllocatesNothingPerFrame)
                                                std::move(parts), runtime::make_logger("actuator"), error);
     ASSERT_TRUE(stage) << error;
     const runtime::ActuationStage& stage_view = *stage;
+    // The live view, as stemd wires it: a feed allocated before the start
+    // (declared before the daemon, which it outlives), and a server reading
+    // it; plus a client polling it throughout.
+    runtime::WebConfig web_config;
+    web_config.fps = 30;   // every frame it may: the most copying
+    runtime::LiveFeed feed(size, web_config.fps, 256);
     runtime::Daemon daemon(config, std::make_unique<drivers::ReplaySource>(replay, runtime::make_logger("replay")),
                            std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator")),
                            std::move(stage));
+    std::unique_ptr<web::WebServer> server;
+    std::unique_ptr<WebClient> client;
+    if (with_web_view)
+        daemon.attach_live_feed(&feed);
     ASSERT_TRUE(daemon.start());
+    if (with_web_view) {
+        runtime::Daemon* d = &daemon;
+        server = std::make_unique<web::WebServer>(
+            web_config, runtime::ListenAddress{"127.0.0.1", 0},
+            web::WebSources{.feed = &feed,
+                            .totals = [d] { return d->snapshot(true); },
+                            .metrics = [d] { return web::collect_metrics(*d); },
+                            .config_yaml = ""},
+            runtime::make_logger("web"), &stop_counting);
+        ASSERT_TRUE(server->start());
+        client = std::make_unique<WebClient>(server->port());
+    }
     const auto& out = daemon.counters().actuator.frames;
     ASSERT_TRUE(test::wait_for([&] { return out.load() >= 10; }, std::chrono::seconds(60)));
+    // With the view, counting starts once the client has its first JPEG (the
+    // view is live), and ends only after it received more and the processing
+    // thread published more: the copy and the serving overlap the counting.
+    if (client) {
+        ASSERT_TRUE(test::wait_for([&] { return client->jpegs.load() >= 1; }, std::chrono::seconds(120)));
+    }
+    struct Window {
+        const std::atomic<std::uint64_t>& out;
+        std::uint64_t out_until;
+        const WebClient* client;
+        int jpegs_until;
+        const runtime::LiveFeed& feed;
+        std::uint64_t published_until;
+        bool done() const
+        {
+            return out.load() >= out_until &&
+                   (client == nullptr || (client->jpegs.load() >= jpegs_until && feed.frames_published() >= published_until));
+        }
+    };
     const long before = stemd::test::allocations();
     const std::uint64_t out_before = out.load();
     const std::uint64_t sent_before = bus_view.counters().sent;
+    const int jpegs_before = client ? client->jpegs.load() : 0;
+    const std::uint64_t published_before = feed.frames_published();
     constexpr std::uint64_t kFrames = 60;
-    ASSERT_TRUE(test::wait_for([&] { return out.load() >= out_before + kFrames; }, std::chrono::seconds(120)));
+    const Window window{out, out_before + kFrames, client.get(), jpegs_before + 3, feed, published_before + 3};
+    // One reference captured: the std::function holds it without allocating.
+    ASSERT_TRUE(test::wait_for([&window] { return window.done(); }, std::chrono::seconds(180)));
     const long after = stemd::test::allocations();
     const std::uint64_t sent_after = bus_view.counters().sent;
+    client.reset();
+    if (server)
+        server->stop();
     daemon.request_stop();
     EXPECT_TRUE(daemon.join());
     EXPECT_EQ(after - before, 0) << "heap allocations over " << out.load() - out_before << " frames";
@@ -206,6 +295,18 @@ TEST(DaemonRealTime, ActuationAllocatesNothingPerFrame)
     ASSERT_NE(stage_view.gnss(), nullptr);
     EXPECT_GT(stage_view.gnss()->counters().on_track, 0u) << "the GNSS path was exercised";
     std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+
+TEST(DaemonRealTime, ActuationAllocatesNothingPerFrame)
+{
+    run_actuation(false);
+}
+
+TEST(DaemonRealTime, WebViewWithAClientAllocatesNothingPerFrame)
+{
+    run_actuation(true);
 }
 
 TEST(DaemonRealTime, TheCounterSeesAllocations)

@@ -44,6 +44,7 @@
 #include "stemd/runtime/can_link.hpp"
 #include "stemd/runtime/detection_sink.hpp"
 #include "stemd/runtime/gnss_input.hpp"
+#include "stemd/runtime/live_feed.hpp"
 #include "stemd/runtime/odometry_input.hpp"
 #include "stemd/runtime/plant_map.hpp"
 #include "stemd/runtime/plant_projector.hpp"
@@ -100,6 +101,9 @@ public:
     double view_forward_max_mm() const { return projector_.view_forward_max_mm(); }
     const OdometryInput& odometry() const { return odometry_; }
     const GnssInput* gnss() const { return gnss_ ? &*gnss_ : nullptr; }
+    // Before the first frame: every plant the map gets (with or without a
+    // map file) is pushed to the live view's feed too (nullptr: none).
+    void set_live_feed(LiveFeed* feed) { live_feed_ = feed; }
 
 private:
     ActuationStage(const ActuationConfig& config, Parts parts, PlantProjector projector,
@@ -139,6 +143,7 @@ private:
     };
     std::array<Waiting, kWaitingLines> waiting_{};
     std::size_t n_waiting_ = 0;
+    LiveFeed* live_feed_ = nullptr;
 };
 
 }  // namespace stemd::runtime

@@ -38,6 +38,7 @@
 #include "stemd/runtime/daemon_config.hpp"
 #include "stemd/runtime/detection_sink.hpp"
 #include "stemd/runtime/frame_pool.hpp"
+#include "stemd/runtime/live_feed.hpp"
 #include "stemd/base/spsc_ring.hpp"
 #include "stemd/runtime/status.hpp"
 #include "stemd/vision/classify.hpp"
@@ -69,6 +70,11 @@ public:
     // caller: PlantClassifier::mismatch).
     void set_classifier(vision::PlantClassifier model);
 
+    // Before start(): the live view's feed (owned by the caller, outliving
+    // the threads). The processing thread publishes frames into it when a
+    // viewer wants them, the actuator the plants whose tracks ended.
+    void attach_live_feed(LiveFeed* feed);
+
     // From any thread; the threads finish their current frame and exit.
     void request_stop();
     // A finite source ended and every frame it delivered went through the
@@ -86,6 +92,8 @@ public:
     // stamp is older than max_age_ns (a stuck thread), or nullptr.
     const char* stalled_thread(std::int64_t now_ns, std::int64_t max_age_ns) const;
     const Counters& counters() const { return *counters_; }
+    // The actuation's counters, or nullptr without actuation.
+    const ActuationCounters* actuation_counters() const { return actuation_ ? &actuation_->counters() : nullptr; }
     std::size_t pool_bytes() const { return pool_.bytes(); }
     std::size_t workspace_bytes() const { return workspace_->reserved_bytes(); }
 
@@ -114,6 +122,7 @@ private:
     const std::unique_ptr<vision::Workspace> workspace_;   // the processing thread's
     std::optional<vision::PlantClassifier> classifier_;
     std::unique_ptr<vision::ClassifyWorkspace> classify_workspace_;   // the processing thread's
+    LiveFeed* live_feed_ = nullptr;
 
     std::atomic<bool> stop_{false};
     std::atomic<bool> capture_done_{false};      // the source ended or failed: nothing more will be pushed

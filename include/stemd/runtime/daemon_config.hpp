@@ -8,6 +8,7 @@
 
 #include <opencv2/core/types.hpp>
 
+#include "stemd/runtime/web_config.hpp"
 #include "stemd/vision/types.hpp"
 
 namespace stemd::runtime {
@@ -62,6 +63,8 @@ struct DaemonConfig {
     // class column, for the actuation's policy).
     bool class_maps = false;
     ClassifyConfig classify;
+    // web.*
+    WebConfig web;
     // The pipeline's keys (camera.*, segment.*, closing.*, ...).
     vision::Params vision;
 };

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 
 namespace stemd::runtime {
 
@@ -30,6 +31,16 @@ public:
     // Reads and clears the interval buckets (the status thread only).
     Summary take_interval();
     Summary total() const;
+
+    // The whole run as a cumulative histogram (Prometheus' le buckets):
+    // out[i] = durations below upper_ns[i] (ascending; an upper bound off
+    // the 50 us grid counts only the whole buckets under it). count and
+    // sum_ns of every duration, the overflow bucket included.
+    struct Cumulative {
+        std::uint64_t count = 0;
+        std::int64_t sum_ns = 0;
+    };
+    Cumulative cumulative(std::span<const std::int64_t> upper_ns, std::span<std::uint64_t> out) const;
 
 private:
     struct Buckets {

@@ -29,6 +29,7 @@ struct Counters {
         std::atomic<std::uint64_t> no_free_slot{0};    // never expected: the pool is sized so it cannot happen
         std::atomic<std::uint64_t> trigger_pulses{0};  // camera trigger pulses sent (gpio.trigger_line)
         std::atomic<std::uint64_t> trigger_late{0};    // trigger periods skipped: the thread came back too late
+        DurationHistogram cycle;                       // a delivered frame: from next() returning to the ring push
     } capture;
     struct Processing {
         std::atomic<std::uint64_t> frames{0};          // frames detect() ran on
@@ -40,12 +41,14 @@ struct Counters {
         // such class: the plant is taken as unclassified).
         std::atomic<std::uint64_t> bad_class{0};
         DurationHistogram pipeline;                    // detect() wall time
+        DurationHistogram cycle;                       // a frame's whole turn: detect, classes, live view copy
     } processing;
     struct Actuator {
         std::atomic<std::uint64_t> frames{0};          // results handed to the sink
         std::atomic<std::uint64_t> stems{0};           // plants with a stem (stemd-detect's rows)
         std::atomic<std::uint64_t> sink_errors{0};     // e.g. the CSV could not be written
         DurationHistogram latency;                     // t_sample_ns -> result received by the actuator
+        DurationHistogram cycle;                       // a result's turn: sink, actuation
     } actuator;
 };
 

@@ -1,0 +1,96 @@
+// What the daemon shows the live view, handed over without touching the
+// real-time path: the processing thread publishes a copy of the latest frame
+// with its detections and closed mask into a triple buffer (preallocated
+// slots, at most web.fps times a second, only while a viewer asked for
+// frames recently, and after the frame's result is on its way to the
+// actuator), and the actuator thread pushes each plant whose track ended
+// into a lock-free ring. The web thread reads both; drawing and JPEG
+// encoding happen there.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+
+#include <opencv2/core/mat.hpp>
+
+#include "stemd/base/plant_class.hpp"
+#include "stemd/base/spsc_ring.hpp"
+#include "stemd/base/triple_buffer.hpp"
+#include "stemd/drivers/frame_source.hpp"
+#include "stemd/runtime/plant_map.hpp"
+#include "stemd/vision/bitmask.hpp"
+#include "stemd/vision/types.hpp"
+
+namespace stemd::runtime {
+
+// One frame as the processing thread saw it.
+struct LiveFrame {
+    bool has_image = false;
+    std::uint64_t seq = 0;
+    std::int64_t t_sample_ns = 0;
+    std::int64_t t_published_ns = 0;
+    double odom_mm = 0;                // NaN if unknown
+    drivers::FrameName name;
+    cv::Mat bgr;                       // the frame size, CV_8UC3, allocated once
+    vision::BitMask closed;            // the closed mask the plants came from
+    vision::Detections detections;
+    bool has_class = false;
+    std::array<PlantClass, vision::kMaxPlants> plant_class{};
+};
+
+// One plant of the plant map (as --map writes it).
+struct LivePlant {
+    std::int32_t id = -1;              // TARGET target_id, -1 never confirmed
+    double s_mm = 0, y_mm = 0;
+    PlantClass plant_class = PlantClass::Unknown;
+    std::uint8_t leaves = 0;
+    std::uint32_t sightings = 0;
+    std::uint64_t first_frame = 0, last_frame = 0;
+    MapEntry entry;                    // reason, tool, lane, fire_odom_mm
+};
+
+class LiveFeed {
+public:
+    // Allocates three frame slots of frame_size and a plant ring.
+    LiveFeed(cv::Size frame_size, int fps, std::size_t plant_capacity);
+
+    // --- processing thread ------------------------------------------------------
+    // True if a viewer asked for frames within the last 2 s and 1/fps has
+    // passed since the last publication.
+    bool frame_due(std::int64_t now_ns) const
+    {
+        return now_ns < wanted_until_ns_.load(std::memory_order_relaxed) &&
+               now_ns - last_published_ns_ >= min_interval_ns_;
+    }
+    // Copies the frame and its result into the write slot and publishes it:
+    // no allocation (the slot has the frame's size; other frames are
+    // published without their image).
+    void publish(const drivers::Frame& frame, const vision::Detections& detections, const vision::BitMask& closed,
+                 const PlantClass* plant_class, bool has_class, std::int64_t now_ns);
+
+    // --- actuator thread --------------------------------------------------------
+    // False (counted) if the ring is full: the web thread is behind.
+    bool push_plant(const LivePlant& plant) { return plants_.try_push(plant); }
+
+    // --- web thread -------------------------------------------------------------
+    void want_frames(std::int64_t now_ns) { wanted_until_ns_.store(now_ns + kWantNs, std::memory_order_relaxed); }
+    bool take_frame() { return frames_.take(); }
+    const LiveFrame& frame() const { return frames_.read_slot(); }
+    bool pop_plant(LivePlant& out) { return plants_.try_pop(out); }
+
+    // Any thread.
+    std::uint64_t frames_published() const { return frames_.published(); }
+    std::uint64_t plants_dropped() const { return plants_.dropped(); }
+    cv::Size frame_size() const { return frame_size_; }
+
+private:
+    static constexpr std::int64_t kWantNs = 2'000'000'000;
+    const cv::Size frame_size_;
+    const std::int64_t min_interval_ns_;
+    std::int64_t last_published_ns_ = -(std::int64_t{1} << 62);   // the processing thread's
+    std::atomic<std::int64_t> wanted_until_ns_{0};
+    base::TripleBuffer<LiveFrame> frames_;
+    base::SpscRing<LivePlant> plants_;
+};
+
+}  // namespace stemd::runtime

@@ -1,0 +1,56 @@
+// The daemon's counters and histograms in the Prometheus text exposition
+// format 0.0.4 (what /metrics serves). Pure formatting: the numbers are
+// gathered by the caller (collect_metrics reads a running daemon).
+//
+// Names (all prefixed stemd_): frames_in_total, frames_out_total,
+// stems_total, frames_late_total, frames_dropped_total{cause},
+// deadline_misses_total, targets_confirmed_total, targets_total{outcome},
+// bus_errors_total{frame}, no_odometry_frames_total, and the histograms
+// capture_to_result_seconds, capture_to_send_seconds, pipeline_seconds and
+// thread_cycle_seconds{thread}; live_* for the view itself.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "stemd/runtime/duration_histogram.hpp"
+
+namespace stemd::runtime {
+class Daemon;
+}
+
+namespace stemd::web {
+
+// Upper bounds of the histograms' buckets (on the daemon's 50 us grid).
+inline constexpr std::array<std::int64_t, 14> kBucketUpperNs = {
+    500'000, 1'000'000, 2'000'000, 3'000'000, 4'000'000, 5'000'000, 7'500'000,
+    10'000'000, 15'000'000, 20'000'000, 33'000'000, 50'000'000, 100'000'000, 200'000'000};
+
+struct Histogram {
+    std::array<std::uint64_t, kBucketUpperNs.size()> below{};   // cumulative, per bound
+    std::uint64_t count = 0;                                   // the +Inf bucket
+    double sum_s = 0;
+};
+Histogram histogram_of(const runtime::DurationHistogram& h);
+
+struct Metrics {
+    std::uint64_t frames_in = 0, frames_out = 0, stems = 0, late = 0;
+    // frames_dropped_total{cause=...}
+    std::uint64_t ring_full = 0, overwritten = 0, results_full = 0, corrupt = 0, bad_size = 0, failed = 0;
+    bool actuation = false;   // the actuation's series are written only with it
+    std::uint64_t targets = 0, sent = 0, policy = 0, no_tool = 0, disabled = 0, deadline_miss = 0,
+                  bus_deadline = 0, bus_error = 0, heartbeat_errors = 0, no_odometry = 0;
+    Histogram capture_to_result, capture_to_send, pipeline;
+    Histogram cycle_capture, cycle_processing, cycle_actuator;
+    // The live view.
+    std::uint64_t live_frames_published = 0, live_frames_encoded = 0, live_plants_dropped = 0, web_requests = 0;
+};
+
+// Everything but the live_* numbers, from a running daemon; any thread
+// (whole-run totals: the status line's intervals are left alone).
+Metrics collect_metrics(runtime::Daemon& daemon);
+
+std::string format_metrics(const Metrics& m);
+
+}  // namespace stemd::web

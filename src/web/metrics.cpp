@@ -1,0 +1,168 @@
+#include "stemd/web/metrics.hpp"
+
+#include <cstdio>
+#include <string_view>
+
+#include "stemd/runtime/daemon.hpp"
+
+namespace stemd::web {
+
+namespace {
+
+class Text {
+public:
+    void family(std::string_view name, std::string_view type, std::string_view help)
+    {
+        out_.append("# HELP stemd_").append(name).append(" ").append(help).append("\n");
+        out_.append("# TYPE stemd_").append(name).append(" ").append(type).append("\n");
+    }
+    void sample(std::string_view name, std::string_view labels, std::uint64_t value)
+    {
+        head(name, labels);
+        out_.append(std::to_string(value)).append("\n");
+    }
+    void sample(std::string_view name, std::string_view labels, double value)
+    {
+        head(name, labels);
+        char buffer[64];
+        std::snprintf(buffer, sizeof buffer, "%.9g", value);
+        out_.append(buffer).append("\n");
+    }
+    // One histogram's series; `labels` ("thread=\"capture\"") go before le.
+    void histogram(std::string_view name, std::string_view labels, const Histogram& h)
+    {
+        const std::string bucket = std::string(name) + "_bucket";
+        const std::string sep = labels.empty() ? "" : ",";
+        for (std::size_t i = 0; i < kBucketUpperNs.size(); ++i) {
+            char le[32];
+            std::snprintf(le, sizeof le, "%.6g", static_cast<double>(kBucketUpperNs[i]) / 1e9);
+            sample(bucket, std::string(labels) + sep + "le=\"" + le + "\"", h.below[i]);
+        }
+        sample(bucket, std::string(labels) + sep + "le=\"+Inf\"", h.count);
+        sample(std::string(name) + "_sum", labels, h.sum_s);
+        sample(std::string(name) + "_count", labels, h.count);
+    }
+    std::string take() { return std::move(out_); }
+
+private:
+    void head(std::string_view name, std::string_view labels)
+    {
+        out_.append("stemd_").append(name);
+        if (!labels.empty())
+            out_.append("{").append(labels).append("}");
+        out_.append(" ");
+    }
+    std::string out_;
+};
+
+}  // namespace
+
+Histogram histogram_of(const runtime::DurationHistogram& h)
+{
+    Histogram out;
+    const auto c = h.cumulative(kBucketUpperNs, out.below);
+    out.count = c.count;
+    out.sum_s = static_cast<double>(c.sum_ns) / 1e9;
+    return out;
+}
+
+Metrics collect_metrics(runtime::Daemon& daemon)
+{
+    const runtime::StatusSnapshot s = daemon.snapshot(true);
+    const runtime::Counters& c = daemon.counters();
+    Metrics m;
+    m.frames_in = s.frames_in;
+    m.frames_out = s.frames_out;
+    m.stems = s.stems_out;
+    m.late = s.late;
+    m.ring_full = s.ring_full;
+    m.overwritten = s.overwritten;
+    m.results_full = s.results_full;
+    m.corrupt = s.corrupt;
+    m.bad_size = s.bad_size;
+    m.failed = s.failed;
+    m.capture_to_result = histogram_of(c.actuator.latency);
+    m.pipeline = histogram_of(c.processing.pipeline);
+    m.cycle_capture = histogram_of(c.capture.cycle);
+    m.cycle_processing = histogram_of(c.processing.cycle);
+    m.cycle_actuator = histogram_of(c.actuator.cycle);
+    if (const runtime::ActuationCounters* a = daemon.actuation_counters()) {
+        const auto get = [](const std::atomic<std::uint64_t>& v) { return v.load(std::memory_order_relaxed); };
+        m.actuation = true;
+        m.targets = get(a->targets);
+        m.sent = get(a->sent);
+        m.policy = get(a->policy);
+        m.no_tool = get(a->no_tool);
+        m.disabled = get(a->disabled);
+        m.deadline_miss = get(a->deadline_misses);
+        m.bus_deadline = get(a->bus_deadline);
+        m.bus_error = get(a->bus_errors);
+        m.heartbeat_errors = get(a->heartbeat_errors);
+        m.no_odometry = get(a->no_odometry);
+        m.capture_to_send = histogram_of(a->send_latency);
+    }
+    return m;
+}
+
+std::string format_metrics(const Metrics& m)
+{
+    Text t;
+    t.family("frames_in_total", "counter", "Frames the source delivered.");
+    t.sample("frames_in_total", "", m.frames_in);
+    t.family("frames_out_total", "counter", "Frames whose detections reached the actuator.");
+    t.sample("frames_out_total", "", m.frames_out);
+    t.family("stems_total", "counter", "Plants with a stem in the frames out.");
+    t.sample("stems_total", "", m.stems);
+    t.family("frames_late_total", "counter", "Paced replay: frames the source came to more than 2 ms late.");
+    t.sample("frames_late_total", "", m.late);
+    t.family("frames_dropped_total", "counter", "Frames dropped, by cause.");
+    t.sample("frames_dropped_total", "cause=\"ring_full\"", m.ring_full);
+    t.sample("frames_dropped_total", "cause=\"overwritten\"", m.overwritten);
+    t.sample("frames_dropped_total", "cause=\"results_full\"", m.results_full);
+    t.sample("frames_dropped_total", "cause=\"corrupt\"", m.corrupt);
+    t.sample("frames_dropped_total", "cause=\"bad_size\"", m.bad_size);
+    t.sample("frames_dropped_total", "cause=\"failed\"", m.failed);
+    if (m.actuation) {
+        t.family("deadline_misses_total", "counter",
+                 "Targets never sent because they could not be on time (scheduler or bus).");
+        t.sample("deadline_misses_total", "", m.deadline_miss + m.bus_deadline);
+        t.family("targets_confirmed_total", "counter", "Plants confirmed by the tracker (one target each).");
+        t.sample("targets_confirmed_total", "", m.targets);
+        t.family("targets_total", "counter", "Targets by outcome.");
+        t.sample("targets_total", "outcome=\"sent\"", m.sent);
+        t.sample("targets_total", "outcome=\"policy\"", m.policy);
+        t.sample("targets_total", "outcome=\"no_tool\"", m.no_tool);
+        t.sample("targets_total", "outcome=\"disabled\"", m.disabled);
+        t.sample("targets_total", "outcome=\"deadline_miss\"", m.deadline_miss);
+        t.sample("targets_total", "outcome=\"bus_deadline\"", m.bus_deadline);
+        t.sample("targets_total", "outcome=\"bus_error\"", m.bus_error);
+        t.family("bus_errors_total", "counter", "CAN frames the bus failed, by frame.");
+        t.sample("bus_errors_total", "frame=\"target\"", m.bus_error);
+        t.sample("bus_errors_total", "frame=\"heartbeat\"", m.heartbeat_errors);
+        t.family("no_odometry_frames_total", "counter", "Frames not actuated: no usable odometer reading.");
+        t.sample("no_odometry_frames_total", "", m.no_odometry);
+    }
+    t.family("capture_to_result_seconds", "histogram", "Capture (exposure) to the result at the actuator.");
+    t.histogram("capture_to_result_seconds", "", m.capture_to_result);
+    if (m.actuation) {
+        t.family("capture_to_send_seconds", "histogram", "Capture to the TARGET handed to the bus.");
+        t.histogram("capture_to_send_seconds", "", m.capture_to_send);
+    }
+    t.family("pipeline_seconds", "histogram", "Wall time of the detection pipeline per frame.");
+    t.histogram("pipeline_seconds", "", m.pipeline);
+    t.family("thread_cycle_seconds", "histogram", "Per-frame work of each real-time thread.");
+    t.histogram("thread_cycle_seconds", "thread=\"capture\"", m.cycle_capture);
+    t.histogram("thread_cycle_seconds", "thread=\"processing\"", m.cycle_processing);
+    t.histogram("thread_cycle_seconds", "thread=\"actuator\"", m.cycle_actuator);
+    t.family("live_frames_published_total", "counter", "Frames the processing thread copied for the live view.");
+    t.sample("live_frames_published_total", "", m.live_frames_published);
+    t.family("live_frames_encoded_total", "counter", "JPEGs the web thread encoded.");
+    t.sample("live_frames_encoded_total", "", m.live_frames_encoded);
+    t.family("live_plants_dropped_total", "counter", "Plants the live view missed (its ring was full).");
+    t.sample("live_plants_dropped_total", "", m.live_plants_dropped);
+    t.family("web_requests_total", "counter", "HTTP requests the live view answered.");
+    t.sample("web_requests_total", "", m.web_requests);
+    return t.take();
+}
+
+}  // namespace stemd::web

@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# /metrics of a running stemd parses as Prometheus text format 0.0.4 with the
+# reference parser (Debian python3-prometheus-client), every family the
+# README names is there, and the histograms are whole (+Inf = _count).
+#   metrics.sh STEMD TOOLS_DIR SOURCE_DIR
+set -euo pipefail
+stemd=$1
+tools=$2
+src=$3
+tmp=$(mktemp -d)
+stemd_pid=""
+trap '[ -n "$stemd_pid" ] && kill "$stemd_pid" 2>/dev/null; rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+/usr/bin/python3 -c "import prometheus_client.parser" 2>/dev/null \
+  || { echo "SKIP: python3-prometheus-client (the reference parser) is not installed"; exit 77; }
+. "$(dirname "$0")/common.sh"
+
+"$tools/stemd-synth" --out "$tmp/rec" --preset late --frames 10 --fps 10 >/dev/null
+start_stemd "$tmp/err" --config "$src/config/stemd.yaml" --replay "$tmp/rec" --can-log "$tmp/can.log" \
+  --set web.listen=127.0.0.1:0
+# Wait until frames went through, so the histograms have counts.
+for _ in $(seq 300); do
+  fetch /metrics "$tmp/metrics"
+  grep -q '^stemd_frames_out_total [1-9]' "$tmp/metrics" && break
+  sleep 0.2
+done
+/usr/bin/python3 - "$tmp/metrics" <<'PY' || fail "metrics check"
+import sys
+from prometheus_client.parser import text_string_to_metric_families
+text = open(sys.argv[1]).read()
+families = {f.name: f for f in text_string_to_metric_families(text)}
+want = {
+    "stemd_frames_in": "counter", "stemd_frames_out": "counter", "stemd_frames_dropped": "counter",
+    "stemd_deadline_misses": "counter", "stemd_targets": "counter", "stemd_bus_errors": "counter",
+    "stemd_capture_to_result_seconds": "histogram", "stemd_capture_to_send_seconds": "histogram",
+    "stemd_thread_cycle_seconds": "histogram", "stemd_pipeline_seconds": "histogram",
+}
+bad = [f"{n}: {t}" for n, t in want.items() if n not in families or families[n].type != t]
+if bad:
+    sys.exit("missing or mistyped: " + ", ".join(bad))
+causes = {s.labels["cause"] for s in families["stemd_frames_dropped"].samples}
+if causes != {"ring_full", "overwritten", "results_full", "corrupt", "bad_size", "failed"}:
+    sys.exit(f"drop causes: {causes}")
+threads = {s.labels.get("thread") for s in families["stemd_thread_cycle_seconds"].samples}
+if threads != {"capture", "processing", "actuator"}:
+    sys.exit(f"threads: {threads}")
+for name in ("stemd_capture_to_result_seconds", "stemd_pipeline_seconds"):
+    samples = families[name].samples
+    buckets = [s.value for s in samples if s.name.endswith("_bucket")]
+    count = [s.value for s in samples if s.name.endswith("_count")][0]
+    if buckets != sorted(buckets) or buckets[-1] != count or count <= 0:
+        sys.exit(f"{name}: buckets {buckets}, count {count}")
+print(f"metrics: {len(families)} families parse")
+PY
+echo "metrics: ok"
