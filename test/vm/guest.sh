@@ -397,7 +397,7 @@ check_daemon() {
   feeder=$!
   within 120 grep -q '^ready' /tmp/feeder.log || die "feeder did not get ready: $(cat /tmp/feeder.log)"
   echo "t=$(uptime_s) s: $(cat /tmp/feeder.log)"
-  hostrun candump -L vcan0 > /tmp/daemon.candump 2> /tmp/candump.err &
+  hostrun stdbuf -oL candump -L vcan0 > /tmp/daemon.candump 2> /tmp/candump.err &
   dump=$!
   # As check_can: candump is ready once its socket is on vcan0's receive list.
   within 60 grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all || die "candump did not start listening on vcan0"
@@ -488,7 +488,13 @@ states_between() {
     on && index($3, "303#") == 1 { s[substr($3, 7, 1)] = 1 }
     END { for (k in s) printf "%s", k }' /tmp/faults.candump
 }
-marker() { hostrun cansend vcan0 "$1#01" || fdie "cansend marker $1"; }
+# candump writes through stdio: line-buffered (stdbuf -oL) its lines reach the
+# file at once; a marker is waited for in the file, so every frame before it
+# is there when a phase is counted.
+marker() {
+  hostrun cansend vcan0 "$1#01" || fdie "cansend marker $1"
+  within 30 grep -q " vcan0 $1#" /tmp/faults.candump || fdie "marker $1 not in candump's log within 30 s"
+}
 # gone PID: the background job PID has ended (ash reaps it while `within`
 # runs its sleeps, so a dead one does not linger as a zombie).
 gone() { ! kill -0 "$1" 2>/dev/null; }
@@ -542,7 +548,7 @@ check_faults() {
   hostrun "$daemon" loop "$cap" "$outn" > /tmp/faults-feeder.log 2>&1 &
   feeder=$!
   within 120 grep -q '^ready' /tmp/faults-feeder.log || die "feeder did not get ready: $(cat /tmp/faults-feeder.log)"
-  hostrun candump -L vcan0 > /tmp/faults.candump 2> /tmp/faults-candump.err &
+  hostrun stdbuf -oL candump -L vcan0 > /tmp/faults.candump 2> /tmp/faults-candump.err &
   dump=$!
   within 60 grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all || die "candump did not start listening on vcan0"
   sets=
@@ -593,7 +599,7 @@ check_faults() {
   # candump keeps listening through a down interface; a new one if it did not.
   if ! kill -0 $dump 2>/dev/null; then
     echo "candump ended with vcan0 down ($(cat /tmp/faults-candump.err)); a new one"
-    hostrun candump -L vcan0 >> /tmp/faults.candump 2>> /tmp/faults-candump.err &
+    hostrun stdbuf -oL candump -L vcan0 >> /tmp/faults.candump 2>> /tmp/faults-candump.err &
     dump=$!
     within 60 grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all || fdie "candump did not start listening again"
   fi
@@ -714,7 +720,7 @@ check_toolsim() {
   modprobe can-raw && modprobe vcan || die "modprobe can-raw vcan"
   ip link show vcan0 > /dev/null 2>&1 || ip link add dev vcan0 type vcan || die "creating vcan0"
   ip link set vcan0 up || die "vcan0 up"
-  hostrun candump -L vcan0 > /tmp/toolsim.candump 2> /tmp/toolsim.candump.err &
+  hostrun stdbuf -oL candump -L vcan0 > /tmp/toolsim.candump 2> /tmp/toolsim.candump.err &
   dump=$!
   within 60 grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all || die "candump did not start listening on vcan0"
   hostrun "$toolsim" --interface vcan0 --delay-ms 40 --speed-mm-per-s 1400 --duration-s 8 > /tmp/toolsim.out 2>&1 &
