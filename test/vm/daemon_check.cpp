@@ -110,6 +110,9 @@ const char* const kDaemonSettings[] = {
     "gpio.enable_active=high",
     "can.heartbeat_ms=100",
     "status.interval_s=2",
+    // The phases are judged by the first frame and the enable line; a guest
+    // the loaded host stops for a second must not read as a lost camera.
+    "source.lost_after_ms=10000",
     // The VM emulates the CPU (QEMU TCG): the default chromatic index's
     // float division takes ~150 ms a frame there, and the daemon would see
     // 5 of 60 frames. This check is about the drivers and the daemon's

@@ -662,7 +662,7 @@ check_faults() {
   echo "$vivid_dev" > /sys/bus/platform/drivers/vivid/bind || fdie "bind $vivid_dev"
   stamp; t_bind=$cs
   n=$(count_between 301 7F5 7F6)
-  echo "t=$(secs $cs) s: $vivid_dev bound again after a $(secs $((t_bind - t_unbind))) s gap: $n TARGET(s) in it"
+  echo "t=$(secs $cs) s: $vivid_dev bound again after a $(secs $((t_bind - t_unbind))) s gap: $n TARGET(s) in it, heartbeat states '$(states_between 7F5 7F6)' (5 = camera_lost)"
   [ "$(v4l_node vivid-000-vid-cap)" = "$cap" ] || fdie "camera: the capture node came back as $(v4l_node vivid-000-vid-cap), not $cap"
   reopened_cam() { alive; log_after $mark 'reopened, streaming again'; }
   if ! within 60 reopened_cam; then fault_fail camera "camera: stemd did not reopen $cap within 60 s of the bind"; fi

@@ -104,6 +104,9 @@ private:
     bool stopping() const { return stop_.load(std::memory_order_acquire); }
     enum Thread { kCapture, kProcessing, kActuator, kThreads };
     void beat(Thread thread);
+    // For the HEARTBEAT: the source says it lost its camera, or has given
+    // no frame for config.lost_after_ms while the capture thread waited on it.
+    bool camera_lost(std::int64_t now_ns) const;
 
     const DaemonConfig config_;
     const std::shared_ptr<spdlog::logger> log_;
@@ -131,6 +134,12 @@ private:
     std::atomic<bool> source_failed_{false};
     std::atomic<bool> sink_ok_{true};
     std::atomic<std::int64_t> alive_ns_[kThreads] = {};
+    // Camera health, capture -> actuator: the source's own word (reopening,
+    // failed), and when the capture thread last had no need of the source
+    // (a frame came, or it was waiting for the pipeline instead); 0 before
+    // the first frame.
+    std::atomic<bool> source_lost_{false};
+    std::atomic<std::int64_t> source_ok_ns_{0};
     std::thread capture_, processing_, actuator_;
     bool joined_ = false;
 };
