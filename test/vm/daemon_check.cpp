@@ -221,7 +221,9 @@ void feed(const std::string& cap_dev, const std::string& out_dev, std::vector<st
     }
     loop.pump();
   }
-  info("done: " + std::to_string(shown) + " distinct frames in " + std::to_string(monotonic_s() - t0) + " s");
+  // "disabled plants N": guest.sh waits for a HEARTBEAT counting them all.
+  info("done: " + std::to_string(shown) + " distinct frames in " + std::to_string(monotonic_s() - t0) +
+       " s; disabled plants " + std::to_string(kPhase2.size()));
   loop.show(soil);
   while (!g_stop) wait_frame();
   loop.stop();
