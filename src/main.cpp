@@ -324,7 +324,7 @@ int run(int argc, char** argv, Phase& phase)
         if (systemd.enabled() && !systemd.notify(state))
             log->warn("systemd notify '{}' failed: {}", state.substr(0, state.find('=')), systemd.error());
     };
-    while (!daemon->finished()) {
+    while (!daemon->finished() && !daemon->thread_failed()) {
         if (const auto sig = signals.wait(100ms)) {
             log->info("{}: stopping", *sig == SIGTERM ? "SIGTERM" : "SIGINT");
             break;
@@ -372,7 +372,7 @@ int run(int argc, char** argv, Phase& phase)
     daemon->request_stop();
     if (!daemon->join())
         exit_code = 1;
-    if (daemon->source_failed())
+    if (daemon->source_failed() || daemon->thread_failed())
         exit_code = 1;
     // After join(): the map holds every plant.
     if (geojson) {

@@ -5,6 +5,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <exception>
+#include <new>
 #include <string>
 
 #include "stemd/runtime/logging.hpp"
@@ -145,9 +148,9 @@ bool Daemon::start()
     // Stamped now, so a thread not yet scheduled does not look stuck.
     for (auto& stamp : alive_ns_)
         stamp.store(base::monotonic_ns(), std::memory_order_relaxed);
-    actuator_ = std::thread([this] { actuator_loop(); });
-    processing_ = std::thread([this] { processing_loop(); });
-    capture_ = std::thread([this] { capture_loop(); });
+    actuator_ = std::thread([this] { guarded(kActuator, &Daemon::actuator_loop); });
+    processing_ = std::thread([this] { guarded(kProcessing, &Daemon::processing_loop); });
+    capture_ = std::thread([this] { guarded(kCapture, &Daemon::capture_loop); });
     note(apply_thread_settings(actuator_, "stemd-actuator", config_.actuator));
     note(apply_thread_settings(processing_, "stemd-process", config_.processing));
     note(apply_thread_settings(capture_, "stemd-capture", config_.capture));
@@ -173,6 +176,28 @@ bool Daemon::join()
     if (!sink_->close())
         sink_ok_.store(false);
     return sink_ok_.load();
+}
+
+void Daemon::guarded(Thread thread, void (Daemon::*loop)())
+{
+    static constexpr const char* kNames[kThreads] = {"capture", "processing", "actuator"};
+    const char* what = "an unknown exception";
+    try {
+        (this->*loop)();
+        return;
+    } catch (const std::bad_alloc&) {
+        what = "out of memory (a memory limit: ulimit -v, MemoryMax=?)";
+    } catch (const std::exception& e) {
+        what = e.what();
+    } catch (...) {
+    }
+    // One line without allocating (the logger may be what ran out).
+    std::fprintf(stderr, "stemd: %s thread: %s; stopping\n", kNames[thread], what);
+    thread_failed_.store(true, std::memory_order_release);
+    stop_.store(true, std::memory_order_release);
+    // Done, so that neither the watchdog nor the others wait for it.
+    std::atomic<bool>* const done[kThreads] = {&capture_done_, &processing_done_, &actuator_done_};
+    done[thread]->store(true, std::memory_order_release);
 }
 
 void Daemon::beat(Thread thread)
