@@ -135,12 +135,23 @@ int run(int argc, char** argv, Phase& phase)
         std::cerr << "stemd: " << error << "\n" << kUsage;
         return kUsageError;
     }
+    // The signals wait (blocked) for the main loop; each start-up step
+    // looks whether one came meanwhile, so that a stop during a slow start
+    // (a large config, a slow device) ends it after that step.
+    const auto stop_came = [&signals] {
+        const auto sig = signals.wait(0ms);
+        if (sig)
+            std::cerr << "stemd: " << (*sig == SIGTERM ? "SIGTERM" : "SIGINT") << " while starting: stopping\n";
+        return sig.has_value();
+    };
     phase.what = "reading the configuration";
     config::Config config;
     if (const auto config_error = config::build_config(args->config, config)) {
         std::cerr << "stemd: " << config_error->to_string() << "\n";
         return kUsageError;
     }
+    if (stop_came())
+        return 0;
     config::Settings settings = config.settings();
     runtime::DaemonConfig& daemon_config = settings.daemon;
     if (!args->replay_dir.empty()) {
@@ -214,6 +225,8 @@ int run(int argc, char** argv, Phase& phase)
     const auto log = runtime::make_logger("main");
     const auto status_log = runtime::make_logger("status");
 
+    if (stop_came())
+        return 0;
     std::unique_ptr<drivers::FrameSource> source = runtime::make_frame_source(daemon_config, [&signals] { return signals.pending(); });
 
     auto sink = std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator"));
@@ -226,6 +239,8 @@ int run(int argc, char** argv, Phase& phase)
         log->error("actuation: {}", actuation_error);
         return 1;
     }
+    if (stop_came())
+        return 0;
 
     // The GeoJSON is rebuilt from the plant map's lines on this thread.
     std::optional<runtime::PlantGeojson> geojson;
@@ -263,6 +278,8 @@ int run(int argc, char** argv, Phase& phase)
                                                         static_cast<std::size_t>(daemon_config.web.plants) + 256);
         daemon->attach_live_feed(live_feed.get());
     }
+    if (stop_came())
+        return 0;
     if (!daemon->start()) {
         // A SIGTERM during a slow start (a long preload) is a stop, not a failure.
         if (const auto sig = signals.wait(0ms)) {
@@ -307,7 +324,7 @@ int run(int argc, char** argv, Phase& phase)
         if (systemd.enabled() && !systemd.notify(state))
             log->warn("systemd notify '{}' failed: {}", state.substr(0, state.find('=')), systemd.error());
     };
-    while (!daemon->finished()) {
+    while (!daemon->finished() && !daemon->thread_failed()) {
         if (const auto sig = signals.wait(100ms)) {
             log->info("{}: stopping", *sig == SIGTERM ? "SIGTERM" : "SIGINT");
             break;
@@ -355,7 +372,7 @@ int run(int argc, char** argv, Phase& phase)
     daemon->request_stop();
     if (!daemon->join())
         exit_code = 1;
-    if (daemon->source_failed())
+    if (daemon->source_failed() || daemon->thread_failed())
         exit_code = 1;
     // After join(): the map holds every plant.
     if (geojson) {

@@ -8,7 +8,12 @@
 #include <netdb.h>
 #include <pthread.h>
 #include <signal.h>
+#include <poll.h>
+#include <sys/eventfd.h>
 #include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
 
 #include "stemd/base/clock.hpp"
 #include "stemd/base/unique_fd.hpp"
@@ -23,16 +28,21 @@ namespace {
 
 constexpr int kWaitUs = 100'000;   // longest wait for data: stop() latency
 constexpr std::int64_t kPollNs = 50'000'000;
+constexpr std::int64_t kConnectTimeoutNs = 2'000'000'000;   // one attempt; then the backoff
 
 double or_unknown(double v)
 {
     return std::isfinite(v) ? v : -1;
 }
 
-// libgps reports a failed connection as its own code (errno = NL_NOCONNECT
-// and the like), which hides why: one plain connect() finds the system's
-// errno (ECONNREFUSED, EHOSTUNREACH...) for the log line. 0 if it connects.
-int connect_errno(const std::string& host, std::uint16_t port)
+// gps_open() connects with a blocking connect(): to a host that drops the
+// SYN (a full backlog, a firewall) it blocks for minutes, and stop() with it.
+// So each attempt first connects here, non-blocking and polled together
+// with the stop eventfd, for at most kConnectTimeoutNs; libgps is only asked
+// once the port answers. It also finds the system's errno (ECONNREFUSED,
+// EHOSTUNREACH...) that libgps's own codes hide. 0 when it connects,
+// ECANCELED when stopped.
+int try_connect(const std::string& host, std::uint16_t port, int stop_fd, std::int64_t timeout_ns)
 {
     addrinfo hints{};
     hints.ai_family = AF_UNSPEC;
@@ -40,9 +50,10 @@ int connect_errno(const std::string& host, std::uint16_t port)
     addrinfo* found = nullptr;
     if (::getaddrinfo(host.c_str(), std::to_string(port).c_str(), &hints, &found) != 0 || found == nullptr)
         return EHOSTUNREACH;
-    int err = 0;
+    const std::int64_t deadline = base::monotonic_ns() + timeout_ns;
+    int err = ETIMEDOUT;
     for (addrinfo* a = found; a != nullptr; a = a->ai_next) {
-        const base::UniqueFd fd(::socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC, a->ai_protocol));
+        const base::UniqueFd fd(::socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC | SOCK_NONBLOCK, a->ai_protocol));
         if (!fd.valid()) {
             err = errno;
             continue;
@@ -52,6 +63,28 @@ int connect_errno(const std::string& host, std::uint16_t port)
             break;
         }
         err = errno;
+        if (err != EINPROGRESS)
+            continue;
+        pollfd fds[2] = {{fd.get(), POLLOUT, 0}, {stop_fd, POLLIN, 0}};
+        const std::int64_t left_ns = std::max<std::int64_t>(deadline - base::monotonic_ns(), 0);
+        const timespec ts{static_cast<time_t>(left_ns / 1'000'000'000), static_cast<long>(left_ns % 1'000'000'000)};
+        int r = 0;
+        do
+            r = ::ppoll(fds, 2, &ts, nullptr);
+        while (r < 0 && errno == EINTR);
+        if (r > 0 && (fds[1].revents & POLLIN) != 0) {
+            err = ECANCELED;
+            break;
+        }
+        if (r == 0) {
+            err = ETIMEDOUT;
+            break;
+        }
+        socklen_t len = sizeof err;
+        if (r < 0 || ::getsockopt(fd.get(), SOL_SOCKET, SO_ERROR, &err, &len) != 0)
+            err = errno;
+        if (err == 0)
+            break;
     }
     ::freeaddrinfo(found);
     return err;
@@ -81,6 +114,11 @@ bool GpsdClient::start()
     if (thread_.joinable())
         return true;
     stop_.store(false);
+    stop_fd_.reset(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
+    if (!stop_fd_.valid()) {
+        log_->error("gpsd {}:{}: eventfd: {} (errno {})", spec_.host, spec_.port, std::strerror(errno), errno);
+        return false;
+    }
     thread_ = std::thread([this] { run(); });
     return true;
 }
@@ -88,8 +126,14 @@ bool GpsdClient::start()
 void GpsdClient::stop()
 {
     stop_.store(true);
-    if (thread_.joinable())
+    if (thread_.joinable()) {
+        // Wakes a connect attempt at once (the other waits are short).
+        const std::uint64_t one = 1;
+        if (::write(stop_fd_.get(), &one, sizeof one) < 0)
+            log_->warn("gpsd {}:{}: eventfd write: {}", spec_.host, spec_.port, std::strerror(errno));
         thread_.join();
+    }
+    stop_fd_.reset();
 }
 
 GnssCounters GpsdClient::counters() const
@@ -135,14 +179,17 @@ bool GpsdClient::connect()
 {
     auto session = std::make_unique<Session>();
     const std::string port = std::to_string(spec_.port);
+    const int reach = try_connect(spec_.host, spec_.port, stop_fd_.get(), kConnectTimeoutNs);
+    if (reach == ECANCELED)
+        return false;
     errno = 0;
-    if (gps_open(spec_.host.c_str(), port.c_str(), &session->data) != 0) {
+    if (reach != 0 || gps_open(spec_.host.c_str(), port.c_str(), &session->data) != 0) {
         const int code = errno;
         failures_.fetch_add(1, std::memory_order_relaxed);
         if (!failure_logged_) {
-            const int err = connect_errno(spec_.host, spec_.port);
+            const int err = reach != 0 ? reach : try_connect(spec_.host, spec_.port, stop_fd_.get(), kConnectTimeoutNs);
             log_->warn("gpsd {}:{}: cannot connect: {} ({}, errno {}); retrying every {:.1f} s at most", spec_.host,
-                       spec_.port, gps_errstr(code), std::strerror(err), err,
+                       spec_.port, reach != 0 ? "no connection" : gps_errstr(code), std::strerror(err), err,
                        static_cast<double>(backoff_.max_ns()) / 1e9);
         }
         failure_logged_ = true;

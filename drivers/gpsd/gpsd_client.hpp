@@ -14,7 +14,10 @@
 // Each transition is logged once, naming host:port and errno (a refused
 // connection while gpsd is down is logged on the first failure only, then
 // once when it comes back). The thread waits at most 100 ms at a time
-// (gps_waiting), so stop() returns within about that.
+// (gps_waiting) and a connect attempt ends at once on stop() (an eventfd),
+// so stop() returns within about 100 ms. A host name is resolved with
+// getaddrinfo, which a stop does not cut short (use an address where DNS
+// may be slow).
 #pragma once
 
 #include <atomic>
@@ -26,6 +29,7 @@
 #include <spdlog/logger.h>
 
 #include "stemd/base/spsc_ring.hpp"
+#include "stemd/base/unique_fd.hpp"
 #include "stemd/drivers/gnss_factory.hpp"
 #include "stemd/drivers/gnss_source.hpp"
 #include "stemd/drivers/reopen_backoff.hpp"
@@ -64,6 +68,7 @@ private:
     std::unique_ptr<Session> session_;
     std::int64_t last_fix_time_ns_ = -1;
     std::atomic<bool> stop_{false};
+    base::UniqueFd stop_fd_;   // eventfd: written by stop(), wakes a connect attempt
     std::thread thread_;
     std::atomic<std::uint64_t> fixes_{0}, no_fix_{0}, connects_{0}, failures_{0};
 };

@@ -193,6 +193,7 @@ public:
     void stop() override;
     SourceCounters counters() const override;
     bool realtime() const override { return true; }
+    bool lost() const override { return state_ == State::backoff || state_ == State::failed; }
 
     LibcameraCounters libcamera_counters() const;
     State state() const { return state_; }

@@ -90,6 +90,7 @@ public:
     // bad_size: both devices' and ours.
     SourceCounters counters() const override;
     bool realtime() const override { return true; }
+    bool lost() const override { return rgb_.lost() || nir_.lost(); }
 
     PairedNirCounters paired_counters() const;
     const V4l2Source& rgb_source() const { return rgb_; }

@@ -107,6 +107,7 @@ public:
     void stop() override;
     SourceCounters counters() const override;
     bool realtime() const override { return true; }
+    bool lost() const override { return state_ == State::backoff || state_ == State::failed; }
 
     State state() const { return state_; }
     // What the driver granted (valid while streaming).

@@ -266,6 +266,9 @@ constexpr std::array kSchema{
     bind<STEMD_KEY(daemon.reopen_backoff_max_ms)>(
         {"source.reopen_backoff_max_ms", real, "ms", 100, 60000, "250", "",
             "v4l2: a lost camera is reopened after 100 ms, then at doubling intervals up to this; it bounds how long frames take to resume once the camera is back"}),
+    bind<STEMD_KEY(daemon.lost_after_ms)>(
+        {"source.lost_after_ms", real, "ms", 50, 60000, "1000", "",
+            "after the first frame: no frame from the source for this long (time waiting for the pipeline aside) and the HEARTBEAT state is CAMERA_LOST until frames come again; a camera being reopened is reported at once"}),
     bind<STEMD_KEY(daemon.nir_device)>(
         {"source.nir_device", text, "", 0, 0, "none", "",
             "v4l2: a second, monochrome camera for NIR (segment.method ndvi), paired to each RGB frame by capture time; none: no NIR camera"}),

@@ -56,9 +56,9 @@ constexpr std::array kToolStatusSignals{kCrc, kCounter, kReadyMask, kLastTargetI
 
 constexpr std::array kStateNames{
     ValueName{0, "STARTING"}, ValueName{1, "IDLE"}, ValueName{2, "ACTIVE"},
-    ValueName{3, "DEGRADED"}, ValueName{4, "FAULT"},
+    ValueName{3, "DEGRADED"}, ValueName{4, "FAULT"}, ValueName{5, "CAMERA_LOST"},
 };
-constexpr SignalDef kState{"state", 12, 4, false, 0, 4, "", "Daemon state.", kStateNames};
+constexpr SignalDef kState{"state", 12, 4, false, 0, 5, "", "Daemon state.", kStateNames};
 constexpr SignalDef kSent{"targets_sent", 16, 16, false, 0, 0xFFFF, "", "TARGET frames sent, modulo 2^16."};
 constexpr SignalDef kDeadlineMisses{"deadline_misses", 32, 12, false, 0, 4095, "",
                                     "Targets that missed their deadline; saturates at 4095."};

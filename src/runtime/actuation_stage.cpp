@@ -198,12 +198,12 @@ void ActuationStage::write_waiting(std::int64_t now_ns, bool all) noexcept
     }
 }
 
-void ActuationStage::poll(std::int64_t now_ns) noexcept
+void ActuationStage::poll(std::int64_t now_ns, bool camera_lost) noexcept
 {
     link_.receive();
     if (config_.odometry == OdometrySource::encoder)
         odometry_.add_encoder(now_ns, parts_.gpio->encoder().ticks);
-    link_.heartbeat_if_due(now_ns, last_frame_ns_ >= 0, enabled());
+    link_.heartbeat_if_due(now_ns, last_frame_ns_ >= 0, camera_lost, enabled());
     poll_gnss(now_ns);
     write_waiting(now_ns, false);
 }

@@ -6,6 +6,19 @@
 
 namespace stemd::runtime {
 
+protocol::DaemonState heartbeat_state(const HeartbeatInputs& in) noexcept
+{
+    if (in.camera_lost)
+        return protocol::DaemonState::CameraLost;
+    if (!in.frames_seen)
+        return protocol::DaemonState::Starting;
+    if (!in.enabled || !in.odometry)
+        return protocol::DaemonState::Idle;
+    if (in.new_misses)
+        return protocol::DaemonState::Degraded;
+    return protocol::DaemonState::Active;
+}
+
 CanLink::CanLink(drivers::CanBus& bus, protocol::CanIds ids, std::int64_t heartbeat_interval_ns,
                  OdometryInput& odometry, TargetSender& sender, ActuationCounters& counters)
     : bus_(bus),
@@ -67,13 +80,13 @@ bool CanLink::accepted(const protocol::CanFrame& frame, protocol::E2eChecker& ch
     return true;
 }
 
-void CanLink::heartbeat_if_due(std::int64_t now_ns, bool frames_seen, bool enabled) noexcept
+void CanLink::heartbeat_if_due(std::int64_t now_ns, bool frames_seen, bool camera_lost, bool enabled) noexcept
 {
     if (now_ns >= next_heartbeat_ns_)
-        heartbeat(now_ns, frames_seen, enabled);
+        heartbeat(now_ns, frames_seen, camera_lost, enabled);
 }
 
-void CanLink::heartbeat(std::int64_t now_ns, bool frames_seen, bool enabled) noexcept
+void CanLink::heartbeat(std::int64_t now_ns, bool frames_seen, bool camera_lost, bool enabled) noexcept
 {
     // On a fixed grid (10 Hz stays 10 Hz however late a poll comes); a
     // heartbeat more than a period late is not caught up.
@@ -84,14 +97,11 @@ void CanLink::heartbeat(std::int64_t now_ns, bool frames_seen, bool enabled) noe
                                  counters_.bus_deadline.load(std::memory_order_relaxed);
     protocol::Heartbeat hb;
     double odom = 0;
-    if (!frames_seen)
-        hb.state = protocol::DaemonState::Starting;
-    else if (!enabled || !odometry_.odometer_at(now_ns, odom))
-        hb.state = protocol::DaemonState::Idle;
-    else if (misses != misses_at_last_heartbeat_)
-        hb.state = protocol::DaemonState::Degraded;
-    else
-        hb.state = protocol::DaemonState::Active;
+    hb.state = heartbeat_state({.frames_seen = frames_seen,
+                                .camera_lost = camera_lost,
+                                .enabled = enabled,
+                                .odometry = odometry_.odometer_at(now_ns, odom),
+                                .new_misses = misses != misses_at_last_heartbeat_});
     misses_at_last_heartbeat_ = misses;
     hb.targets_sent = counters_.sent.load(std::memory_order_relaxed);
     hb.deadline_misses = misses;

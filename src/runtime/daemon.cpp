@@ -5,6 +5,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <exception>
+#include <new>
 #include <string>
 
 #include "stemd/runtime/logging.hpp"
@@ -145,9 +148,9 @@ bool Daemon::start()
     // Stamped now, so a thread not yet scheduled does not look stuck.
     for (auto& stamp : alive_ns_)
         stamp.store(base::monotonic_ns(), std::memory_order_relaxed);
-    actuator_ = std::thread([this] { actuator_loop(); });
-    processing_ = std::thread([this] { processing_loop(); });
-    capture_ = std::thread([this] { capture_loop(); });
+    actuator_ = std::thread([this] { guarded(kActuator, &Daemon::actuator_loop); });
+    processing_ = std::thread([this] { guarded(kProcessing, &Daemon::processing_loop); });
+    capture_ = std::thread([this] { guarded(kCapture, &Daemon::capture_loop); });
     note(apply_thread_settings(actuator_, "stemd-actuator", config_.actuator));
     note(apply_thread_settings(processing_, "stemd-process", config_.processing));
     note(apply_thread_settings(capture_, "stemd-capture", config_.capture));
@@ -175,6 +178,28 @@ bool Daemon::join()
     return sink_ok_.load();
 }
 
+void Daemon::guarded(Thread thread, void (Daemon::*loop)())
+{
+    static constexpr const char* kNames[kThreads] = {"capture", "processing", "actuator"};
+    const char* what = "an unknown exception";
+    try {
+        (this->*loop)();
+        return;
+    } catch (const std::bad_alloc&) {
+        what = "out of memory (a memory limit: ulimit -v, MemoryMax=?)";
+    } catch (const std::exception& e) {
+        what = e.what();
+    } catch (...) {
+    }
+    // One line without allocating (the logger may be what ran out).
+    std::fprintf(stderr, "stemd: %s thread: %s; stopping\n", kNames[thread], what);
+    thread_failed_.store(true, std::memory_order_release);
+    stop_.store(true, std::memory_order_release);
+    // Done, so that neither the watchdog nor the others wait for it.
+    std::atomic<bool>* const done[kThreads] = {&capture_done_, &processing_done_, &actuator_done_};
+    done[thread]->store(true, std::memory_order_release);
+}
+
 void Daemon::beat(Thread thread)
 {
     alive_ns_[thread].store(base::monotonic_ns(), std::memory_order_relaxed);
@@ -193,6 +218,18 @@ const char* Daemon::stalled_thread(std::int64_t now_ns, std::int64_t max_age_ns)
     return nullptr;
 }
 
+bool Daemon::camera_lost(std::int64_t now_ns) const
+{
+    if (source_lost_.load(std::memory_order_relaxed))
+        return true;
+    // A finite source that ended lost nothing; before the first frame the
+    // state is Starting, however long the camera takes.
+    const std::int64_t ok_ns = source_ok_ns_.load(std::memory_order_relaxed);
+    if (ok_ns == 0 || capture_done_.load(std::memory_order_acquire))
+        return false;
+    return static_cast<double>(now_ns - ok_ns) > config_.lost_after_ms * 1e6;
+}
+
 void Daemon::capture_loop()
 {
     drivers::Frame* hand = nullptr;
@@ -204,6 +241,9 @@ void Daemon::capture_loop()
     // 100 us: a GPIO ioctl, the only I/O here besides the source's).
     drivers::GpioLines* const trigger = actuation_ ? actuation_->trigger_lines() : nullptr;
     TriggerClock trigger_clock(static_cast<std::int64_t>(1e9 / config_.fps));
+    // Logged once per loss, when this thread first sees it and when frames
+    // come again.
+    bool loss_logged = false;
     while (!stopping()) {
         beat(kCapture);
         auto timeout = std::chrono::nanoseconds(kSourceTimeout);
@@ -221,10 +261,17 @@ void Daemon::capture_loop()
         if (hand == nullptr && !free_slots_.try_pop(hand)) {
             // The pool is sized so that this cannot happen; count it if it does.
             bump(counters_->capture.no_free_slot);
+            source_ok_ns_.store(base::monotonic_ns(), std::memory_order_relaxed);
             idle.wait();
             continue;
         }
         const drivers::NextStatus status = source_->next(*hand, timeout);
+        source_lost_.store(source_->lost(), std::memory_order_relaxed);
+        if (status != drivers::NextStatus::frame && !loss_logged && camera_lost(base::monotonic_ns())) {
+            loss_logged = true;
+            capture_log_->warn("{}: {}; HEARTBEAT state CAMERA_LOST until frames come again", source_->name(),
+                               source_->lost() ? "the camera is lost" : "no frame for source.lost_after_ms");
+        }
         if (status == drivers::NextStatus::timeout) {
             // A wait cut short for the next trigger pulse is not a timeout.
             if (timeout == kSourceTimeout)
@@ -237,10 +284,17 @@ void Daemon::capture_loop()
             break;
         if (status == drivers::NextStatus::failed) {
             capture_log_->error("{}: failed; capture stops", source_->name());
+            source_lost_.store(true, std::memory_order_relaxed);
             source_failed_.store(true, std::memory_order_release);
             break;
         }
         const std::int64_t t_got_ns = base::monotonic_ns();
+        if (loss_logged) {
+            loss_logged = false;
+            capture_log_->info("{}: frames again, after {} ms without one", source_->name(),
+                               (t_got_ns - source_ok_ns_.load(std::memory_order_relaxed)) / 1'000'000);
+        }
+        source_ok_ns_.store(t_got_ns, std::memory_order_relaxed);
         hand->seq = seq++;
         bump(counters_->capture.frames);
         // The recording's odometer reaches the actuator now, not after the
@@ -254,6 +308,7 @@ void Daemon::capture_loop()
             bool waited = false;
             while (frames_.size() == frames_.capacity() && !stopping()) {
                 beat(kCapture);
+                source_ok_ns_.store(base::monotonic_ns(), std::memory_order_relaxed);
                 waited = true;
                 idle.wait();
             }
@@ -395,7 +450,7 @@ void Daemon::actuator_loop()
             // Received frames, encoder samples, the heartbeat: every ms is enough.
             const std::int64_t now_ns = base::monotonic_ns();
             if (now_ns >= next_poll_ns) {
-                actuation_->poll(now_ns);
+                actuation_->poll(now_ns, camera_lost(now_ns));
                 next_poll_ns = now_ns + 1'000'000;
             }
         }

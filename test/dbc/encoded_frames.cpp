@@ -68,6 +68,7 @@ const char* state_name(DaemonState s)
     case DaemonState::Active: return "ACTIVE";
     case DaemonState::Degraded: return "DEGRADED";
     case DaemonState::Fault: return "FAULT";
+    case DaemonState::CameraLost: return "CAMERA_LOST";
     }
     return nullptr;
 }
@@ -144,7 +145,7 @@ int main()
     tool_status({0x8001, 0x800, true, 7, 128});  // an error code the protocol does not name
     for (std::uint8_t code = 0; code <= 5; ++code)
         tool_status({static_cast<std::uint16_t>(1u << code), code, code % 2 == 0, code, code});
-    for (int s = 0; s <= 4; ++s)
+    for (int s = 0; s <= 5; ++s)
         heartbeat({static_cast<DaemonState>(s), 0, 0, 0, 0});
     heartbeat({DaemonState::Active, 65535, 4095, 4095, 255});
     heartbeat({DaemonState::Active, 65536, 4096, 4096, 256});  // wraps to 0; saturate
@@ -165,7 +166,7 @@ int main()
         odometry({static_cast<std::uint32_t>(rng()), static_cast<std::int16_t>(static_cast<int>(rng() % 65535) - 32767)});
         tool_status({static_cast<std::uint16_t>(rng()), static_cast<std::uint16_t>(rng() % 4096), rng() % 2 == 0,
                      static_cast<std::uint8_t>(rng()), static_cast<std::uint8_t>(rng())});
-        heartbeat({static_cast<DaemonState>(rng() % 5), rng(), rng() % 5000, rng() % 5000, rng() % 300});
+        heartbeat({static_cast<DaemonState>(rng() % 6), rng(), rng() % 5000, rng() % 5000, rng() % 300});
         tool_fired({static_cast<std::uint16_t>(rng() % 4096), static_cast<std::uint8_t>(rng() % 16),
                     static_cast<std::uint8_t>(rng() % 16), static_cast<std::uint32_t>(rng())});
     }

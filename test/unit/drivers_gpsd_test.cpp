@@ -46,14 +46,29 @@ public:
         ::close(listen_fd_);
     }
     std::uint16_t port() const { return port_; }
-    // Waits (bounded) for the client to connect.
+    // Waits (bounded) for the client to connect and ask for the watch
+    // stream. The client first checks that the port answers with a
+    // connection of its own, closed at once (as a real gpsd, which serves
+    // many clients, sees it): such a connection is skipped.
     bool accept_client()
     {
-        pollfd p{listen_fd_, POLLIN, 0};
-        if (::poll(&p, 1, 20'000) != 1)
-            return false;
-        client_fd_ = ::accept(listen_fd_, nullptr, nullptr);
-        return client_fd_ >= 0;
+        const std::int64_t deadline = base::monotonic_ns() + 20'000'000'000;
+        while (base::monotonic_ns() < deadline) {
+            pollfd p{listen_fd_, POLLIN, 0};
+            if (::poll(&p, 1, 1'000) != 1)
+                continue;
+            const int fd = ::accept(listen_fd_, nullptr, nullptr);
+            if (fd < 0)
+                return false;
+            pollfd c{fd, POLLIN, 0};
+            char byte = 0;
+            if (::poll(&c, 1, 20'000) == 1 && ::recv(fd, &byte, 1, MSG_PEEK) == 1) {
+                client_fd_ = fd;
+                return true;
+            }
+            ::close(fd);   // closed without a word: the reachability check
+        }
+        return false;
     }
     void send(const std::string& line)
     {

@@ -214,10 +214,11 @@ TEST(Messages, HeartbeatRoundTripAndCounterPolicy)
     EXPECT_EQ(got.deadline_misses, 4095u);
     EXPECT_EQ(got.targets_dropped, 4095u);
     EXPECT_EQ(got.rx_rejected, 255u);
-    for (int s = 0; s <= 4; ++s)
+    for (int s = 0; s <= 5; ++s)
         EXPECT_EQ(round_trip(Heartbeat{static_cast<DaemonState>(s), 0, 0, 0, 0}).state, static_cast<DaemonState>(s));
+    EXPECT_EQ(static_cast<int>(DaemonState::CameraLost), 5);
     Heartbeat bad{};
-    bad.state = static_cast<DaemonState>(5);
+    bad.state = static_cast<DaemonState>(6);
     expect_rejected(bad, "state");
 }
 

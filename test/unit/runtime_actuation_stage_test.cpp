@@ -603,3 +603,62 @@ TEST(ActuationStage, RecordingOdometerGivenAtCaptureOutlivesASlowPipeline)
 
 }  // namespace
 }  // namespace stemd::runtime
+
+namespace stemd::runtime {
+namespace {
+
+TEST(HeartbeatState, EachInputMapsToItsState)
+{
+    using protocol::DaemonState;
+    const HeartbeatInputs healthy{
+        .frames_seen = true, .camera_lost = false, .enabled = true, .odometry = true, .new_misses = false};
+    EXPECT_EQ(heartbeat_state(healthy), DaemonState::Active);
+    HeartbeatInputs in = healthy;
+    in.new_misses = true;
+    EXPECT_EQ(heartbeat_state(in), DaemonState::Degraded);
+    in = healthy;
+    in.enabled = false;
+    EXPECT_EQ(heartbeat_state(in), DaemonState::Idle);
+    in = healthy;
+    in.odometry = false;
+    EXPECT_EQ(heartbeat_state(in), DaemonState::Idle);
+    in = healthy;
+    in.frames_seen = false;
+    EXPECT_EQ(heartbeat_state(in), DaemonState::Starting);
+    // A lost camera outranks everything else: the tool must know why no
+    // target comes, whatever else is also wrong.
+    for (const bool frames_seen : {false, true})
+        for (const bool enabled : {false, true})
+            for (const bool odometry : {false, true})
+                for (const bool misses : {false, true})
+                    EXPECT_EQ(heartbeat_state({.frames_seen = frames_seen,
+                                               .camera_lost = true,
+                                               .enabled = enabled,
+                                               .odometry = odometry,
+                                               .new_misses = misses}),
+                              DaemonState::CameraLost);
+}
+
+TEST(ActuationStage, HeartbeatSaysCameraLostWhileTheCaptureSideSaysSo)
+{
+    Stage run = make_stage(base_config());
+    // 300 ms healthy (no frame yet), 300 ms lost, 300 ms back.
+    for (std::int64_t t = kT0; t < kT0 + 900'000'000; t += 1'000'000) {
+        const bool lost = t >= kT0 + 300'000'000 && t < kT0 + 600'000'000;
+        run.stage->poll(t, lost);
+    }
+    std::vector<protocol::DaemonState> states;
+    for (const CanFrame& f : run.bus->sent) {
+        protocol::Heartbeat hb;
+        ASSERT_TRUE(protocol::decode(f, {}, hb));
+        states.push_back(hb.state);
+    }
+    using protocol::DaemonState;
+    const std::vector<DaemonState> expected{DaemonState::Starting,   DaemonState::Starting,   DaemonState::Starting,
+                                            DaemonState::CameraLost, DaemonState::CameraLost, DaemonState::CameraLost,
+                                            DaemonState::Starting,   DaemonState::Starting,   DaemonState::Starting};
+    EXPECT_EQ(states, expected);
+}
+
+}  // namespace
+}  // namespace stemd::runtime

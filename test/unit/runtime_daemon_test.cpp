@@ -274,3 +274,49 @@ TEST(Daemon, CaptureThreadPulsesTheCameraTrigger)
     EXPECT_EQ(lines.last_width_us.load(), 150u);
     EXPECT_EQ(daemon.counters().capture.trigger_pulses.load(), lines.pulses.load());
 }
+
+namespace {
+
+// Delivers frames, then throws std::bad_alloc from next(), as a decoder
+// does under a memory limit.
+class ThrowingSource final : public drivers::FrameSource {
+public:
+    explicit ThrowingSource(long frames_before) : frames_before_(frames_before) {}
+    std::string_view name() const override { return "throwing"; }
+    bool open() override { return true; }
+    bool start() override { return true; }
+    drivers::NextStatus next(drivers::Frame& into, std::chrono::nanoseconds) override
+    {
+        if (next_ >= frames_before_)
+            throw std::bad_alloc();
+        into.t_sample_ns = stemd::base::monotonic_ns();
+        into.source_seq = static_cast<std::uint64_t>(next_++);
+        return drivers::NextStatus::frame;
+    }
+    void stop() override {}
+    drivers::SourceCounters counters() const override { return {}; }
+    bool realtime() const override { return false; }
+
+private:
+    const long frames_before_;
+    long next_ = 0;
+};
+
+}  // namespace
+
+TEST(Daemon, AnExceptionInAThreadStopsTheRunWithOneLineInsteadOfTerminating)
+{
+    runtime::Daemon daemon(config_for(runtime::OverflowPolicy::drop_newest), std::make_unique<ThrowingSource>(3),
+                           std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator")));
+    testing::internal::CaptureStderr();
+    ASSERT_TRUE(daemon.start());
+    const bool failed = test::wait_for([&] { return daemon.thread_failed(); }, 60s);
+    daemon.join();
+    const std::string err = testing::internal::GetCapturedStderr();
+    ASSERT_TRUE(failed);
+    EXPECT_NE(err.find("stemd: capture thread: out of memory"), std::string::npos) << err;
+    // The frames before the failure went through.
+    EXPECT_EQ(daemon.snapshot(true).frames_in, 3u);
+    EXPECT_FALSE(daemon.source_failed());
+    EXPECT_EQ(daemon.stalled_thread(stemd::base::monotonic_ns() + 60'000'000'000, 1'000'000'000), nullptr);
+}

@@ -98,6 +98,10 @@ public:
 
     virtual SourceCounters counters() const = 0;
 
+    // True while the source has lost its device and is reopening it (no
+    // frames until it is back). Called by the thread that calls next().
+    virtual bool lost() const { return false; }
+
     // True: frames come on their own clock (a camera, paced replay) and a
     // full ring must drop one. False: the source can wait (fast replay), so
     // the capture thread applies back-pressure and drops nothing.

@@ -39,7 +39,7 @@
 //   HEARTBEAT    base+3  STEMD -> DRIVE, TOOL
 //     0|8    e2e_crc
 //     8|4    e2e_counter        0..14
-//     12|4   state              u4          DaemonState 0..4
+//     12|4   state              u4          DaemonState 0..5
 //     16|16  targets_sent       u16         TARGET frames sent, modulo 2^16
 //     32|12  deadline_misses    u12         saturating at 4095
 //     44|12  targets_dropped    u12         saturating at 4095
@@ -172,6 +172,9 @@ enum class DaemonState : std::uint8_t {
     Active = 2,    // sending targets
     Degraded = 3,  // sending targets, but something is wrong (deadline misses, lost frames)
     Fault = 4,     // stopped sending targets
+    // No frames: the camera is lost (its source is reopening it) or has
+    // delivered nothing for source.lost_after_ms. No targets from it.
+    CameraLost = 5,
 };
 
 // Codes of TOOL_STATUS.error_code. The tool defines them; values not listed

@@ -78,7 +78,9 @@ public:
     // the capture, not as late as the pipeline. on_frame() adds the same
     // sample if this was not called.
     void on_capture(std::int64_t t_sample_ns, double odom_mm) noexcept;
-    void poll(std::int64_t now_ns) noexcept;
+    // camera_lost: the capture side has no camera (see HeartbeatInputs);
+    // the HEARTBEAT says so.
+    void poll(std::int64_t now_ns, bool camera_lost = false) noexcept;
     // End of the run: the tracks still open go to the plant map; the map is
     // closed. False (logged) if the map lost lines or the bus is a log that
     // lost frames.

@@ -17,6 +17,23 @@
 
 namespace stemd::runtime {
 
+// What the actuator knows when a HEARTBEAT is due.
+struct HeartbeatInputs {
+    bool frames_seen = false;  // a frame's detections have reached the actuator
+    // The source is reopening its camera, or no frame has come for
+    // source.lost_after_ms.
+    bool camera_lost = false;
+    bool enabled = false;      // the enable input (always on without one)
+    bool odometry = false;     // a usable odometer reading now
+    bool new_misses = false;   // deadline misses since the previous HEARTBEAT
+};
+
+// The HEARTBEAT's state, first match: CameraLost (also before the first
+// frame: a camera lost at start is still lost), Starting before the first
+// frame, Idle when disabled or without odometry, Degraded after new deadline
+// misses, else Active. Fault is never sent from these inputs.
+protocol::DaemonState heartbeat_state(const HeartbeatInputs& in) noexcept;
+
 class CanLink {
 public:
     CanLink(drivers::CanBus& bus, protocol::CanIds ids, std::int64_t heartbeat_interval_ns, OdometryInput& odometry,
@@ -25,16 +42,14 @@ public:
     // Whatever is queued, without waiting; bounded so a flooded bus cannot
     // starve the frames.
     void receive() noexcept;
-    // Sends the HEARTBEAT when due: Starting before the first frame, Idle
-    // when disabled or without odometry, Degraded after deadline misses
-    // since the last one, else Active.
-    void heartbeat_if_due(std::int64_t now_ns, bool frames_seen, bool enabled) noexcept;
+    // Sends the HEARTBEAT when due, its state from heartbeat_state().
+    void heartbeat_if_due(std::int64_t now_ns, bool frames_seen, bool camera_lost, bool enabled) noexcept;
 
 private:
     // E2E-checked and decoded into `out`; else counted as rx_rejected.
     template <typename Message>
     bool accepted(const protocol::CanFrame& frame, protocol::E2eChecker& checker, Message& out) noexcept;
-    void heartbeat(std::int64_t now_ns, bool frames_seen, bool enabled) noexcept;
+    void heartbeat(std::int64_t now_ns, bool frames_seen, bool camera_lost, bool enabled) noexcept;
 
     drivers::CanBus& bus_;
     const protocol::CanIds ids_;

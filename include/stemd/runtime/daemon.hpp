@@ -81,6 +81,10 @@ public:
     // actuator; or the source failed. The caller then joins.
     bool finished() const { return actuator_done_.load(std::memory_order_acquire); }
     bool source_failed() const { return source_failed_.load(std::memory_order_acquire); }
+    // A thread ended on an exception (std::bad_alloc under a memory limit,
+    // say): written to stderr as one line naming the thread, and every
+    // thread stops. The caller then joins and exits non-zero.
+    bool thread_failed() const { return thread_failed_.load(std::memory_order_acquire); }
     // Joins the threads and closes the sink and the plant map; false if
     // either lost data.
     bool join();
@@ -104,6 +108,12 @@ private:
     bool stopping() const { return stop_.load(std::memory_order_acquire); }
     enum Thread { kCapture, kProcessing, kActuator, kThreads };
     void beat(Thread thread);
+    // Runs a thread's loop; an exception out of it is reported, not
+    // std::terminate (see thread_failed()).
+    void guarded(Thread thread, void (Daemon::*loop)());
+    // For the HEARTBEAT: the source says it lost its camera, or has given
+    // no frame for config.lost_after_ms while the capture thread waited on it.
+    bool camera_lost(std::int64_t now_ns) const;
 
     const DaemonConfig config_;
     const std::shared_ptr<spdlog::logger> log_;
@@ -129,8 +139,15 @@ private:
     std::atomic<bool> processing_done_{false};
     std::atomic<bool> actuator_done_{false};
     std::atomic<bool> source_failed_{false};
+    std::atomic<bool> thread_failed_{false};
     std::atomic<bool> sink_ok_{true};
     std::atomic<std::int64_t> alive_ns_[kThreads] = {};
+    // Camera health, capture -> actuator: the source's own word (reopening,
+    // failed), and when the capture thread last had no need of the source
+    // (a frame came, or it was waiting for the pipeline instead); 0 before
+    // the first frame.
+    std::atomic<bool> source_lost_{false};
+    std::atomic<std::int64_t> source_ok_ns_{0};
     std::thread capture_, processing_, actuator_;
     bool joined_ = false;
 };

@@ -41,6 +41,7 @@ struct DaemonConfig {
     std::string v4l2_pixel_format = "yuyv";   // yuyv | bgr24 | grey
     unsigned v4l2_buffers = 4;
     double reopen_backoff_max_ms = 250;       // v4l2: longest wait between reopen attempts
+    double lost_after_ms = 1000;              // no frame this long: the HEARTBEAT says CAMERA_LOST
     std::string nir_device;                   // empty: no NIR camera (none)
     double nir_tolerance_ms = 8;
     std::string libcamera_camera = "0";       // libcamera: index, id, or unique part of the id
