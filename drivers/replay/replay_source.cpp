@@ -183,6 +183,31 @@ std::int64_t ReplaySource::due_ns(const Entry& entry) const
     return start_mono_ns_ + loop_offset_ns_ + (entry.t_ns - entries_.front().t_ns);
 }
 
+void ReplaySource::set_next_odometer(Frame& into) const
+{
+    // index_ is the entry after the one just delivered. Fast pacing has no
+    // time to put the next sample at.
+    into.t_next_ns = 0;
+    into.odom_next_mm = std::numeric_limits<double>::quiet_NaN();
+    if (options_.pacing != ReplayOptions::Pacing::recorded)
+        return;
+    if (index_ < entries_.size()) {
+        into.t_next_ns = due_ns(entries_[index_]);
+        into.odom_next_mm = entries_[index_].odom_mm + loop_odom_offset_mm_;
+    } else if (options_.loop) {
+        into.t_next_ns = due_ns(entries_.front()) + loop_period_ns_;
+        into.odom_next_mm = entries_.front().odom_mm + loop_odom_offset_mm_ + loop_odom_period_mm_;
+    } else if (entries_.size() >= 2) {
+        // Played once: past its end the machine is taken to drive on at its
+        // last frame step (what the actuator assumes at the end of a
+        // stream), so the last frame's plants are scheduled like the others.
+        const Entry& a = entries_[entries_.size() - 2];
+        const Entry& b = entries_.back();
+        into.t_next_ns = due_ns(b) + (b.t_ns - a.t_ns);
+        into.odom_next_mm = b.odom_mm + (b.odom_mm - a.odom_mm) + loop_odom_offset_mm_;
+    }
+}
+
 NextStatus ReplaySource::next(Frame& into, std::chrono::nanoseconds timeout)
 {
     if (state_ == State::ended)
@@ -202,18 +227,24 @@ NextStatus ReplaySource::next(Frame& into, std::chrono::nanoseconds timeout)
     }
     const Entry& entry = entries_[index_];
     if (options_.pacing == ReplayOptions::Pacing::recorded) {
-        const std::int64_t due = due_ns(entry);
+        const std::int64_t t_due_ns = due_ns(entry);
         const std::int64_t now = base::monotonic_ns();
-        if (due - now > timeout.count()) {
+        if (t_due_ns - now > timeout.count()) {
             base::sleep_until_ns(now + timeout.count());
             return NextStatus::timeout;
         }
-        if (due > now) {
-            base::sleep_until_ns(due);
+        if (t_due_ns > now) {
+            base::sleep_until_ns(t_due_ns);
         } else {
-            const std::int64_t lateness_ns = now - due;
-            if (lateness_ns > SourceCounters::kLateToleranceNs)
+            const std::int64_t lateness_ns = now - t_due_ns;
+            if (lateness_ns > SourceCounters::kLateToleranceNs) {
                 late_.fetch_add(1, std::memory_order_relaxed);
+                // The recording's clock slips by the lateness: the frames
+                // after this one keep their recorded spacing from it (the
+                // machine waited) rather than come in a burst, and the next
+                // frame's odometer sample stays ahead of this one.
+                start_mono_ns_ += lateness_ns;
+            }
             // One writer (this thread): load-compare-store is enough.
             if (lateness_ns > worst_lateness_ns_.load(std::memory_order_relaxed))
                 worst_lateness_ns_.store(lateness_ns, std::memory_order_relaxed);
@@ -225,6 +256,7 @@ NextStatus ReplaySource::next(Frame& into, std::chrono::nanoseconds timeout)
     into.odom_mm = entry.odom_mm + loop_odom_offset_mm_;
     into.t_delivered_ns = base::monotonic_ns();
     into.t_sample_ns = into.t_delivered_ns;
+    set_next_odometer(into);
     into.t_recorded_ns = entry.t_ns;
     into.source_seq = SourceCounterCells::bump(counters_.delivered);
     into.name.assign(entry.name);

@@ -11,6 +11,16 @@
 // t_recorded_ns is the recording's t_ns. Not the paced due time: a replay
 // that falls behind would then hand the actuator frames (and their recorded
 // odometer) older than it may extrapolate, and nothing would be treated.
+// Recorded pacing: a frame the source comes to more than kLateToleranceNs
+// late makes the recording's clock slip by that much, so the frames after
+// it keep their recorded spacing from it (the machine waited) instead of
+// coming in a burst. Each frame also carries the recording's odometer at
+// the next frame's due time (t_next_ns, odom_next_mm): the encoder track
+// the recording samples, so that the actuator interpolates the odometer
+// between two frames instead of extrapolating it, and what it sends does
+// not depend on how long a frame took to process (after the last frame of
+// a recording played once: its last frame step again, the machine driving
+// on). Fast pacing has no next sample.
 // A looping replay drives the strip again: each pass adds the recording's
 // distance plus one mean frame step to odom_mm, so the odometer never runs
 // back (a real odometer does not; the actuator would refuse the samples).
@@ -98,6 +108,9 @@ private:
     bool fill(const Entry& entry, Frame& into);
     // Recorded pacing: when the entry at index_ is due, CLOCK_MONOTONIC ns.
     std::int64_t due_ns(const Entry& entry) const;
+    // Recorded pacing: the odometer at the next entry's due time (or the
+    // next pass's first), into Frame::t_next_ns / odom_next_mm.
+    void set_next_odometer(Frame& into) const;
 
     const ReplayOptions options_;
     const std::shared_ptr<spdlog::logger> log_;

@@ -120,6 +120,12 @@ void ActuationStage::on_frame(const FrameResult& r, std::int64_t now_ns) noexcep
     frame.detections = projector_.project(r, odom_at_capture, counters_);
     const std::span<const actuation::Target> targets = tracker_.update(frame);
     bump(counters_.frames);
+    ++frames_tracked_;
+    last_seq_ = r.seq;
+    last_capture_ns_ = r.t_sample_ns;
+    prev_odom_mm_ = last_odom_mm_;
+    last_odom_mm_ = odom_at_capture;
+    last_class_map_ = r.has_class_map;
     for (const actuation::Target& t : targets) {
         bump(counters_.targets);
         if (sender_.schedule(t, now_ns, r.has_class_map, enabled()))
@@ -206,6 +212,24 @@ void ActuationStage::poll(std::int64_t now_ns, bool camera_lost) noexcept
     link_.heartbeat_if_due(now_ns, last_frame_ns_ >= 0, camera_lost, enabled());
     poll_gnss(now_ns);
     write_waiting(now_ns, false);
+}
+
+void ActuationStage::end_of_stream() noexcept
+{
+    const double step_mm = last_odom_mm_ - prev_odom_mm_;
+    if (frames_tracked_ < 2 || !(step_mm > 0))
+        return;
+    actuation::TrackFrame frame;
+    frame.seq = last_seq_ + 1;
+    frame.t_sample_ns = last_capture_ns_;
+    frame.odom_at_capture_mm = last_odom_mm_ + step_mm;
+    frame.view_s_min_mm = frame.odom_at_capture_mm + projector_.view_forward_min_mm();
+    frame.view_s_max_mm = frame.odom_at_capture_mm + projector_.view_forward_max_mm();
+    for (const actuation::Target& t : tracker_.update(frame)) {
+        bump(counters_.targets);
+        sender_.schedule(t, last_capture_ns_, last_class_map_, enabled());
+    }
+    write_retired(tracker_.retired(), base::monotonic_ns());
 }
 
 bool ActuationStage::finish() noexcept

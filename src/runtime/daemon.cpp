@@ -93,7 +93,7 @@ Daemon::Daemon(const DaemonConfig& config, std::unique_ptr<drivers::FrameSource>
       frames_(config.ring_capacity),
       results_(config.results_capacity),
       // One sample per frame between capture and the actuator, and room to spare.
-      captured_odometry_(config.ring_capacity + config.results_capacity + 4),
+      captured_odometry_(2 * (config.ring_capacity + config.results_capacity + 4)),
       workspace_(std::make_unique<vision::Workspace>(config.frame_size, config.vision))
 {
     for (std::size_t i = 0; i < pool_.size(); ++i)
@@ -280,8 +280,10 @@ void Daemon::capture_loop()
         }
         if (status == drivers::NextStatus::skipped)
             continue;   // counted by the source
-        if (status == drivers::NextStatus::end_of_stream)
+        if (status == drivers::NextStatus::end_of_stream) {
+            source_ended_.store(true, std::memory_order_release);
             break;
+        }
         if (status == drivers::NextStatus::failed) {
             capture_log_->error("{}: failed; capture stops", source_->name());
             source_lost_.store(true, std::memory_order_relaxed);
@@ -302,6 +304,11 @@ void Daemon::capture_loop()
         // full ring loses nothing, the frame carries the same sample.
         if (actuation_ && std::isfinite(hand->odom_mm))
             captured_odometry_.try_push({hand->t_sample_ns, hand->odom_mm});
+        // The odometer ahead (a paced replay's next recorded sample): the
+        // actuator interpolates up to it instead of extrapolating, so how
+        // long this frame takes to process changes no decision.
+        if (actuation_ && std::isfinite(hand->odom_next_mm))
+            captured_odometry_.try_push({hand->t_next_ns, hand->odom_next_mm});
         if (can_wait) {
             // Back-pressure: only this thread fills the ring, so once there
             // is room the push cannot fail.
@@ -477,6 +484,10 @@ void Daemon::actuator_loop()
         results_.pop();
         counters_->actuator.cycle.record(base::monotonic_ns() - t_start_ns);
     }
+    // A recording played to its end, not a stop: its last view's plants
+    // still pass the tools.
+    if (actuation_ && source_ended_.load(std::memory_order_acquire) && !stopping())
+        actuation_->end_of_stream();
     if (actuation_ && !actuation_->finish())
         sink_ok_.store(false);
     actuator_done_.store(true, std::memory_order_release);

@@ -407,3 +407,62 @@ TEST_F(ReplayTest, FramesTheSourceComesToLateAreCounted)
     EXPECT_EQ(source.counters().late, 1u);
     EXPECT_GE(source.counters().worst_lateness_ms, 29.0);
 }
+
+TEST_F(ReplayTest, RecordedPacingCarriesTheNextFramesOdometerAndItsDueTime)
+{
+    constexpr std::int64_t kPeriodNs = 20'000'000;
+    write_recording(3, kPeriodNs);   // odom_mm 0, 12.5, 25
+    auto source = make(ReplayOptions::Pacing::recorded, false);
+    ASSERT_TRUE(source.open());
+    ASSERT_TRUE(source.start());
+    Frame f = slot();
+    std::int64_t t_next_before = 0;
+    for (int i = 0; i < 3; ++i) {
+        ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+        EXPECT_DOUBLE_EQ(f.odom_mm, 12.5 * i);
+        if (i > 0) {
+            // What the previous frame announced is this frame's odometer, no
+            // later than this frame was handed over.
+            EXPECT_LE(t_next_before, f.t_sample_ns);
+        }
+        // The next frame's odometer, one recorded interval after this one
+        // was due (after the last: the last step again).
+        EXPECT_DOUBLE_EQ(f.odom_next_mm, 12.5 * (i + 1));
+        EXPECT_LE(f.t_next_ns, f.t_sample_ns + kPeriodNs);
+        t_next_before = f.t_next_ns;
+    }
+    EXPECT_EQ(source.next(f, 1s), NextStatus::end_of_stream);
+}
+
+TEST_F(ReplayTest, FastPacingAnnouncesNoOdometerAhead)
+{
+    write_recording(2, 1'000'000);
+    auto source = make(ReplayOptions::Pacing::fast, false);
+    ASSERT_TRUE(source.open());
+    ASSERT_TRUE(source.start());
+    Frame f = slot();
+    ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+    EXPECT_TRUE(std::isnan(f.odom_next_mm));
+}
+
+TEST_F(ReplayTest, ALateFrameShiftsTheFramesAfterItInsteadOfABurst)
+{
+    constexpr std::int64_t kPeriodNs = 20'000'000;
+    write_recording(3, kPeriodNs);
+    auto source = make(ReplayOptions::Pacing::recorded, false);
+    ASSERT_TRUE(source.open());
+    ASSERT_TRUE(source.start());
+    Frame f = slot();
+    ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+    // The consumer keeps the first frame 100 ms: the second is 80 ms late.
+    std::this_thread::sleep_for(100ms);
+    const std::int64_t before_second_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                              std::chrono::steady_clock::now().time_since_epoch())
+                                              .count();
+    ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+    EXPECT_EQ(source.counters().late, 1u);
+    // The third keeps its recorded interval from the second: on the
+    // recording's own clock it was due 60 ms before the second was taken.
+    EXPECT_GE(f.t_next_ns, before_second_ns + kPeriodNs);
+    EXPECT_DOUBLE_EQ(f.odom_next_mm, 25.0);
+}

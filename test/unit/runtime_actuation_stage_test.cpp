@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <map>
+#include <set>
 #include <memory>
 #include <vector>
 
@@ -658,6 +659,112 @@ TEST(ActuationStage, HeartbeatSaysCameraLostWhileTheCaptureSideSaysSo)
                                             DaemonState::CameraLost, DaemonState::CameraLost, DaemonState::CameraLost,
                                             DaemonState::Starting,   DaemonState::Starting,   DaemonState::Starting};
     EXPECT_EQ(states, expected);
+}
+
+// Frames a second apart (BoniRob's recording: 0.26 m/s, the view 319 mm
+// long here): a plant seen only in the last frame, mid-view, is sent when
+// the stream ends, as the next frame step would carry it out of the view;
+// without the end it stays unconfirmed.
+TEST(ActuationStage, TheEndOfAStreamSendsWhatTheNextFrameStepWouldCarryOut)
+{
+    constexpr double kStepMm = 265.0;
+    const std::vector<Plant> plants{{100.0, 20.0, PlantClass::Weed}, {530.0, -30.0, PlantClass::Weed}};
+    for (const bool end : {false, true}) {
+        SCOPED_TRACE(end ? "end of stream" : "stopped");
+        Stage run = make_stage(base_config());
+        for (int k = 0; k < 3; ++k) {
+            auto r = frame({}, k);
+            r->t_sample_ns = kT0 + k * 1'000'000'000LL;
+            r->odom_mm = k * kStepMm;
+            // Frame k sees the plants within its 319 mm view.
+            const cv::Point2d c = geometry::image_centre(kSize);
+            for (const Plant& p : plants) {
+                const double v = c.y - (p.s_mm - r->odom_mm) / kGsd;
+                if (v < 20 || v > kSize.height - 21)
+                    continue;
+                vision::Plant vp;
+                vp.stem = {static_cast<float>(c.x - p.y_mm / kGsd), static_cast<float>(v)};
+                vp.bbox = cv::Rect(static_cast<int>(vp.stem.x) - 15, static_cast<int>(v) - 15, 31, 31);
+                vp.has_stem = true;
+                vp.confidence = 0.8f;
+                r->plant_class[r->detections.plants.size()] = p.cls;
+                r->detections.plants.push_back(vp);
+            }
+            run.stage->on_frame(*r, r->t_sample_ns + 3'000'000);
+        }
+        EXPECT_EQ(targets(*run.bus).size(), 1u) << "the first plant left the view at frame 1";
+        if (end)
+            run.stage->end_of_stream();
+        const auto sent = targets(*run.bus);
+        ASSERT_EQ(sent.size(), end ? 2u : 1u);
+        if (end) {
+            EXPECT_NEAR(sent.back().fire_odom_mm, 530.0 + 600.0, 1.0);
+        }
+        EXPECT_EQ(run.stage->counters().no_odometry.load(), 0u);
+    }
+}
+
+// At 30 fps the next step is 46 mm: a plant in mid-view when the stream
+// ends is not sent (it would have been seen again), and none is sent twice.
+TEST(ActuationStage, TheEndOfAStreamLeavesMidViewPlantsAlone)
+{
+    const auto plants = strip(30);
+    Stage run = make_stage(base_config());
+    const int last = frames_for(plants) / 2;
+    for (int k = 0; k <= last; ++k) {
+        const auto r = frame(plants, k);
+        run.stage->on_frame(*r, r->t_sample_ns + 3'000'000);
+    }
+    const std::size_t before = targets(*run.bus).size();
+    run.stage->end_of_stream();
+    const auto sent = targets(*run.bus);
+    ASSERT_GE(sent.size(), before);
+    const double odom_last = last * kSpeed / 30.0;
+    const double view_min_next = odom_last + kSpeed / 30.0 + run.stage->view_forward_min_mm();
+    for (std::size_t i = before; i < sent.size(); ++i) {
+        // Within the exit margin (60 mm) and the plant's half-size (5 mm)
+        // of the next view's trailing edge.
+        EXPECT_LT(sent[i].fire_odom_mm - 600.0, view_min_next + 60.0 + 5.0 + 1.0);
+    }
+    std::set<int> fire;
+    for (const auto& t : sent)
+        EXPECT_TRUE(fire.insert(static_cast<int>(t.fire_odom_mm)).second) << "a plant sent twice";
+    // Plants ahead of that reach, in view, stay unsent.
+    int ahead_in_view = 0;
+    for (const Plant& p : plants)
+        if (p.s_mm > view_min_next + 70.0 && p.s_mm < odom_last + run.stage->view_forward_max_mm())
+            ++ahead_in_view;
+    EXPECT_GT(ahead_in_view, 0);
+    EXPECT_LE(sent.size(), plants.size() - static_cast<std::size_t>(ahead_in_view));
+}
+
+// A frame processed 200 ms after its capture, beyond the 100 ms the
+// odometer may be extrapolated: with the next frame's odometer already in
+// (a paced replay announces it) it is interpolated and the plant is sent.
+TEST(ActuationStage, AnOdometerSampleAheadKeepsASlowFrameActuated)
+{
+    const auto plants = strip(3);
+    for (const bool ahead : {false, true}) {
+        SCOPED_TRACE(ahead ? "next sample known" : "no sample ahead");
+        ActuationConfig config = base_config();
+        config.max_extrapolation_ns = 100'000'000;
+        Stage run = make_stage(config);
+        std::uint64_t no_odometry = 0;
+        for (int k = 0; k < frames_for(plants); ++k) {
+            const auto r = frame(plants, k);
+            run.stage->on_capture(r->t_sample_ns, r->odom_mm);
+            if (ahead)   // a second ahead, at the same speed
+                run.stage->on_capture(r->t_sample_ns + 1'000'000'000, r->odom_mm + kSpeed);
+            run.stage->on_frame(*r, r->t_sample_ns + 200'000'000);
+            no_odometry = run.stage->counters().no_odometry.load();
+        }
+        if (ahead) {
+            EXPECT_EQ(no_odometry, 0u);
+            EXPECT_EQ(targets(*run.bus).size(), plants.size());
+        } else {
+            EXPECT_GT(no_odometry, 0u);
+        }
+    }
 }
 
 }  // namespace

@@ -65,6 +65,11 @@ struct Frame {
     // The odometer at capture (mm, monotonic) when the source knows it (a
     // recording's odom_mm column); NaN otherwise.
     double odom_mm = std::numeric_limits<double>::quiet_NaN();
+    // A source that knows the odometer ahead of the next frame (a paced
+    // replay of a recording with odom_mm: the track it samples): that
+    // odometer and when it is reached; NaN (and 0) otherwise.
+    std::int64_t t_next_ns = 0;
+    double odom_next_mm = std::numeric_limits<double>::quiet_NaN();
     std::uint64_t source_seq = 0;    // the source's frame counter (gaps = frames the source lost)
     std::uint64_t seq = 0;           // set by the runtime: frames captured before this one
     FrameName name;

@@ -81,6 +81,15 @@ public:
     // camera_lost: the capture side has no camera (see HeartbeatInputs);
     // the HEARTBEAT says so.
     void poll(std::int64_t now_ns, bool camera_lost = false) noexcept;
+    // The source ended (a recording played once) after the last on_frame():
+    // the machine is taken to drive on by one more frame step (the travel
+    // between the last two frames) in which nothing is seen, so the plants
+    // that step carries past the view's trailing edge become targets by the
+    // tracker's exit rule, as they would in the field, instead of ending
+    // unconfirmed. They are scheduled against the odometer at the last
+    // frame's capture, the newest one known. Nothing without two frames
+    // with an odometer.
+    void end_of_stream() noexcept;
     // End of the run: the tracks still open go to the plant map; the map is
     // closed. False (logged) if the map lost lines or the bus is a log that
     // lost frames.
@@ -137,6 +146,13 @@ private:
     bool gnss_reported_ = false;
     bool odometry_announced_ = false;
     std::int64_t last_frame_ns_ = -1;
+    // The last two frames the tracker took (end_of_stream's frame step).
+    std::uint64_t frames_tracked_ = 0;
+    std::uint64_t last_seq_ = 0;
+    std::int64_t last_capture_ns_ = 0;
+    double last_odom_mm_ = 0;
+    double prev_odom_mm_ = 0;
+    bool last_class_map_ = false;
     // Map lines of sent plants waiting for their TOOL_FIRED.
     struct Waiting {
         bool used = false;

@@ -135,6 +135,7 @@ private:
     LiveFeed* live_feed_ = nullptr;
 
     std::atomic<bool> stop_{false};
+    std::atomic<bool> source_ended_{false};      // the source said end_of_stream (not a failure or a stop)
     std::atomic<bool> capture_done_{false};      // the source ended or failed: nothing more will be pushed
     std::atomic<bool> processing_done_{false};
     std::atomic<bool> actuator_done_{false};
