@@ -17,6 +17,7 @@ constexpr std::array<std::string_view, kPlantFeatureCount> kFeatureNames{
     "log_area_mm2", "perimeter_mm", "solidity",   "compactness", "elongation", "extent",   "leaves",
     "leaf_elongation", "vegetation_fill", "mean_width_mm", "r_mean", "g_mean", "b_mean", "r_std",
     "g_std",        "exg_mean",     "brightness_rel", "texture", "ndvi_mean", "ndvi_std", "lateral",
+    "row_offset_mm", "row_band_share", "row_neighbours", "area_share",
 };
 
 double sq(double v) { return v * v; }
@@ -35,6 +36,51 @@ double spread(double sum, double sum2, double n)
         return 0;
     const double mean = sum / n;
     return std::sqrt(std::max(0.0, sum2 / n - mean * mean));
+}
+
+// The row features: O(plants²) over at most kMaxPlants plants, on the
+// Detections only (no pixel is read again).
+void row_context(const Detections& det, double gsd, std::size_t plants,
+                 std::array<FeatureRow, kMaxPlants>& features)
+{
+    const double band_px = kRowHalfWidthMm / std::max(gsd, 1e-6);
+    double total_area = 0, largest_area = 1;
+    for (std::size_t i = 0; i < plants; ++i) {
+        total_area += det.plants[i].area_px;
+        largest_area = std::max(largest_area, static_cast<double>(det.plants[i].area_px));
+    }
+    total_area = std::max(total_area, 1.0);
+    // Each plant's band: the area in it and how many others share it. The
+    // band with most area is the dominant row.
+    double best_area = -1;
+    std::size_t best = 0;
+    for (std::size_t i = 0; i < plants; ++i) {
+        const double xi = det.plants[i].centre_of_mass.x;
+        double area = 0;
+        int neighbours = 0;
+        for (std::size_t j = 0; j < plants; ++j) {
+            if (std::abs(det.plants[j].centre_of_mass.x - xi) > band_px)
+                continue;
+            area += det.plants[j].area_px;
+            neighbours += j != i;
+        }
+        features[i][f_row_band_share] = static_cast<float>(area / total_area);
+        features[i][f_row_neighbours] = static_cast<float>(neighbours);
+        features[i][f_area_share] = static_cast<float>(det.plants[i].area_px / largest_area);
+        if (area > best_area) {
+            best_area = area;
+            best = i;
+        }
+    }
+    double row_sum = 0, row_area = 0;
+    for (std::size_t j = 0; j < plants; ++j)
+        if (std::abs(det.plants[j].centre_of_mass.x - det.plants[best].centre_of_mass.x) <= band_px) {
+            row_sum += det.plants[j].area_px * static_cast<double>(det.plants[j].centre_of_mass.x);
+            row_area += det.plants[j].area_px;
+        }
+    const double row_x = row_sum / std::max(row_area, 1.0);
+    for (std::size_t i = 0; i < plants; ++i)
+        features[i][f_row_offset_mm] = static_cast<float>(std::abs(det.plants[i].centre_of_mass.x - row_x) * gsd);
 }
 
 }  // namespace
@@ -239,13 +285,14 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
         f[f_ndvi_std] = has_nir ? static_cast<float>(spread(s.ndvi, s.ndvi2, veg_px)) : 0.0f;
         f[f_lateral] = static_cast<float>(plant.centre_of_mass.x / std::max(width, 1));
     }
+    row_context(det, gsd, ws.plants_, ws.features_);
 }
 
-PlantClass decide_class(float weed_probability, double min_confidence)
+PlantClass decide_class(float weed_probability, double min_confidence, double weed_confidence)
 {
     // In float, as the probability is: 0.7f must pass a 0.7 bar.
     const auto bar = static_cast<float>(min_confidence);
-    if (weed_probability >= bar)
+    if (weed_probability >= std::max(bar, static_cast<float>(weed_confidence)))
         return PlantClass::Weed;
     if (1.0f - weed_probability >= bar)
         return PlantClass::Crop;
