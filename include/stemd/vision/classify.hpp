@@ -101,6 +101,7 @@ private:
     };
     cv::Size frame_size_;
     cv::Mat plant_index_;
+    cv::Rect dirty_{};   // where plant_index_ holds nonzero values
     std::array<Sums, kMaxPlants> sums_{};
     std::array<FeatureRow, kMaxPlants> features_{};
     std::size_t plants_ = 0;
