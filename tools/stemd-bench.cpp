@@ -8,12 +8,18 @@
 // tracker, scheduler, TARGET encoding; the bus discards the frames) on the
 // detections of a 1 m moving strip of the same preset, driven over again
 // and again.
+// "classify" is the crop/weed classifier after detect() (features, forest,
+// decision, for every plant), with --model FILE or else a forest of the
+// default size trained at start on the bench frames' own plants.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <ctime>
 #include <map>
+#include <optional>
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -24,8 +30,10 @@
 #include <opencv2/imgproc.hpp>
 
 #include "stemd/runtime/actuation_stage.hpp"
+#include "stemd/runtime/daemon_config.hpp"
 #include "stemd/runtime/logging.hpp"
 #include "stemd/synth/synth.hpp"
+#include "stemd/vision/classify.hpp"
 #include "stemd/vision/detect.hpp"
 #include "tool_cli.hpp"
 
@@ -42,6 +50,79 @@ struct Setup {
 };
 
 Setup* g_setup = nullptr;  // benchmark callbacks are plain functions
+
+struct ClassifySetup {
+    std::unique_ptr<vision::ClassifyWorkspace> workspace;
+    std::optional<vision::PlantClassifier> model;
+    std::array<PlantClass, vision::kMaxPlants> classes{};
+};
+ClassifySetup* g_classify = nullptr;
+
+std::int64_t thread_cpu_ns()
+{
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+void bench_classify(benchmark::State& state)
+{
+    Setup& s = *g_setup;
+    ClassifySetup& c = *g_classify;
+    const runtime::ClassifyConfig decision;
+    for (auto _ : state) {
+        const synth::Frame& f = s.frames[s.next++ % s.frames.size()];
+        const vision::FrameView view{.bgr = f.bgr, .nir = f.nir, .mask = f.mask};
+        vision::detect(view, s.params, *s.workspace, s.detections);
+        const std::int64_t cpu0 = thread_cpu_ns();
+        const auto t0 = std::chrono::steady_clock::now();
+        vision::plant_features(view, s.params, *s.workspace, s.detections, *c.workspace);
+        const auto features = c.workspace->features();
+        for (std::size_t i = 0; i < features.size(); ++i)
+            c.classes[i] = vision::decide_class(c.model->weed_probability(features[i]), decision.min_confidence,
+                                                decision.weed_confidence);
+        const auto t1 = std::chrono::steady_clock::now();
+        const std::int64_t cpu1 = thread_cpu_ns();
+        benchmark::DoNotOptimize(c.classes.data());
+        state.SetIterationTime(std::chrono::duration<double>(t1 - t0).count());
+        // The thread's own CPU time: on a loaded machine the wall time also
+        // holds the time other processes had the core.
+        state.counters["cpu_ms"] = static_cast<double>(cpu1 - cpu0) / 1e6;
+    }
+    state.counters["plants"] = static_cast<double>(s.detections.plants.size());
+}
+
+// Without a model file: a forest of the default size on the bench frames'
+// plants, labelled by area with every third label flipped, so that the
+// trees grow to their depth limit as on hard real data (predict's cost is
+// the trees' count and depth, not what they learned).
+std::optional<vision::PlantClassifier> bench_forest(Setup& s, vision::ClassifyWorkspace& workspace, std::string& error)
+{
+    std::vector<vision::FeatureRow> rows;
+    for (const synth::Frame& f : s.frames) {
+        const vision::FrameView view{.bgr = f.bgr, .nir = f.nir, .mask = f.mask};
+        vision::detect(view, s.params, *s.workspace, s.detections);
+        vision::plant_features(view, s.params, *s.workspace, s.detections, workspace);
+        rows.insert(rows.end(), workspace.features().begin(), workspace.features().end());
+    }
+    if (rows.size() < 4) {
+        error = "too few plants on the bench frames to train a forest";
+        return std::nullopt;
+    }
+    std::vector<float> areas;
+    for (const auto& r : rows)
+        areas.push_back(r[vision::f_log_area_mm2]);
+    std::nth_element(areas.begin(), areas.begin() + static_cast<std::ptrdiff_t>(areas.size() / 2), areas.end());
+    const float median = areas[areas.size() / 2];
+    cv::Mat samples(static_cast<int>(rows.size()), vision::kPlantFeatureCount, CV_32FC1);
+    cv::Mat labels(static_cast<int>(rows.size()), 1, CV_32SC1);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        std::copy(rows[i].begin(), rows[i].end(), samples.ptr<float>(static_cast<int>(i)));
+        const bool weed = (rows[i][vision::f_log_area_mm2] < median) != (i % 3 == 0);
+        labels.at<int>(static_cast<int>(i)) = to_value(weed ? PlantClass::Weed : PlantClass::Crop);
+    }
+    return vision::PlantClassifier::train(samples, labels, vision::ForestOptions{}, error);
+}
 
 // A bus that takes every frame and keeps nothing.
 class NullBus final : public drivers::CanBus {
@@ -145,8 +226,11 @@ public:
     void ReportRuns(const std::vector<Run>& runs) override
     {
         for (const Run& run : runs) {
-            if (run.aggregate_name == "median" || run.aggregate_name == "p90")
+            if (run.aggregate_name == "median" || run.aggregate_name == "p90") {
                 values_[run.run_name.function_name + "_ms_" + run.aggregate_name] = run.GetAdjustedRealTime();
+                if (const auto cpu = run.counters.find("cpu_ms"); cpu != run.counters.end())
+                    values_[run.run_name.function_name + "_cpu_ms_" + run.aggregate_name] = cpu->second.value;
+            }
         }
     }
     void Print(int frames, const std::string& preset, int radius, std::size_t workspace_bytes) const
@@ -178,6 +262,7 @@ int main(int argc, char** argv)
     std::string preset_name = "late";
     int frame_count = 8, radius = vision::Params{}.closing_radius_px, repetitions = 200;
     int edge_radius = vision::Params{}.edge_radius_px;
+    std::string model_path;
     CLI::App app{"stemd-bench: per-stage and whole-pipeline timings on synthetic 1296x966 frames; other arguments "
                  "go to Google Benchmark (--benchmark_filter=REGEX, ...)"};
     app.add_flag("--json", json, "one line of JSON: medians and p90 of every stage");
@@ -195,6 +280,8 @@ int main(int argc, char** argv)
                                         [](int r) { return r >= 0 && r <= vision::kMaxClosingRadiusPx; }));
     app.add_option("--edge-radius", edge_radius, "mixed-edge radius, px (0: off)")
         ->check(tools::value_check<int>("an integer", [](int) { return true; }));
+    app.add_option("--model", model_path, "crop/weed model for the classify stage (default: a forest trained on the "
+                                          "bench frames)");
     if (const auto exit_code = tools::parse(app, argc, argv, {.tool = "stemd-bench", .pass_unknown = true}))
         return *exit_code;
     std::vector<std::string> rest_args = app.remaining();
@@ -214,6 +301,20 @@ int main(int argc, char** argv)
     setup.params.edge_radius_px = std::max(edge_radius, 0);
     setup.workspace = std::make_unique<vision::Workspace>(setup.frames.front().bgr.size(), setup.params);
     g_setup = &setup;
+
+    ClassifySetup classify_setup;
+    {
+        classify_setup.workspace =
+            std::make_unique<vision::ClassifyWorkspace>(setup.frames.front().bgr.size(), setup.params);
+        std::string error;
+        classify_setup.model = model_path.empty() ? bench_forest(setup, *classify_setup.workspace, error)
+                                                  : vision::PlantClassifier::load(model_path, error);
+        if (!classify_setup.model) {
+            std::fprintf(stderr, "stemd-bench: classify: %s\n", error.c_str());
+            return 1;
+        }
+    }
+    g_classify = &classify_setup;
 
     // The actuation: detections of a 1 m strip, then the stage driving over it.
     ActuationSetup actuation_setup;
@@ -256,6 +357,9 @@ int main(int argc, char** argv)
         benchmark::RegisterBenchmark(kStageNames[stage], bench_stage, stage)
             ->UseManualTime()->Iterations(1)->Repetitions(repetitions)->ReportAggregatesOnly(true)
             ->ComputeStatistics("p90", p90)->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark("classify", bench_classify)
+        ->UseManualTime()->Iterations(1)->Repetitions(repetitions)->ReportAggregatesOnly(true)
+        ->ComputeStatistics("p90", p90)->Unit(benchmark::kMillisecond);
     benchmark::RegisterBenchmark("actuation", bench_actuation)
         ->UseManualTime()->Iterations(1)->Repetitions(repetitions)->ReportAggregatesOnly(true)
         ->ComputeStatistics("p90", p90)->Unit(benchmark::kMillisecond);

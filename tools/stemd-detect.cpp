@@ -206,7 +206,8 @@ int main(int argc, char** argv)
             vision::plant_features(view, params, *workspace, d, *classify_workspace);
             for (std::size_t i = 0; i < d.plants.size(); ++i) {
                 weed_probability[i] = model->weed_probability(classify_workspace->features()[i]);
-                plant_class[i] = vision::decide_class(weed_probability[i], classify.min_confidence);
+                plant_class[i] = vision::decide_class(weed_probability[i], classify.min_confidence,
+                                                     classify.weed_confidence);
             }
             classify_ms.push_back(static_cast<double>(base::monotonic_ns() - t0) / 1e6);
         }

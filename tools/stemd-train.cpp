@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <filesystem>
 #include <iostream>
@@ -161,6 +162,12 @@ void to_matrices(const std::vector<FrameSamples>& frames, const std::vector<std:
         }
 }
 
+// How a weed probability becomes a class (classify.*).
+struct Decision {
+    double min_confidence;
+    double weed_confidence;
+};
+
 // Figures over held-out frames.
 struct Figures {
     long plants[3][3] = {};   // [truth crop/weed][said unknown/crop/weed]
@@ -170,7 +177,7 @@ struct Figures {
     long px_crop_ceiling = 0, px_weed_ceiling = 0;   // every plant given its majority class
     int frames = 0, unlabelled = 0;
 
-    void add(const FrameSamples& frame, const vision::PlantClassifier& model, double min_confidence)
+    void add(const FrameSamples& frame, const vision::PlantClassifier& model, const Decision& decision)
     {
         ++frames;
         unlabelled += frame.unlabelled;
@@ -179,7 +186,8 @@ struct Figures {
         for (const Sample& s : frame.plants) {
             (s.label == to_value(PlantClass::Crop) ? px_crop_ceiling : px_weed_ceiling) +=
                 s.label == to_value(PlantClass::Crop) ? s.crop_px : s.weed_px;
-            const PlantClass said = vision::decide_class(model.weed_probability(s.features), min_confidence);
+            const PlantClass said = vision::decide_class(model.weed_probability(s.features), decision.min_confidence,
+                                                         decision.weed_confidence);
             ++plants[s.label][to_value(said)];
             if (said == PlantClass::Crop)
                 px_crop_right += s.crop_px;
@@ -190,7 +198,7 @@ struct Figures {
         }
     }
 
-    std::string text(const std::string& title, double min_confidence) const
+    std::string text(const std::string& title, const Decision& decision) const
     {
         auto ratio = [](double a, double b) { return b > 0 ? a / b : 0.0; };
         const int C = to_value(PlantClass::Crop), W = to_value(PlantClass::Weed), U = to_value(PlantClass::Unknown);
@@ -205,7 +213,7 @@ struct Figures {
         char buf[1024];
         std::snprintf(
             buf, sizeof buf,
-            "%s (%d frames, min_confidence %.2f)\n"
+            "%s (%d frames, min_confidence %.2f, weed_confidence %.2f)\n"
             "  plants: %.0f crop, %.0f weed (%d more found on soil, not scored)\n"
             "  crop: precision %.3f recall %.3f | weed: precision %.3f recall %.3f | unknown: %ld crop, %ld weed\n"
             "  crop safety: %ld of %.0f crop plants called weed (%.1f %%)\n"
@@ -213,7 +221,7 @@ struct Figures {
             "weed %.1f %%\n"
             "  (per-plant ceiling, every plant right: balanced accuracy %.3f; the rest is plants of both classes "
             "merged into one, and vegetation the segmentation missed)\n",
-            title.c_str(), frames, min_confidence, crop_plants, weed_plants, unlabelled, crop_precision, crop_recall,
+            title.c_str(), frames, decision.min_confidence, decision.weed_confidence, crop_plants, weed_plants, unlabelled, crop_precision, crop_recall,
             weed_precision, weed_recall, plants[C][U], plants[W][U], plants[C][W], crop_plants,
             100 * ratio(plants[C][W], crop_plants), px_crop_recall, px_weed_recall,
             0.5 * (px_crop_recall + px_weed_recall), 100 * ratio(px_crop_as_weed, px_crop_total),
@@ -270,7 +278,9 @@ int main(int argc, char** argv)
     }
     config::Config config;
     (void)config::build_config(config_args, config);   // checked by collect()
-    const double min_confidence = config.settings().daemon.classify.min_confidence;
+    const Decision decision{config.settings().daemon.classify.min_confidence,
+                            config.settings().daemon.classify.weed_confidence};
+    const Decision symmetric{0.5, 0.5};
     if (static_cast<int>(frames.size()) < folds) {
         std::cerr << "stemd-train: " << frames.size() << " frames, fewer than " << folds << " folds\n";
         return kUsageError;
@@ -279,6 +289,7 @@ int main(int argc, char** argv)
     // Cross-validation by frame: every plant of a frame is in the same fold,
     // so no plant is scored by a forest that saw its own frame.
     Figures cv_figures, cv_figures_half;
+    std::vector<std::pair<int, float>> out_of_fold;   // (label, weed probability)
     for (int k = 0; k < folds; ++k) {
         std::vector<std::size_t> train, test;
         for (std::size_t f = 0; f < frames.size(); ++f)
@@ -291,13 +302,35 @@ int main(int argc, char** argv)
             return 1;
         }
         for (const std::size_t f : test) {
-            cv_figures.add(frames[f], *model, min_confidence);
-            cv_figures_half.add(frames[f], *model, 0.5);
+            cv_figures.add(frames[f], *model, decision);
+            cv_figures_half.add(frames[f], *model, symmetric);
+            for (const Sample& s : frames[f].plants)
+                out_of_fold.emplace_back(s.label, model->weed_probability(s.features));
         }
     }
+    std::ostringstream sweep;
+    {
+        // What each weed bar would give, out of fold: the trade-off between
+        // crop safety and weeds treated that classify.weed_confidence picks.
+        sweep << "  weed bar (out of fold): crop plants called weed / weed recall:";
+        for (int bar = 50; bar <= 95; bar += 5) {
+            long crops = 0, crop_weed = 0, weeds = 0, weed_weed = 0;
+            for (const auto& [label, p] : out_of_fold) {
+                const bool weed = p >= bar / 100.0f;
+                (label == to_value(PlantClass::Crop) ? crops : weeds) += 1;
+                (label == to_value(PlantClass::Crop) ? crop_weed : weed_weed) += weed;
+            }
+            char text[96];
+            std::snprintf(text, sizeof text, "%s %.2f: %.1f %% / %.3f", bar % 25 == 0 ? "\n   " : ";", bar / 100.0,
+                          100.0 * static_cast<double>(crop_weed) / static_cast<double>(std::max(crops, 1L)),
+                          static_cast<double>(weed_weed) / static_cast<double>(std::max(weeds, 1L)));
+            sweep << text;
+        }
+        sweep << "\n";
+    }
     std::ostringstream report;
-    report << cv_figures_half.text(std::to_string(folds) + "-fold cross-validation by frame", 0.5)
-           << cv_figures.text(std::to_string(folds) + "-fold cross-validation by frame", min_confidence);
+    report << cv_figures_half.text(std::to_string(folds) + "-fold cross-validation by frame", symmetric)
+           << cv_figures.text(std::to_string(folds) + "-fold cross-validation by frame", decision) << sweep.str();
 
     std::vector<std::size_t> all(frames.size());
     for (std::size_t f = 0; f < frames.size(); ++f)
@@ -322,8 +355,8 @@ int main(int argc, char** argv)
         }
         Figures test_figures;
         for (const FrameSamples& f : test_frames)
-            test_figures.add(f, *model, 0.5);
-        std::cout << test_figures.text("the model (all training frames) on --test-on", 0.5);
+            test_figures.add(f, *model, decision);
+        std::cout << test_figures.text("the model (all training frames) on --test-on", decision);
     }
 
     vision::ModelInfo info;

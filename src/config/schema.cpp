@@ -231,6 +231,9 @@ constexpr std::array kSchema{
     bind<STEMD_KEY(daemon.classify.min_confidence)>(
         {"classify.min_confidence", real, "probability", 0.5, 1, "0.6", "",
             "a plant is weed when the model's weed probability is at least this, crop when its crop probability is; else unknown (never treated under weeds_only)"}),
+    bind<STEMD_KEY(daemon.classify.weed_confidence)>(
+        {"classify.weed_confidence", real, "probability", 0.5, 1, "0.85", "",
+            "crop safety: a plant is weed only when its weed probability is also at least this (crop plants called weed are stamped, weeds called crop only stay)"}),
 
     // The daemon (stemd): frame source, rings, threads, status, logging.
     bind<STEMD_KEY(daemon.source_kind)>(

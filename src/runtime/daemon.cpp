@@ -399,7 +399,8 @@ void Daemon::processing_loop()
                     result->plant_class[i] =
                         i < features.size()
                             ? vision::decide_class(classifier_->weed_probability(features[i]),
-                                                   config_.classify.min_confidence)
+                                                   config_.classify.min_confidence,
+                                                   config_.classify.weed_confidence)
                             : PlantClass::Unknown;
                 result->has_class_map = true;
             } else {

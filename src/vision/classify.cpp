@@ -17,6 +17,7 @@ constexpr std::array<std::string_view, kPlantFeatureCount> kFeatureNames{
     "log_area_mm2", "perimeter_mm", "solidity",   "compactness", "elongation", "extent",   "leaves",
     "leaf_elongation", "vegetation_fill", "mean_width_mm", "r_mean", "g_mean", "b_mean", "r_std",
     "g_std",        "exg_mean",     "brightness_rel", "texture", "ndvi_mean", "ndvi_std", "lateral",
+    "row_offset_mm", "row_band_share", "row_neighbours", "area_share",
 };
 
 double sq(double v) { return v * v; }
@@ -37,6 +38,51 @@ double spread(double sum, double sum2, double n)
     return std::sqrt(std::max(0.0, sum2 / n - mean * mean));
 }
 
+// The row features: O(plants²) over at most kMaxPlants plants, on the
+// Detections only (no pixel is read again).
+void row_context(const Detections& det, double gsd, std::size_t plants,
+                 std::array<FeatureRow, kMaxPlants>& features)
+{
+    const double band_px = kRowHalfWidthMm / std::max(gsd, 1e-6);
+    double total_area = 0, largest_area = 1;
+    for (std::size_t i = 0; i < plants; ++i) {
+        total_area += det.plants[i].area_px;
+        largest_area = std::max(largest_area, static_cast<double>(det.plants[i].area_px));
+    }
+    total_area = std::max(total_area, 1.0);
+    // Each plant's band: the area in it and how many others share it. The
+    // band with most area is the dominant row.
+    double best_area = -1;
+    std::size_t best = 0;
+    for (std::size_t i = 0; i < plants; ++i) {
+        const double xi = det.plants[i].centre_of_mass.x;
+        double area = 0;
+        int neighbours = 0;
+        for (std::size_t j = 0; j < plants; ++j) {
+            if (std::abs(det.plants[j].centre_of_mass.x - xi) > band_px)
+                continue;
+            area += det.plants[j].area_px;
+            neighbours += j != i;
+        }
+        features[i][f_row_band_share] = static_cast<float>(area / total_area);
+        features[i][f_row_neighbours] = static_cast<float>(neighbours);
+        features[i][f_area_share] = static_cast<float>(det.plants[i].area_px / largest_area);
+        if (area > best_area) {
+            best_area = area;
+            best = i;
+        }
+    }
+    double row_sum = 0, row_area = 0;
+    for (std::size_t j = 0; j < plants; ++j)
+        if (std::abs(det.plants[j].centre_of_mass.x - det.plants[best].centre_of_mass.x) <= band_px) {
+            row_sum += det.plants[j].area_px * static_cast<double>(det.plants[j].centre_of_mass.x);
+            row_area += det.plants[j].area_px;
+        }
+    const double row_x = row_sum / std::max(row_area, 1.0);
+    for (std::size_t i = 0; i < plants; ++i)
+        features[i][f_row_offset_mm] = static_cast<float>(std::abs(det.plants[i].centre_of_mass.x - row_x) * gsd);
+}
+
 }  // namespace
 
 std::string_view feature_name(int feature)
@@ -51,6 +97,7 @@ ClassifyWorkspace::ClassifyWorkspace(cv::Size frame_size, const Params&)
     const int width = std::max(frame_size.width, 0);
     const int height = std::max(frame_size.height, 0);
     plant_index_.create(height, width, CV_16UC1);
+    clear_rows(plant_index_);
     reciprocal_[0] = 0;   // a black pixel has no chromaticity: counted as 0
     for (std::size_t i = 1; i < reciprocal_.size(); ++i)
         reciprocal_[i] = 1.0f / static_cast<float>(i);
@@ -62,7 +109,11 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
     // A frame the workspaces were not made for, or without its rgb image,
     // gives no features: its plants stay unclassified.
     ws.plants_ = 0;
-    clear_rows(ws.plant_index_);
+    // Only what the last frame wrote: the whole map would be 2.5 MB per frame.
+    for (int y = ws.dirty_.y; y < ws.dirty_.y + ws.dirty_.height; ++y)
+        std::memset(ws.plant_index_.ptr<std::uint16_t>(y) + ws.dirty_.x, 0,
+                    static_cast<std::size_t>(ws.dirty_.width) * sizeof(std::uint16_t));
+    ws.dirty_ = cv::Rect();
     if (det.plants.empty() || frame.bgr.empty() || frame.bgr.size() != ws.frame_size_ ||
         frame.bgr.type() != CV_8UC3 || dws.frame_size() != ws.frame_size_)
         return;
@@ -72,18 +123,28 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
     const std::span<const std::uint16_t> piece_plant = dws.piece_plant();
     const bool has_nir = !frame.nir.empty() && frame.nir.size() == ws.frame_size_ && frame.nir.type() == CV_8UC1;
 
-    // One pass over the closed mask: each run gets its plant once. Its
-    // moments follow from its ends in closed form; colour and texture add
-    // up in locals and go to the plant's sums once per run (adding into the
-    // array pixel by pixel would chain every add through memory).
+    // One pass over the closed mask, run by run: each run gets its plant
+    // once, its index pixels in one fill, its moments in closed form from
+    // its ends and its vegetation count by popcount. Only colour, texture
+    // and NDVI read pixels, on every other row: they are means, and half
+    // the rows estimate them well.
     std::fill(ws.sums_.begin(), ws.sums_.begin() + static_cast<std::ptrdiff_t>(ws.plants_), ClassifyWorkspace::Sums{});
     const int width = ws.frame_size_.width, height = ws.frame_size_.height;
     const int words = closed.words_per_row();
-    struct RunSums {
-        long vegetation_px = 0, sampled_px = 0;
-        float r = 0, g = 0, b = 0, rr = 0, gg = 0, ndvi = 0, ndvi2 = 0;
-        long brightness = 0, gradient = 0;
+    // The first set (want = 1) or clear (want = 0) bit at or after x, or width.
+    auto next_bit = [&](const std::uint64_t* row, int x, bool want) {
+        if (x >= width)
+            return width;
+        int w = x >> 6;
+        std::uint64_t bits = (want ? row[w] : ~row[w]) & (~0ull << (x & 63));
+        while (bits == 0) {
+            if (++w >= words)
+                return width;
+            bits = want ? row[w] : ~row[w];
+        }
+        return std::min(w * 64 + std::countr_zero(bits), width);
     };
+    int dirty_top = height, dirty_bottom = -1, dirty_left = width, dirty_right = -1;
     for (int y = 0; y < height; ++y) {
         const std::uint64_t* crow = closed.row(y);
         const std::uint64_t* vrow = vegetation.row(y);
@@ -92,88 +153,87 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
         const auto* bgr_up = frame.bgr.ptr<cv::Vec3b>(std::max(y - 1, 0));
         const auto* bgr_down = frame.bgr.ptr<cv::Vec3b>(std::min(y + 1, height - 1));
         const std::uint8_t* nir = has_nir ? frame.nir.ptr<std::uint8_t>(y) : nullptr;
-        // Colour, texture and NDVI are means: every other row estimates
-        // them well and halves the cost of the pass.
         const bool sample_row = (y & 1) == 0;
-        std::uint16_t id = 0;
-        int run_start = 0, run_end = -2;   // the current run, [run_start, run_end]
-        RunSums acc;
-        auto flush = [&] {
-            if (id == 0 || run_end < run_start)
-                return;
-            ClassifyWorkspace::Sums& s = ws.sums_[id - 1u];
-            const cv::Rect& box = det.plants[id - 1u].bbox;
-            // Pixels x0..x1 relative to the box corner, all on row dy.
-            const double n = run_end - run_start + 1;
-            const double x0 = run_start - box.x, x1 = run_end - box.x, dy = y - box.y;
-            const double sum_x = (x0 + x1) * n / 2;
-            const double sum_xx = (x1 * (x1 + 1) * (2 * x1 + 1) - (x0 - 1) * x0 * (2 * x0 - 1)) / 6;
-            s.closed_px += static_cast<long>(n);
-            s.x += sum_x;
-            s.y += dy * n;
-            s.xx += sum_xx;
-            s.yy += dy * dy * n;
-            s.xy += dy * sum_x;
-            s.vegetation_px += acc.vegetation_px;
-            s.sampled_px += acc.sampled_px;
-            s.brightness += static_cast<double>(acc.brightness);
-            s.gradient += static_cast<double>(acc.gradient);
-            s.r += acc.r;
-            s.g += acc.g;
-            s.b += acc.b;
-            s.rr += acc.rr;
-            s.gg += acc.gg;
-            s.ndvi += acc.ndvi;
-            s.ndvi2 += acc.ndvi2;
-            acc = RunSums{};
-        };
-        for (int w = 0; w < words; ++w) {
-            std::uint64_t bits = crow[w];
-            while (bits) {
-                const int x = w * 64 + std::countr_zero(bits);
-                bits &= bits - 1;
-                if (x != run_end + 1) {
-                    flush();
-                    // The plant detect() made of this piece.
-                    const int piece = component_at(dws.pieces(), {x, y});
-                    id = piece >= 0 ? piece_plant[static_cast<std::size_t>(piece)] : 0;
-                    run_start = x;
+        for (int run_start = next_bit(crow, 0, true); run_start < width;) {
+            const int run_stop = next_bit(crow, run_start, false);   // one past the run's end
+            const int piece = component_at(dws.pieces(), {run_start, y});
+            const std::uint16_t id = piece >= 0 ? piece_plant[static_cast<std::size_t>(piece)] : 0;
+            if (id != 0) {
+                ClassifyWorkspace::Sums& s = ws.sums_[id - 1u];
+                const cv::Rect& box = det.plants[id - 1u].bbox;
+                std::fill(index_row + run_start, index_row + run_stop, id);
+                dirty_top = std::min(dirty_top, y);
+                dirty_bottom = y;
+                dirty_left = std::min(dirty_left, run_start);
+                dirty_right = std::max(dirty_right, run_stop - 1);
+                // Pixels x0..x1 relative to the box corner, all on row dy.
+                const double n = run_stop - run_start;
+                const double x0 = run_start - box.x, x1 = run_stop - 1 - box.x, dy = y - box.y;
+                const double sum_x = (x0 + x1) * n / 2;
+                s.closed_px += run_stop - run_start;
+                s.x += sum_x;
+                s.y += dy * n;
+                s.xx += (x1 * (x1 + 1) * (2 * x1 + 1) - (x0 - 1) * x0 * (2 * x0 - 1)) / 6;
+                s.yy += dy * dy * n;
+                s.xy += dy * sum_x;
+                // The run's vegetation pixels, word by word.
+                long vegetation_px = 0, sampled_px = 0, brightness = 0, gradient = 0;
+                float r_sum = 0, g_sum = 0, b_sum = 0, rr = 0, gg = 0, ndvi_sum = 0, ndvi2 = 0;
+                for (int w = run_start >> 6; w <= (run_stop - 1) >> 6; ++w) {
+                    std::uint64_t bits = vrow[w];
+                    if (w == run_start >> 6)
+                        bits &= ~0ull << (run_start & 63);
+                    if (w == (run_stop - 1) >> 6 && (run_stop & 63) != 0)
+                        bits &= ~0ull >> (64 - (run_stop & 63));
+                    vegetation_px += std::popcount(bits);
+                    if (!sample_row)
+                        continue;
+                    while (bits) {
+                        const int x = w * 64 + std::countr_zero(bits);
+                        bits &= bits - 1;
+                        ++sampled_px;
+                        const cv::Vec3b& p = bgr[x];
+                        const int sum = p[0] + p[1] + p[2];
+                        brightness += sum;
+                        // Reciprocals from a table: a division per pixel and
+                        // channel would cost more than the rest of the pass.
+                        const float inv = ws.reciprocal_[static_cast<std::size_t>(sum)];
+                        const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
+                        r_sum += r;
+                        g_sum += g;
+                        b_sum += static_cast<float>(p[0]) * inv;
+                        rr += r * r;
+                        gg += g * g;
+                        auto total = [](const cv::Vec3b& v) { return v[0] + v[1] + v[2]; };
+                        const int left = total(bgr[std::max(x - 1, 0)]), right = total(bgr[std::min(x + 1, width - 1)]);
+                        gradient += std::abs(right - left) + std::abs(total(bgr_down[x]) - total(bgr_up[x]));
+                        if (nir) {
+                            const int nv = nir[x], red = p[2];
+                            const float ndvi =
+                                static_cast<float>(nv - red) * ws.reciprocal_[static_cast<std::size_t>(nv + red)];
+                            ndvi_sum += ndvi;
+                            ndvi2 += ndvi * ndvi;
+                        }
+                    }
                 }
-                run_end = x;
-                if (id == 0)
-                    continue;
-                index_row[x] = id;
-                if (!((vrow[w] >> (x & 63)) & 1u))
-                    continue;
-                ++acc.vegetation_px;
-                if (!sample_row)
-                    continue;
-                ++acc.sampled_px;
-                const cv::Vec3b& p = bgr[x];
-                const int sum = p[0] + p[1] + p[2];
-                acc.brightness += sum;
-                // Reciprocals from a table: a division per pixel and
-                // channel would cost more than the rest of the pass.
-                const float inv = ws.reciprocal_[static_cast<std::size_t>(sum)];
-                const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
-                acc.r += r;
-                acc.g += g;
-                acc.b += static_cast<float>(p[0]) * inv;
-                acc.rr += r * r;
-                acc.gg += g * g;
-                auto total = [](const cv::Vec3b& v) { return v[0] + v[1] + v[2]; };
-                const int left = total(bgr[std::max(x - 1, 0)]), right = total(bgr[std::min(x + 1, width - 1)]);
-                acc.gradient += std::abs(right - left) + std::abs(total(bgr_down[x]) - total(bgr_up[x]));
-                if (nir) {
-                    const int n = nir[x], red = p[2];
-                    const float ndvi = static_cast<float>(n - red) * ws.reciprocal_[static_cast<std::size_t>(n + red)];
-                    acc.ndvi += ndvi;
-                    acc.ndvi2 += ndvi * ndvi;
-                }
+                s.vegetation_px += vegetation_px;
+                s.sampled_px += sampled_px;
+                s.brightness += static_cast<double>(brightness);
+                s.gradient += static_cast<double>(gradient);
+                s.r += r_sum;
+                s.g += g_sum;
+                s.b += b_sum;
+                s.rr += rr;
+                s.gg += gg;
+                s.ndvi += ndvi_sum;
+                s.ndvi2 += ndvi2;
             }
+            run_start = next_bit(crow, run_stop, true);
         }
-        flush();
     }
+    ws.dirty_ = dirty_bottom >= 0 ? cv::Rect(dirty_left, dirty_top, dirty_right - dirty_left + 1,
+                                              dirty_bottom - dirty_top + 1)
+                                  : cv::Rect();
 
     // 3. Features from the sums and the plant's own measures.
     // The frame's mean R+G+B from every 4th pixel of every 4th row, as the
@@ -239,13 +299,14 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
         f[f_ndvi_std] = has_nir ? static_cast<float>(spread(s.ndvi, s.ndvi2, veg_px)) : 0.0f;
         f[f_lateral] = static_cast<float>(plant.centre_of_mass.x / std::max(width, 1));
     }
+    row_context(det, gsd, ws.plants_, ws.features_);
 }
 
-PlantClass decide_class(float weed_probability, double min_confidence)
+PlantClass decide_class(float weed_probability, double min_confidence, double weed_confidence)
 {
     // In float, as the probability is: 0.7f must pass a 0.7 bar.
     const auto bar = static_cast<float>(min_confidence);
-    if (weed_probability >= bar)
+    if (weed_probability >= std::max(bar, static_cast<float>(weed_confidence)))
         return PlantClass::Weed;
     if (1.0f - weed_probability >= bar)
         return PlantClass::Crop;

@@ -109,7 +109,7 @@ TEST(RealTime, ClassifierAllocatesNothingOnceWarm)
     for (std::size_t i = 0; i < cws->features().size(); ++i) {
         const float p = model->weed_probability(cws->features()[i]);
         sum += p;
-        classes[i] = decide_class(p, 0.6);
+        classes[i] = decide_class(p, 0.6, 0.85);
     }
     EXPECT_EQ(stemd::test::allocations() - before, 0) << "heap allocations in weed_probability";
     before = stemd::test::allocations();

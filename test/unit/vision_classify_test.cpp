@@ -151,14 +151,58 @@ TEST(Classify, NdviFeaturesComeFromTheNirPlane)
 
 TEST(Classify, DecisionLeavesTheUnsureMiddleUnknown)
 {
-    EXPECT_EQ(decide_class(0.9f, 0.7), PlantClass::Weed);
-    EXPECT_EQ(decide_class(0.7f, 0.7), PlantClass::Weed);
-    EXPECT_EQ(decide_class(0.69f, 0.7), PlantClass::Unknown);
-    EXPECT_EQ(decide_class(0.31f, 0.7), PlantClass::Unknown);
-    EXPECT_EQ(decide_class(0.25f, 0.7), PlantClass::Crop);
-    EXPECT_EQ(decide_class(0.5f, 0.5), PlantClass::Weed);
-    EXPECT_EQ(decide_class(0.49f, 0.5), PlantClass::Crop);
-    EXPECT_EQ(decide_class(0.9f, 1.0), PlantClass::Unknown);
+    // weed_confidence at min_confidence or below: the symmetric decision.
+    EXPECT_EQ(decide_class(0.9f, 0.7, 0.5), PlantClass::Weed);
+    EXPECT_EQ(decide_class(0.7f, 0.7, 0.5), PlantClass::Weed);
+    EXPECT_EQ(decide_class(0.69f, 0.7, 0.5), PlantClass::Unknown);
+    EXPECT_EQ(decide_class(0.31f, 0.7, 0.5), PlantClass::Unknown);
+    EXPECT_EQ(decide_class(0.25f, 0.7, 0.5), PlantClass::Crop);
+    EXPECT_EQ(decide_class(0.5f, 0.5, 0.5), PlantClass::Weed);
+    EXPECT_EQ(decide_class(0.49f, 0.5, 0.5), PlantClass::Crop);
+    EXPECT_EQ(decide_class(0.9f, 1.0, 0.5), PlantClass::Unknown);
+}
+
+TEST(Classify, WeedNeedsTheHigherWeedBarWhileCropKeepsMinConfidence)
+{
+    // Crop safety: between min_confidence and weed_confidence a plant is
+    // unknown, never weed; the crop side is unchanged.
+    EXPECT_EQ(decide_class(0.84f, 0.6, 0.85), PlantClass::Unknown);
+    EXPECT_EQ(decide_class(0.6f, 0.6, 0.85), PlantClass::Unknown);
+    EXPECT_EQ(decide_class(0.85f, 0.6, 0.85), PlantClass::Weed);
+    EXPECT_EQ(decide_class(0.4f, 0.6, 0.85), PlantClass::Crop);
+    EXPECT_EQ(decide_class(0.41f, 0.6, 0.85), PlantClass::Unknown);
+}
+
+TEST(Classify, RowFeaturesFindTheDominantRowAndItsNeighbours)
+{
+    // Three large discs in a column (a crop row along the travel) and one
+    // small disc far to the side (a weed between rows).
+    cv::Mat bgr(400, 400, CV_8UC3, cv::Scalar(60, 80, 110));
+    const cv::Scalar green(40, 170, 60);
+    for (const int y : {60, 200, 340})
+        cv::circle(bgr, {100, y}, 20, green, cv::FILLED);
+    cv::circle(bgr, {330, 200}, 8, green, cv::FILLED);
+    const Params params = test_params();
+    Classified c(bgr, params);
+    ASSERT_EQ(c.det.plants.size(), 4u);
+    ASSERT_EQ(c.cws.features().size(), 4u);
+    const double band_px = kRowHalfWidthMm / params.gsd_mm_per_px;
+    ASSERT_GT(230.0, band_px) << "the weed must lie outside the row's band";
+    for (std::size_t i = 0; i < 4; ++i) {
+        const FeatureRow& f = c.cws.features()[i];
+        const bool weed = c.det.plants[i].centre_of_mass.x > 200;
+        if (weed) {
+            EXPECT_NEAR(f[f_row_offset_mm], 230 * params.gsd_mm_per_px, 1.0);
+            EXPECT_EQ(f[f_row_neighbours], 0.0f);
+            EXPECT_LT(f[f_area_share], 0.25f);
+            EXPECT_LT(f[f_row_band_share], 0.1f);
+        } else {
+            EXPECT_NEAR(f[f_row_offset_mm], 0.0, 0.5);
+            EXPECT_EQ(f[f_row_neighbours], 2.0f);
+            EXPECT_NEAR(f[f_area_share], 1.0f, 0.05f);
+            EXPECT_GT(f[f_row_band_share], 0.9f);
+        }
+    }
 }
 
 TEST(Classify, ClassMapPaintsEachVegetationPixelWithItsPlantsClass)

@@ -28,6 +28,7 @@ struct ThreadSettings {
 struct ClassifyConfig {
     std::string model;             // empty: none
     double min_confidence = 0.6;   // probability
+    double weed_confidence = 0.85;   // probability
 };
 
 struct DaemonConfig {

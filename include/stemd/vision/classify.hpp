@@ -31,7 +31,7 @@ namespace stemd::vision {
 
 // Bumped whenever a feature is added, removed or computed differently: a
 // model trained on other features is refused.
-inline constexpr int kPlantFeaturesVersion = 1;
+inline constexpr int kPlantFeaturesVersion = 2;
 
 // The features, in vector order. Shape is in physical units (via
 // gsd_mm_per_px) so that a model carries over between resolutions of the
@@ -59,12 +59,23 @@ enum PlantFeature : int {
     f_ndvi_mean,          // (NIR - R) / (NIR + R), 0 without a NIR plane
     f_ndvi_std,
     f_lateral,            // the plant's centre x / frame width (across the travel with camera.forward up|down)
+    // Frame context: crops are sown in rows along the travel (image y with
+    // camera.forward up|down), weeds come anywhere. The dominant row is the
+    // lateral band of kRowHalfWidthMm either side holding the most plant area.
+    f_row_offset_mm,      // |centre x - the dominant row's area-weighted centre x|, in mm
+    f_row_band_share,     // plant area in this plant's own lateral band / all plant area of the frame
+    f_row_neighbours,     // other plants whose centre lies in this plant's lateral band
+    f_area_share,         // this plant's area / the frame's largest plant's area
     kPlantFeatureCount
 };
 
 std::string_view feature_name(int feature);
 
 using FeatureRow = std::array<float, kPlantFeatureCount>;
+
+// Half the width of the lateral band the row features look at: about a
+// sown row's width of seedlings either side of its line.
+inline constexpr double kRowHalfWidthMm = 20.0;
 
 // What classify needs per frame, allocated once for a frame size; nothing
 // is allocated by plant_features() afterwards.
@@ -90,6 +101,7 @@ private:
     };
     cv::Size frame_size_;
     cv::Mat plant_index_;
+    cv::Rect dirty_{};   // where plant_index_ holds nonzero values
     std::array<Sums, kMaxPlants> sums_{};
     std::array<FeatureRow, kMaxPlants> features_{};
     std::size_t plants_ = 0;
@@ -104,9 +116,11 @@ private:
 void plant_features(const FrameView& frame, const Params& params, const Workspace& detect_workspace,
                     const Detections& detections, ClassifyWorkspace& workspace);
 
-// The class of a plant from its weed probability: weed at or above
-// min_confidence, crop at or below 1 - min_confidence, else unknown.
-PlantClass decide_class(float weed_probability, double min_confidence);
+// The class of a plant from its weed probability, asymmetric because a
+// crop called weed is stamped and a weed called crop is only left standing:
+// weed at or above the higher of weed_confidence and min_confidence, crop at
+// or below 1 - min_confidence, else unknown.
+PlantClass decide_class(float weed_probability, double min_confidence, double weed_confidence);
 
 // The per-pixel class map: every vegetation pixel of a plant gets its
 // plant's class (0 soil, 1 crop, 2 weed; unknown plants are 0 too, as
