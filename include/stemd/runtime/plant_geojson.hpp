@@ -8,8 +8,9 @@
 // the real-time threads.
 //
 // Each feature: geometry a Point, or null for a plant without a position
-// (georef other than fix/extrapolated, or a map without GNSS); properties
-// id, class, treated, reason, leaves, s_mm, y_mm, georef.
+// (georef other than fix/extrapolated/degraded, or a map without GNSS);
+// properties id, class, treated, reason, leaves, s_mm, y_mm, georef,
+// gnss_mode, gnss_status, eph_mm (a GIS can filter out degraded points).
 #pragma once
 
 #include <cstdint>
