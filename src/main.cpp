@@ -28,7 +28,7 @@
 #include "stemd/runtime/sd_notify.hpp"
 #include "stemd/runtime/detection_sink.hpp"
 #include "stemd/runtime/logging.hpp"
-#include "stemd/runtime/plant_geojson.hpp"
+#include "stemd/runtime/geojson_writer.hpp"
 #include "stemd/runtime/signals.hpp"
 #include "stemd/runtime/source_factory.hpp"
 #include "stemd/runtime/status.hpp"
@@ -242,18 +242,12 @@ int run(int argc, char** argv, Phase& phase)
     if (stop_came())
         return 0;
 
-    // The GeoJSON is rebuilt from the plant map's lines on this thread.
-    std::optional<runtime::PlantGeojson> geojson;
-    if (!args->map_geojson.empty())
-        geojson.emplace(actuation_config.map_file);
-    const auto update_geojson = [&] {
-        std::string geojson_error;
-        if (geojson && !(geojson->update(geojson_error) && geojson->write(args->map_geojson, geojson_error))) {
-            log->error("{}", geojson_error);
-            return false;
-        }
-        return true;
-    };
+    // The GeoJSON is rebuilt from the plant map's lines on a low-priority thread of its own.
+    std::optional<runtime::GeojsonWriter> geojson;
+    if (!args->map_geojson.empty()) {
+        geojson.emplace(actuation_config.map_file, args->map_geojson, std::chrono::seconds(30), log);
+        geojson->start();
+    }
 
     std::unique_ptr<runtime::Daemon> daemon;
     try {
@@ -307,8 +301,6 @@ int run(int argc, char** argv, Phase& phase)
     runtime::StatusSnapshot last = daemon->snapshot(false);
     last.t_ns = t_start_ns;
     std::int64_t next_status_ns = t_start_ns + interval.count();
-    constexpr std::int64_t kGeojsonIntervalNs = 30'000'000'000;
-    std::int64_t next_geojson_ns = t_start_ns + kGeojsonIntervalNs;
     int exit_code = 0;
     // systemd (Type=notify): READY=1 once the source delivers, WATCHDOG=1
     // only while all three threads make progress, STATUS= the status line.
@@ -349,10 +341,6 @@ int run(int argc, char** argv, Phase& phase)
             }
             next_watchdog_ns = now_ns + watchdog_ns / 4;
         }
-        if (geojson && now_ns >= next_geojson_ns) {
-            update_geojson();
-            next_geojson_ns = now_ns + kGeojsonIntervalNs;
-        }
         if (now_ns >= next_status_ns) {
             const runtime::StatusSnapshot now = daemon->snapshot(false);
             std::string line = runtime::format_status(now, last);
@@ -376,7 +364,7 @@ int run(int argc, char** argv, Phase& phase)
         exit_code = 1;
     // After join(): the map holds every plant.
     if (geojson) {
-        if (update_geojson())
+        if (geojson->finish())
             log->info("{}: {} plants, {} with a position", args->map_geojson, geojson->features(), geojson->placed());
         else
             exit_code = 1;

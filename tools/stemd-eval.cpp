@@ -75,11 +75,13 @@ const char* const kUsage =
     "  --radii          comma-separated radii in px (default 1,6,10,20)\n"
     "Targets (--targets): scores the TARGET commands of a candump -L log (stemd --can-log)\n"
     "against the field truth of a moving recording (stemd-synth --strip writes plants.csv:\n"
-    "id,s_mm,y_mm,kind). A command is for the plant whose fire position it matches:\n"
-    "fire_odom_mm = s_mm + the tool's offset_mm (modulo 2^18), lateral_mm = y_mm; matched\n"
+    "id,s_mm,y_mm,kind). A command is for the plant whose fire position it matches: its\n"
+    "strike point = s_mm + the tool's offset_mm (modulo 2^18), lateral_mm = y_mm; the strike\n"
+    "point is the log's TOOL_FIRED odometer for it, else fire_odom_mm + speed x the tool's\n"
+    "latency_ms (the log's ODOMETRY speed, else odometry.speed_mm_per_s); matched\n"
     "one-to-one, closest first, within --tol-mm. Prints commands per plant, misses,\n"
     "duplicates, extra commands and the position error p50/p95/max.\n"
-    "  --config, --set  the configuration stemd ran with (tools, can.base_id)\n"
+    "  --config, --set  the configuration stemd ran with (tools, can.base_id, odometry)\n"
     "  --treat          which plants should have a command: all (default) or weeds\n"
     "  --min-radius-mm  leave out plants smaller than this (plants.csv radius_mm): below the\n"
     "                   detector's working size, commands for them count neither way\n"
@@ -483,8 +485,11 @@ int run_targets(const Args& args)
     const runtime::ActuationConfig actuation = config.settings().actuation;
     std::array<double, 16> offsets;
     offsets.fill(std::numeric_limits<double>::quiet_NaN());
-    for (const auto& tool : actuation.tools)
+    std::array<double, 16> latencies{};
+    for (const auto& tool : actuation.tools) {
         offsets[tool.id & 15U] = tool.offset_mm;
+        latencies[tool.id & 15U] = tool.latency_ms;
+    }
     const auto ids = stemd::protocol::CanIds::make(actuation.can_base_id);
     if (!ids)
         return fail("can.base_id " + std::to_string(actuation.can_base_id) + " is too large");
@@ -505,13 +510,20 @@ int run_targets(const Args& args)
     const auto log = eval::read_target_log(args.positional[1], *ids, error);
     if (!log)
         return fail(error);
+    // Scored where each command strikes: a tool with a latency was commanded
+    // earlier by speed x latency (or the log's TOOL_FIRED says where it fired).
+    const std::vector<double> all_leads = eval::target_leads_mm(*log, latencies, actuation.speed_mm_per_s);
     std::vector<stemd::protocol::TargetCommand> commands;
-    for (const auto& c : log->targets) {
-        const std::array<stemd::protocol::TargetCommand, 1> one{c};
-        if (eval::score_targets(too_small, one, offsets, args.tol_mm).matched == 0)
-            commands.push_back(c);
+    std::vector<double> leads;
+    for (std::size_t i = 0; i < log->targets.size(); ++i) {
+        const std::array<stemd::protocol::TargetCommand, 1> one{log->targets[i]};
+        const std::array<double, 1> lead{all_leads[i]};
+        if (eval::score_targets(too_small, one, offsets, args.tol_mm, lead).matched == 0) {
+            commands.push_back(log->targets[i]);
+            leads.push_back(all_leads[i]);
+        }
     }
-    const eval::TargetScore s = eval::score_targets(*plants, commands, offsets, args.tol_mm);
+    const eval::TargetScore s = eval::score_targets(*plants, commands, offsets, args.tol_mm, leads);
     const double per_plant = s.plants > 0 ? static_cast<double>(s.matched + s.duplicates) / static_cast<double>(s.plants) : 0;
     if (args.json) {
         print_json({{"plants", s.plants},

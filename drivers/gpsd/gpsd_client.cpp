@@ -35,6 +35,17 @@ double or_unknown(double v)
     return std::isfinite(v) ? v : -1;
 }
 
+// The 95 % horizontal radius from a GST's 1-sigma latitude and longitude
+// errors: a circular normal with their mean variance (radius factor
+// sqrt(-2 ln 0.05)). -1 when either is missing.
+double eph_from_gst(const gst_t& gst)
+{
+    const double lat = gst.lat_err_deviation, lon = gst.lon_err_deviation;
+    if (!std::isfinite(lat) || !std::isfinite(lon) || lat < 0 || lon < 0)
+        return -1;
+    return 2.4477 * std::sqrt((lat * lat + lon * lon) / 2);
+}
+
 // gps_open() connects with a blocking connect(): to a host that drops the
 // SYN (a full backlog, a firewall) it blocks for minutes, and stop() with it.
 // So each attempt first connects here, non-blocking and polled together
@@ -170,6 +181,7 @@ void GpsdClient::run()
         read_once();
     }
     if (state_ == State::streaming) {
+        publish_pending();
         gps_stream(&session_->data, WATCH_DISABLE, nullptr);
         disconnect();
     }
@@ -223,11 +235,22 @@ void GpsdClient::disconnect()
     state_ = State::closed;
 }
 
+void GpsdClient::publish_pending()
+{
+    if (!pending_)
+        return;
+    pending_ = false;
+    if (ring_.try_push(pending_fix_))
+        fixes_.fetch_add(1, std::memory_order_relaxed);
+}
+
 void GpsdClient::read_once()
 {
     gps_data_t& d = session_->data;
-    if (!gps_waiting(&d, kWaitUs))
+    if (!gps_waiting(&d, kWaitUs)) {
+        publish_pending();   // its GST did not come
         return;   // nothing within the wait (a closed socket is readable: gps_read reports it)
+    }
     d.set = 0;
     errno = 0;
     const int n = gps_read(&d, nullptr, 0);
@@ -237,8 +260,22 @@ void GpsdClient::read_once()
         failures_.fetch_add(1, std::memory_order_relaxed);
         log_->warn("gpsd {}:{}: connection lost: {} (errno {}); reconnecting", spec_.host, spec_.port,
                    err != 0 ? std::strerror(err) : "end of stream", err);
+        publish_pending();
         disconnect();
         backoff_.on_failure(received_ns);
+        return;
+    }
+    if ((d.set & GST_SET) != 0 && (d.set & MODE_SET) == 0) {
+        // The receiver's error statistics for an epoch: gpsd's own eph
+        // comes from the DOP and a fixed range error (metres even for RTK),
+        // the GST's from the receiver's solution.
+        gst_seen_ = true;
+        const std::int64_t gst_ns =
+            static_cast<std::int64_t>(d.gst.utctime.tv_sec) * 1'000'000'000 + d.gst.utctime.tv_nsec;
+        const double eph = eph_from_gst(d.gst);
+        if (pending_ && gst_ns == pending_fix_.gnss_time_ns && eph >= 0)
+            pending_fix_.eph_m = eph;
+        publish_pending();
         return;
     }
     if ((d.set & MODE_SET) == 0)
@@ -263,8 +300,13 @@ void GpsdClient::read_once()
     fix.eph_m = or_unknown(d.fix.eph);
     fix.epx_m = or_unknown(d.fix.epx);
     fix.epy_m = or_unknown(d.fix.epy);
-    if (ring_.try_push(fix))
-        fixes_.fetch_add(1, std::memory_order_relaxed);
+    // A receiver that sends GST sends it after the epoch's position: the
+    // fix waits for it (at most until the next report or kWaitUs).
+    publish_pending();
+    pending_fix_ = fix;
+    pending_ = true;
+    if (!gst_seen_)
+        publish_pending();
 }
 
 std::unique_ptr<GnssSource> make_gpsd_source(const GnssSpec& spec, std::shared_ptr<spdlog::logger> log,

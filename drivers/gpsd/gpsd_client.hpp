@@ -4,6 +4,12 @@
 // lock-free SPSC ring (base::SpscRing) that the actuator thread drains with
 // try_pop(): the processing and actuator threads never wait on gpsd.
 //
+// eph: gpsd's TPV estimate comes from the DOP times a fixed range error
+// (13.3 m for an RTK fixed HDOP 0.7), so when the receiver sends GST
+// reports (NMEA GST: its own 1-sigma latitude/longitude errors) a fix waits
+// for its epoch's GST, which follows it, and takes its eph from that (the
+// 95 % radius); without a GST it keeps gpsd's.
+//
 // State machine (the client's thread; counters() from any thread):
 //
 //   closed --gps_open + gps_stream ok--> streaming --read error / EOF--> closed
@@ -56,6 +62,7 @@ private:
     bool connect();       // closed -> streaming, or a logged failure
     void disconnect();    // streaming -> closed
     void read_once();     // one report, published if it is a position
+    void publish_pending();   // the fix waiting for its GST, as it is
 
     const GnssSpec spec_;
     const std::string name_;
@@ -67,6 +74,11 @@ private:
     struct Session;              // gps_data_t, kept out of this header
     std::unique_ptr<Session> session_;
     std::int64_t last_fix_time_ns_ = -1;
+    // With a receiver that sends GST (error statistics) after each
+    // position: the newest position, until its GST gives its eph.
+    bool gst_seen_ = false;
+    bool pending_ = false;
+    GnssFix pending_fix_;
     std::atomic<bool> stop_{false};
     base::UniqueFd stop_fd_;   // eventfd: written by stop(), wakes a connect attempt
     std::thread thread_;

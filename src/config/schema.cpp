@@ -467,6 +467,9 @@ constexpr std::array kSchema{
     bind<STEMD_KEY(actuation.gnss.max_extrapolation_mm)>(
         {"gnss.max_extrapolation_mm", real, "mm", 0, 10000, "500", "",
             "a plant at most this far past the newest fix is placed along the heading (georef extrapolated)"}),
+    bind<STEMD_KEY(actuation.gnss.max_eph_mm)>(
+        {"gnss.max_eph_mm", real, "mm", 1, 1000000, "100", "",
+            "a plant placed from fixes whose horizontal error estimate (gpsd's eph, 95 %) is above this is georef degraded: placed, not trusted as a fix"}),
 };
 
 constexpr std::array kSections{

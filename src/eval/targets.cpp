@@ -65,6 +65,7 @@ std::optional<TargetLog> read_target_log(const std::filesystem::path& log, const
         return std::nullopt;
     }
     TargetLog out;
+    double speed = std::numeric_limits<double>::quiet_NaN();
     std::string line;
     for (int n = 1; std::getline(in, line); ++n) {
         if (line.empty())
@@ -75,7 +76,21 @@ std::optional<TargetLog> read_target_log(const std::filesystem::path& log, const
             error = log.string() + ":" + std::to_string(n) + ": " + why;
             return std::nullopt;
         }
-        if (ids.kind_of(record.frame) != protocol::MessageKind::Target) {
+        const auto kind = ids.kind_of(record.frame);
+        if (kind == protocol::MessageKind::Odometry) {
+            if (protocol::Odometry o; protocol::decode(record.frame, ids, o))
+                speed = o.speed_mm_per_s;
+        } else if (kind == protocol::MessageKind::ToolFired) {
+            // The newest TARGET for this target and tool that has none yet.
+            if (protocol::ToolFired f; protocol::decode(record.frame, ids, f))
+                for (std::size_t i = out.targets.size(); i-- > 0;)
+                    if (out.targets[i].target_id == f.target_id && out.targets[i].tool_id == f.tool_id) {
+                        if (std::isnan(out.fired_odom_mm[i]))
+                            out.fired_odom_mm[i] = f.fired_odom_mm;
+                        break;
+                    }
+        }
+        if (kind != protocol::MessageKind::Target) {
             ++out.other_frames;
             continue;
         }
@@ -85,12 +100,50 @@ std::optional<TargetLog> read_target_log(const std::filesystem::path& log, const
             continue;
         }
         out.targets.push_back(t);
+        out.speed_mm_per_s.push_back(speed);
+        out.fired_odom_mm.push_back(std::numeric_limits<double>::quiet_NaN());
     }
     return out;
 }
 
+namespace {
+
+// a - b modulo 2^18, into [-2^17, 2^17).
+double wrapped_difference(double a, double b)
+{
+    constexpr double kModulo = protocol::kFireOdomModulo;
+    double d = std::fmod(a - b, kModulo);
+    if (d < -kModulo / 2)
+        d += kModulo;
+    if (d >= kModulo / 2)
+        d -= kModulo;
+    return d;
+}
+
+}  // namespace
+
+std::vector<double> target_leads_mm(const TargetLog& log, const std::array<double, 16>& tool_latency_ms,
+                                    double default_speed_mm_per_s)
+{
+    std::vector<double> leads(log.targets.size(), 0.0);
+    for (std::size_t i = 0; i < log.targets.size(); ++i) {
+        const protocol::TargetCommand& t = log.targets[i];
+        if (i < log.fired_odom_mm.size() && !std::isnan(log.fired_odom_mm[i])) {
+            leads[i] = wrapped_difference(log.fired_odom_mm[i], t.fire_odom_mm);
+            continue;
+        }
+        const double speed = i < log.speed_mm_per_s.size() && !std::isnan(log.speed_mm_per_s[i])
+            ? log.speed_mm_per_s[i]
+            : default_speed_mm_per_s;
+        const double latency = tool_latency_ms[t.tool_id & 15U];
+        // Standing or reversing: stemd commands no lead (fire_lag.hpp).
+        leads[i] = std::isfinite(latency) && speed > 0 ? speed * latency * 1e-3 : 0.0;
+    }
+    return leads;
+}
+
 TargetScore score_targets(std::span<const TruthPlant> plants, std::span<const protocol::TargetCommand> commands,
-                          const std::array<double, 16>& tool_offset_mm, double tol_mm)
+                          const std::array<double, 16>& tool_offset_mm, double tol_mm, std::span<const double> lead_mm)
 {
     TargetScore score;
     score.plants = plants.size();
@@ -103,7 +156,6 @@ TargetScore score_targets(std::span<const TruthPlant> plants, std::span<const pr
     };
     std::vector<Pair> pairs;
     std::vector<bool> known_tool(commands.size(), false);
-    constexpr double kModulo = protocol::kFireOdomModulo;
     for (std::size_t c = 0; c < commands.size(); ++c) {
         const double offset = tool_offset_mm[commands[c].tool_id & 15U];
         if (!std::isfinite(offset)) {
@@ -112,12 +164,9 @@ TargetScore score_targets(std::span<const TruthPlant> plants, std::span<const pr
         }
         known_tool[c] = true;
         for (std::size_t p = 0; p < plants.size(); ++p) {
-            // Along-track error modulo 2^18, into [-2^17, 2^17).
-            double along = std::fmod(commands[c].fire_odom_mm - (plants[p].s_mm + offset), kModulo);
-            if (along < -kModulo / 2)
-                along += kModulo;
-            if (along >= kModulo / 2)
-                along -= kModulo;
+            // Along-track error of the strike point, modulo 2^18.
+            const double lead = c < lead_mm.size() ? lead_mm[c] : 0.0;
+            const double along = wrapped_difference(commands[c].fire_odom_mm + lead, plants[p].s_mm + offset);
             const double lateral = commands[c].lateral_mm - plants[p].y_mm;
             const double d = std::hypot(along, lateral);
             if (d <= tol_mm)

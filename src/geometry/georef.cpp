@@ -103,12 +103,66 @@ std::string_view to_string(TrackStatus s)
     return "?";
 }
 
+namespace {
+
+// How precise a gpsd fix status is: lower is better. Dead reckoning,
+// time-only, simulated and unknown come after any satellite position.
+int status_rank(std::uint8_t status)
+{
+    switch (status) {
+    case 3: return 0;   // RTK fixed
+    case 4: return 1;   // RTK float
+    case 2: return 2;   // DGPS
+    case 1: return 3;   // GPS
+    case 9: return 3;   // PPS: a GPS fix with a disciplined time
+    case 6: return 4;   // GNSS + dead reckoning
+    case 5: return 5;   // dead reckoning alone
+    default: return 6;  // unknown, time only, simulated
+    }
+}
+
+}  // namespace
+
+FixQuality worse(const FixQuality& a, const FixQuality& b) noexcept
+{
+    FixQuality w;
+    w.mode = std::min(a.mode, b.mode);
+    w.status = status_rank(a.status) >= status_rank(b.status) ? a.status : b.status;
+    w.eph_mm = a.eph_mm < 0 || b.eph_mm < 0 ? -1 : std::max(a.eph_mm, b.eph_mm);
+    return w;
+}
+
+std::string_view mode_name(std::uint8_t mode)
+{
+    switch (mode) {
+    case 2: return "2d";
+    case 3: return "3d";
+    default: return "none";
+    }
+}
+
+std::string_view status_name(std::uint8_t status)
+{
+    switch (status) {
+    case 1: return "gps";
+    case 2: return "dgps";
+    case 3: return "rtk_fixed";
+    case 4: return "rtk_float";
+    case 5: return "dr";
+    case 6: return "gnss_dr";
+    case 7: return "time";
+    case 8: return "sim";
+    case 9: return "pps";
+    default: return "none";
+    }
+}
+
 GnssTrack::GnssTrack(const GnssTrackParams& params)
     : params_(params), capacity_(std::max<std::size_t>(params.capacity, 2)), points_(new TrackPoint[capacity_])
 {
 }
 
-bool GnssTrack::add(double odom_mm, double e_m, double n_m, std::int64_t t_ns) noexcept
+bool GnssTrack::add(double odom_mm, double e_m, double n_m, std::int64_t t_ns, const FixQuality& quality) noexcept
 {
     if (!std::isfinite(odom_mm) || !std::isfinite(e_m) || !std::isfinite(n_m))
         return false;
@@ -124,6 +178,7 @@ bool GnssTrack::add(double odom_mm, double e_m, double n_m, std::int64_t t_ns) n
             last.n_m = (last.n_m * k + n_m) / (k + 1);
             last.odom_mm = std::max(last.odom_mm, (last.odom_mm * k + odom_mm) / (k + 1));
             last.t_ns = t_ns;
+            last.quality = worse(last.quality, quality);
             ++last.fixes;
             return true;
         }
@@ -132,12 +187,12 @@ bool GnssTrack::add(double odom_mm, double e_m, double n_m, std::int64_t t_ns) n
         head_ = (head_ + 1) % capacity_;
         --size_;
     }
-    points_[(head_ + size_) % capacity_] = {odom_mm, e_m, n_m, t_ns, 1};
+    points_[(head_ + size_) % capacity_] = {odom_mm, e_m, n_m, t_ns, 1, quality};
     ++size_;
     return true;
 }
 
-void GnssTrack::interpolate(double odom_mm, double& e_m, double& n_m) const noexcept
+void GnssTrack::interpolate(double odom_mm, double& e_m, double& n_m, FixQuality* quality) const noexcept
 {
     // The last point at or before odom_mm (binary search over the ring).
     std::size_t lo = 0;
@@ -153,9 +208,13 @@ void GnssTrack::interpolate(double odom_mm, double& e_m, double& n_m) const noex
     if (lo + 1 >= size_ || odom_mm <= a.odom_mm) {
         e_m = a.e_m;
         n_m = a.n_m;
+        if (quality != nullptr)
+            *quality = a.quality;
         return;
     }
     const TrackPoint& b = at(lo + 1);
+    if (quality != nullptr)
+        *quality = worse(a.quality, b.quality);
     const double f = (odom_mm - a.odom_mm) / (b.odom_mm - a.odom_mm);
     e_m = a.e_m + f * (b.e_m - a.e_m);
     n_m = a.n_m + f * (b.n_m - a.n_m);
@@ -172,12 +231,13 @@ TrackQuery GnssTrack::position_at(double odom_mm) const noexcept
     }
     if (odom_mm <= newest().odom_mm) {
         q.status = TrackStatus::ok;
-        interpolate(odom_mm, q.e_m, q.n_m);
+        interpolate(odom_mm, q.e_m, q.n_m, &q.quality);
         return q;
     }
     const double ahead_mm = odom_mm - newest().odom_mm;
     q.e_m = newest().e_m;
     q.n_m = newest().n_m;
+    q.quality = newest().quality;
     if (ahead_mm > params_.max_extrapolation_mm) {
         q.status = TrackStatus::beyond;
         return q;
@@ -215,6 +275,7 @@ PlacedPoint place_machine_point(const GnssTrack& track, double odom_mm, double x
     PlacedPoint out;
     const TrackQuery antenna = track.position_at(odom_mm);
     out.status = antenna.status;
+    out.quality = antenna.quality;
     if (antenna.status != TrackStatus::ok && antenna.status != TrackStatus::extrapolated)
         return out;
     out.enu = {antenna.e_m, antenna.n_m, 0};

@@ -249,9 +249,9 @@ bool ActuationStage::finish() noexcept
         const GnssCountersView g = gnss_->counters();
         const drivers::GnssCounters d = parts_.gnss->counters();
         log_->info("{}: {} fixes ({} without a position, {} dropped), {} on the track, {} without an odometer "
-                   "reading; {} connections, {} failures",
+                   "reading; {} connections, {} failures; {} plants degraded (eph over {:.0f} mm)",
                    parts_.gnss->name(), g.fixes, d.no_fix, d.dropped, g.on_track, g.unplaced, d.connects,
-                   d.failures);
+                   d.failures, g.degraded, gnss_->max_eph_mm());
     }
     if (!parts_.map)
         return ok;

@@ -544,6 +544,16 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
             t.lag_p95_ms = c.lag_p95_ms.load(std::memory_order_relaxed);
             t.strike_p95_mm = c.strike_p95_mm.load(std::memory_order_relaxed);
         }
+        if (const GnssInput* g = actuation_->gnss()) {
+            const GnssCountersView v = g->counters();
+            s.gnss = true;
+            s.gnss_mode = v.last.mode;
+            s.gnss_status = v.last.status;
+            s.gnss_eph_mm = v.last.eph_mm;
+            s.gnss_max_eph_mm = g->max_eph_mm();
+            s.gnss_fixes = v.fixes;
+            s.gnss_degraded = v.degraded;
+        }
         DurationHistogram& send = actuation_->counters().send_latency;
         s.send = whole_run ? send.total() : send.take_interval();
     }

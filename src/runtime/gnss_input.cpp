@@ -11,8 +11,14 @@ std::string_view to_string(GeorefStatus s)
     case GeorefStatus::no_fix: return "no_fix";
     case GeorefStatus::stale: return "stale";
     case GeorefStatus::no_heading: return "no_heading";
+    case GeorefStatus::degraded: return "degraded";
     }
     return "?";
+}
+
+bool has_position(GeorefStatus s)
+{
+    return s == GeorefStatus::fix || s == GeorefStatus::extrapolated || s == GeorefStatus::degraded;
 }
 
 namespace {
@@ -28,6 +34,11 @@ geometry::GnssTrackParams track_params(const GnssConfig& c)
 void bump(std::atomic<std::uint64_t>& c)
 {
     c.store(c.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+}
+
+geometry::FixQuality quality_of(const drivers::GnssFix& fix)
+{
+    return {fix.mode, fix.quality, fix.eph_m < 0 ? -1.0 : fix.eph_m * 1e3};
 }
 
 }  // namespace
@@ -67,7 +78,7 @@ bool GnssInput::try_place(const drivers::GnssFix& fix, const OdometryInput& odom
     if (!plane_)
         plane_.emplace(g);
     const geometry::Enu p = plane_->to_enu(g);
-    if (track_.add(odom_mm, p.e_m, p.n_m, t_ns))
+    if (track_.add(odom_mm, p.e_m, p.n_m, t_ns, quality_of(fix)))
         bump(on_track_);
     else
         bump(unplaced_);
@@ -78,6 +89,9 @@ void GnssInput::add(const drivers::GnssFix& fix, const OdometryInput& odometry, 
                     std::int64_t realtime_minus_monotonic_ns) noexcept
 {
     bump(fixes_);
+    last_mode_.store(fix.mode, std::memory_order_relaxed);
+    last_status_.store(fix.quality, std::memory_order_relaxed);
+    last_eph_mm_.store(quality_of(fix).eph_mm, std::memory_order_relaxed);
     // Fixes keep their order: one waits behind another.
     if (waiting_size_ == 0 && try_place(fix, odometry, now_ns, realtime_minus_monotonic_ns))
         return;
@@ -102,7 +116,7 @@ void GnssInput::poll(drivers::GnssSource& source, const OdometryInput& odometry,
         add(fix, odometry, now_ns, realtime_minus_monotonic_ns);
 }
 
-GeorefResult GnssInput::place(double s_mm, double y_mm, std::int64_t now_ns) const noexcept
+GeorefResult GnssInput::place(double s_mm, double y_mm, std::int64_t now_ns) noexcept
 {
     GeorefResult r;
     r.status = GeorefStatus::no_fix;
@@ -110,6 +124,7 @@ GeorefResult GnssInput::place(double s_mm, double y_mm, std::int64_t now_ns) con
         return r;
     const geometry::PlacedPoint p = geometry::place_machine_point(track_, s_mm, principal_x_mm_, y_mm,
                                                                   config_.antenna_x_mm, config_.antenna_y_mm);
+    r.quality = p.quality;
     const bool newest_is_old = track_.empty() || now_ns - track_.newest().t_ns > config_.max_age_ns;
     switch (p.status) {
     case geometry::TrackStatus::ok: r.status = GeorefStatus::fix; break;
@@ -123,6 +138,13 @@ GeorefResult GnssInput::place(double s_mm, double y_mm, std::int64_t now_ns) con
     }
     if (r.status != GeorefStatus::fix && r.status != GeorefStatus::extrapolated)
         return r;
+    // An unknown estimate is not taken as a large one: the map line says
+    // eph_mm null, and a receiver that reports none would otherwise never
+    // place a plant.
+    if (r.quality.eph_mm > config_.max_eph_mm) {
+        r.status = GeorefStatus::degraded;
+        bump(degraded_);
+    }
     const geometry::Geodetic g = plane_->to_geodetic(p.enu);
     r.lat_deg = g.lat_deg;
     r.lon_deg = g.lon_deg;
@@ -131,8 +153,14 @@ GeorefResult GnssInput::place(double s_mm, double y_mm, std::int64_t now_ns) con
 
 GnssCountersView GnssInput::counters() const
 {
-    return {fixes_.load(std::memory_order_relaxed), on_track_.load(std::memory_order_relaxed),
-            unplaced_.load(std::memory_order_relaxed)};
+    GnssCountersView v;
+    v.fixes = fixes_.load(std::memory_order_relaxed);
+    v.on_track = on_track_.load(std::memory_order_relaxed);
+    v.unplaced = unplaced_.load(std::memory_order_relaxed);
+    v.degraded = degraded_.load(std::memory_order_relaxed);
+    v.last = {last_mode_.load(std::memory_order_relaxed), last_status_.load(std::memory_order_relaxed),
+              last_eph_mm_.load(std::memory_order_relaxed)};
+    return v;
 }
 
 }  // namespace stemd::runtime

@@ -32,7 +32,7 @@ bool PlantGeojson::update(std::string& error)
             return false;
         }
         nlohmann::json properties = nlohmann::json::object();
-        for (const char* key : {"id", "class", "treated", "reason", "leaves", "s_mm", "y_mm", "georef"})
+        for (const char* key : {"id", "class", "treated", "reason", "leaves", "s_mm", "y_mm", "georef", "gnss_mode", "gnss_status", "eph_mm"})
             if (plant.contains(key))
                 properties[key] = plant[key];
         nlohmann::json feature = {{"type", "Feature"}, {"geometry", nullptr}, {"properties", std::move(properties)}};

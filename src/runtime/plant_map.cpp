@@ -27,6 +27,35 @@ int append_fire_timing(char* line, std::size_t capacity, int n, const MapEntry& 
     return m < 0 ? m : n + m;
 }
 
+// The georef columns (see plant_map.hpp) at line + n; the new length.
+int append_georef(char* line, std::size_t capacity, int n, const GeorefResult& g)
+{
+    if (n < 0 || static_cast<std::size_t>(n) >= capacity || g.status == GeorefStatus::off)
+        return n;
+    char* const at = line + n;
+    const std::size_t room = capacity - static_cast<std::size_t>(n);
+    const std::string_view status = to_string(g.status);
+    const std::string_view mode = geometry::mode_name(g.quality.mode);
+    const std::string_view fix = geometry::status_name(g.quality.status);
+    char position[96];
+    const int p = has_position(g.status)
+        ? std::snprintf(position, sizeof position, "\"lat_deg\":%.9f,\"lon_deg\":%.9f", g.lat_deg, g.lon_deg)
+        : std::snprintf(position, sizeof position, "\"lat_deg\":null,\"lon_deg\":null");
+    if (p < 0 || static_cast<std::size_t>(p) >= sizeof position)
+        return -1;   // not a latitude: never written cut
+    char eph[32];
+    if (g.quality.eph_mm >= 1e12)
+        std::snprintf(eph, sizeof eph, "%.6g", g.quality.eph_mm);
+    else if (g.quality.eph_mm >= 0)
+        std::snprintf(eph, sizeof eph, "%.1f", g.quality.eph_mm);
+    else
+        std::snprintf(eph, sizeof eph, "null");
+    const int m = std::snprintf(at, room, ",%s,\"georef\":\"%.*s\",\"gnss_mode\":\"%.*s\",\"gnss_status\":\"%.*s\",\"eph_mm\":%s",
+                                position, static_cast<int>(status.size()), status.data(), static_cast<int>(mode.size()),
+                                mode.data(), static_cast<int>(fix.size()), fix.data(), eph);
+    return m < 0 ? m : n + m;
+}
+
 }  // namespace
 
 std::string_view to_string(MapReason r)
@@ -92,16 +121,7 @@ bool PlantMap::write(const actuation::RetiredTrack& t, const MapEntry& e)
                            ",\"tool\":%u,\"lane\":%u,\"fire_odom_mm\":%.1f", static_cast<unsigned>(e.tool),
                            static_cast<unsigned>(e.lane), e.fire_odom_mm);
     n = append_fire_timing(line, capacity, n, e);
-    if (n >= 0 && static_cast<std::size_t>(n) < capacity && e.georef.status != GeorefStatus::off) {
-        const std::string_view g = to_string(e.georef.status);
-        const bool placed = e.georef.status == GeorefStatus::fix || e.georef.status == GeorefStatus::extrapolated;
-        n += placed ? std::snprintf(line + n, capacity - static_cast<std::size_t>(n),
-                                    ",\"lat_deg\":%.9f,\"lon_deg\":%.9f,\"georef\":\"%.*s\"", e.georef.lat_deg,
-                                    e.georef.lon_deg, static_cast<int>(g.size()), g.data())
-                    : std::snprintf(line + n, capacity - static_cast<std::size_t>(n),
-                                    ",\"lat_deg\":null,\"lon_deg\":null,\"georef\":\"%.*s\"",
-                                    static_cast<int>(g.size()), g.data());
-    }
+    n = append_georef(line, capacity, n, e.georef);
     if (n >= 0 && static_cast<std::size_t>(n) < capacity)
         n += std::snprintf(line + n, capacity - static_cast<std::size_t>(n), "}\n");
     if (n < 0 || static_cast<std::size_t>(n) >= capacity)

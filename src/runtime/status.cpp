@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "stemd/geometry/georef.hpp"
+
 namespace stemd::runtime {
 
 namespace {
@@ -92,6 +94,25 @@ std::string tool_timing(const StatusSnapshot& s)
     return out;
 }
 
+std::string gnss(const StatusSnapshot& s)
+{
+    if (!s.gnss)
+        return "";
+    const std::string_view mode = geometry::mode_name(s.gnss_mode);
+    const std::string_view status = geometry::status_name(s.gnss_status);
+    char eph[64];
+    if (s.gnss_eph_mm < 0)
+        std::snprintf(eph, sizeof eph, "eph unknown");
+    else
+        std::snprintf(eph, sizeof eph, "eph %.1f mm%s", s.gnss_eph_mm,
+                      s.gnss_eph_mm > s.gnss_max_eph_mm ? " over gnss.max_eph_mm" : "");
+    char buf[200];
+    std::snprintf(buf, sizeof buf, " | gnss: %.*s %.*s, %s, fixes %llu, degraded %llu", static_cast<int>(mode.size()),
+                  mode.data(), static_cast<int>(status.size()), status.data(), eph,
+                  static_cast<unsigned long long>(s.gnss_fixes), static_cast<unsigned long long>(s.gnss_degraded));
+    return buf;
+}
+
 std::string durations(const StatusSnapshot& s)
 {
     char buf[280];
@@ -115,7 +136,7 @@ std::string format_status(const StatusSnapshot& now, const StatusSnapshot& befor
                   static_cast<double>(now.frames_out - before.frames_out) / dt_s,
                   static_cast<unsigned long long>(now.no_vegetation - before.no_vegetation));
     return buf + behind(now, before) + " | " + drops(now, before) + source(now, before) + actuation(now, before) + " | " + durations(now) +
-           tool_timing(now);
+           tool_timing(now) + gnss(now);
 }
 
 std::string format_latency_changes(const StatusSnapshot& now, const StatusSnapshot& before)
@@ -144,7 +165,7 @@ std::string format_summary(const StatusSnapshot& end, double run_s)
                   static_cast<unsigned long long>(end.no_vegetation));
     return buf + behind(end, StatusSnapshot{}) + " | " + drops(end, StatusSnapshot{}) +
            source(end, StatusSnapshot{}) + actuation(end, StatusSnapshot{}) + " | " + durations(end) +
-           tool_timing(end);
+           tool_timing(end) + gnss(end);
 }
 
 }  // namespace stemd::runtime

@@ -305,6 +305,7 @@ def with_gpsfake(stemd, src, rec, tmp):
     plants = map_lines(m)
     errors = []
     late = 0
+    degraded = 0
     for p in plants:
         for key in ("lat_deg", "lon_deg", "georef"):
             if key not in p:
@@ -313,9 +314,20 @@ def with_gpsfake(stemd, src, rec, tmp):
             late += 1
             if p["georef"] != "fix":
                 fail("a plant that ended after the whole track was fed is %s: %s" % (p["georef"], json.dumps(p)))
-        if p["georef"] not in ("fix", "extrapolated"):
+        # The log is RTK fixed (GGA quality 4) with a GST error of a few mm:
+        # every placed plant says so. gpsd's first report of a session can
+        # come before it has read a GST and then estimates eph from the
+        # DOP (metres): plants placed from that fix are degraded, the rest
+        # are within the default gnss.max_eph_mm.
+        if p["georef"] in ("fix", "extrapolated", "degraded"):
+            if (p.get("gnss_mode") != "3d" or p.get("gnss_status") != "rtk_fixed"
+                    or not isinstance(p.get("eph_mm"), (int, float))
+                    or (p["eph_mm"] > 100) != (p["georef"] == "degraded")):
+                fail("a placed plant without the log's fix quality: " + json.dumps(p))
+            degraded += p["georef"] == "degraded"
+        if p["georef"] not in ("fix", "extrapolated", "degraded"):
             if p["lat_deg"] is not None:
-                fail("a position with georef %s" % p["georef"])
+                fail("a position with georef %s: %s" % (p["georef"], json.dumps(p)))
             continue
         s_m = p["s_mm"] * 1e-3
         dx = (CAMERA_X_MM - ANTENNA_X_MM) * 1e-3
@@ -328,15 +340,17 @@ def with_gpsfake(stemd, src, rec, tmp):
         fail("only %d plants after the feed" % late)
     errors.sort(key=lambda x: x[0])
     worst = errors[-1]
-    print("gpsfake: %d plants, %d placed (%d after the whole track was fed); position error median %.1f mm, "
-          "max %.1f mm (tolerance 20 mm + the track's %.1f mm)" % (
-              len(plants), len(errors), late, errors[len(errors) // 2][0] * 1e3, worst[0] * 1e3,
+    print("gpsfake: %d plants, %d placed (%d degraded, %d after the whole track was fed); position error median "
+          "%.1f mm, max %.1f mm (tolerance 20 mm + the track's %.1f mm)" % (
+              len(plants), len(errors), degraded, late, errors[len(errors) // 2][0] * 1e3, worst[0] * 1e3,
               track["max_c"] * 1e3))
     tolerance = 0.020 + track["max_c"]
     if worst[0] > tolerance:
         fail("plant %s is %.1f mm from its true position" % (json.dumps(worst[1]), worst[0] * 1e3))
     if not re.search(r"fixes \(0 without a position, 0 dropped\), \d+ on the track", open(err).read()):
         fail("GNSS summary: " + tail(err))
+    if not re.search(r"gnss: 3d rtk_fixed, eph [\d.]+ mm, fixes \d+, degraded %d" % degraded, open(err).read()):
+        fail("no GNSS quality in the status: " + tail(err))
 
     # The GeoJSON, as a GIS reads it: RFC 7946 [lon, lat], one feature a plant.
     doc = json.load(open(g))
@@ -344,7 +358,8 @@ def with_gpsfake(stemd, src, rec, tmp):
         fail("GeoJSON: %s with %d features for %d plants" % (doc.get("type"), len(doc["features"]), len(plants)))
     for f, p in zip(doc["features"], plants):
         props = f["properties"]
-        for key in ("class", "treated", "reason", "leaves", "s_mm", "y_mm", "georef"):
+        for key in ("class", "treated", "reason", "leaves", "s_mm", "y_mm", "georef", "gnss_mode", "gnss_status",
+                    "eph_mm"):
             if props.get(key) != p.get(key):
                 fail("GeoJSON property %s: %r, the map says %r" % (key, props.get(key), p.get(key)))
         if p["lat_deg"] is None:

@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <ctime>
 #include <string>
 
@@ -166,6 +167,54 @@ TEST(DriversGpsd, ParsesFixesAndReconnectsAfterALostConnection)
     const drivers::GnssCounters c = client.counters();
     EXPECT_EQ(c.connects, 2u);
     EXPECT_GE(c.failures, 1u);
+    client.stop();
+}
+
+// gpsd's TPV eph comes from the DOP (metres even for RTK); a receiver's
+// GST, which follows its epoch's TPV, gives the fix its eph instead.
+TEST(DriversGpsd, AnEpochsGstGivesTheFixItsErrorEstimate)
+{
+    FakeGpsd gpsd;
+    drivers::GpsdClient client({.host = "127.0.0.1", .port = gpsd.port()},
+                               std::make_shared<spdlog::logger>("gpsd", std::make_shared<spdlog::sinks::null_sink_mt>()));
+    ASSERT_TRUE(client.start());
+    ASSERT_TRUE(gpsd.accept_client());
+    gpsd.send(kVersion);
+    const auto tpv = [](const char* time) {
+        return std::string(R"({"class":"TPV","status":3,"mode":3,"time":")") + time +
+               R"(","lat":50.6,"lon":7.0,"altHAE":200,"eph":13.3})";
+    };
+    const auto gst = [](const char* time) {
+        return std::string(R"({"class":"GST","time":")") + time +
+               R"(","rms":0.004,"major":0.004,"minor":0.003,"orient":0.0,"lat":0.004,"lon":0.003,"alt":0.008})";
+    };
+    // 95 % radius of a circular normal with the mean of the two variances.
+    const double from_gst = 2.4477 * std::sqrt((0.004 * 0.004 + 0.003 * 0.003) / 2);
+    gpsd.send(tpv("2026-05-10T09:19:05.000Z"));
+    gpsd.send(gst("2026-05-10T09:19:05.000Z"));
+    drivers::GnssFix fix;
+    ASSERT_TRUE(pop_within(client, fix));
+    EXPECT_EQ(fix.gnss_time_ns, utc_ns(2026, 5, 10, 9, 19, 5, 0));
+    // Before the first GST the client could not know one would come: gpsd's.
+    EXPECT_NEAR(fix.eph_m, 13.3, 1e-9);
+    gpsd.send(tpv("2026-05-10T09:19:05.100Z"));
+    gpsd.send(gst("2026-05-10T09:19:05.100Z"));
+    ASSERT_TRUE(pop_within(client, fix));
+    EXPECT_EQ(fix.gnss_time_ns, utc_ns(2026, 5, 10, 9, 19, 5, 100));
+    EXPECT_NEAR(fix.eph_m, from_gst, 1e-9);
+    // A GST of another epoch does not describe this fix.
+    gpsd.send(tpv("2026-05-10T09:19:05.200Z"));
+    gpsd.send(gst("2026-05-10T09:19:05.100Z"));
+    ASSERT_TRUE(pop_within(client, fix));
+    EXPECT_EQ(fix.gnss_time_ns, utc_ns(2026, 5, 10, 9, 19, 5, 200));
+    EXPECT_NEAR(fix.eph_m, 13.3, 1e-9);
+    // Its GST never comes: the fix is published anyway (the next report or
+    // the client's wait), with gpsd's estimate.
+    gpsd.send(tpv("2026-05-10T09:19:05.300Z"));
+    ASSERT_TRUE(pop_within(client, fix));
+    EXPECT_EQ(fix.gnss_time_ns, utc_ns(2026, 5, 10, 9, 19, 5, 300));
+    EXPECT_NEAR(fix.eph_m, 13.3, 1e-9);
+    EXPECT_EQ(client.counters().fixes, 4u);
     client.stop();
 }
 

@@ -205,3 +205,51 @@ TEST(Georef, PlacesAMachinePointFromTheAntenna)
     EXPECT_NEAR(a.enu.e_m, 4, 1e-12);
     EXPECT_EQ(place_machine_point(one, 0, 0, 0, 10, 20).status, TrackStatus::no_heading);
 }
+
+TEST(GnssTrack, AQueryCarriesTheWorseQualityOfTheFixesAroundIt)
+{
+    GnssTrack track;
+    ASSERT_TRUE(track.add(0, 0, 0, 0, {3, 3, 15}));      // RTK fixed
+    ASSERT_TRUE(track.add(1000, 1, 0, 1, {3, 4, 60}));   // RTK float
+    ASSERT_TRUE(track.add(2000, 2, 0, 2, {2, 1, -1}));   // GPS, 2D, no estimate
+    const TrackQuery first = track.position_at(500);
+    EXPECT_EQ(first.quality.mode, 3);
+    EXPECT_EQ(first.quality.status, 4);
+    EXPECT_DOUBLE_EQ(first.quality.eph_mm, 60);
+    const TrackQuery second = track.position_at(1500);
+    EXPECT_EQ(second.quality.mode, 2);
+    EXPECT_EQ(second.quality.status, 1);
+    EXPECT_LT(second.quality.eph_mm, 0);   // unknown if either is
+    // On a point: that point's own.
+    EXPECT_EQ(track.position_at(0).quality.status, 3);
+    EXPECT_DOUBLE_EQ(track.position_at(0).quality.eph_mm, 15);
+    // Before the history: nothing known.
+    EXPECT_EQ(track.position_at(-1).quality.mode, 0);
+}
+
+TEST(GnssTrack, FixesAveragedIntoOnePointKeepTheWorstQuality)
+{
+    GnssTrack track;
+    ASSERT_TRUE(track.add(0, 0, 0, 0, {3, 3, 15}));
+    ASSERT_TRUE(track.add(1, 0, 0, 1, {3, 2, 400}));   // standing: same point
+    ASSERT_TRUE(track.add(2, 0, 0, 2, {3, 3, 12}));
+    ASSERT_EQ(track.size(), 1u);
+    EXPECT_EQ(track.newest().quality.status, 2);
+    EXPECT_DOUBLE_EQ(track.newest().quality.eph_mm, 400);
+}
+
+TEST(FixQuality, StatusOrderAndNames)
+{
+    // RTK fixed is better than float, float than DGPS, DGPS than GPS, GPS than dead reckoning.
+    EXPECT_EQ(worse({3, 3, 1}, {3, 4, 1}).status, 4);
+    EXPECT_EQ(worse({3, 2, 1}, {3, 4, 1}).status, 2);
+    EXPECT_EQ(worse({3, 2, 1}, {3, 1, 1}).status, 1);
+    EXPECT_EQ(worse({3, 5, 1}, {3, 1, 1}).status, 5);
+    EXPECT_EQ(status_name(3), "rtk_fixed");
+    EXPECT_EQ(status_name(4), "rtk_float");
+    EXPECT_EQ(status_name(2), "dgps");
+    EXPECT_EQ(status_name(0), "none");
+    EXPECT_EQ(mode_name(2), "2d");
+    EXPECT_EQ(mode_name(3), "3d");
+    EXPECT_EQ(mode_name(1), "none");
+}

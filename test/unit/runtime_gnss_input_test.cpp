@@ -92,7 +92,7 @@ struct Fixture {
 
 TEST(GnssInput, WithoutAFixEveryPlantIsNoFix)
 {
-    const GnssInput in(gnss_config(), 300);
+    GnssInput in(gnss_config(), 300);
     const GeorefResult r = in.place(1000, 0, kT0);
     EXPECT_EQ(r.status, GeorefStatus::no_fix);
     EXPECT_EQ(to_string(r.status), "no_fix");
@@ -210,6 +210,75 @@ TEST(GnssInput, AFixAheadOfTheOdometerWaitsForIt)
 
 namespace {
 
+drivers::GnssFix with_quality(drivers::GnssFix f, std::uint8_t mode, std::uint8_t status, double eph_m)
+{
+    f.mode = mode;
+    f.quality = status;
+    f.eph_m = eph_m;
+    return f;
+}
+
+}  // namespace
+
+TEST(GnssInput, AnErrorEstimateAboveMaxEphMarksThePlantDegradedButPlacesIt)
+{
+    Fixture f;
+    GnssConfig config = gnss_config();
+    config.max_eph_mm = 50;
+    GnssInput in(config, 300);
+    // 10 Hz over 4 m: RTK fixed (eph 20 mm) up to 2 m, then DGPS (eph
+    // 800 mm) from 2.1 m on.
+    for (int k = 0; k <= 40; ++k) {
+        const std::int64_t t = kT0 + k * 100 * kMs;
+        const double odom = kSpeed * (t - kT0) * 1e-9;
+        const drivers::GnssFix fix = k <= 20 ? with_quality(fix_at(t, odom), 3, 3, 0.020)
+                                             : with_quality(fix_at(t, odom), 2, 2, 0.800);
+        in.add(fix, f.odometry, t, 0);
+    }
+    const std::int64_t now = kT0 + 4000 * kMs;
+    const GeorefResult good = in.place(1500, 0, now);
+    ASSERT_EQ(good.status, GeorefStatus::fix);
+    EXPECT_EQ(good.quality.mode, 3);
+    EXPECT_EQ(good.quality.status, 3);
+    EXPECT_DOUBLE_EQ(good.quality.eph_mm, 20);
+    // Between the last RTK fix (2.0 m) and the first DGPS one (2.1 m): the worse of the two.
+    const GeorefResult edge = in.place(2050, 0, now);
+    ASSERT_EQ(edge.status, GeorefStatus::degraded);
+    EXPECT_EQ(edge.quality.mode, 2);
+    EXPECT_EQ(edge.quality.status, 2);
+    EXPECT_DOUBLE_EQ(edge.quality.eph_mm, 800);
+    // Degraded still has its position (same as a trusted one would).
+    const GeorefResult bad = in.place(3000, -150, now);
+    ASSERT_EQ(bad.status, GeorefStatus::degraded);
+    EXPECT_TRUE(has_position(bad.status));
+    EXPECT_LT(error_m(bad, 3000, 300, -150), 1e-6);
+    // Past the newest fix: the newest fix's quality decides.
+    EXPECT_EQ(in.place(4200, 0, now).status, GeorefStatus::degraded);
+    EXPECT_EQ(in.counters().degraded, 3u);
+    // The status line's view: the newest fix taken.
+    EXPECT_EQ(in.counters().last.mode, 2);
+    EXPECT_EQ(in.counters().last.status, 2);
+    EXPECT_DOUBLE_EQ(in.counters().last.eph_mm, 800);
+}
+
+TEST(GnssInput, AnUnknownErrorEstimateIsNotDegradedAndStaysUnknown)
+{
+    Fixture f;
+    GnssConfig config = gnss_config();
+    config.max_eph_mm = 1;
+    GnssInput in(config, 300);
+    for (int k = 0; k <= 20; ++k) {
+        const std::int64_t t = kT0 + k * 100 * kMs;
+        in.add(with_quality(fix_at(t, kSpeed * (t - kT0) * 1e-9), 3, 1, -1), f.odometry, t, 0);
+    }
+    const GeorefResult r = in.place(1000, 0, kT0 + 2000 * kMs);
+    EXPECT_EQ(r.status, GeorefStatus::fix);
+    EXPECT_LT(r.quality.eph_mm, 0);
+    EXPECT_EQ(in.counters().degraded, 0u);
+}
+
+namespace {
+
 std::filesystem::path temp_dir()
 {
     const auto dir = std::filesystem::temp_directory_path() / ("stemd-gnss-" + std::to_string(::getpid()));
@@ -239,7 +308,7 @@ TEST(PlantMapGeoref, KeysAreAppendedOnlyWithGnss)
     MapEntry off;
     off.reason = MapReason::policy;
     MapEntry placed = off;
-    placed.georef = {GeorefStatus::fix, 50.625512345, 6.991298765};
+    placed.georef = {GeorefStatus::fix, 50.625512345, 6.991298765, {3, 3, 14.5}};
     MapEntry lost = off;
     lost.georef.status = GeorefStatus::stale;
     ASSERT_TRUE(map.write(t, off));
@@ -257,10 +326,17 @@ TEST(PlantMapGeoref, KeysAreAppendedOnlyWithGnss)
     EXPECT_NEAR(b["lon_deg"].get<double>(), 6.991298765, 1e-9);
     // Appended after the existing keys: the line ends with them.
     EXPECT_NE(lines[1].find("\"reason\":\"policy\",\"lat_deg\""), std::string::npos) << lines[1];
+    EXPECT_EQ(b["gnss_mode"], "3d");
+    EXPECT_EQ(b["gnss_status"], "rtk_fixed");
+    EXPECT_DOUBLE_EQ(b["eph_mm"].get<double>(), 14.5);
     const auto c = nlohmann::json::parse(lines[2]);
     EXPECT_EQ(c["georef"], "stale");
     EXPECT_TRUE(c["lat_deg"].is_null());
     EXPECT_TRUE(c["lon_deg"].is_null());
+    // No fix behind it: no mode, no status, no estimate.
+    EXPECT_EQ(c["gnss_mode"], "none");
+    EXPECT_EQ(c["gnss_status"], "none");
+    EXPECT_TRUE(c["eph_mm"].is_null());
     EXPECT_EQ(c["s_mm"].get<double>(), 1200);
     std::filesystem::remove_all(dir);
 }
@@ -316,5 +392,39 @@ TEST(PlantGeojson, PointsInLonLatOrderNullWithoutAPositionAndIncremental)
     }
     EXPECT_FALSE(g.update(error));
     EXPECT_NE(error.find(":4: not a plant map line"), std::string::npos) << error;
+    std::filesystem::remove_all(dir);
+}
+
+TEST(PlantMapGeoref, DegradedKeepsItsPositionAndTheFixQuality)
+{
+    const auto dir = temp_dir();
+    PlantMap map(make_logger("map"));
+    ASSERT_TRUE(map.open(dir / "map.jsonl"));
+    actuation::RetiredTrack t;
+    MapEntry e;
+    e.reason = MapReason::policy;
+    e.georef = {GeorefStatus::degraded, 50.625512345, 6.991298765, {2, 4, 1234.5}};
+    ASSERT_TRUE(map.write(t, e));
+    ASSERT_TRUE(map.close());
+    const auto lines = lines_of(dir / "map.jsonl");
+    ASSERT_EQ(lines.size(), 1u);
+    const auto j = nlohmann::json::parse(lines[0]);
+    EXPECT_EQ(j["georef"], "degraded");
+    EXPECT_NEAR(j["lat_deg"].get<double>(), 50.625512345, 1e-9);
+    EXPECT_EQ(j["gnss_mode"], "2d");
+    EXPECT_EQ(j["gnss_status"], "rtk_float");
+    EXPECT_DOUBLE_EQ(j["eph_mm"].get<double>(), 1234.5);
+    // The GeoJSON keeps the point and says why it is not to be trusted.
+    PlantGeojson g(dir / "map.jsonl");
+    std::string error;
+    ASSERT_TRUE(g.update(error)) << error;
+    ASSERT_TRUE(g.write(dir / "map.geojson", error)) << error;
+    std::ifstream in(dir / "map.geojson");
+    const auto doc = nlohmann::json::parse(in);
+    ASSERT_EQ(doc["features"].size(), 1u);
+    EXPECT_EQ(doc["features"][0]["geometry"]["type"], "Point");
+    EXPECT_EQ(doc["features"][0]["properties"]["georef"], "degraded");
+    EXPECT_EQ(doc["features"][0]["properties"]["gnss_status"], "rtk_float");
+    EXPECT_DOUBLE_EQ(doc["features"][0]["properties"]["eph_mm"].get<double>(), 1234.5);
     std::filesystem::remove_all(dir);
 }

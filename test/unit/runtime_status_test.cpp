@@ -95,3 +95,28 @@ TEST(Status, LatencyChangesAreNamedOncePerChange)
     now.tool_timing[0].latency_ms = 39.75;
     EXPECT_EQ(format_latency_changes(now, before), "tool 3: latency 39.8 ms (learned, was 0.0 ms)");
 }
+
+TEST(Status, GnssQualityIsShownAndAnEstimateOverTheMaximumIsNamed)
+{
+    StatusSnapshot s = with_actuation();
+    EXPECT_EQ(format_status(s, StatusSnapshot{}).find("gnss:"), std::string::npos);
+    s.gnss = true;
+    s.gnss_mode = 3;
+    s.gnss_status = 3;
+    s.gnss_eph_mm = 14;
+    s.gnss_max_eph_mm = 100;
+    s.gnss_fixes = 812;
+    s.gnss_degraded = 2;
+    const std::string line = format_status(s, StatusSnapshot{});
+    EXPECT_NE(line.find("gnss: 3d rtk_fixed, eph 14.0 mm, fixes 812, degraded 2"), std::string::npos) << line;
+    s.gnss_mode = 2;
+    s.gnss_status = 2;
+    s.gnss_eph_mm = 2400;
+    const std::string over = format_summary(s, 1.0);
+    EXPECT_NE(over.find("gnss: 2d dgps, eph 2400.0 mm over gnss.max_eph_mm, fixes 812"), std::string::npos) << over;
+    s.gnss_mode = 0;
+    s.gnss_status = 0;
+    s.gnss_eph_mm = -1;
+    const std::string none = format_status(s, StatusSnapshot{});
+    EXPECT_NE(none.find("gnss: none none, eph unknown"), std::string::npos) << none;
+}

@@ -78,6 +78,22 @@ PlaneOffset machine_to_enu(double x_mm, double y_mm, double heading_rad) noexcep
 // east, radians, in (-pi, pi]).
 double heading_of(double de_m, double dn_m) noexcept;
 
+// A fix's quality as the receiver reports it: gpsd's fix mode and status,
+// and its horizontal error estimate.
+struct FixQuality {
+    std::uint8_t mode = 0;     // 0, 1: no fix; 2: 2D; 3: 3D
+    std::uint8_t status = 0;   // gpsd: 0 unknown, 1 GPS, 2 DGPS, 3 RTK fixed, 4 RTK float, 5 DR, 6 GNSS+DR, 7 time, 8 simulated, 9 PPS
+    double eph_mm = -1;        // horizontal error estimate (95 %); < 0: unknown
+};
+// The lesser of two fixes' qualities, part by part: the lower mode, the
+// larger error (unknown if either is), the less precise status. A position
+// made from two fixes is no better than the worse one.
+FixQuality worse(const FixQuality& a, const FixQuality& b) noexcept;
+// "none", "2d", "3d".
+std::string_view mode_name(std::uint8_t mode);
+// "none", "gps", "dgps", "rtk_fixed", "rtk_float", "dr", "gnss_dr", "time", "sim", "pps".
+std::string_view status_name(std::uint8_t status);
+
 // One antenna position on the track: the odometer at the fix's time and the
 // fix's position in the plane.
 struct TrackPoint {
@@ -86,6 +102,7 @@ struct TrackPoint {
     double n_m = 0;
     std::int64_t t_ns = 0;   // the fix's time (CLOCK_MONOTONIC)
     std::uint32_t fixes = 1; // fixes averaged into this point (standing still)
+    FixQuality quality;      // the worst of those fixes'
 };
 
 enum class TrackStatus : std::uint8_t {
@@ -102,6 +119,10 @@ struct TrackQuery {
     TrackStatus status = TrackStatus::empty;
     double e_m = 0;
     double n_m = 0;
+    // The fixes the position came from: the worse of the two bracketing it,
+    // or the newest when past it. Default (mode 0) when the track is empty
+    // or the query is before its history.
+    FixQuality quality;
 };
 
 struct GnssTrackParams {
@@ -123,7 +144,7 @@ public:
     // Adds a fix's antenna position at odometer odom_mm. Refused (false)
     // when not finite or the odometer ran back. When full, the oldest point
     // is overwritten.
-    bool add(double odom_mm, double e_m, double n_m, std::int64_t t_ns) noexcept;
+    bool add(double odom_mm, double e_m, double n_m, std::int64_t t_ns, const FixQuality& quality = {}) noexcept;
 
     // The antenna position when the odometer read odom_mm.
     TrackQuery position_at(double odom_mm) const noexcept;
@@ -141,8 +162,9 @@ public:
     const GnssTrackParams& params() const { return params_; }
 
 private:
-    // Linear between the points around odom_mm (which must be within them).
-    void interpolate(double odom_mm, double& e_m, double& n_m) const noexcept;
+    // Linear between the points around odom_mm (which must be within them);
+    // quality, when given, gets the worse of those points'.
+    void interpolate(double odom_mm, double& e_m, double& n_m, FixQuality* quality = nullptr) const noexcept;
 
     GnssTrackParams params_;
     std::size_t capacity_;
@@ -157,6 +179,7 @@ private:
 struct PlacedPoint {
     TrackStatus status = TrackStatus::empty;
     Enu enu;
+    FixQuality quality;   // the antenna position's (TrackQuery::quality)
 };
 PlacedPoint place_machine_point(const GnssTrack& track, double odom_mm, double x_mm, double y_mm,
                                 double antenna_x_mm, double antenna_y_mm) noexcept;

@@ -44,6 +44,9 @@ struct GnssConfig {
     GnssTime time = GnssTime::receive;
     double heading_baseline_mm = 2000;
     double max_extrapolation_mm = 500;
+    // A plant placed from fixes whose horizontal error estimate is above
+    // this is georef "degraded" (placed, not to be trusted as a fix).
+    double max_eph_mm = 100;
 };
 
 struct ActuationConfig {

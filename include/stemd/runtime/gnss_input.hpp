@@ -33,19 +33,31 @@ enum class GeorefStatus : std::uint8_t {
     no_fix,         // no fix around it (none yet, lost, or it is older than the track kept)
     stale,          // past the newest fix, which is older than gnss.max_age_ms
     no_heading,     // too little travel yet for a heading (gnss.heading_baseline_mm)
+    // Placed (between fixes or extrapolated), but from fixes whose error
+    // estimate (eph) is above gnss.max_eph_mm: the position is there to be
+    // looked at, not to be trusted as one within the tolerance.
+    degraded,
 };
 std::string_view to_string(GeorefStatus s);
+
+// fix, extrapolated, degraded: lat_deg/lon_deg hold a position.
+bool has_position(GeorefStatus s);
 
 struct GeorefResult {
     GeorefStatus status = GeorefStatus::off;
     double lat_deg = 0;
     double lon_deg = 0;
+    // The fixes around the plant (the worse of the two bracketing it, or
+    // the newest when past it); mode 0 when there was none.
+    geometry::FixQuality quality;
 };
 
 struct GnssCountersView {
     std::uint64_t fixes = 0;      // taken from the receiver
     std::uint64_t on_track = 0;   // with an odometer reading, on the track
     std::uint64_t unplaced = 0;   // no odometer reading at their time (counted, dropped)
+    std::uint64_t degraded = 0;   // plants placed as georef degraded
+    geometry::FixQuality last;    // the newest fix taken from the receiver (mode 0: none yet)
 };
 
 class GnssInput {
@@ -62,9 +74,11 @@ public:
     void add(const drivers::GnssFix& fix, const OdometryInput& odometry, std::int64_t now_ns,
              std::int64_t realtime_minus_monotonic_ns) noexcept;
 
-    GeorefResult place(double s_mm, double y_mm, std::int64_t now_ns) const noexcept;
+    // A plant's position; counts the degraded ones (counters()).
+    GeorefResult place(double s_mm, double y_mm, std::int64_t now_ns) noexcept;
 
     GnssCountersView counters() const;
+    double max_eph_mm() const { return config_.max_eph_mm; }
     const geometry::GnssTrack& track() const { return track_; }
 
 private:
@@ -81,7 +95,10 @@ private:
     std::array<drivers::GnssFix, 64> waiting_{};
     std::size_t waiting_head_ = 0;
     std::size_t waiting_size_ = 0;
-    std::atomic<std::uint64_t> fixes_{0}, on_track_{0}, unplaced_{0};
+    std::atomic<std::uint64_t> fixes_{0}, on_track_{0}, unplaced_{0}, degraded_{0};
+    // The newest fix's quality, for the status line.
+    std::atomic<std::uint8_t> last_mode_{0}, last_status_{0};
+    std::atomic<double> last_eph_mm_{-1};
 };
 
 }  // namespace stemd::runtime

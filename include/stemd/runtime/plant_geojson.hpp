@@ -4,12 +4,13 @@
 // the record: the GeoJSON is one document that cannot be appended to line
 // by line, so it is rewritten whole, to FILE.tmp and renamed over FILE (a
 // kill leaves the previous complete version or the new one, never a torn
-// file). The daemon's main thread does this every 30 s and at exit; never
-// the real-time threads.
+// file). GeojsonWriter does this on a low-priority thread every 30 s, and
+// once more at exit; never the real-time threads.
 //
 // Each feature: geometry a Point, or null for a plant without a position
-// (georef other than fix/extrapolated, or a map without GNSS); properties
-// id, class, treated, reason, leaves, s_mm, y_mm, georef.
+// (georef other than fix/extrapolated/degraded, or a map without GNSS);
+// properties id, class, treated, reason, leaves, s_mm, y_mm, georef,
+// gnss_mode, gnss_status, eph_mm (a GIS can filter out degraded points).
 #pragma once
 
 #include <cstdint>

@@ -15,9 +15,14 @@
 // deadline_miss (the scheduler: it could not be on time), bus_deadline (the
 // bus could not take it before its deadline), bus_error, no_odometry,
 // unconfirmed. tool, lane, fire_odom_mm: when a tool was chosen.
-// With gnss.source set, three more keys end the line: "lat_deg", "lon_deg"
-// (WGS84, 1e-9 degree; null without a position) and "georef" (fix,
-// extrapolated, no_fix, stale, no_heading: runtime/gnss_input.hpp).
+// With gnss.source set, more keys end the line: "lat_deg", "lon_deg"
+// (WGS84, 1e-9 degree; null without a position), "georef" (fix,
+// extrapolated, degraded, no_fix, stale, no_heading:
+// runtime/gnss_input.hpp), and the quality of the fixes the position came
+// from: "gnss_mode" (none, 2d, 3d), "gnss_status" (gpsd's: gps, dgps,
+// rtk_fixed, rtk_float, ...; none when unknown) and "eph_mm" (horizontal
+// error estimate, null when the receiver gives none). degraded: placed,
+// but eph_mm is above gnss.max_eph_mm.
 //
 // Tool timing, appended after those when a TARGET was sent: fire_lead_mm
 // (how much earlier than the stem it was commanded, speed × latency_ms), and
@@ -98,7 +103,7 @@ private:
     std::shared_ptr<spdlog::logger> log_;
     std::filesystem::path path_;
     base::RecordFile file_;
-    std::array<char, 512> line_{};   // one line: well under this
+    std::array<char, 768> line_{};   // one line: well under this
     bool failed_ = false;
     std::uint64_t lines_ = 0;
 };
