@@ -203,6 +203,7 @@ void ActuationStage::poll(std::int64_t now_ns) noexcept
     link_.receive();
     if (config_.odometry == OdometrySource::encoder)
         odometry_.add_encoder(now_ns, parts_.gpio->encoder().ticks);
+    enable_input_seen_.store(enable_input(), std::memory_order_relaxed);
     link_.heartbeat_if_due(now_ns, last_frame_ns_ >= 0, enabled());
     poll_gnss(now_ns);
     write_waiting(now_ns, false);

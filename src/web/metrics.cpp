@@ -162,6 +162,8 @@ std::string format_metrics(const Metrics& m)
     t.sample("live_plants_dropped_total", "", m.live_plants_dropped);
     t.family("web_requests_total", "counter", "HTTP requests the live view answered.");
     t.sample("web_requests_total", "", m.web_requests);
+    t.family("web_unauthorized_total", "counter", "Control requests refused for a missing or wrong token.");
+    t.sample("web_unauthorized_total", "", m.web_unauthorized);
     return t.take();
 }
 

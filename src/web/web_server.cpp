@@ -10,6 +10,7 @@
 #include <cstring>
 #include <deque>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -19,6 +20,7 @@
 
 #include "stemd/base/clock.hpp"
 #include "stemd/viz/overlay.hpp"
+#include "stemd/web/web_control.hpp"
 #include "stemd/web/web_json.hpp"
 #include "stemd/web_page.hpp"   // generated from src/web/page.html
 
@@ -142,6 +144,8 @@ struct WebServer::Impl {
     std::atomic<int> port{0};
     std::atomic<std::uint64_t> requests{0};
     std::atomic<std::uint64_t> frames_encoded{0};
+    std::atomic<std::uint64_t> unauthorized{0};
+    std::mutex control_mutex;   // the control's configuration, one change at a time
     std::string failure;   // why it is not serving (set before start() returns)
     const std::int64_t t_start_ns = base::monotonic_ns();
 
@@ -164,6 +168,7 @@ struct WebServer::Impl {
         }
         m.live_frames_encoded = frames_encoded.load(std::memory_order_relaxed);
         m.web_requests = requests.load(std::memory_order_relaxed);
+        m.web_unauthorized = unauthorized.load(std::memory_order_relaxed);
         return m;
     }
 
@@ -240,6 +245,127 @@ struct WebServer::Impl {
         res.set_content(reinterpret_cast<const char*>(jpeg.data()), jpeg.size(), "image/jpeg");
     }
 
+    // Who asked, for the log: the peer's address and port.
+    static std::string peer(const httplib::Request& req)
+    {
+        return req.remote_addr + ":" + std::to_string(req.remote_port);
+    }
+
+    static void json_reply(httplib::Response& res, int status, const nlohmann::json& body)
+    {
+        res.status = status;
+        res.set_header("Cache-Control", "no-store");
+        res.set_content(body.dump(), "application/json");
+    }
+
+    // The POST's token; false (401 sent, counted, logged) if wrong or missing.
+    bool authorised(const httplib::Request& req, httplib::Response& res)
+    {
+        if (bearer_matches(req.get_header_value("Authorization"), sources.control->token))
+            return true;
+        unauthorized.fetch_add(1, std::memory_order_relaxed);
+        log->warn("web control: {} {} from {} refused: missing or wrong token", req.method, req.path, peer(req));
+        res.set_header("WWW-Authenticate", "Bearer");
+        json_reply(res, 401, {{"error", "missing or wrong token (Authorization: Bearer TOKEN)"}});
+        return false;
+    }
+
+    // The request's JSON object, or nullopt (400 sent).
+    static std::optional<nlohmann::json> json_body(const httplib::Request& req, httplib::Response& res)
+    {
+        nlohmann::json body = nlohmann::json::parse(req.body, nullptr, false);
+        if (body.is_discarded() || !body.is_object()) {
+            json_reply(res, 400, {{"error", "the body must be a JSON object"}});
+            return std::nullopt;
+        }
+        return body;
+    }
+
+    // Under control_mutex.
+    nlohmann::json control_json()
+    {
+        WebControl& c = *sources.control;
+        nlohmann::json params = nlohmann::json::array();
+        for (const std::string& key : controllable_keys()) {
+            const config::KeySpec& spec = *config::find_key(key);
+            nlohmann::json p = {{"key", key},
+                                {"type", std::string(config::to_string(spec.type))},
+                                {"unit", std::string(spec.unit)},
+                                {"value", c.config.value_of(key)},
+                                {"help", std::string(spec.help)}};
+            if (spec.type == config::ValueType::integer || spec.type == config::ValueType::real) {
+                p["min"] = spec.min;
+                p["max"] = spec.max;
+            }
+            if (spec.type == config::ValueType::choice)
+                p["choices"] = config::list_choices(spec, "|");
+            params.push_back(std::move(p));
+        }
+        const bool disabled = c.disabled ? c.disabled() : false;
+        const bool input = c.enable_input ? c.enable_input() : true;
+        return {{"operator_disabled", disabled},
+                {"enable_input", input},
+                {"enabled", input && !disabled},
+                {"params", std::move(params)}};
+    }
+
+    void control_routes()
+    {
+        server.Get("/api/control", [this](const httplib::Request&, httplib::Response& res) {
+            std::lock_guard lock(control_mutex);
+            json_reply(res, 200, control_json());
+        });
+        server.Post("/api/enable", [this](const httplib::Request& req, httplib::Response& res) {
+            if (!authorised(req, res))
+                return;
+            const auto body = json_body(req, res);
+            if (!body)
+                return;
+            if (!body->contains("enabled") || !(*body)["enabled"].is_boolean()) {
+                json_reply(res, 400, {{"error", "expected {\"enabled\": true|false}"}});
+                return;
+            }
+            const bool disable = !(*body)["enabled"].get<bool>();
+            std::lock_guard lock(control_mutex);
+            WebControl& c = *sources.control;
+            const bool was = c.disabled();
+            c.set_disabled(disable);
+            log->warn("web control: {} {} the operator's disable ({} -> {}){}", peer(req),
+                      disable ? "set" : "cleared", was ? "disabled" : "not disabled",
+                      disable ? "disabled" : "not disabled",
+                      !disable && !c.enable_input() ? "; the enable input is off and keeps the tools off" : "");
+            json_reply(res, 200, control_json());
+        });
+        server.Post("/api/param", [this](const httplib::Request& req, httplib::Response& res) {
+            if (!authorised(req, res))
+                return;
+            const auto body = json_body(req, res);
+            if (!body)
+                return;
+            const auto key = body->find("key");
+            const auto value = body->find("value");
+            if (key == body->end() || !key->is_string() || value == body->end() ||
+                !(value->is_string() || value->is_number() || value->is_boolean())) {
+                json_reply(res, 400, {{"error", "expected {\"key\": \"segment.KEY\" or \"stem.KEY\", \"value\": ...}"}});
+                return;
+            }
+            const std::string text = value->is_string() ? value->get<std::string>() : value->dump();
+            std::lock_guard lock(control_mutex);
+            WebControl& c = *sources.control;
+            const ParamChange change = change_param(c.config, key->get<std::string>(), text);
+            if (!change.ok) {
+                log->warn("web control: {} asked {}={}: refused: {}", peer(req), key->get<std::string>(), text,
+                          change.error);
+                json_reply(res, 400, {{"error", change.error}});
+                return;
+            }
+            c.set_params(c.config.settings().daemon.vision);
+            log->info("web control: {} changed {}: {} -> {} (from the next frame; not written to any file)",
+                      peer(req), key->get<std::string>(), change.old_value, change.new_value);
+            json_reply(res, 200, {{"key", key->get<std::string>()}, {"old", change.old_value}, {"value", change.new_value}});
+        });
+    }
+
     void routes()
     {
         server.set_payload_max_length(kMaxBodyBytes);
@@ -295,8 +421,15 @@ struct WebServer::Impl {
             res.set_content(plants_json(plants, odom_mm).dump(), "application/json");
         });
         server.Get("/api/config", [this](const httplib::Request&, httplib::Response& res) {
-            res.set_content(nlohmann::json{{"yaml", sources.config_yaml}}.dump(), "application/json");
+            if (sources.control) {
+                std::lock_guard lock(control_mutex);
+                json_reply(res, 200, {{"yaml", sources.control->config.to_yaml()}});
+                return;
+            }
+            json_reply(res, 200, {{"yaml", sources.config_yaml}});
         });
+        if (sources.control)
+            control_routes();
         server.Get("/metrics", [this](const httplib::Request&, httplib::Response& res) {
             res.set_content(format_metrics(metrics()), "text/plain; version=0.0.4; charset=utf-8");
         });

@@ -47,7 +47,8 @@ struct Fixture : ::testing::Test {
                                     m.frames_in = 42;
                                     return m;
                                 },
-                                .config_yaml = "web:\n  listen: 127.0.0.1:0\n"};
+                                .config_yaml = "web:\n  listen: 127.0.0.1:0\n",
+                                .control = std::nullopt};
         server = std::make_unique<web::WebServer>(config, runtime::ListenAddress{"127.0.0.1", 0}, std::move(sources),
                                                   runtime::make_logger("web"));
         ASSERT_TRUE(server->start());
