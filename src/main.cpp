@@ -295,7 +295,8 @@ int run(int argc, char** argv, Phase& phase)
                                 .totals = [d] { return d->snapshot(true); },
                                 .metrics = [d] { return web::collect_metrics(*d); },
                                 .config_yaml = config.to_yaml(),
-                                .control = std::nullopt};
+                                .control = std::nullopt,
+                                .camera = *camera};
         if (!web_token.empty())
             sources.control = web::WebControl{
                 .token = web_token,

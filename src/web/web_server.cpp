@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <chrono>
 #include <condition_variable>
 #include <cstring>
@@ -128,6 +129,24 @@ void downscale(const cv::Mat& in, cv::Mat& out, int width_px)
 
 const cv::Scalar kCrop(255, 200, 0);    // BGR: light blue
 const cv::Scalar kWeed(255, 0, 255);    // magenta
+const cv::Scalar kSent(0, 230, 0);      // green: TARGET sent
+const cv::Scalar kSpared(160, 160, 160);   // grey: policy, no tool, disabled
+const cv::Scalar kMissed(0, 0, 255);    // red: deadline, bus, no odometry
+
+// Targets kept to draw: more than fit in one view.
+constexpr std::size_t kRecentTargets = 64;
+
+const cv::Scalar& target_colour(runtime::MapReason reason)
+{
+    using runtime::MapReason;
+    switch (reason) {
+    case MapReason::sent: return kSent;
+    case MapReason::policy:
+    case MapReason::no_tool:
+    case MapReason::disabled: return kSpared;
+    default: return kMissed;
+    }
+}
 
 }  // namespace
 
@@ -157,6 +176,7 @@ struct WebServer::Impl {
     bool have_jpeg = false;
     double odom_mm = std::numeric_limits<double>::quiet_NaN();
     std::deque<runtime::LivePlant> plants;
+    std::deque<runtime::LiveTarget> targets;
     cv::Mat canvas, scaled;
 
     Metrics metrics()
@@ -183,6 +203,42 @@ struct WebServer::Impl {
         }
     }
 
+    // Under `mutex`: each target the actuator decided since, as a square on
+    // its stem where the frame saw the ground: sent green, spared grey,
+    // missed red.
+    void draw_targets(const runtime::LiveFrame& f)
+    {
+        runtime::LiveTarget t;
+        while (sources.feed != nullptr && sources.feed->pop_target(t)) {
+            targets.push_back(t);
+            while (targets.size() > kRecentTargets)
+                targets.pop_front();
+        }
+        if (!sources.camera || targets.empty())
+            return;
+        // The frame's odometer: its own reading, else the actuator's at the
+        // newest target's frame carried on at its speed (a recording
+        // without odometer column, constant-speed odometry).
+        const runtime::LiveTarget& ref = targets.back();
+        const double odom_mm = std::isfinite(f.odom_mm)
+                                   ? f.odom_mm
+                                   : ref.odom_at_capture_mm +
+                                         ref.speed_mm_per_s * static_cast<double>(f.t_sample_ns - ref.t_sample_ns) / 1e9;
+        const geometry::Mount& mount = sources.camera->mount();
+        for (const runtime::LiveTarget& target : targets) {
+            const auto px = sources.camera->ground_to_pixel(mount.x_mm + (target.s_mm - odom_mm), target.y_mm);
+            if (!px || px->x < 0 || px->y < 0 || px->x >= canvas.cols || px->y >= canvas.rows)
+                continue;
+            const cv::Point c(cvRound(px->x), cvRound(px->y));
+            const cv::Scalar& colour = target_colour(target.reason);
+            cv::rectangle(canvas, c - cv::Point(20, 20), c + cv::Point(20, 20), colour, 4, cv::LINE_AA);
+            char label[48];
+            std::snprintf(label, sizeof label, "T%u %s", static_cast<unsigned>(target.target_id),
+                          std::string(runtime::to_string(target.reason)).c_str());
+            cv::putText(canvas, label, c + cv::Point(24, -24), cv::FONT_HERSHEY_SIMPLEX, 0.7, colour, 2, cv::LINE_AA);
+        }
+    }
+
     // Under `mutex`: the newest published frame, drawn and encoded once.
     void encode(const runtime::LiveFrame& f)
     {
@@ -198,6 +254,7 @@ struct WebServer::Impl {
             cv::circle(canvas, cv::Point(cvRound(p.stem.x), cvRound(p.stem.y)), 14,
                        f.plant_class[i] == PlantClass::Crop ? kCrop : kWeed, 3, cv::LINE_AA);
         }
+        draw_targets(f);
         const cv::Mat* out = &canvas;
         if (canvas.cols > config.max_width_px) {
             downscale(canvas, scaled, config.max_width_px);

@@ -4,7 +4,8 @@
 // drawing the overlay and encoding JPEGs happen on its threads.
 //
 //   GET /             the page (HTML + JS built into the binary)
-//   GET /frame.jpg    the latest frame with the overlay, at most web.fps
+//   GET /frame.jpg    the latest frame with the overlay (and, with a camera
+//                     model, the targets decided near it), at most web.fps
 //                     new frames a second, at most web.max_width_px wide
 //   GET /api/status   counters, drops, latencies, histograms (JSON)
 //   GET /api/plants   the last web.plants plants of the plant map (JSON)
@@ -31,6 +32,7 @@
 #include <spdlog/logger.h>
 
 #include "stemd/config/config.hpp"
+#include "stemd/geometry/camera_model.hpp"
 #include "stemd/runtime/live_feed.hpp"
 #include "stemd/runtime/status.hpp"
 #include "stemd/runtime/web_config.hpp"
@@ -56,6 +58,8 @@ struct WebSources {
     std::function<Metrics()> metrics;                   // live_* and web_* are filled in by the server
     std::string config_yaml;                            // the running configuration (without control)
     std::optional<WebControl> control;                  // nullopt: read-only, no control endpoints
+    // The camera: with it the frame shows the targets near it (field -> pixel).
+    std::optional<geometry::CameraModel> camera;
 };
 
 class WebServer {
