@@ -366,23 +366,31 @@ struct WebServer::Impl {
                 {"params", std::move(params)}};
     }
 
+    // A control POST: the token checked, the body parsed as a JSON object,
+    // before `handle` sees it.
+    template <class Handle>
+    void post(const char* path, Handle handle)
+    {
+        server.Post(path, [this, handle](const httplib::Request& req, httplib::Response& res) {
+            if (!authorised(req, res))
+                return;
+            if (const auto body = json_body(req, res))
+                handle(req, res, *body);
+        });
+    }
+
     void control_routes()
     {
         server.Get("/api/control", [this](const httplib::Request&, httplib::Response& res) {
             std::lock_guard lock(control_mutex);
             json_reply(res, 200, control_json());
         });
-        server.Post("/api/enable", [this](const httplib::Request& req, httplib::Response& res) {
-            if (!authorised(req, res))
-                return;
-            const auto body = json_body(req, res);
-            if (!body)
-                return;
-            if (!body->contains("enabled") || !(*body)["enabled"].is_boolean()) {
+        post("/api/enable", [this](const httplib::Request& req, httplib::Response& res, const nlohmann::json& body) {
+            if (!body.contains("enabled") || !body["enabled"].is_boolean()) {
                 json_reply(res, 400, {{"error", "expected {\"enabled\": true|false}"}});
                 return;
             }
-            const bool disable = !(*body)["enabled"].get<bool>();
+            const bool disable = !body["enabled"].get<bool>();
             std::lock_guard lock(control_mutex);
             WebControl& c = *sources.control;
             const bool was = c.disabled();
@@ -393,15 +401,10 @@ struct WebServer::Impl {
                       !disable && !c.enable_input() ? "; the enable input is off and keeps the tools off" : "");
             json_reply(res, 200, control_json());
         });
-        server.Post("/api/param", [this](const httplib::Request& req, httplib::Response& res) {
-            if (!authorised(req, res))
-                return;
-            const auto body = json_body(req, res);
-            if (!body)
-                return;
-            const auto key = body->find("key");
-            const auto value = body->find("value");
-            if (key == body->end() || !key->is_string() || value == body->end() ||
+        post("/api/param", [this](const httplib::Request& req, httplib::Response& res, const nlohmann::json& body) {
+            const auto key = body.find("key");
+            const auto value = body.find("value");
+            if (key == body.end() || !key->is_string() || value == body.end() ||
                 !(value->is_string() || value->is_number() || value->is_boolean())) {
                 json_reply(res, 400, {{"error", "expected {\"key\": \"segment.KEY\" or \"stem.KEY\", \"value\": ...}"}});
                 return;

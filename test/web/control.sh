@@ -5,15 +5,7 @@
 # log, and the operator's disable stopping TARGET frames until cleared.
 # A token file that is too open or too short stops the start.
 #   control.sh STEMD TOOLS_DIR SOURCE_DIR
-set -euo pipefail
-stemd=$1
-tools=$2
-src=$3
-tmp=$(mktemp -d)
-stemd_pid=""
-trap '[ -n "$stemd_pid" ] && kill "$stemd_pid" 2>/dev/null; rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
-. "$(dirname "$0")/common.sh"
+. "$(dirname "$0")/common.sh" "$@"
 
 # The token file is checked at start: too open, too short.
 printf '%s\n' 0123456789abcdef-control-test >"$tmp/token"
