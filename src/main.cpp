@@ -36,6 +36,7 @@
 #include "stemd/runtime/live_feed.hpp"
 #include "stemd/runtime/web_config.hpp"
 #include "stemd/web/web_json.hpp"
+#include "stemd/web/web_control.hpp"
 #include "stemd/web/web_server.hpp"
 
 using namespace stemd;
@@ -199,6 +200,21 @@ int run(int argc, char** argv, Phase& phase)
             return kUsageError;
         }
     }
+    // The control token: read once, here; a view that was meant to be
+    // controllable but cannot check tokens does not start.
+    std::string web_token;
+    if (!daemon_config.web.token_file.empty()) {
+        if (!web_address) {
+            std::cerr << "stemd: " << config.blame("web.token_file", "needs web.listen (the view is off)") << "\n";
+            return kUsageError;
+        }
+        const auto token = web::read_token_file(daemon_config.web.token_file, error);
+        if (!token) {
+            std::cerr << "stemd: " << config.blame("web.token_file", error) << "\n";
+            return kUsageError;
+        }
+        web_token = *token;
+    }
     // The crop/weed model: refused at start, like any other bad setting,
     // when it is unreadable or made for another camera.
     std::optional<vision::PlantClassifier> classifier;
@@ -289,7 +305,17 @@ int run(int argc, char** argv, Phase& phase)
         web::WebSources sources{.feed = live_feed.get(),
                                 .totals = [d] { return d->snapshot(true); },
                                 .metrics = [d] { return web::collect_metrics(*d); },
-                                .config_yaml = config.to_yaml()};
+                                .config_yaml = config.to_yaml(),
+                                .control = std::nullopt,
+                                .camera = *camera};
+        if (!web_token.empty())
+            sources.control = web::WebControl{
+                .token = web_token,
+                .config = config,
+                .set_params = [d](const vision::Params& params) { d->set_vision_params(params); },
+                .set_disabled = [d](bool disabled) { d->set_operator_disabled(disabled); },
+                .disabled = [d] { return d->operator_disabled(); },
+                .enable_input = [d] { return d->enable_input(); }};
         web_server = std::make_unique<web::WebServer>(daemon_config.web, *web_address, std::move(sources),
                                                       runtime::make_logger("web"));
         // A taken port is logged with the address and errno; the daemon runs

@@ -1184,6 +1184,12 @@ std::string Config::origin_of(std::string_view key) const
     return spec == nullptr ? std::string() : values_[index_of(*spec)].origin;
 }
 
+std::string Config::value_of(std::string_view key) const
+{
+    const KeySpec* spec = find_key(key);
+    return spec == nullptr ? std::string() : value_text(*spec, values_[index_of(*spec)]);
+}
+
 std::string Config::blame(std::string_view key, std::string_view message) const
 {
     const std::string origin = origin_of(key);

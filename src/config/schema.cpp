@@ -342,6 +342,9 @@ constexpr std::array kSchema{
     bind<STEMD_KEY(daemon.web.plants)>(
         {"web.plants", integer, "count", 1, 10000, "200", "",
             "the last N plants of the plant map kept for the view's field strip and /api/plants"}),
+    bind<STEMD_KEY(daemon.web.token_file)>(
+        {"web.token_file", text, "", 0, 0, "none", "",
+            "file holding the live view's control token (16+ characters, mode 0600 or stricter); none: no control endpoints"}),
 
     // --- actuation: one target per plant, deadline scheduling, odometry, CAN, GPIO ---
     bind<STEMD_KEY(actuation.tracker.association_radius_mm)>(

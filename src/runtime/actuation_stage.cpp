@@ -130,6 +130,15 @@ void ActuationStage::on_frame(const FrameResult& r, std::int64_t now_ns) noexcep
         bump(counters_.targets);
         if (sender_.schedule(t, now_ns, r.has_class_map, enabled()))
             counters_.send_latency.record(now_ns - r.t_sample_ns);
+        if (live_feed_ != nullptr)
+            live_feed_->push_target(
+                {.target_id = t.target_id,
+                 .s_mm = t.s_mm,
+                 .y_mm = t.y_mm,
+                 .reason = sender_.outcome(t.target_id).reason,
+                 .t_sample_ns = r.t_sample_ns,
+                 .odom_at_capture_mm = odom_at_capture,
+                 .speed_mm_per_s = odometry_.speed_mm_per_s()});
     }
     poll_gnss(now_ns);
     write_retired(tracker_.retired(), now_ns);
@@ -209,6 +218,7 @@ void ActuationStage::poll(std::int64_t now_ns, bool camera_lost) noexcept
     link_.receive();
     if (config_.odometry == OdometrySource::encoder)
         odometry_.add_encoder(now_ns, parts_.gpio->encoder().ticks);
+    enable_input_seen_.store(enable_input(), std::memory_order_relaxed);
     link_.heartbeat_if_due(now_ns, last_frame_ns_ >= 0, camera_lost, enabled());
     poll_gnss(now_ns);
     write_waiting(now_ns, false);

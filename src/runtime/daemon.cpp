@@ -94,11 +94,30 @@ Daemon::Daemon(const DaemonConfig& config, std::unique_ptr<drivers::FrameSource>
       results_(config.results_capacity),
       // One sample per frame between capture and the actuator, and room to spare.
       captured_odometry_(2 * (config.ring_capacity + config.results_capacity + 4)),
-      workspace_(std::make_unique<vision::Workspace>(config.frame_size, config.vision))
+      workspace_(std::make_unique<vision::Workspace>(config.frame_size, config.vision)),
+      vision_params_([&config](vision::Params& slot) { slot = config.vision; })
 {
     for (std::size_t i = 0; i < pool_.size(); ++i)
         free_slots_.try_push(&pool_[i]);
 }
+
+void Daemon::set_vision_params(const vision::Params& params)
+{
+    std::lock_guard lock(vision_params_writer_);
+    vision_params_.write_slot() = params;
+    vision_params_.publish();
+}
+
+void Daemon::set_operator_disabled(bool disabled)
+{
+    operator_disabled_.store(disabled, std::memory_order_relaxed);
+    if (actuation_)
+        actuation_->set_operator_disabled(disabled);
+}
+
+bool Daemon::operator_disabled() const { return operator_disabled_.load(std::memory_order_relaxed); }
+
+bool Daemon::enable_input() const { return actuation_ ? actuation_->enable_input_seen() : true; }
 
 void Daemon::attach_live_feed(LiveFeed* feed)
 {
@@ -379,7 +398,10 @@ void Daemon::processing_loop()
         if (result == nullptr) {
             bump(counters_->processing.results_full);
         } else {
-            vision::detect({.bgr = frame->bgr, .nir = frame->nir, .mask = frame->mask}, config_.vision, *workspace_,
+            // The live view's parameter changes, if any, from this frame on.
+            vision_params_.take();
+            const vision::Params& params = vision_params_.read_slot();
+            vision::detect({.bgr = frame->bgr, .nir = frame->nir, .mask = frame->mask}, params, *workspace_,
                            result->detections, &times);
             result->seq = frame->seq;
             result->t_sample_ns = frame->t_sample_ns;
@@ -393,7 +415,7 @@ void Daemon::processing_loop()
                 // column too: what runs in the field is what a replay shows.
                 // A frame without its rgb image leaves every plant unknown.
                 const vision::FrameView view{.bgr = frame->bgr, .nir = frame->nir, .mask = frame->mask};
-                vision::plant_features(view, config_.vision, *workspace_, result->detections, *classify_workspace_);
+                vision::plant_features(view, params, *workspace_, result->detections, *classify_workspace_);
                 const auto features = classify_workspace_->features();
                 for (std::size_t i = 0; i < result->detections.plants.size(); ++i)
                     result->plant_class[i] =

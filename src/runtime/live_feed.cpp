@@ -12,7 +12,8 @@ LiveFeed::LiveFeed(cv::Size frame_size, int fps, std::size_t plant_capacity)
           slot.bgr.create(frame_size, CV_8UC3);
           slot.closed.reset(frame_size.width, frame_size.height);
       }),
-      plants_(std::max<std::size_t>(plant_capacity, 1))
+      plants_(std::max<std::size_t>(plant_capacity, 1)),
+      targets_(std::max<std::size_t>(plant_capacity, 1))
 {
 }
 

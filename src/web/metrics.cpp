@@ -1,7 +1,9 @@
 #include "stemd/web/metrics.hpp"
 
 #include <cstdio>
+#include <initializer_list>
 #include <string_view>
+#include <utility>
 
 #include "stemd/runtime/daemon.hpp"
 
@@ -15,6 +17,20 @@ public:
     {
         out_.append("# HELP stemd_").append(name).append(" ").append(help).append("\n");
         out_.append("# TYPE stemd_").append(name).append(" ").append(type).append("\n");
+    }
+    // A counter family of one unlabelled sample.
+    void counter(std::string_view name, std::string_view help, std::uint64_t value)
+    {
+        family(name, "counter", help);
+        sample(name, "", value);
+    }
+    // A counter family of one sample per value of `label`.
+    void counters(std::string_view name, std::string_view help, std::string_view label,
+                  std::initializer_list<std::pair<std::string_view, std::uint64_t>> values)
+    {
+        family(name, "counter", help);
+        for (const auto& [key, value] : values)
+            sample(name, std::string(label) + "=\"" + std::string(key) + "\"", value);
     }
     void sample(std::string_view name, std::string_view labels, std::uint64_t value)
     {
@@ -107,40 +123,23 @@ Metrics collect_metrics(runtime::Daemon& daemon)
 std::string format_metrics(const Metrics& m)
 {
     Text t;
-    t.family("frames_in_total", "counter", "Frames the source delivered.");
-    t.sample("frames_in_total", "", m.frames_in);
-    t.family("frames_out_total", "counter", "Frames whose detections reached the actuator.");
-    t.sample("frames_out_total", "", m.frames_out);
-    t.family("stems_total", "counter", "Plants with a stem in the frames out.");
-    t.sample("stems_total", "", m.stems);
-    t.family("frames_late_total", "counter", "Paced replay: frames the source came to more than 2 ms late.");
-    t.sample("frames_late_total", "", m.late);
-    t.family("frames_dropped_total", "counter", "Frames dropped, by cause.");
-    t.sample("frames_dropped_total", "cause=\"ring_full\"", m.ring_full);
-    t.sample("frames_dropped_total", "cause=\"overwritten\"", m.overwritten);
-    t.sample("frames_dropped_total", "cause=\"results_full\"", m.results_full);
-    t.sample("frames_dropped_total", "cause=\"corrupt\"", m.corrupt);
-    t.sample("frames_dropped_total", "cause=\"bad_size\"", m.bad_size);
-    t.sample("frames_dropped_total", "cause=\"failed\"", m.failed);
+    t.counter("frames_in_total", "Frames the source delivered.", m.frames_in);
+    t.counter("frames_out_total", "Frames whose detections reached the actuator.", m.frames_out);
+    t.counter("stems_total", "Plants with a stem in the frames out.", m.stems);
+    t.counter("frames_late_total", "Paced replay: frames the source came to more than 2 ms late.", m.late);
+    t.counters("frames_dropped_total", "Frames dropped, by cause.", "cause",
+               {{"ring_full", m.ring_full}, {"overwritten", m.overwritten}, {"results_full", m.results_full},
+                {"corrupt", m.corrupt}, {"bad_size", m.bad_size}, {"failed", m.failed}});
     if (m.actuation) {
-        t.family("deadline_misses_total", "counter",
-                 "Targets never sent because they could not be on time (scheduler or bus).");
-        t.sample("deadline_misses_total", "", m.deadline_miss + m.bus_deadline);
-        t.family("targets_confirmed_total", "counter", "Plants confirmed by the tracker (one target each).");
-        t.sample("targets_confirmed_total", "", m.targets);
-        t.family("targets_total", "counter", "Targets by outcome.");
-        t.sample("targets_total", "outcome=\"sent\"", m.sent);
-        t.sample("targets_total", "outcome=\"policy\"", m.policy);
-        t.sample("targets_total", "outcome=\"no_tool\"", m.no_tool);
-        t.sample("targets_total", "outcome=\"disabled\"", m.disabled);
-        t.sample("targets_total", "outcome=\"deadline_miss\"", m.deadline_miss);
-        t.sample("targets_total", "outcome=\"bus_deadline\"", m.bus_deadline);
-        t.sample("targets_total", "outcome=\"bus_error\"", m.bus_error);
-        t.family("bus_errors_total", "counter", "CAN frames the bus failed, by frame.");
-        t.sample("bus_errors_total", "frame=\"target\"", m.bus_error);
-        t.sample("bus_errors_total", "frame=\"heartbeat\"", m.heartbeat_errors);
-        t.family("no_odometry_frames_total", "counter", "Frames not actuated: no usable odometer reading.");
-        t.sample("no_odometry_frames_total", "", m.no_odometry);
+        t.counter("deadline_misses_total", "Targets never sent because they could not be on time (scheduler or bus).",
+                  m.deadline_miss + m.bus_deadline);
+        t.counter("targets_confirmed_total", "Plants confirmed by the tracker (one target each).", m.targets);
+        t.counters("targets_total", "Targets by outcome.", "outcome",
+                   {{"sent", m.sent}, {"policy", m.policy}, {"no_tool", m.no_tool}, {"disabled", m.disabled},
+                    {"deadline_miss", m.deadline_miss}, {"bus_deadline", m.bus_deadline}, {"bus_error", m.bus_error}});
+        t.counters("bus_errors_total", "CAN frames the bus failed, by frame.", "frame",
+                   {{"target", m.bus_error}, {"heartbeat", m.heartbeat_errors}});
+        t.counter("no_odometry_frames_total", "Frames not actuated: no usable odometer reading.", m.no_odometry);
     }
     t.family("capture_to_result_seconds", "histogram", "Capture (exposure) to the result at the actuator.");
     t.histogram("capture_to_result_seconds", "", m.capture_to_result);
@@ -154,14 +153,12 @@ std::string format_metrics(const Metrics& m)
     t.histogram("thread_cycle_seconds", "thread=\"capture\"", m.cycle_capture);
     t.histogram("thread_cycle_seconds", "thread=\"processing\"", m.cycle_processing);
     t.histogram("thread_cycle_seconds", "thread=\"actuator\"", m.cycle_actuator);
-    t.family("live_frames_published_total", "counter", "Frames the processing thread copied for the live view.");
-    t.sample("live_frames_published_total", "", m.live_frames_published);
-    t.family("live_frames_encoded_total", "counter", "JPEGs the web thread encoded.");
-    t.sample("live_frames_encoded_total", "", m.live_frames_encoded);
-    t.family("live_plants_dropped_total", "counter", "Plants the live view missed (its ring was full).");
-    t.sample("live_plants_dropped_total", "", m.live_plants_dropped);
-    t.family("web_requests_total", "counter", "HTTP requests the live view answered.");
-    t.sample("web_requests_total", "", m.web_requests);
+    t.counter("live_frames_published_total", "Frames the processing thread copied for the live view.",
+              m.live_frames_published);
+    t.counter("live_frames_encoded_total", "JPEGs the web thread encoded.", m.live_frames_encoded);
+    t.counter("live_plants_dropped_total", "Plants the live view missed (its ring was full).", m.live_plants_dropped);
+    t.counter("web_requests_total", "HTTP requests the live view answered.", m.web_requests);
+    t.counter("web_unauthorized_total", "Control requests refused for a missing or wrong token.", m.web_unauthorized);
     return t.take();
 }
 

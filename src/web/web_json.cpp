@@ -54,7 +54,8 @@ nlohmann::json status_json(const runtime::StatusSnapshot& s, const Metrics& m, d
     j["live"] = {{"frames_published", m.live_frames_published},
                  {"frames_encoded", m.live_frames_encoded},
                  {"plants_dropped", m.live_plants_dropped},
-                 {"requests", m.web_requests}};
+                 {"requests", m.web_requests},
+                 {"unauthorized", m.web_unauthorized}};
     return j;
 }
 

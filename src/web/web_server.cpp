@@ -5,11 +5,13 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <chrono>
 #include <condition_variable>
 #include <cstring>
 #include <deque>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -19,6 +21,7 @@
 
 #include "stemd/base/clock.hpp"
 #include "stemd/viz/overlay.hpp"
+#include "stemd/web/web_control.hpp"
 #include "stemd/web/web_json.hpp"
 #include "stemd/web_page.hpp"   // generated from src/web/page.html
 
@@ -126,6 +129,24 @@ void downscale(const cv::Mat& in, cv::Mat& out, int width_px)
 
 const cv::Scalar kCrop(255, 200, 0);    // BGR: light blue
 const cv::Scalar kWeed(255, 0, 255);    // magenta
+const cv::Scalar kSent(0, 230, 0);      // green: TARGET sent
+const cv::Scalar kSpared(160, 160, 160);   // grey: policy, no tool, disabled
+const cv::Scalar kMissed(0, 0, 255);    // red: deadline, bus, no odometry
+
+// Targets kept to draw: more than fit in one view.
+constexpr std::size_t kRecentTargets = 64;
+
+const cv::Scalar& target_colour(runtime::MapReason reason)
+{
+    using runtime::MapReason;
+    switch (reason) {
+    case MapReason::sent: return kSent;
+    case MapReason::policy:
+    case MapReason::no_tool:
+    case MapReason::disabled: return kSpared;
+    default: return kMissed;
+    }
+}
 
 }  // namespace
 
@@ -142,6 +163,8 @@ struct WebServer::Impl {
     std::atomic<int> port{0};
     std::atomic<std::uint64_t> requests{0};
     std::atomic<std::uint64_t> frames_encoded{0};
+    std::atomic<std::uint64_t> unauthorized{0};
+    std::mutex control_mutex;   // the control's configuration, one change at a time
     std::string failure;   // why it is not serving (set before start() returns)
     const std::int64_t t_start_ns = base::monotonic_ns();
 
@@ -153,6 +176,7 @@ struct WebServer::Impl {
     bool have_jpeg = false;
     double odom_mm = std::numeric_limits<double>::quiet_NaN();
     std::deque<runtime::LivePlant> plants;
+    std::deque<runtime::LiveTarget> targets;
     cv::Mat canvas, scaled;
 
     Metrics metrics()
@@ -164,6 +188,7 @@ struct WebServer::Impl {
         }
         m.live_frames_encoded = frames_encoded.load(std::memory_order_relaxed);
         m.web_requests = requests.load(std::memory_order_relaxed);
+        m.web_unauthorized = unauthorized.load(std::memory_order_relaxed);
         return m;
     }
 
@@ -175,6 +200,42 @@ struct WebServer::Impl {
             plants.push_back(p);
             while (plants.size() > static_cast<std::size_t>(config.plants))
                 plants.pop_front();
+        }
+    }
+
+    // Under `mutex`: each target the actuator decided since, as a square on
+    // its stem where the frame saw the ground: sent green, spared grey,
+    // missed red.
+    void draw_targets(const runtime::LiveFrame& f)
+    {
+        runtime::LiveTarget t;
+        while (sources.feed != nullptr && sources.feed->pop_target(t)) {
+            targets.push_back(t);
+            while (targets.size() > kRecentTargets)
+                targets.pop_front();
+        }
+        if (!sources.camera || targets.empty())
+            return;
+        // The frame's odometer: its own reading, else the actuator's at the
+        // newest target's frame carried on at its speed (a recording
+        // without odometer column, constant-speed odometry).
+        const runtime::LiveTarget& ref = targets.back();
+        const double odom_mm = std::isfinite(f.odom_mm)
+                                   ? f.odom_mm
+                                   : ref.odom_at_capture_mm +
+                                         ref.speed_mm_per_s * static_cast<double>(f.t_sample_ns - ref.t_sample_ns) / 1e9;
+        const geometry::Mount& mount = sources.camera->mount();
+        for (const runtime::LiveTarget& target : targets) {
+            const auto px = sources.camera->ground_to_pixel(mount.x_mm + (target.s_mm - odom_mm), target.y_mm);
+            if (!px || px->x < 0 || px->y < 0 || px->x >= canvas.cols || px->y >= canvas.rows)
+                continue;
+            const cv::Point c(cvRound(px->x), cvRound(px->y));
+            const cv::Scalar& colour = target_colour(target.reason);
+            cv::rectangle(canvas, c - cv::Point(20, 20), c + cv::Point(20, 20), colour, 4, cv::LINE_AA);
+            char label[48];
+            std::snprintf(label, sizeof label, "T%u %s", static_cast<unsigned>(target.target_id),
+                          std::string(runtime::to_string(target.reason)).c_str());
+            cv::putText(canvas, label, c + cv::Point(24, -24), cv::FONT_HERSHEY_SIMPLEX, 0.7, colour, 2, cv::LINE_AA);
         }
     }
 
@@ -193,6 +254,7 @@ struct WebServer::Impl {
             cv::circle(canvas, cv::Point(cvRound(p.stem.x), cvRound(p.stem.y)), 14,
                        f.plant_class[i] == PlantClass::Crop ? kCrop : kWeed, 3, cv::LINE_AA);
         }
+        draw_targets(f);
         const cv::Mat* out = &canvas;
         if (canvas.cols > config.max_width_px) {
             downscale(canvas, scaled, config.max_width_px);
@@ -238,6 +300,130 @@ struct WebServer::Impl {
         res.set_header("Cache-Control", "no-store");
         res.set_header("X-Frame-Seq", std::to_string(jpeg_seq));
         res.set_content(reinterpret_cast<const char*>(jpeg.data()), jpeg.size(), "image/jpeg");
+    }
+
+    // Who asked, for the log: the peer's address and port.
+    static std::string peer(const httplib::Request& req)
+    {
+        return req.remote_addr + ":" + std::to_string(req.remote_port);
+    }
+
+    static void json_reply(httplib::Response& res, int status, const nlohmann::json& body)
+    {
+        res.status = status;
+        res.set_header("Cache-Control", "no-store");
+        res.set_content(body.dump(), "application/json");
+    }
+
+    // The POST's token; false (401 sent, counted, logged) if wrong or missing.
+    bool authorised(const httplib::Request& req, httplib::Response& res)
+    {
+        if (bearer_matches(req.get_header_value("Authorization"), sources.control->token))
+            return true;
+        unauthorized.fetch_add(1, std::memory_order_relaxed);
+        log->warn("web control: {} {} from {} refused: missing or wrong token", req.method, req.path, peer(req));
+        res.set_header("WWW-Authenticate", "Bearer");
+        json_reply(res, 401, {{"error", "missing or wrong token (Authorization: Bearer TOKEN)"}});
+        return false;
+    }
+
+    // The request's JSON object, or nullopt (400 sent).
+    static std::optional<nlohmann::json> json_body(const httplib::Request& req, httplib::Response& res)
+    {
+        nlohmann::json body = nlohmann::json::parse(req.body, nullptr, false);
+        if (body.is_discarded() || !body.is_object()) {
+            json_reply(res, 400, {{"error", "the body must be a JSON object"}});
+            return std::nullopt;
+        }
+        return body;
+    }
+
+    // Under control_mutex.
+    nlohmann::json control_json()
+    {
+        WebControl& c = *sources.control;
+        nlohmann::json params = nlohmann::json::array();
+        for (const std::string& key : controllable_keys()) {
+            const config::KeySpec& spec = *config::find_key(key);
+            nlohmann::json p = {{"key", key},
+                                {"type", std::string(config::to_string(spec.type))},
+                                {"unit", std::string(spec.unit)},
+                                {"value", c.config.value_of(key)},
+                                {"help", std::string(spec.help)}};
+            if (spec.type == config::ValueType::integer || spec.type == config::ValueType::real) {
+                p["min"] = spec.min;
+                p["max"] = spec.max;
+            }
+            if (spec.type == config::ValueType::choice)
+                p["choices"] = config::list_choices(spec, "|");
+            params.push_back(std::move(p));
+        }
+        const bool disabled = c.disabled ? c.disabled() : false;
+        const bool input = c.enable_input ? c.enable_input() : true;
+        return {{"operator_disabled", disabled},
+                {"enable_input", input},
+                {"enabled", input && !disabled},
+                {"params", std::move(params)}};
+    }
+
+    // A control POST: the token checked, the body parsed as a JSON object,
+    // before `handle` sees it.
+    template <class Handle>
+    void post(const char* path, Handle handle)
+    {
+        server.Post(path, [this, handle](const httplib::Request& req, httplib::Response& res) {
+            if (!authorised(req, res))
+                return;
+            if (const auto body = json_body(req, res))
+                handle(req, res, *body);
+        });
+    }
+
+    void control_routes()
+    {
+        server.Get("/api/control", [this](const httplib::Request&, httplib::Response& res) {
+            std::lock_guard lock(control_mutex);
+            json_reply(res, 200, control_json());
+        });
+        post("/api/enable", [this](const httplib::Request& req, httplib::Response& res, const nlohmann::json& body) {
+            if (!body.contains("enabled") || !body["enabled"].is_boolean()) {
+                json_reply(res, 400, {{"error", "expected {\"enabled\": true|false}"}});
+                return;
+            }
+            const bool disable = !body["enabled"].get<bool>();
+            std::lock_guard lock(control_mutex);
+            WebControl& c = *sources.control;
+            const bool was = c.disabled();
+            c.set_disabled(disable);
+            log->warn("web control: {} {} the operator's disable ({} -> {}){}", peer(req),
+                      disable ? "set" : "cleared", was ? "disabled" : "not disabled",
+                      disable ? "disabled" : "not disabled",
+                      !disable && !c.enable_input() ? "; the enable input is off and keeps the tools off" : "");
+            json_reply(res, 200, control_json());
+        });
+        post("/api/param", [this](const httplib::Request& req, httplib::Response& res, const nlohmann::json& body) {
+            const auto key = body.find("key");
+            const auto value = body.find("value");
+            if (key == body.end() || !key->is_string() || value == body.end() ||
+                !(value->is_string() || value->is_number() || value->is_boolean())) {
+                json_reply(res, 400, {{"error", "expected {\"key\": \"segment.KEY\" or \"stem.KEY\", \"value\": ...}"}});
+                return;
+            }
+            const std::string text = value->is_string() ? value->get<std::string>() : value->dump();
+            std::lock_guard lock(control_mutex);
+            WebControl& c = *sources.control;
+            const ParamChange change = change_param(c.config, key->get<std::string>(), text);
+            if (!change.ok) {
+                log->warn("web control: {} asked {}={}: refused: {}", peer(req), key->get<std::string>(), text,
+                          change.error);
+                json_reply(res, 400, {{"error", change.error}});
+                return;
+            }
+            c.set_params(c.config.settings().daemon.vision);
+            log->info("web control: {} changed {}: {} -> {} (from the next frame; not written to any file)",
+                      peer(req), key->get<std::string>(), change.old_value, change.new_value);
+            json_reply(res, 200, {{"key", key->get<std::string>()}, {"old", change.old_value}, {"value", change.new_value}});
+        });
     }
 
     void routes()
@@ -295,8 +481,15 @@ struct WebServer::Impl {
             res.set_content(plants_json(plants, odom_mm).dump(), "application/json");
         });
         server.Get("/api/config", [this](const httplib::Request&, httplib::Response& res) {
-            res.set_content(nlohmann::json{{"yaml", sources.config_yaml}}.dump(), "application/json");
+            if (sources.control) {
+                std::lock_guard lock(control_mutex);
+                json_reply(res, 200, {{"yaml", sources.control->config.to_yaml()}});
+                return;
+            }
+            json_reply(res, 200, {{"yaml", sources.config_yaml}});
         });
+        if (sources.control)
+            control_routes();
         server.Get("/metrics", [this](const httplib::Request&, httplib::Response& res) {
             res.set_content(format_metrics(metrics()), "text/plain; version=0.0.4; charset=utf-8");
         });

@@ -207,6 +207,46 @@ TEST(ActuationStage, EnableTakesEffectFromTheNextFrame)
     EXPECT_EQ(run.stage->counters().disabled.load() + sent_before_disable, plants.size());
 }
 
+TEST(ActuationStage, OperatorDisableStopsTargetsAndClearingItResumesThem)
+{
+    const auto plants = strip(10);
+    Stage run = make_stage(base_config(), true);
+    std::size_t sent_before_disable = 0, sent_while_disabled = 0;
+    const int n = frames_for(plants);
+    for (int k = 0; k < n; ++k) {
+        if (k == n / 3) {
+            run.stage->set_operator_disabled(true);
+            sent_before_disable = targets(*run.bus).size();
+        }
+        if (k == 2 * n / 3) {
+            sent_while_disabled = targets(*run.bus).size();
+            run.stage->set_operator_disabled(false);
+        }
+        const auto r = frame(plants, k);
+        run.stage->on_frame(*r, r->t_sample_ns + 3'000'000);
+    }
+    EXPECT_GT(sent_before_disable, 0u);
+    EXPECT_EQ(sent_while_disabled, sent_before_disable);
+    EXPECT_GT(targets(*run.bus).size(), sent_while_disabled);
+    EXPECT_GT(run.stage->counters().disabled.load(), 0u);
+    EXPECT_EQ(run.stage->counters().disabled.load() + targets(*run.bus).size(), plants.size());
+}
+
+TEST(ActuationStage, ClearingTheOperatorDisableNeverOverridesAnInactiveEnableInput)
+{
+    const auto plants = strip(10);
+    Stage run = make_stage(base_config(), true);
+    run.gpio->enable = false;
+    run.stage->set_operator_disabled(true);
+    run.stage->set_operator_disabled(false);
+    for (int k = 0; k < frames_for(plants); ++k) {
+        const auto r = frame(plants, k);
+        run.stage->on_frame(*r, r->t_sample_ns + 3'000'000);
+    }
+    EXPECT_TRUE(targets(*run.bus).empty());
+    EXPECT_EQ(run.stage->counters().disabled.load(), plants.size());
+}
+
 TEST(ActuationStage, SlowPipelineMakesDeadlineMissesThatAreNeverSent)
 {
     const auto plants = strip(10);

@@ -240,7 +240,9 @@ void run_actuation(bool with_web_view)
             web::WebSources{.feed = &feed,
                             .totals = [d] { return d->snapshot(true); },
                             .metrics = [d] { return web::collect_metrics(*d); },
-                            .config_yaml = ""},
+                            .config_yaml = "",
+                            .control = std::nullopt,
+                            .camera = std::nullopt},
             runtime::make_logger("web"), &stop_counting);
         ASSERT_TRUE(server->start());
         client = std::make_unique<WebClient>(server->port());

@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "stemd/geometry/field.hpp"
 #include "stemd/runtime/live_feed.hpp"
 #include "stemd/runtime/logging.hpp"
 #include "stemd/web/web_server.hpp"
@@ -47,7 +48,9 @@ struct Fixture : ::testing::Test {
                                     m.frames_in = 42;
                                     return m;
                                 },
-                                .config_yaml = "web:\n  listen: 127.0.0.1:0\n"};
+                                .config_yaml = "web:\n  listen: 127.0.0.1:0\n",
+                                .control = std::nullopt,
+                                .camera = std::nullopt};
         server = std::make_unique<web::WebServer>(config, runtime::ListenAddress{"127.0.0.1", 0}, std::move(sources),
                                                   runtime::make_logger("web"));
         ASSERT_TRUE(server->start());
@@ -312,4 +315,61 @@ TEST_F(Fixture, RandomRequestsNeitherCrashNorStopTheServer)
     const auto res = c.Get("/api/status");
     ASSERT_TRUE(res) << "the server stopped answering";
     EXPECT_EQ(res->status, 200);
+}
+
+// A target the actuator decided from a stem at pixel P shows on the frame
+// as a square around P (field -> pixel undoes pixel -> field), coloured by
+// its outcome.
+TEST(WebFrameTargets, DrawnWhereTheirStemsWereAndColouredByOutcome)
+{
+    const auto camera = geometry::CameraModel::nadir(
+        {.gsd_mm_per_px = 0.5, .principal_px = geometry::image_centre(kSize), .mount = {}});
+    ASSERT_TRUE(camera);
+    runtime::LiveFeed feed{kSize, 30, 16};
+    runtime::WebConfig config;
+    config.max_width_px = 400;   // half size
+    web::WebSources sources;
+    sources.feed = &feed;
+    sources.camera = *camera;
+    web::WebServer server(config, runtime::ListenAddress{"127.0.0.1", 0}, std::move(sources),
+                          runtime::make_logger("web"));
+    ASSERT_TRUE(server.start());
+
+    constexpr double kOdomMm = 1000;
+    const auto target_at = [&](cv::Point2f px, std::uint16_t id, runtime::MapReason reason) {
+        const auto field = geometry::field_position(*camera, px, kOdomMm);
+        EXPECT_TRUE(field);
+        feed.push_target({.target_id = id, .s_mm = field->s_mm, .y_mm = field->y_mm, .reason = reason});
+    };
+    target_at({200, 150}, 1, runtime::MapReason::sent);
+    target_at({600, 450}, 2, runtime::MapReason::disabled);
+    target_at({400, 300}, 3, runtime::MapReason::deadline_miss);
+
+    drivers::Frame frame;
+    frame.bgr = cv::Mat(kSize, CV_8UC3, cv::Scalar(40, 60, 80));
+    frame.seq = 3;
+    frame.odom_mm = kOdomMm;
+    const vision::BitMask closed(kSize.width, kSize.height);
+    feed.publish(frame, vision::Detections{}, closed, nullptr, false, 1);
+
+    httplib::Client c("127.0.0.1", server.port());
+    c.set_read_timeout(10, 0);
+    const auto res = c.Get("/frame.jpg");
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 200);
+    const cv::Mat image = cv::imdecode(std::vector<unsigned char>(res->body.begin(), res->body.end()), cv::IMREAD_COLOR);
+    ASSERT_EQ(image.cols, 400);
+    // Each square's left edge (20 px left of the stem, halved), its centre untouched.
+    const auto at = [&](int x, int y) { return image.at<cv::Vec3b>(y / 2, x / 2); };
+    const cv::Vec3b sent = at(180, 150), spared = at(580, 450), missed = at(380, 300);
+    EXPECT_GT(sent[1], 150);
+    EXPECT_LT(sent[0], 100);
+    EXPECT_LT(sent[2], 100);
+    EXPECT_GT(spared[0], 110);
+    EXPECT_GT(spared[1], 110);
+    EXPECT_GT(spared[2], 110);
+    EXPECT_GT(missed[2], 150);
+    EXPECT_LT(missed[1], 100);
+    const cv::Vec3b centre = at(200, 150);
+    EXPECT_LT(std::abs(centre[1] - 60), 20) << "the stem itself is not painted over";
 }

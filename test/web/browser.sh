@@ -6,24 +6,20 @@
 #  - the DOM, after the page's scripts ran, has the counters filled in and
 #    the frame <img> loaded (naturalWidth > 0);
 #  - the second load shows the counters advanced;
+#  - with a control token configured, the control panel shows the enable
+#    state and an input per changeable parameter;
 #  - the page loads nothing from another host: the served HTML names no
 #    absolute URL, and Chromium runs with every host but 127.0.0.1 unresolvable.
 #   browser.sh STEMD TOOLS_DIR SOURCE_DIR
-set -euo pipefail
-stemd=$1
-tools=$2
-src=$3
-tmp=$(mktemp -d)
-stemd_pid=""
-trap '[ -n "$stemd_pid" ] && kill "$stemd_pid" 2>/dev/null; rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+. "$(dirname "$0")/common.sh" "$@"
 command -v chromium >/dev/null || { echo "SKIP: chromium is not installed (Debian package chromium)"; exit 77; }
 /usr/bin/python3 -c "import PIL" 2>/dev/null || { echo "SKIP: python3-pil (to read the screenshot) is not installed"; exit 77; }
-. "$(dirname "$0")/common.sh"
 
 "$tools/stemd-synth" --out "$tmp/rec" --preset late --frames 20 --fps 10 >/dev/null
+printf '%s\n' 0123456789abcdef-browser-test >"$tmp/token"
+chmod 600 "$tmp/token"
 start_stemd "$tmp/err" --config "$src/config/stemd.yaml" --replay "$tmp/rec" --can-log "$tmp/can.log" \
-  --set web.listen=127.0.0.1:0 --set web.fps=10
+  --set web.listen=127.0.0.1:0 --set web.fps=10 --set web.token_file="$tmp/token"
 
 fetch / "$tmp/page.html"
 if grep -Eo '(https?:)?//[A-Za-z0-9.-]+' "$tmp/page.html" | grep -v '^//$' >"$tmp/urls"; then
@@ -52,6 +48,10 @@ read -r natural_w natural_h <<<"$loaded"
 [ "$natural_w" -gt 0 ] && [ "$natural_h" -gt 0 ] || fail "frame naturalWidth $natural_w"
 [ "$natural_w" -le 640 ] || fail "frame $natural_w px wide, web.max_width_px is 640"
 grep -q 'id="state">live<' "$tmp/dom1.html" || fail "the status poll did not succeed"
+grep -o '<section[^>]*id="control"[^>]*>' "$tmp/dom1.html" | grep -qv hidden || fail "the control panel is hidden"
+grep -q 'id="enabled"[^>]*>enabled<' "$tmp/dom1.html" || fail "no enable state: $(grep -o 'id="enabled"[^<]*' "$tmp/dom1.html")"
+grep -q 'type="range"[^>]*data-key="stem.min_confidence"' "$tmp/dom1.html" ||
+  fail "no slider for stem.min_confidence: $(grep -o '<input[^>]*>' "$tmp/dom1.html" | head -3)"
 
 chrome --screenshot="$tmp/shot.png" >/dev/null || fail "chromium --screenshot failed: $(tail -5 "$tmp/chromium.log")"
 [ -s "$tmp/shot.png" ] || fail "no screenshot"

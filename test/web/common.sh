@@ -1,5 +1,17 @@
-# Shared by the live view's tests: start stemd with the view on a free port
-# (web.listen port 0: the kernel picks one, the log names it) and wait for it.
+# Shared by the live view's tests, sourced with the script's arguments
+# (STEMD TOOLS_DIR SOURCE_DIR): sets $stemd, $tools, $src, a scratch $tmp
+# removed on exit (with the stemd started here stopped) and fail MESSAGE.
+set -euo pipefail
+stemd=$1
+tools=$2
+src=$3
+tmp=$(mktemp -d)
+stemd_pid=""
+trap '[ -n "$stemd_pid" ] && kill "$stemd_pid" 2>/dev/null; rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+# Start stemd with the view on a free port (web.listen port 0: the kernel
+# picks one, the log names it) and wait for it.
 #   start_stemd LOG [stemd args...]   sets $stemd_pid and $base (http://127.0.0.1:PORT)
 start_stemd() {
   local log=$1

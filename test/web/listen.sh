@@ -3,14 +3,9 @@
 # and key (exit 2); a taken port is logged with the address and errno, and
 # the daemon runs on without the view, its status line saying so.
 #   listen.sh STEMD TOOLS_DIR SOURCE_DIR
-set -euo pipefail
-stemd=$1
-tools=$2
-src=$3
-tmp=$(mktemp -d)
+. "$(dirname "$0")/common.sh" "$@"
 holder=""
 trap '[ -n "$holder" ] && kill "$holder" 2>/dev/null; rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
 
 printf 'web:\n  listen: localhost:8080\n' >"$tmp/bad.yaml"
 set +e

@@ -3,17 +3,9 @@
 # reference parser (Debian python3-prometheus-client), every family the
 # README names is there, and the histograms are whole (+Inf = _count).
 #   metrics.sh STEMD TOOLS_DIR SOURCE_DIR
-set -euo pipefail
-stemd=$1
-tools=$2
-src=$3
-tmp=$(mktemp -d)
-stemd_pid=""
-trap '[ -n "$stemd_pid" ] && kill "$stemd_pid" 2>/dev/null; rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+. "$(dirname "$0")/common.sh" "$@"
 /usr/bin/python3 -c "import prometheus_client.parser" 2>/dev/null \
   || { echo "SKIP: python3-prometheus-client (the reference parser) is not installed"; exit 77; }
-. "$(dirname "$0")/common.sh"
 
 "$tools/stemd-synth" --out "$tmp/rec" --preset late --frames 10 --fps 10 >/dev/null
 start_stemd "$tmp/err" --config "$src/config/stemd.yaml" --replay "$tmp/rec" --can-log "$tmp/can.log" \

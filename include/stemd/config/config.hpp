@@ -101,6 +101,10 @@ public:
     // ("" for a key the schema does not have).
     std::string origin_of(std::string_view key) const;
 
+    // A key's value as a config file writes it ("5", "0.33", "true",
+    // "robust"); "" for a key the schema does not have.
+    std::string value_of(std::string_view key) const;
+
     // A problem with a key's value as errors name it: "FILE:LINE: key 'k':
     // message" for a key from a file, "key 'k' (default): message" else.
     std::string blame(std::string_view key, std::string_view message) const;

@@ -26,6 +26,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -115,6 +116,12 @@ public:
     // Before the first frame: every plant the map gets (with or without a
     // map file) is pushed to the live view's feed too (nullptr: none).
     void set_live_feed(LiveFeed* feed) { live_feed_ = feed; }
+    // The operator's software disable (any thread): while set, targets are
+    // not sent and the heartbeat says disabled. It can only add to the
+    // enable input: clearing it never enables past an inactive input.
+    void set_operator_disabled(bool disabled) noexcept { operator_disabled_.store(disabled, std::memory_order_relaxed); }
+    // The enable input as the actuator thread last polled it (any thread).
+    bool enable_input_seen() const noexcept { return enable_input_seen_.load(std::memory_order_relaxed); }
 
 private:
     ActuationStage(const ActuationConfig& config, Parts parts, PlantProjector projector,
@@ -124,7 +131,11 @@ private:
     static constexpr std::size_t kWaitingLines = 256;
     static constexpr double kFiredWaitMm = 1000.0;
 
-    bool enabled() const noexcept { return parts_.gpio ? parts_.gpio->enabled() : true; }
+    bool enable_input() const noexcept { return parts_.gpio ? parts_.gpio->enabled() : true; }
+    bool enabled() const noexcept
+    {
+        return enable_input() && !operator_disabled_.load(std::memory_order_relaxed);
+    }
     void write_retired(std::span<const actuation::RetiredTrack> retired, std::int64_t now_ns) noexcept;
     void poll_gnss(std::int64_t now_ns) noexcept;
     // One map line; with GNSS, placed on the track as it is at now_ns.
@@ -136,6 +147,8 @@ private:
     Parts parts_;
     const std::shared_ptr<spdlog::logger> log_;
     bool bus_loss_reported_ = false;
+    std::atomic<bool> operator_disabled_{false};
+    std::atomic<bool> enable_input_seen_{true};
     ActuationCounters counters_;
     OdometryInput odometry_;
     PlantProjector projector_;

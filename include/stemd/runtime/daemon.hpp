@@ -28,12 +28,14 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <thread>
 
 #include <spdlog/logger.h>
 
 #include "stemd/drivers/frame_source.hpp"
 #include "stemd/geometry/odometry.hpp"
+#include "stemd/base/triple_buffer.hpp"
 #include "stemd/runtime/actuation_stage.hpp"
 #include "stemd/runtime/daemon_config.hpp"
 #include "stemd/runtime/detection_sink.hpp"
@@ -74,6 +76,19 @@ public:
     // the threads). The processing thread publishes frames into it when a
     // viewer wants them, the actuator the plants whose tracks ended.
     void attach_live_feed(LiveFeed* feed);
+
+    // From the live view's threads (any thread but the real-time ones): the
+    // pipeline's parameters from the next frame on. The processing thread
+    // takes them at a frame's start from a triple buffer allocated here,
+    // without locking; concurrent callers are serialised among themselves.
+    void set_vision_params(const vision::Params& params);
+    // The operator's software disable (the live view): while set, no target
+    // is sent, whatever the enable input says; clearing it only gives the
+    // enable input back its say. Any thread.
+    void set_operator_disabled(bool disabled);
+    bool operator_disabled() const;
+    // The enable input (GPIO; true without one). Any thread.
+    bool enable_input() const;
 
     // From any thread; the threads finish their current frame and exit.
     void request_stop();
@@ -133,6 +148,9 @@ private:
     std::optional<vision::PlantClassifier> classifier_;
     std::unique_ptr<vision::ClassifyWorkspace> classify_workspace_;   // the processing thread's
     LiveFeed* live_feed_ = nullptr;
+    base::TripleBuffer<vision::Params> vision_params_;   // writers -> processing thread
+    std::mutex vision_params_writer_;                     // one writer at a time (never the processing thread)
+    std::atomic<bool> operator_disabled_{false};          // without actuation: nothing to disable
 
     std::atomic<bool> stop_{false};
     std::atomic<bool> source_ended_{false};      // the source said end_of_stream (not a failure or a stop)

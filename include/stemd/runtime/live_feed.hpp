@@ -4,7 +4,7 @@
 // slots, at most web.fps times a second, only while a viewer asked for
 // frames recently, and after the frame's result is on its way to the
 // actuator), and the actuator thread pushes each plant whose track ended
-// into a lock-free ring. The web thread reads both; drawing and JPEG
+// into a lock-free ring, and each target it decided into another. The web thread reads both; drawing and JPEG
 // encoding happen there.
 #pragma once
 
@@ -49,6 +49,18 @@ struct LivePlant {
     MapEntry entry;                    // reason, tool, lane, fire_odom_mm
 };
 
+// One target as the actuator decided it (field coordinates).
+struct LiveTarget {
+    std::uint16_t target_id = 0;
+    double s_mm = 0, y_mm = 0;
+    MapReason reason = MapReason::pending;   // sent, or why not (spared: policy, no_tool, disabled; missed)
+    // The actuator's odometer at the deciding frame's capture, and its speed:
+    // where frames without their own odometer reading were taken.
+    std::int64_t t_sample_ns = 0;
+    double odom_at_capture_mm = 0;
+    double speed_mm_per_s = 0;
+};
+
 class LiveFeed {
 public:
     // Allocates three frame slots of frame_size and a plant ring.
@@ -71,12 +83,14 @@ public:
     // --- actuator thread --------------------------------------------------------
     // False (counted) if the ring is full: the web thread is behind.
     bool push_plant(const LivePlant& plant) { return plants_.try_push(plant); }
+    bool push_target(const LiveTarget& target) { return targets_.try_push(target); }
 
     // --- web thread -------------------------------------------------------------
     void want_frames(std::int64_t now_ns) { wanted_until_ns_.store(now_ns + kWantNs, std::memory_order_relaxed); }
     bool take_frame() { return frames_.take(); }
     const LiveFrame& frame() const { return frames_.read_slot(); }
     bool pop_plant(LivePlant& out) { return plants_.try_pop(out); }
+    bool pop_target(LiveTarget& out) { return targets_.try_pop(out); }
 
     // Any thread.
     std::uint64_t frames_published() const { return frames_.published(); }
@@ -91,6 +105,7 @@ private:
     std::atomic<std::int64_t> wanted_until_ns_{0};
     base::TripleBuffer<LiveFrame> frames_;
     base::SpscRing<LivePlant> plants_;
+    base::SpscRing<LiveTarget> targets_;
 };
 
 }  // namespace stemd::runtime

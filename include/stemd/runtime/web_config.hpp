@@ -13,6 +13,7 @@ struct WebConfig {
     int fps = 5;                 // frames a second the view is sent at most
     int max_width_px = 640;      // frames wider than this are scaled down before encoding
     int plants = 200;            // the last N plants the field strip shows
+    std::string token_file;      // "" (none): read-only view, no control endpoints
 };
 
 // A numeric IPv4 or bracketed IPv6 address and a port (0: any free port).

@@ -45,6 +45,7 @@ struct Metrics {
     Histogram cycle_capture, cycle_processing, cycle_actuator;
     // The live view.
     std::uint64_t live_frames_published = 0, live_frames_encoded = 0, live_plants_dropped = 0, web_requests = 0;
+    std::uint64_t web_unauthorized = 0;   // control requests without the right token
 };
 
 // Everything but the live_* numbers, from a running daemon; any thread

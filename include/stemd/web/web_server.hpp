@@ -4,12 +4,21 @@
 // drawing the overlay and encoding JPEGs happen on its threads.
 //
 //   GET /             the page (HTML + JS built into the binary)
-//   GET /frame.jpg    the latest frame with the overlay, at most web.fps
+//   GET /frame.jpg    the latest frame with the overlay (and, with a camera
+//                     model, the targets decided near it), at most web.fps
 //                     new frames a second, at most web.max_width_px wide
 //   GET /api/status   counters, drops, latencies, histograms (JSON)
 //   GET /api/plants   the last web.plants plants of the plant map (JSON)
 //   GET /api/config   the running configuration (JSON: {"yaml": ...})
 //   GET /metrics      Prometheus text format 0.0.4
+// With a control token (web.token_file) only:
+//   GET  /api/control  the enable state and the parameters that may change
+//                      (key, type, unit, range, value)
+//   POST /api/enable   {"enabled": false}: the operator's disable; true
+//                      clears it (the enable input keeps its say)
+//   POST /api/param    {"key": "stem.min_confidence", "value": 0.2}
+// each POST needing "Authorization: Bearer <token>" (else 401, counted);
+// a value the schema refuses gets 400 with the reason (the range).
 // Anything else is 404; bodies over 64 KiB get 413, header lines over
 // 4 KiB and request lines over 2 KiB are refused, a malformed request gets 400.
 #pragma once
@@ -17,23 +26,40 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <spdlog/logger.h>
 
+#include "stemd/config/config.hpp"
+#include "stemd/geometry/camera_model.hpp"
 #include "stemd/runtime/live_feed.hpp"
 #include "stemd/runtime/status.hpp"
 #include "stemd/runtime/web_config.hpp"
+#include "stemd/vision/types.hpp"
 #include "stemd/web/metrics.hpp"
 
 namespace stemd::web {
+
+// The control endpoints' ends (called on the server's threads).
+struct WebControl {
+    std::string token;                                       // the bearer token (web.token_file's)
+    config::Config config;                                   // the running configuration, changed in place
+    std::function<void(const vision::Params&)> set_params;   // to the processing thread
+    std::function<void(bool)> set_disabled;                  // the operator's disable
+    std::function<bool()> disabled;
+    std::function<bool()> enable_input;                      // the enable input (GPIO)
+};
 
 // Where the server's numbers come from (called on its threads).
 struct WebSources {
     runtime::LiveFeed* feed = nullptr;                  // frames and plants; nullptr: none
     std::function<runtime::StatusSnapshot()> totals;    // whole-run totals
     std::function<Metrics()> metrics;                   // live_* and web_* are filled in by the server
-    std::string config_yaml;                            // the running configuration, token redacted
+    std::string config_yaml;                            // the running configuration (without control)
+    std::optional<WebControl> control;                  // nullopt: read-only, no control endpoints
+    // The camera: with it the frame shows the targets near it (field -> pixel).
+    std::optional<geometry::CameraModel> camera;
 };
 
 class WebServer {
