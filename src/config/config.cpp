@@ -1181,7 +1181,15 @@ Settings Config::settings() const
 std::string Config::origin_of(std::string_view key) const
 {
     const KeySpec* spec = find_key(key);
-    return spec == nullptr ? std::string() : values_[index_of(*spec)].origin;
+    if (spec != nullptr)
+        return values_[index_of(*spec)].origin;
+    // A list item's key, as errors name it: "tools[1].offset_mm".
+    const ListSpec* list = find_list(key.substr(0, key.find_first_of(".[")));
+    std::size_t index = 0;
+    std::string_view leaf;
+    if (list == nullptr || !parse_item_key(key, list->section, index, leaf))
+        return "";
+    return item_origin_of(list->section, index, leaf);
 }
 
 std::string Config::blame(std::string_view key, std::string_view message) const

@@ -98,7 +98,8 @@ public:
     Settings settings() const;
 
     // Where a key's value came from: "default", "FILE:LINE" or "--set"
-    // ("" for a key the schema does not have).
+    // ("" for a key the schema does not have). A list item's key is named
+    // as errors name it: "tools[1].offset_mm".
     std::string origin_of(std::string_view key) const;
 
     // A problem with a key's value as errors name it: "FILE:LINE: key 'k':
