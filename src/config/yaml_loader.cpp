@@ -116,6 +116,11 @@ public:
         if (text.starts_with("\xEF\xBB\xBF"))  // UTF-8 byte order mark
             text.remove_prefix(3);
         text_ = std::string(text);
+        for (std::size_t at = 0; at < text_.size(); at = std::min(text_.find('\n', at), text_.size()) + 1) {
+            starts_.push_back(at);
+            const std::string_view line = std::string_view(text_).substr(at, text_.find('\n', at) - at);
+            lines_.push_back(line.ends_with('\r') ? line.substr(0, line.size() - 1) : line);
+        }
         TreeBuilder second;
         std::optional<std::pair<YAML::Mark, std::string>> failure;
         try {
@@ -129,13 +134,9 @@ public:
         // A tab in the indentation: yaml-cpp calls it an "illegal map value"
         // or an "illegal tab", and takes one inside a quoted or a [ ] { }
         // value; one clear error for all of them.
-        int line = 1;
-        for (std::size_t at = 0; at < text_.size(); ++line) {
-            const std::size_t end = std::min(text_.find('\n', at), text_.size());
-            if (tab_in_indentation(line_text(at, end)))
+        for (int line = 1; line <= static_cast<int>(lines_.size()); ++line)
+            if (tab_in_indentation(line_text(line)))
                 return error(line, key_at(line), "tab in the indentation; indent with spaces");
-            at = end + 1;
-        }
         if (failure)
             return syntax_error(failure->first, failure->second);
         if (!second.documents.empty())
@@ -163,10 +164,7 @@ private:
     // 1-based; a mark without a position (the end of the input): the last line.
     int line_of(const YAML::Mark& mark) const
     {
-        if (mark.line >= 0)
-            return mark.line + 1;
-        return static_cast<int>(std::count(text_.begin(), text_.end(), '\n')) +
-               (text_.empty() || text_.back() == '\n' ? 0 : 1);
+        return mark.line >= 0 ? mark.line + 1 : static_cast<int>(lines_.size());
     }
 
     int line_of(const Node& node) const { return line_of(node.mark); }
@@ -176,19 +174,17 @@ private:
         return node.mark.pos >= 0 ? std::min(static_cast<std::size_t>(node.mark.pos), text_.size()) : text_.size();
     }
 
-    std::string_view line_text(std::size_t begin, std::size_t end) const
-    {
-        std::string_view line = std::string_view(text_).substr(begin, end - begin);
-        return line.ends_with('\r') ? line.substr(0, line.size() - 1) : line;
-    }
-
-    // Line `line` (1-based) of the text.
+    // Line `line` (1-based) of the text, without its line break.
     std::string_view line_text(int line) const
     {
-        std::size_t begin = 0;
-        for (int l = 1; l < line && begin < text_.size(); ++l)
-            begin = std::min(text_.find('\n', begin), text_.size() - 1) + 1;
-        return line_text(begin, std::min(text_.find('\n', begin), text_.size()));
+        return line >= 1 && line <= static_cast<int>(lines_.size()) ? lines_[static_cast<std::size_t>(line - 1)]
+                                                                    : std::string_view();
+    }
+
+    // The 1-based line holding offset `pos`.
+    int line_at(std::size_t pos) const
+    {
+        return static_cast<int>(std::upper_bound(starts_.begin(), starts_.end(), pos) - starts_.begin());
     }
 
     // The key a line holds, as errors name it ("closing.radius_px",
@@ -460,7 +456,7 @@ private:
             // that of the '-' before it.
             const std::size_t dash = offset_of(item) == 0 ? std::string::npos : text_.rfind('-', offset_of(item) - 1);
             const int item_line = item.kind == Kind::null && dash != std::string::npos && dash >= offset_of(value)
-                ? static_cast<int>(std::count(text_.begin(), text_.begin() + static_cast<long>(dash), '\n')) + 1
+                ? line_at(dash)
                 : line_of(item);
             if (i >= list.max_items)
                 return error(item_line, name, cat("more than ", std::to_string(list.max_items), " items; '",
@@ -514,6 +510,8 @@ private:
     std::vector<ConfigValue>& values_;
     std::vector<ListValue>& lists_;
     std::string text_;
+    std::vector<std::size_t> starts_;      // where each line starts
+    std::vector<std::string_view> lines_;  // each line of text_, without "\r\n" or "\n"
     TreeBuilder tree_;
     std::map<std::string, int, std::less<>> key_lines_;  // sections and keys ("tools[1].id"): their lines
 };
