@@ -91,7 +91,11 @@ std::optional<int> parse(CLI::App& app, int argc, char** argv, const CommandLine
     } catch (const CLI::ArgumentMismatch& e) {
         return usage_error(how, missing_value(app, e.what()));
     } catch (const CLI::ParseError& e) {
-        return usage_error(how, e.what());
+        // "--config: needs a file name" reads like "--set needs a value".
+        std::string message = e.what();
+        if (const std::size_t at = message.find(": needs "); message.starts_with("--") && at != std::string::npos)
+            message.erase(at, 1);
+        return usage_error(how, message);
     }
     const std::vector<std::string> rest = app.remaining(true);
     if (!rest.empty() && !how.pass_unknown) {

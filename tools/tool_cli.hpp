@@ -57,7 +57,8 @@ struct CommandLine {
 // Parses argv into `app` (single-valued options keep the last value given).
 // nullopt: go on; else the exit code, the help or the error printed: 0
 // after --help, 2 after a usage error worded as "--x needs a value",
-// "--x: '<text>' is not ...", "unknown option --x", "unexpected argument x".
+// "--x: '<text>' is not ...", "--config needs a file name, got ''",
+// "unknown option --x", "unexpected argument x".
 std::optional<int> parse(CLI::App& app, int argc, char** argv, const CommandLine& how);
 
 // `v` with `decimals` digits after the point, as the tools' text reports write numbers.
