@@ -2,7 +2,7 @@
 // (field coordinates, one target per plant, deadline-checked TARGET
 // commands on the CAN bus or into a candump log; optional detections CSV
 // and plant map).
-//   stemd [--config FILE] [--set KEY=VALUE]... [--check-config]
+//   stemd [--config FILE]... [--set KEY=VALUE]... [--check-config]
 //         [--replay DIR] [--once] [--detections-csv FILE]
 //         [--can-log FILE] [--map FILE] [--map-geojson FILE]
 // Exit: 0 on SIGTERM/SIGINT or, with --once, after the last frame; 1 when the
@@ -51,10 +51,11 @@ using tools::kUsageError;
 
 // The options: here, in Args and in parse_args, in the same order.
 const char* const kUsage =
-    "usage: stemd [--config FILE] [--set KEY=VALUE]... [--check-config]\n"
+    "usage: stemd [--config FILE]... [--set KEY=VALUE]... [--check-config]\n"
     "             [--replay DIR] [--once] [--detections-csv FILE]\n"
     "             [--can-log FILE] [--map FILE] [--map-geojson FILE]\n"
-    "  --config          configuration file (see config/stemd.yaml)\n"
+    "  --config          configuration file (see config/stemd.yaml); repeated, later files\n"
+    "                    override earlier ones key by key\n"
     "  --set             override one configuration key, e.g. --set ring.capacity=8\n"
     "  --check-config    validate the configuration and exit (0 ok, 2 error)\n"
     "  --replay          replay a recording directory (overrides source.*)\n"

@@ -28,11 +28,15 @@ std::string fixed(double v, int decimals)
 
 void add_config_options(CLI::App& app, config::ConfigArgs& out)
 {
-    // An empty name would silently mean the defaults.
-    app.add_option("--config", out.file, "configuration file (see config/stemd.yaml)")
+    // Each --config as it comes: later files override earlier ones key by
+    // key. An empty name would silently mean the defaults.
+    app.add_option_function<std::string>(
+           "--config", [&out](const std::string& file) { out.files.push_back(file); },
+           "configuration file (see config/stemd.yaml); repeated: later files override earlier ones")
         ->check(CLI::Validator(
             [](std::string& name) { return name.empty() ? std::string("needs a file name, got ''") : std::string(); },
-            "FILE"));
+            "FILE"))
+        ->trigger_on_parse();
     // Each --set as it comes, so that options that add overrides of their own
     // (stemd-detect --segment) keep the command line's order.
     app.add_option_function<std::string>(

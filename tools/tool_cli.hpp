@@ -23,7 +23,9 @@ constexpr int kUsageError = 2;
 bool parse_number(const std::string& text, double& out);
 bool parse_int(const std::string& text, long& out);
 
-// --config FILE and --set KEY=VALUE (repeatable; applied in order after the file).
+// --config FILE (repeatable: files load in order, later ones override
+// earlier ones key by key) and --set KEY=VALUE (repeatable; applied in order
+// after the files).
 void add_config_options(CLI::App& app, config::ConfigArgs& out);
 
 // A check of an option's text: it must read whole as a T (a finite number

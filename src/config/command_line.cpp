@@ -4,8 +4,8 @@ namespace stemd::config {
 
 std::optional<ConfigError> build_config(const ConfigArgs& args, Config& out)
 {
-    if (!args.file.empty())
-        if (auto error = out.load_file(args.file))
+    for (const std::string& file : args.files)
+        if (auto error = out.load_file(file))
             return error;
     for (const std::string& set : args.sets)
         if (auto error = out.set_override(set))

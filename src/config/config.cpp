@@ -53,8 +53,9 @@ constexpr std::string_view kDocumentedHeader =
     "# after a value (preceded by a space). Unknown or duplicate keys, deeper\n"
     "# nesting and out-of-range values are errors. A file need not list every\n"
     "# key: keys it leaves out keep their defaults. stemd and the tools take\n"
-    "# --config FILE and --set section.key=value (e.g. --set closing.radius_px=6);\n"
-    "# a --set given later wins over the file.\n"
+    "# --config FILE, repeated to layer files (a later file wins key by key), and\n"
+    "# --set section.key=value (e.g. --set closing.radius_px=6), which wins over\n"
+    "# the files.\n"
     "#\n"
     "# Generated from the schema (src/config/schema.cpp), like the README's table:\n"
     "#   stemd-config yaml --out config/stemd.yaml\n";

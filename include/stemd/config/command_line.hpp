@@ -11,11 +11,13 @@
 namespace stemd::config {
 
 struct ConfigArgs {
-    std::string file;                // empty: defaults only
-    std::vector<std::string> sets;   // KEY=VALUE, applied in order after the file
+    std::vector<std::string> files;  // none: defaults only
+    std::vector<std::string> sets;   // KEY=VALUE, applied in order after the files
 };
 
-// Loads the file then the overrides; the first error is returned.
+// Loads the files in order, each on top of the ones before it (a key a later
+// file gives wins; a list section it gives replaces the list), then the
+// overrides. The first error is returned, naming its own file and line.
 std::optional<ConfigError> build_config(const ConfigArgs& args, Config& out);
 
 }  // namespace stemd::config

@@ -1,6 +1,6 @@
-// The effective configuration: schema defaults, then a config file, then
-// --set overrides, each value checked against the schema (type, range,
-// choices) as it arrives.
+// The effective configuration: schema defaults, then config files (each on
+// top of the ones before it), then --set overrides, each value checked
+// against the schema (type, range, choices) as it arrives.
 //
 // A config file is YAML, read with yaml-cpp (see config/stemd.yaml), in one
 // shape: a map of sections, each a map of scalars.
