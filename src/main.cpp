@@ -18,6 +18,7 @@
 #include <string>
 #include <string_view>
 #include <system_error>
+#include <utility>
 #include <vector>
 
 #include <spdlog/spdlog.h>
@@ -49,7 +50,7 @@ namespace {
 
 using tools::kUsageError;
 
-// The options: here, in Args and in parse_args, in the same order.
+// The options: here, in Args and in parse_args.
 const char* const kUsage =
     "usage: stemd [--config FILE]... [--set KEY=VALUE]... [--check-config]\n"
     "             [--replay DIR] [--once] [--detections-csv FILE]\n"
@@ -80,7 +81,7 @@ struct Args {
 const tools::CommandLine kCommandLine{
     .tool = "stemd", .usage = kUsage, .usage_after_error = true, .pass_unknown = true};
 
-// Every option of the daemon, in the order of its usage text. nullopt: go
+// Every option of the daemon. nullopt: go
 // on; else the exit code (0 after --help, 2 after a usage error).
 std::optional<int> parse_args(int argc, char** argv, Args& args)
 {
@@ -92,12 +93,13 @@ std::optional<int> parse_args(int argc, char** argv, Args& args)
     CLI::App app("stemd");
     tools::add_config_options(app, args.config);
     app.add_flag("--check-config", args.check_config);
-    app.add_option("--replay", args.replay_dir);
     app.add_flag("--once", args.once);
-    app.add_option("--detections-csv", args.detections_csv);
-    app.add_option("--can-log", args.can_log);
-    app.add_option("--map", args.map);
-    app.add_option("--map-geojson", args.map_geojson);
+    for (const auto& [name, value] : {std::pair{"--replay", &args.replay_dir},
+                                      {"--detections-csv", &args.detections_csv},
+                                      {"--can-log", &args.can_log},
+                                      {"--map", &args.map},
+                                      {"--map-geojson", &args.map_geojson}})
+        app.add_option(name, *value);
     if (const auto exit = tools::parse(app, argc, argv, kCommandLine))
         return exit;
     if (const std::vector<std::string> rest = app.remaining(); !rest.empty())
