@@ -2,11 +2,12 @@
 // (field coordinates, one target per plant, deadline-checked TARGET
 // commands on the CAN bus or into a candump log; optional detections CSV
 // and plant map).
-//   stemd [--config FILE] [--set KEY=VALUE]... [--check-config]
+//   stemd [--config FILE]... [--set KEY=VALUE]... [--check-config]
 //         [--replay DIR] [--once] [--detections-csv FILE]
 //         [--can-log FILE] [--map FILE] [--map-geojson FILE]
 // Exit: 0 on SIGTERM/SIGINT or, with --once, after the last frame; 1 when the
 // source or an output fails; 2 on bad arguments or configuration.
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
@@ -15,10 +16,14 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <system_error>
+#include <utility>
 #include <vector>
 
 #include <spdlog/spdlog.h>
+
+#include "tool_cli.hpp"
 
 #include "stemd/runtime/actuation_factory.hpp"
 #include "stemd/runtime/camera_config.hpp"
@@ -44,13 +49,15 @@ using namespace std::chrono_literals;
 
 namespace {
 
-constexpr int kUsageError = 2;
+using tools::kUsageError;
 
+// The options: here, in Args and in parse_args.
 const char* const kUsage =
-    "usage: stemd [--config FILE] [--set KEY=VALUE]... [--check-config]\n"
+    "usage: stemd [--config FILE]... [--set KEY=VALUE]... [--check-config]\n"
     "             [--replay DIR] [--once] [--detections-csv FILE]\n"
     "             [--can-log FILE] [--map FILE] [--map-geojson FILE]\n"
-    "  --config          configuration file (see config/stemd.yaml)\n"
+    "  --config          configuration file (see config/stemd.yaml); repeated, later files\n"
+    "                    override earlier ones key by key\n"
     "  --set             override one configuration key, e.g. --set ring.capacity=8\n"
     "  --check-config    validate the configuration and exit (0 ok, 2 error)\n"
     "  --replay          replay a recording directory (overrides source.*)\n"
@@ -72,44 +79,33 @@ struct Args {
     std::string map_geojson;
 };
 
-std::optional<Args> parse_args(int argc, char** argv, std::string& error)
+const tools::CommandLine kCommandLine{
+    .tool = "stemd", .usage = kUsage, .usage_after_error = true, .pass_unknown = true};
+
+// Every option of the daemon. nullopt: go
+// on; else the exit code (0 after --help, 2 after a usage error).
+std::optional<int> parse_args(int argc, char** argv, Args& args)
 {
-    Args args;
-    config::ArgReader in(argc, argv);
-    while (in.next()) {
-        const std::string a = in.arg();
-        auto value = [&](std::string& out) {
-            if (in.value(out))
-                return true;
-            error = in.error();
-            return false;
-        };
-        std::string v;
-        if (in.config_option(args.config)) {
-            if (in.failed()) {
-                error = in.error();
-                return std::nullopt;
-            }
-        } else if (a == "--check-config") {
-            args.check_config = true;
-        } else if (a == "--replay") {
-            if (!value(args.replay_dir)) return std::nullopt;
-        } else if (a == "--once") {
-            args.once = true;
-        } else if (a == "--detections-csv") {
-            if (!value(args.detections_csv)) return std::nullopt;
-        } else if (a == "--can-log") {
-            if (!value(args.can_log)) return std::nullopt;
-        } else if (a == "--map") {
-            if (!value(args.map)) return std::nullopt;
-        } else if (a == "--map-geojson") {
-            if (!value(args.map_geojson)) return std::nullopt;
-        } else {
-            error = "unknown argument " + a;
-            return std::nullopt;
-        }
+    // -h or --help anywhere is help, even where an option's value belongs.
+    if (std::any_of(argv + 1, argv + argc, [](std::string_view a) { return a == "-h" || a == "--help"; })) {
+        std::cout << kUsage;
+        return 0;
     }
-    return args;
+    CLI::App app("stemd");
+    tools::add_config_options(app, args.config);
+    app.add_flag("--check-config", args.check_config);
+    app.add_flag("--once", args.once);
+    for (const auto& [name, value] : {std::pair{"--replay", &args.replay_dir},
+                                      {"--detections-csv", &args.detections_csv},
+                                      {"--can-log", &args.can_log},
+                                      {"--map", &args.map},
+                                      {"--map-geojson", &args.map_geojson}})
+        app.add_option(name, *value);
+    if (const auto exit = tools::parse(app, argc, argv, kCommandLine))
+        return exit;
+    if (const std::vector<std::string> rest = app.remaining(); !rest.empty())
+        return tools::usage_error(kCommandLine, "unknown argument " + rest.front());
+    return std::nullopt;
 }
 
 }  // namespace
@@ -122,20 +118,14 @@ struct Phase {
 
 int run(int argc, char** argv, Phase& phase)
 {
-    if (config::wants_help(argc, argv)) {
-        std::cout << kUsage;
-        return 0;
-    }
+    Args args;
+    if (const auto exit = parse_args(argc, argv, args))
+        return *exit;
     // Before any thread exists, so that every thread inherits the blocked
     // mask and only the main loop below receives SIGTERM/SIGINT.
     runtime::ShutdownSignals signals;
 
     std::string error;
-    const auto args = parse_args(argc, argv, error);
-    if (!args) {
-        std::cerr << "stemd: " << error << "\n" << kUsage;
-        return kUsageError;
-    }
     // The signals wait (blocked) for the main loop; each start-up step
     // looks whether one came meanwhile, so that a stop during a slow start
     // (a large config, a slow device) ends it after that step.
@@ -147,7 +137,7 @@ int run(int argc, char** argv, Phase& phase)
     };
     phase.what = "reading the configuration";
     config::Config config;
-    if (const auto config_error = config::build_config(args->config, config)) {
+    if (const auto config_error = config::build_config(args.config, config)) {
         std::cerr << "stemd: " << config_error->to_string() << "\n";
         return kUsageError;
     }
@@ -155,22 +145,22 @@ int run(int argc, char** argv, Phase& phase)
         return 0;
     config::Settings settings = config.settings();
     runtime::DaemonConfig& daemon_config = settings.daemon;
-    if (!args->replay_dir.empty()) {
+    if (!args.replay_dir.empty()) {
         daemon_config.source_kind = "replay";
-        daemon_config.replay_dir = args->replay_dir;
+        daemon_config.replay_dir = args.replay_dir;
     }
-    if (args->once)
+    if (args.once)
         daemon_config.replay_loop = false;
     // Recordings may carry class maps (the scheduler's policy reads them).
     daemon_config.class_maps = daemon_config.source_kind == "replay";
     runtime::ActuationConfig& actuation_config = settings.actuation;
-    if (!args->can_log.empty()) {
+    if (!args.can_log.empty()) {
         actuation_config.can_interface.clear();
-        actuation_config.can_log_file = args->can_log;
+        actuation_config.can_log_file = args.can_log;
     }
-    if (!args->map.empty())
-        actuation_config.map_file = args->map;
-    if (!args->map_geojson.empty() && actuation_config.map_file.empty()) {
+    if (!args.map.empty())
+        actuation_config.map_file = args.map;
+    if (!args.map_geojson.empty() && actuation_config.map_file.empty()) {
         std::cerr << "stemd: --map-geojson is made from the plant map: give --map FILE (or map.file) too\n";
         return kUsageError;
     }
@@ -186,7 +176,7 @@ int run(int argc, char** argv, Phase& phase)
         return kUsageError;
     }
     if (const auto problem =
-            runtime::check_source_config(daemon_config, config, !args->replay_dir.empty(), args->check_config)) {
+            runtime::check_source_config(daemon_config, config, !args.replay_dir.empty(), args.check_config)) {
         std::cerr << "stemd: " << *problem << "\n";
         return kUsageError;
     }
@@ -231,7 +221,7 @@ int run(int argc, char** argv, Phase& phase)
             return kUsageError;
         }
     }
-    if (args->check_config) {
+    if (args.check_config) {
         std::cout << "stemd: configuration ok\n";
         return 0;
     }
@@ -246,7 +236,7 @@ int run(int argc, char** argv, Phase& phase)
     std::unique_ptr<drivers::FrameSource> source = runtime::make_frame_source(daemon_config, [&signals] { return signals.pending(); });
 
     auto sink = std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator"));
-    if (!args->detections_csv.empty() && !sink->open_csv(args->detections_csv))
+    if (!args.detections_csv.empty() && !sink->open_csv(args.detections_csv))
         return 1;
     std::string actuation_error;
     std::unique_ptr<runtime::ActuationStage> actuation =
@@ -260,8 +250,8 @@ int run(int argc, char** argv, Phase& phase)
 
     // The GeoJSON is rebuilt from the plant map's lines on a low-priority thread of its own.
     std::optional<runtime::GeojsonWriter> geojson;
-    if (!args->map_geojson.empty()) {
-        geojson.emplace(actuation_config.map_file, args->map_geojson, std::chrono::seconds(30), log);
+    if (!args.map_geojson.empty()) {
+        geojson.emplace(actuation_config.map_file, args.map_geojson, std::chrono::seconds(30), log);
         geojson->start();
     }
 
@@ -391,7 +381,7 @@ int run(int argc, char** argv, Phase& phase)
     // After join(): the map holds every plant.
     if (geojson) {
         if (geojson->finish())
-            log->info("{}: {} plants, {} with a position", args->map_geojson, geojson->features(), geojson->placed());
+            log->info("{}: {} plants, {} with a position", args.map_geojson, geojson->features(), geojson->placed());
         else
             exit_code = 1;
     }

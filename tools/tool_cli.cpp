@@ -28,11 +28,15 @@ std::string fixed(double v, int decimals)
 
 void add_config_options(CLI::App& app, config::ConfigArgs& out)
 {
-    // An empty name would silently mean the defaults.
-    app.add_option("--config", out.file, "configuration file (see config/stemd.yaml)")
+    // Each --config as it comes: later files override earlier ones key by
+    // key. An empty name would silently mean the defaults.
+    app.add_option_function<std::string>(
+           "--config", [&out](const std::string& file) { out.files.push_back(file); },
+           "configuration file (see config/stemd.yaml); repeated: later files override earlier ones")
         ->check(CLI::Validator(
             [](std::string& name) { return name.empty() ? std::string("needs a file name, got ''") : std::string(); },
-            "FILE"));
+            "FILE"))
+        ->trigger_on_parse();
     // Each --set as it comes, so that options that add overrides of their own
     // (stemd-detect --segment) keep the command line's order.
     app.add_option_function<std::string>(
@@ -91,7 +95,11 @@ std::optional<int> parse(CLI::App& app, int argc, char** argv, const CommandLine
     } catch (const CLI::ArgumentMismatch& e) {
         return usage_error(how, missing_value(app, e.what()));
     } catch (const CLI::ParseError& e) {
-        return usage_error(how, e.what());
+        // "--config: needs a file name" reads like "--set needs a value".
+        std::string message = e.what();
+        if (const std::size_t at = message.find(": needs "); message.starts_with("--") && at != std::string::npos)
+            message.erase(at, 1);
+        return usage_error(how, message);
     }
     const std::vector<std::string> rest = app.remaining(true);
     if (!rest.empty() && !how.pass_unknown) {

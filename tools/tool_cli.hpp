@@ -23,7 +23,9 @@ constexpr int kUsageError = 2;
 bool parse_number(const std::string& text, double& out);
 bool parse_int(const std::string& text, long& out);
 
-// --config FILE and --set KEY=VALUE (repeatable; applied in order after the file).
+// --config FILE (repeatable: files load in order, later ones override
+// earlier ones key by key) and --set KEY=VALUE (repeatable; applied in order
+// after the files).
 void add_config_options(CLI::App& app, config::ConfigArgs& out);
 
 // A check of an option's text: it must read whole as a T (a finite number
@@ -57,7 +59,8 @@ struct CommandLine {
 // Parses argv into `app` (single-valued options keep the last value given).
 // nullopt: go on; else the exit code, the help or the error printed: 0
 // after --help, 2 after a usage error worded as "--x needs a value",
-// "--x: '<text>' is not ...", "unknown option --x", "unexpected argument x".
+// "--x: '<text>' is not ...", "--config needs a file name, got ''",
+// "unknown option --x", "unexpected argument x".
 std::optional<int> parse(CLI::App& app, int argc, char** argv, const CommandLine& how);
 
 // `v` with `decimals` digits after the point, as the tools' text reports write numbers.

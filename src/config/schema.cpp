@@ -10,20 +10,13 @@
 
 #include "stemd/config/config.hpp"
 #include "stemd/config/settings.hpp"
+#include "values.hpp"
 
 namespace stemd::config {
 
 namespace {
 
-// Concatenation without "literal" + std::string&&, which GCC 12 at -O3
-// misreports under -Wrestrict.
-template <class... Parts>
-std::string cat(const Parts&... parts)
-{
-    std::string out;
-    (out.append(std::string_view(parts)), ...);
-    return out;
-}
+using detail::cat;
 
 using enum ValueType;
 using geometry::Forward;

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # stemd-calibrate end to end on rendered PNGs: intrinsics from twelve views
 # and a blank one (rejected), the ground pose from the board on the ground
-# with those intrinsics, the fragment accepted by stemd --check-config and
-# close to the rendering's camera; usage errors exit 2.
+# with those intrinsics, the fragment accepted by stemd --check-config (alone
+# and as a second --config on the default configuration) and close to the
+# rendering's camera; usage errors exit 2.
 #   bash calibrate_e2e.sh <stemd-calibrate> <stemd-test-board-views> <stemd>
 set -euo pipefail
 
@@ -41,6 +42,24 @@ for what in "^pose: height" "^principal point on the ground" "^  centre " "^  to
 done
 "$stemd" --config "$tmp/camera_fragment.yaml" --check-config >"$tmp/check.out" 2>&1 ||
   fail "stemd --check-config rejects the fragment: $(cat "$tmp/check.out")"
+# Layered on the site's configuration by a second --config: pasted into
+# it, its camera: and source: sections would be duplicates.
+src=$(cd "$(dirname "$0")/../.." && pwd)
+"$stemd" --config "$src/config/stemd.yaml" --config "$tmp/camera_fragment.yaml" --check-config >"$tmp/check.out" 2>&1 ||
+  fail "stemd --check-config rejects the layered fragment: $(cat "$tmp/check.out")"
+cat "$src/config/stemd.yaml" "$tmp/camera_fragment.yaml" >"$tmp/pasted.yaml"
+rc=0
+"$stemd" --config "$tmp/pasted.yaml" --check-config >/dev/null 2>"$tmp/check.err" || rc=$?
+[ $rc -eq 2 ] && grep -q ": duplicate section (first on line" "$tmp/check.err" ||
+  fail "pasted fragment: exit $rc $(cat "$tmp/check.err")"
+# An error in a layer names that file and its line.
+{ cat "$tmp/camera_fragment.yaml"; printf '  widht_px: 640\n'; } >"$tmp/bad_fragment.yaml"
+line=$(wc -l <"$tmp/bad_fragment.yaml")
+rc=0
+"$stemd" --config "$src/config/stemd.yaml" --config "$tmp/bad_fragment.yaml" --check-config >/dev/null 2>"$tmp/check.err" ||
+  rc=$?
+[ $rc -eq 2 ] && grep -q "^stemd: $tmp/bad_fragment.yaml:$line: key 'source.widht_px': unknown key" "$tmp/check.err" ||
+  fail "bad layer: exit $rc $(cat "$tmp/check.err")"
 
 # The fragment's camera against the rendering's: height within 1 %, angles
 # within 0.3 degrees (intrinsics fitted, not given).

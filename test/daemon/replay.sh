@@ -74,6 +74,12 @@ set +e
 "$stemd" --check-config --set odometry.source=can >/dev/null 2>"$tmp/e5"; rc5=$?
 "$stemd" --check-config --set odometry.source=encoder >/dev/null 2>"$tmp/e6"; rc6=$?
 set -e
+printf 'tools:\n  - id: 0\n  - id: 1\n    learn_latency: true\n    latency_min_ms: 30\n    latency_max_ms: 20\n' >"$tmp/tools.yaml"
+set +e
+"$stemd" --check-config --config "$tmp/tools.yaml" >/dev/null 2>"$tmp/e7"; rc7=$?
+set -e
+[ $rc7 -eq 2 ] && grep -q "^stemd: $tmp/tools.yaml:6: key 'tools\[1\].latency_max_ms': below latency_min_ms" "$tmp/e7" ||
+  fail "a list item's key is named with its line: $rc7 $(cat "$tmp/e7")"
 [ $rc4 -eq 2 ] && grep -q "^stemd: $tmp/gpio.yaml:3: key 'gpio.enable_line': " "$tmp/e4" ||
   fail "GPIO chip without an enable line: $rc4 $(cat "$tmp/e4")"
 [ $rc5 -eq 2 ] && grep -q "key 'odometry.source' (--set): can, but can.interface is none" "$tmp/e5" ||

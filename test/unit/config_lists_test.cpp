@@ -413,6 +413,26 @@ TEST_F(ConfigListTest, UnknownSectionListsTheListSectionsToo)
         << error->message;
 }
 
+TEST_F(ConfigListTest, BlameNamesAnItemKeyWithItsLine)
+{
+    // What the daemon refuses after loading (check_actuation_config) names
+    // an item's key as "tools[1].latency_max_ms": its file and line, not
+    // "(unknown)".
+    const fs::path path = write("tools:\n  - id: 0\n  - id: 1\n    latency_max_ms: 5\n");
+    Config config;
+    ASSERT_FALSE(config.load_file(path));
+    EXPECT_EQ(config.origin_of("tools[1].latency_max_ms"), path.string() + ":4");
+    EXPECT_EQ(config.blame("tools[1].latency_max_ms", "below latency_min_ms"),
+              path.string() + ":4: key 'tools[1].latency_max_ms': below latency_min_ms");
+    EXPECT_EQ(config.blame("tools[1].latency_min_ms", "m"), "key 'tools[1].latency_min_ms' (default): m");
+    ASSERT_FALSE(config.set_override("tools.0.offset_mm=650"));
+    EXPECT_EQ(config.blame("tools[0].offset_mm", "m"), "key 'tools[0].offset_mm' (--set): m");
+    // An item or a key the list does not have is still unknown.
+    EXPECT_EQ(config.origin_of("tools[2].offset_mm"), "");
+    EXPECT_EQ(config.origin_of("tools[0].colour"), "");
+    EXPECT_EQ(config.blame("tools[2].offset_mm", "m"), "key 'tools[2].offset_mm' (unknown): m");
+}
+
 // --- --set -------------------------------------------------------------------------
 
 TEST(ConfigListSet, OverridesAndAppends)

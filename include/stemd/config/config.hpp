@@ -1,6 +1,6 @@
-// The effective configuration: schema defaults, then a config file, then
-// --set overrides, each value checked against the schema (type, range,
-// choices) as it arrives.
+// The effective configuration: schema defaults, then config files (each on
+// top of the ones before it), then --set overrides, each value checked
+// against the schema (type, range, choices) as it arrives.
 //
 // A config file is YAML, read with yaml-cpp (see config/stemd.yaml), in one
 // shape: a map of sections, each a map of scalars.
@@ -98,7 +98,8 @@ public:
     Settings settings() const;
 
     // Where a key's value came from: "default", "FILE:LINE" or "--set"
-    // ("" for a key the schema does not have).
+    // ("" for a key the schema does not have). A list item's key is named
+    // as errors name it: "tools[1].offset_mm".
     std::string origin_of(std::string_view key) const;
 
     // A key's value as a config file writes it ("5", "0.33", "true",
