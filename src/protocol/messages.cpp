@@ -70,13 +70,18 @@ constexpr SignalDef kRxRejected{"rx_rejected", 56, 8, false, 0, 255, "",
 constexpr std::array kHeartbeatSignals{kCrc, kCounter, kState, kSent, kDeadlineMisses, kDropped, kRxRejected};
 
 // TOOL_FIRED repeats the TARGET's bits for the fields it echoes.
-constexpr SignalDef kFiredToolId{"tool_id", 12, 4, false, 0, kMaxToolId, "", "TARGET.tool_id of the command executed."};
-constexpr SignalDef kFiredTargetId{"target_id", 16, 12, false, 0, kMaxTargetId, "",
-                                   "TARGET.target_id of the command executed."};
-constexpr SignalDef kFiredLane{"lane", 28, 4, false, 0, kMaxLane, "", "TARGET.lane of the command executed."};
-constexpr SignalDef kFiredOdom{"fired_odom_mm", 32, kFireOdomBits, false, 0, kFireOdomModulo - 1, "mm",
-                               "ODOMETRY.odom_mm reading when the strike took effect (valve open, stamp down), "
-                               "modulo 2^18 mm. Minus TARGET.fire_odom_mm: the tool's lag in mm."};
+constexpr SignalDef echo(SignalDef s, std::string_view name, std::string_view comment)
+{
+    s.name = name;
+    s.comment = comment;
+    return s;
+}
+constexpr SignalDef kFiredToolId = echo(kToolId, "tool_id", "TARGET.tool_id of the command executed.");
+constexpr SignalDef kFiredTargetId = echo(kTargetId, "target_id", "TARGET.target_id of the command executed.");
+constexpr SignalDef kFiredLane = echo(kLane, "lane", "TARGET.lane of the command executed.");
+constexpr SignalDef kFiredOdom = echo(kFireOdom, "fired_odom_mm",
+                                      "ODOMETRY.odom_mm reading when the strike took effect (valve open, stamp down), "
+                                      "modulo 2^18 mm. Minus TARGET.fire_odom_mm: the tool's lag in mm.");
 constexpr std::array kToolFiredSignals{kCrc, kCounter, kFiredToolId, kFiredTargetId, kFiredLane, kFiredOdom};
 
 constexpr std::array kNodes{
