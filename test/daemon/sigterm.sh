@@ -3,12 +3,8 @@
 # recording is being preloaded: exit 0 within 1 s.
 #   sigterm.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
-stemd=$1
-tools=$2
-tmp=$(mktemp -d)
-pid=
-trap '[ -n "$pid" ] && kill -KILL "$pid" 2>/dev/null; rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+stemd=$1 tools=$2
+. "$(dirname "$0")/../support/script.sh"
 
 "$tools/stemd-synth" --out "$tmp/rec" --preset late --frames 3 >/dev/null
 
@@ -52,7 +48,6 @@ kill -TERM "$pid"
 set +e
 wait "$pid"; rc=$?
 set -e
-pid=
 ms=$((($(date +%s%N) - t0) / 1000000))
 [ $rc -eq 0 ] || fail "SIGTERM during preload: exit $rc: $(tail -3 "$tmp/err.preload")"
 [ $ms -lt 1000 ] || fail "SIGTERM during preload: took $ms ms to exit"

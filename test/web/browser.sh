@@ -10,13 +10,8 @@
 #    absolute URL, and Chromium runs with every host but 127.0.0.1 unresolvable.
 #   browser.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
-stemd=$1
-tools=$2
-src=$3
-tmp=$(mktemp -d)
-stemd_pid=""
-trap '[ -n "$stemd_pid" ] && kill "$stemd_pid" 2>/dev/null; rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+stemd=$1 tools=$2 src=$3
+. "$(dirname "$0")/../support/script.sh"
 command -v chromium >/dev/null || { echo "SKIP: chromium is not installed (Debian package chromium)"; exit 77; }
 /usr/bin/python3 -c "import PIL" 2>/dev/null || { echo "SKIP: python3-pil (to read the screenshot) is not installed"; exit 77; }
 . "$(dirname "$0")/common.sh"

@@ -6,6 +6,7 @@ start_stemd() {
   shift
   "$stemd" "$@" 2>"$log" &
   stemd_pid=$!
+  pid="$pid $stemd_pid"
   base=""
   # Generous: a loaded 2-core machine may take a while to preload and start.
   for _ in $(seq 600); do

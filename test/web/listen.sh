@@ -4,13 +4,8 @@
 # the daemon runs on without the view, its status line saying so.
 #   listen.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
-stemd=$1
-tools=$2
-src=$3
-tmp=$(mktemp -d)
-holder=""
-trap '[ -n "$holder" ] && kill "$holder" 2>/dev/null; rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+stemd=$1 tools=$2 src=$3
+. "$(dirname "$0")/../support/script.sh"
 
 printf 'web:\n  listen: localhost:8080\n' >"$tmp/bad.yaml"
 set +e
@@ -41,7 +36,7 @@ open(sys.argv[1] + ".tmp", "w").write(str(s.getsockname()[1]))
 import os; os.rename(sys.argv[1] + ".tmp", sys.argv[1])
 time.sleep(120)
 PY
-holder=$!
+pid=$!
 for _ in $(seq 300); do [ -s "$tmp/port" ] && break; sleep 0.1; done
 [ -s "$tmp/port" ] || fail "the port holder did not start"
 port=$(cat "$tmp/port")

@@ -4,13 +4,8 @@
 # README names is there, and the histograms are whole (+Inf = _count).
 #   metrics.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
-stemd=$1
-tools=$2
-src=$3
-tmp=$(mktemp -d)
-stemd_pid=""
-trap '[ -n "$stemd_pid" ] && kill "$stemd_pid" 2>/dev/null; rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+stemd=$1 tools=$2 src=$3
+. "$(dirname "$0")/../support/script.sh"
 /usr/bin/python3 -c "import prometheus_client.parser" 2>/dev/null \
   || { echo "SKIP: python3-prometheus-client (the reference parser) is not installed"; exit 77; }
 . "$(dirname "$0")/common.sh"
