@@ -14,6 +14,8 @@
 
 # A check that hangs is killed after this (its own waits end long before).
 check_timeout=400
+# The checks that run their probe step by step give each step this long.
+step_timeout=120
 
 mode=$1
 shift
@@ -204,12 +206,11 @@ extra_checks="$extra_checks v4l2_source"
 
 # --- socketcan: the project's SocketCAN driver (drivers/socketcan) on vcan0 ---
 # KEY socketcan: host path of stemd-vm-socketcan-check. Each step has its own
-# timeout (socketcan_timeout), well inside check_timeout.
+# timeout (step_timeout), well inside check_timeout.
 socketcan=$(value_of socketcan "$@")
-socketcan_timeout=120
 check_socketcan() {
   [ -n "$socketcan" ] || skip "socketcan check not built"
-  sc() { timeout -s KILL "$socketcan_timeout" hostrun "$socketcan" "$@"; }
+  sc() { timeout -s KILL "$step_timeout" hostrun "$socketcan" "$@"; }
   # Precomputed with the protocol encoder (E2E CRC + counter): a change in
   # the encoder or the driver shows up as a mismatch.
   target=301#3223D254400DFFBA    # TARGET id 1234, tool 2, lane 5, fire 200000 mm, -321 mm, weed; counter 3
@@ -259,12 +260,11 @@ extra_checks="$extra_checks libcamera_source"
 # (configfs "stemd_gpiod": 0 cam_trigger, 1 enable, 2 enc_a, 3 enc_b), so it
 # does not depend on check_gpio. The check runs each pull or toggle itself,
 # one edge at a time (libgpiod 1.6 reads an edge's level late: see
-# tools/vm/README.md). Each step has its own timeout (gpiod_timeout).
+# tools/vm/README.md). Each step has its own timeout (step_timeout).
 gpiod=$(value_of gpiod "$@")
-gpiod_timeout=120
 check_gpiod() {
   [ -n "$gpiod" ] || skip "gpiod check not built: libgpiod-dev (1.x) was missing when CMake configured"
-  gc() { timeout -s KILL "$gpiod_timeout" hostrun "$gpiod" "$@"; }
+  gc() { timeout -s KILL "$step_timeout" hostrun "$gpiod" "$@"; }
   modprobe gpio-sim || die "modprobe gpio-sim"
   mount_configfs
   c=/sys/kernel/config/gpio-sim/stemd_gpiod
