@@ -97,6 +97,18 @@ mount_configfs() {
   grep -q ' /sys/kernel/config configfs ' /proc/mounts ||
     mount -t configfs none /sys/kernel/config || die "mount configfs"
 }
+# enable_chip NAME [LABEL]: a live gpio-sim chip of two lines (configfs
+# directory $c), line 0 named enable, labelled LABEL when given.
+enable_chip() {
+  modprobe gpio-sim || die "modprobe gpio-sim"
+  mount_configfs
+  c=/sys/kernel/config/gpio-sim/$1
+  mkdir "$c" "$c/bank0" "$c/bank0/line0" || die "gpio-sim configfs"
+  echo 2 > "$c/bank0/num_lines"
+  [ -z "${2:-}" ] || echo "$2" > "$c/bank0/label"
+  echo enable > "$c/bank0/line0/name"
+  echo 1 > "$c/live" || die "gpio-sim: going live"
+}
 # mark_udev_initialized: libcamera only takes devices udev has "initialized";
 # there is no udev here, so write that mark into the (tmpfs) udev database
 # for every node.
@@ -376,13 +388,7 @@ check_daemon() {
   cap=$(v4l_node vivid-000-vid-cap) || die "no vivid capture node"
   outn=$(v4l_node vivid-000-vid-out) || die "no vivid output node"
   vcan_up
-  modprobe gpio-sim || die "modprobe gpio-sim"
-  mount_configfs
-  c=/sys/kernel/config/gpio-sim/stemd_daemon
-  mkdir "$c" "$c/bank0" "$c/bank0/line0" || die "gpio-sim configfs"
-  echo 2 > "$c/bank0/num_lines"
-  echo enable > "$c/bank0/line0/name"
-  echo 1 > "$c/live" || die "gpio-sim: going live"
+  enable_chip stemd_daemon
   chip=$(cat "$c/bank0/chip_name")
   pull=/sys/devices/platform/$(cat "$c/dev_name")/$chip/sim_gpio0/pull
   echo pull-up > "$pull" || die "pull-up enable"
@@ -523,14 +529,7 @@ check_faults() {
   cap=$(v4l_node vivid-000-vid-cap) || die "no vivid capture node"
   outn=$(v4l_node vivid-000-vid-out) || die "no vivid output node"
   vcan_up
-  modprobe gpio-sim || die "modprobe gpio-sim"
-  mount_configfs
-  c=/sys/kernel/config/gpio-sim/stemd_faults
-  mkdir "$c" "$c/bank0" "$c/bank0/line0" || die "gpio-sim configfs"
-  echo 2 > "$c/bank0/num_lines"
-  echo stemd-faults > "$c/bank0/label"
-  echo enable > "$c/bank0/line0/name"
-  echo 1 > "$c/live" || die "gpio-sim: going live"
+  enable_chip stemd_faults stemd-faults
   pull_up() { echo pull-up > "/sys/devices/platform/$(cat "$c/dev_name")/$(cat "$c/bank0/chip_name")/sim_gpio0/pull"; }
   pull_up || die "pull-up enable"
   echo "vivid $vivid_dev: $outn -> $cap, vcan0, gpio-sim $(cat "$c/bank0/chip_name") (stemd-faults) line 0 (enable) pulled up"
