@@ -97,17 +97,24 @@ mount_configfs() {
   grep -q ' /sys/kernel/config configfs ' /proc/mounts ||
     mount -t configfs none /sys/kernel/config || die "mount configfs"
 }
-# enable_chip NAME [LABEL]: a live gpio-sim chip of two lines (configfs
-# directory $c), line 0 named enable, labelled LABEL when given.
-enable_chip() {
+# sim_chip NAME NUM_LINES LABEL N:NAME...: a live gpio-sim chip ($c: its
+# configfs directory, $chip: its name, $sim: its sysfs directory), labelled
+# LABEL unless that is empty, line N named NAME. configfs only once gpio-sim
+# is loaded, or its directory is missing.
+sim_chip() {
   modprobe gpio-sim || die "modprobe gpio-sim"
   mount_configfs
   c=/sys/kernel/config/gpio-sim/$1
-  mkdir "$c" "$c/bank0" "$c/bank0/line0" || die "gpio-sim configfs"
-  echo 2 > "$c/bank0/num_lines"
-  [ -z "${2:-}" ] || echo "$2" > "$c/bank0/label"
-  echo enable > "$c/bank0/line0/name"
+  mkdir "$c" "$c/bank0" || die "gpio-sim configfs"
+  echo "$2" > "$c/bank0/num_lines"
+  [ -z "$3" ] || echo "$3" > "$c/bank0/label"
+  shift 3
+  for l in "$@"; do
+    mkdir "$c/bank0/line${l%%:*}" && echo "${l#*:}" > "$c/bank0/line${l%%:*}/name"
+  done
   echo 1 > "$c/live" || die "gpio-sim: going live"
+  chip=$(cat "$c/bank0/chip_name")
+  sim=/sys/devices/platform/$(cat "$c/dev_name")/$chip
 }
 # mark_udev_initialized: libcamera only takes devices udev has "initialized";
 # there is no udev here, so write that mark into the (tmpfs) udev database
@@ -160,18 +167,7 @@ check_v4l2() {
 # --- GPIO on gpio-sim ----------------------------------------------------------
 check_gpio() {
   [ -n "$gpio" ] || skip "gpio probe not built: libgpiod-dev (1.x) was missing when CMake configured"
-  modprobe gpio-sim || die "modprobe gpio-sim"
-  # configfs only once gpio-sim is loaded, or its directory is missing.
-  mount -t configfs none /sys/kernel/config || die "mount configfs"
-  c=/sys/kernel/config/gpio-sim/stemd
-  mkdir "$c" "$c/bank0" || die "gpio-sim configfs"
-  echo 4 > "$c/bank0/num_lines"
-  for l in 0:valve_out 1:endstop_in 2:spare_in; do
-    mkdir "$c/bank0/line${l%%:*}" && echo "${l#*:}" > "$c/bank0/line${l%%:*}/name"
-  done
-  echo 1 > "$c/live" || die "gpio-sim: going live"
-  chip=$(cat "$c/bank0/chip_name")
-  sim=/sys/devices/platform/$(cat "$c/dev_name")/$chip
+  sim_chip stemd 4 "" 0:valve_out 1:endstop_in 2:spare_in
   echo "gpio-sim chip $chip, sysfs $sim"
 
   echo "== edges on $chip line 1 from gpio-sim pulls"
@@ -277,19 +273,8 @@ gpiod=$(value_of gpiod "$@")
 check_gpiod() {
   [ -n "$gpiod" ] || skip "gpiod check not built: libgpiod-dev (1.x) was missing when CMake configured"
   gc() { timeout -s KILL "$step_timeout" hostrun "$gpiod" "$@"; }
-  modprobe gpio-sim || die "modprobe gpio-sim"
-  mount_configfs
-  c=/sys/kernel/config/gpio-sim/stemd_gpiod
-  mkdir "$c" "$c/bank0" || die "gpio-sim configfs"
-  echo 4 > "$c/bank0/num_lines"
   # A fixed label: the chip may come back under another number (see "lost").
-  echo stemd-gpiod > "$c/bank0/label"
-  for l in 0:cam_trigger 1:enable 2:enc_a 3:enc_b; do
-    mkdir "$c/bank0/line${l%%:*}" && echo "${l#*:}" > "$c/bank0/line${l%%:*}/name"
-  done
-  echo 1 > "$c/live" || die "gpio-sim: going live"
-  chip=$(cat "$c/bank0/chip_name")
-  sim=/sys/devices/platform/$(cat "$c/dev_name")/$chip
+  sim_chip stemd_gpiod 4 stemd-gpiod 0:cam_trigger 1:enable 2:enc_a 3:enc_b
   echo "gpio-sim chip $chip, sysfs $sim"
 
   for al in 0 1; do
@@ -388,9 +373,8 @@ check_daemon() {
   cap=$(v4l_node vivid-000-vid-cap) || die "no vivid capture node"
   outn=$(v4l_node vivid-000-vid-out) || die "no vivid output node"
   vcan_up
-  enable_chip stemd_daemon
-  chip=$(cat "$c/bank0/chip_name")
-  pull=/sys/devices/platform/$(cat "$c/dev_name")/$chip/sim_gpio0/pull
+  sim_chip stemd_daemon 2 "" 0:enable
+  pull=$sim/sim_gpio0/pull
   echo pull-up > "$pull" || die "pull-up enable"
   echo "vivid $outn -> $cap, vcan0, gpio-sim $chip line 0 (enable) pulled up"
 
@@ -529,7 +513,7 @@ check_faults() {
   cap=$(v4l_node vivid-000-vid-cap) || die "no vivid capture node"
   outn=$(v4l_node vivid-000-vid-out) || die "no vivid output node"
   vcan_up
-  enable_chip stemd_faults stemd-faults
+  sim_chip stemd_faults 2 stemd-faults 0:enable
   pull_up() { echo pull-up > "/sys/devices/platform/$(cat "$c/dev_name")/$(cat "$c/bank0/chip_name")/sim_gpio0/pull"; }
   pull_up || die "pull-up enable"
   echo "vivid $vivid_dev: $outn -> $cap, vcan0, gpio-sim $(cat "$c/bank0/chip_name") (stemd-faults) line 0 (enable) pulled up"
