@@ -24,6 +24,7 @@
 #include <spdlog/spdlog.h>
 
 #include "stemd/drivers/timestamp_pairing.hpp"
+#include "captured_log.hpp"
 #include "v4l2/paired_nir_source.hpp"
 
 using stemd::drivers::PairDecision;
@@ -587,17 +588,11 @@ TEST(TimestampPairer, CapacityFourKeepsUpWithTwoInterleavedCameras)
 // --- PairedNirSource without devices (the VM check, test/vm/paired_nir_check.cpp,
 // runs it on two vivid instances) ---
 
-namespace {
-struct PairedLog {
-    std::shared_ptr<std::ostringstream> text = std::make_shared<std::ostringstream>();
-    std::shared_ptr<spdlog::logger> logger =
-        std::make_shared<spdlog::logger>("paired-test", std::make_shared<spdlog::sinks::ostream_sink_mt>(*text));
-};
-}  // namespace
+using stemd::test::CapturedLog;
 
 TEST(PairedNirSource, MissingNirDeviceIsAClearErrorAndNextFails)
 {
-    PairedLog log;
+    CapturedLog log;
     stemd::drivers::PairedNirOptions options;
     options.rgb.device = "/dev/stemd-no-such-rgb";
     options.nir.device = "/dev/stemd-no-such-nir";
@@ -613,12 +608,12 @@ TEST(PairedNirSource, MissingNirDeviceIsAClearErrorAndNextFails)
     source.stop();
     EXPECT_EQ(source.counters().delivered, 0u);
     EXPECT_EQ(source.paired_counters().unpaired_rgb, 0u);
-    EXPECT_NE(log.text->str().find("/dev/stemd-no-such-rgb: cannot open"), std::string::npos) << log.text->str();
+    EXPECT_NE(log.text().find("/dev/stemd-no-such-rgb: cannot open"), std::string::npos) << log.text();
 }
 
 TEST(PairedNirSource, RgbDeviceThatIsNoV4l2DeviceIsAClearError)
 {
-    PairedLog log;
+    CapturedLog log;
     stemd::drivers::PairedNirOptions options;
     options.rgb.device = "/dev/null";
     options.rgb.size = {320, 240};
@@ -627,16 +622,16 @@ TEST(PairedNirSource, RgbDeviceThatIsNoV4l2DeviceIsAClearError)
     stemd::drivers::PairedNirSource source(options, log.logger);
     EXPECT_EQ(source.nir_source().name(), "v4l2:/dev/stemd-no-such-nir");
     EXPECT_FALSE(source.open());  // /dev/null is no V4L2 device
-    EXPECT_NE(log.text->str().find("/dev/null: VIDIOC_QUERYCAP"), std::string::npos) << log.text->str();
+    EXPECT_NE(log.text().find("/dev/null: VIDIOC_QUERYCAP"), std::string::npos) << log.text();
 }
 
 TEST(PairedNirSource, TheSameDeviceTwiceIsRejected)
 {
-    PairedLog log;
+    CapturedLog log;
     stemd::drivers::PairedNirOptions options;
     options.rgb.device = "/dev/video0";
     options.nir.device = "/dev/video0";
     stemd::drivers::PairedNirSource source(options, log.logger);
     EXPECT_FALSE(source.open());
-    EXPECT_NE(log.text->str().find("the same device /dev/video0"), std::string::npos) << log.text->str();
+    EXPECT_NE(log.text().find("the same device /dev/video0"), std::string::npos) << log.text();
 }

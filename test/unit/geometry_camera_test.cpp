@@ -16,6 +16,7 @@
 
 #include "stemd/geometry/camera_model.hpp"
 #include "stemd/geometry/field.hpp"
+#include "temp_dir_test.hpp"
 
 namespace fs = std::filesystem;
 using namespace stemd::geometry;
@@ -360,16 +361,8 @@ TEST(CalibratedCamera, RejectsBadIntrinsicsAndHeights)
 
 // --- calibration files ------------------------------------------------------
 
-class CalibrationFileTest : public ::testing::Test {
+class CalibrationFileTest : public stemd::test::TempDirTest {
 protected:
-    void SetUp() override
-    {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir_ = fs::temp_directory_path() /
-               (std::string("stemd-geometry-") + info->name() + "-" + std::to_string(::getpid()));
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
 
     fs::path write_calibration(const std::string& name, bool with_matrix, bool with_dist, int n_dist = 5)
     {
@@ -384,8 +377,6 @@ protected:
         out << "avg_reprojection_error" << 0.21;
         return path;
     }
-
-    fs::path dir_;
 };
 
 TEST_F(CalibrationFileTest, ReadsWhatOpenCvWrites)
