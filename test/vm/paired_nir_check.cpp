@@ -39,14 +39,8 @@
 
 namespace {
 
-using stemd::vmprobe::control_named;
-using stemd::vmprobe::fail;
-using stemd::vmprobe::info;
-using stemd::vmprobe::set_control;
-using stemd::vmprobe::VividLoopback;
+using namespace stemd::vmprobe;
 
-constexpr int kWidth = 640;
-constexpr int kHeight = 480;
 constexpr int kPassPairs = 20;   // phase 1: good pairs needed
 constexpr int kDropPairs = 30;   // phases 2, 3: pairs read while one side drops
 constexpr int kMaxCalls = 600;   // next() calls per phase at most
@@ -65,13 +59,13 @@ constexpr int kPlantRadius = 40;
 const cv::Rect kSoilPatch{8, 8, 24, 24};
 
 cv::Mat draw_rgb() {
-  cv::Mat bgr(kHeight, kWidth, CV_8UC3, cv::Scalar(kSoil[0], kSoil[1], kSoil[2]));
+  cv::Mat bgr(kVividHeight, kVividWidth, CV_8UC3, cv::Scalar(kSoil[0], kSoil[1], kSoil[2]));
   for (const cv::Point& p : kPlants) cv::circle(bgr, p, kPlantRadius, cv::Scalar(kLeaf[0], kLeaf[1], kLeaf[2]), cv::FILLED);
   return bgr;
 }
 
 cv::Mat draw_nir() {
-  cv::Mat grey(kHeight, kWidth, CV_8UC1, cv::Scalar(kNirSoil));
+  cv::Mat grey(kVividHeight, kVividWidth, CV_8UC1, cv::Scalar(kNirSoil));
   for (const cv::Point& p : kPlants) cv::circle(grey, p, kPlantRadius, cv::Scalar(kNirLeaf), cv::FILLED);
   return grey;
 }
@@ -106,11 +100,11 @@ class Loopback {
       : cap_dev_(cap_dev), loop_(cap_dev, out_dev) {
     drop_ctrl_ = control_named(loop_.cap_fd(), cap_dev, "Percentage of Dropped Buffers");
     drop_percent(0);
-    const v4l2_pix_format pix = loop_.set_output_format(fourcc, kWidth, kHeight);
+    const v4l2_pix_format pix = loop_.set_output_format(fourcc, kVividWidth, kVividHeight);
     const std::size_t row = static_cast<std::size_t>(image.cols) * image.elemSize();
-    if (pix.bytesperline < row || pix.sizeimage < pix.bytesperline * kHeight) fail(out_dev + ": unexpected stride");
+    if (pix.bytesperline < row || pix.sizeimage < pix.bytesperline * kVividHeight) fail(out_dev + ": unexpected stride");
     std::vector<std::uint8_t> bytes(pix.sizeimage, 0);
-    for (int y = 0; y < kHeight; ++y)
+    for (int y = 0; y < kVividHeight; ++y)
       std::memcpy(bytes.data() + static_cast<std::size_t>(y) * pix.bytesperline, image.ptr(y), row);
     loop_.start(std::move(bytes), 6);  // vivid holds one while it shows it; several so a slow loop does not starve it
   }
@@ -144,15 +138,15 @@ void loop(const std::string& rgb_cap, const std::string& rgb_out, const std::str
   Loopback nir_loop(nir_cap, nir_out, V4L2_PIX_FMT_GREY, nir_scene);
 
   stemd::drivers::Frame slot;
-  slot.bgr = cv::Mat(kHeight, kWidth, CV_8UC3, cv::Scalar::all(0));
-  slot.nir = cv::Mat(kHeight, kWidth, CV_8UC1, cv::Scalar::all(0));
+  slot.bgr = cv::Mat(kVividHeight, kVividWidth, CV_8UC3, cv::Scalar::all(0));
+  slot.nir = cv::Mat(kVividHeight, kVividWidth, CV_8UC1, cv::Scalar::all(0));
   const std::uint8_t* const bgr_data = slot.bgr.data;
   const std::uint8_t* const nir_data = slot.nir.data;
   auto log = spdlog::stdout_logger_mt("paired");
   stemd::drivers::PairedNirOptions options;
   options.rgb.device = rgb_cap;
   options.rgb.pixel_format = stemd::drivers::V4l2PixelFormat::bgr24;
-  options.rgb.size = {kWidth, kHeight};
+  options.rgb.size = {kVividWidth, kVividHeight};
   options.rgb.fps = 60;
   options.nir.device = nir_cap;
   options.nir.fps = 60;
