@@ -207,20 +207,19 @@ void loop(const std::string& rgb_cap, const std::string& rgb_out, const std::str
                    static_cast<double>(min_offset) / 1e6, static_cast<double>(max_offset) / 1e6, counters_text(cs)));
   c0 = cs;
 
-  info("== vivid drops 50% of the NIR device's buffers");
-  nir_loop.drop_percent(50);
-  read_pairs("NIR drops", kDropPairs);
-  nir_loop.drop_percent(0);
-  auto c1 = source.paired_counters();
-  info("NIR drops: " + counters_text(c1));
+  // vivid drops half of one device's buffers while pairs are read.
+  const auto dropping = [&](const std::string& side, Loopback& loop) {
+    info("== vivid drops 50% of the " + side + " device's buffers");
+    loop.drop_percent(50);
+    read_pairs((side + " drops").c_str(), kDropPairs);
+    loop.drop_percent(0);
+    const auto c = source.paired_counters();
+    info(side + " drops: " + counters_text(c));
+    return c;
+  };
+  const auto c1 = dropping("NIR", nir_loop);
   if (c1.unpaired_rgb <= c0.unpaired_rgb) fail("NIR frames dropped, but unpaired_rgb did not grow");
-
-  info("== vivid drops 50% of the RGB device's buffers");
-  rgb_loop.drop_percent(50);
-  read_pairs("RGB drops", kDropPairs);
-  rgb_loop.drop_percent(0);
-  auto c2 = source.paired_counters();
-  info("RGB drops: " + counters_text(c2));
+  const auto c2 = dropping("RGB", rgb_loop);
   if (c2.unpaired_nir <= c1.unpaired_nir) fail("RGB frames dropped, but unpaired_nir did not grow");
 
   if (c2.bad_size != 0 || c2.rgb.errors != 0 || c2.nir.errors != 0) fail("errors: " + counters_text(c2));
