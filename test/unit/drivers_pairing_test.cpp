@@ -402,30 +402,22 @@ TEST(TimestampPairer, OutOfOrderFrameIsRejectedAndCounted)
     EXPECT_EQ(p.counters().unpaired_nir, 1u);
 }
 
-TEST(TimestampPairer, StalledNirDeviceForcesTheOldestRgbOut)
+TEST(TimestampPairer, AStalledDeviceForcesTheOldestOfTheOtherOut)
 {
-    TimestampPairer<4> p(5 * ms);
-    std::vector<Event> ev;
-    for (int i = 0; i < 10; ++i)
-        ev.push_back({PairSide::rgb, i * kPeriod});
-    const auto o = run(p, ev, false);
-    EXPECT_EQ(o.unpaired_rgb.size(), 6u);  // 4 still held
-    EXPECT_EQ(o.forced, 6u);
-    EXPECT_EQ(o.unpaired_rgb.front(), 0);
-    EXPECT_EQ(p.pending(PairSide::rgb), 4u);
-    EXPECT_EQ(p.counters().forced, 6u);
-}
-
-TEST(TimestampPairer, StalledRgbDeviceForcesTheOldestNirOut)
-{
-    TimestampPairer<4> p(5 * ms);
-    std::vector<Event> ev;
-    for (int i = 0; i < 10; ++i)
-        ev.push_back({PairSide::nir, i * kPeriod});
-    const auto o = run(p, ev, false);
-    EXPECT_EQ(o.unpaired_nir.size(), 6u);
-    EXPECT_EQ(o.forced, 6u);
-    EXPECT_EQ(p.pending(PairSide::nir), 4u);
+    for (const PairSide side : {PairSide::rgb, PairSide::nir}) {
+        SCOPED_TRACE(side == PairSide::rgb ? "NIR stalled" : "RGB stalled");
+        TimestampPairer<4> p(5 * ms);
+        std::vector<Event> ev;
+        for (int i = 0; i < 10; ++i)
+            ev.push_back({side, i * kPeriod});
+        const auto o = run(p, ev, false);
+        const auto& unpaired = side == PairSide::rgb ? o.unpaired_rgb : o.unpaired_nir;
+        EXPECT_EQ(unpaired.size(), 6u);  // 4 still held
+        EXPECT_EQ(o.forced, 6u);
+        EXPECT_EQ(unpaired.front(), 0);
+        EXPECT_EQ(p.pending(side), 4u);
+        EXPECT_EQ(p.counters().forced, 6u);
+    }
 }
 
 TEST(TimestampPairer, ForceOnAFullNirSidePairsThePendingRgbFirst)

@@ -361,6 +361,18 @@ TEST(CalibratedCamera, RejectsBadIntrinsicsAndHeights)
 
 // --- calibration files ------------------------------------------------------
 
+// Read back exactly what test_intrinsics(n_dist) wrote, at 1280x960.
+void expect_written_intrinsics(const Intrinsics& k, int n_dist)
+{
+    const Intrinsics expected = test_intrinsics(n_dist);
+    EXPECT_EQ(k.fx, expected.fx);
+    EXPECT_EQ(k.fy, expected.fy);
+    EXPECT_EQ(k.cx, expected.cx);
+    EXPECT_EQ(k.cy, expected.cy);
+    EXPECT_EQ(k.dist, expected.dist);
+    EXPECT_EQ(k.image_size, cv::Size(1280, 960));
+}
+
 class CalibrationFileTest : public stemd::test::TempDirTest {
 protected:
 
@@ -386,13 +398,7 @@ TEST_F(CalibrationFileTest, ReadsWhatOpenCvWrites)
         std::string error;
         const auto k = read_calibration(path.string(), &error);
         ASSERT_TRUE(k) << error;
-        const Intrinsics expected = test_intrinsics(n);
-        EXPECT_EQ(k->fx, expected.fx);
-        EXPECT_EQ(k->fy, expected.fy);
-        EXPECT_EQ(k->cx, expected.cx);
-        EXPECT_EQ(k->cy, expected.cy);
-        EXPECT_EQ(k->dist, expected.dist);
-        EXPECT_EQ(k->image_size, cv::Size(1280, 960));
+        expect_written_intrinsics(*k, n);
     }
 }
 
@@ -456,13 +462,7 @@ TEST_F(CalibrationFileTest, ReadsRosCameraInfo)
     std::string error;
     const auto k = read_calibration(path.string(), &error);
     ASSERT_TRUE(k) << error;
-    const Intrinsics expected = test_intrinsics(8);
-    EXPECT_EQ(k->fx, expected.fx);
-    EXPECT_EQ(k->fy, expected.fy);
-    EXPECT_EQ(k->cx, expected.cx);
-    EXPECT_EQ(k->cy, expected.cy);
-    EXPECT_EQ(k->dist, expected.dist);
-    EXPECT_EQ(k->image_size, cv::Size(1280, 960));
+    expect_written_intrinsics(*k, 8);
 
     // ROS leaves the list empty for a camera without distortion.
     const fs::path empty = dir_ / "no_distortion.yaml";
