@@ -582,12 +582,20 @@ TEST(TimestampPairer, CapacityFourKeepsUpWithTwoInterleavedCameras)
 
 using stemd::test::CapturedLog;
 
+namespace {
+stemd::drivers::PairedNirOptions paired_devices(const char* rgb, const char* nir)
+{
+    stemd::drivers::PairedNirOptions options;
+    options.rgb.device = rgb;
+    options.nir.device = nir;
+    return options;
+}
+}  // namespace
+
 TEST(PairedNirSource, MissingNirDeviceIsAClearErrorAndNextFails)
 {
     CapturedLog log;
-    stemd::drivers::PairedNirOptions options;
-    options.rgb.device = "/dev/stemd-no-such-rgb";
-    options.nir.device = "/dev/stemd-no-such-nir";
+    const auto options = paired_devices("/dev/stemd-no-such-rgb", "/dev/stemd-no-such-nir");
     stemd::drivers::PairedNirSource source(options, log.logger);
     EXPECT_EQ(source.name(), "paired:/dev/stemd-no-such-rgb+/dev/stemd-no-such-nir");
     EXPECT_TRUE(source.realtime());
@@ -606,10 +614,8 @@ TEST(PairedNirSource, MissingNirDeviceIsAClearErrorAndNextFails)
 TEST(PairedNirSource, RgbDeviceThatIsNoV4l2DeviceIsAClearError)
 {
     CapturedLog log;
-    stemd::drivers::PairedNirOptions options;
-    options.rgb.device = "/dev/null";
+    auto options = paired_devices("/dev/null", "/dev/stemd-no-such-nir");
     options.rgb.size = {320, 240};
-    options.nir.device = "/dev/stemd-no-such-nir";
     options.nir.pixel_format = stemd::drivers::V4l2PixelFormat::yuyv;
     stemd::drivers::PairedNirSource source(options, log.logger);
     EXPECT_EQ(source.nir_source().name(), "v4l2:/dev/stemd-no-such-nir");
@@ -620,9 +626,7 @@ TEST(PairedNirSource, RgbDeviceThatIsNoV4l2DeviceIsAClearError)
 TEST(PairedNirSource, TheSameDeviceTwiceIsRejected)
 {
     CapturedLog log;
-    stemd::drivers::PairedNirOptions options;
-    options.rgb.device = "/dev/video0";
-    options.nir.device = "/dev/video0";
+    const auto options = paired_devices("/dev/video0", "/dev/video0");
     stemd::drivers::PairedNirSource source(options, log.logger);
     EXPECT_FALSE(source.open());
     EXPECT_NE(log.text().find("the same device /dev/video0"), std::string::npos) << log.text();
