@@ -263,6 +263,13 @@ int run_ground(const GroundArgs& args)
     return kOk;
 }
 
+// The board both subcommands take: its inner corners and its square size.
+void add_board_options(CLI::App& cmd, std::string& board, double& square_mm)
+{
+    cmd.add_option("--board", board, "inner corners WxH (OpenCV's pattern size), e.g. 9x6")->required();
+    cmd.add_option("--square-mm", square_mm, "side of one square in mm")->required();
+}
+
 }  // namespace
 
 int main(int argc, char** argv)
@@ -277,8 +284,7 @@ int main(int argc, char** argv)
     CLI::App* intr = app.add_subcommand(
         "intrinsics", "chessboard calibration (OpenCV calibrateCamera): writes OpenCV's calibration YAML, which "
                       "camera.calibration_file reads");
-    intr->add_option("--board", intrinsics.board, "inner corners WxH (OpenCV's pattern size), e.g. 9x6")->required();
-    intr->add_option("--square-mm", intrinsics.square_mm, "side of one square in mm")->required();
+    add_board_options(*intr, intrinsics.board, intrinsics.square_mm);
     intr->add_option("--out", intrinsics.out, "calibration YAML to write")->required();
     intr->add_option("images", intrinsics.images, "views of the board (10 or more, tilted, across the image)")
         ->required();
@@ -287,8 +293,7 @@ int main(int argc, char** argv)
     CLI::App* gnd = app.add_subcommand(
         "ground", "camera pose from one view of the board lying flat on the ground: its W corners forward (+x), "
                   "its H corners to the left (+y); writes a config fragment (camera and source sections)");
-    gnd->add_option("--board", ground.board, "inner corners WxH, e.g. 9x6")->required();
-    gnd->add_option("--square-mm", ground.square_mm, "side of one square in mm")->required();
+    add_board_options(*gnd, ground.board, ground.square_mm);
     gnd->add_option("--calibration", ground.calibration,
                     "intrinsics: OpenCV calibration YAML (stemd-calibrate intrinsics) or ROS camera_info YAML")
         ->required();

@@ -45,8 +45,6 @@ class CanLogBus final : public CanBus {
 public:
     CanLogBus(CanLogOptions options, std::shared_ptr<spdlog::logger> log);
     ~CanLogBus() override;
-    CanLogBus(const CanLogBus&) = delete;
-    CanLogBus& operator=(const CanLogBus&) = delete;
 
     // Opens the file; false (logged with path and errno) if it cannot, or if
     // the interface name is not one candump could print.

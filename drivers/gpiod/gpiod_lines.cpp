@@ -11,6 +11,7 @@
 
 #include <spdlog/fmt/fmt.h>
 #include "stemd/base/clock.hpp"
+#include "stemd/base/enum_names.hpp"
 
 namespace stemd::drivers {
 
@@ -26,27 +27,14 @@ timespec to_timespec(std::int64_t ns)
     return {static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
 }
 
-const char* to_cstr(EncoderMode m)
-{
-    switch (m) {
-    case EncoderMode::none: return "none";
-    case EncoderMode::quadrature: return "quadrature";
-    case EncoderMode::single: return "single";
-    }
-    return "?";
-}
+constexpr base::EnumName<EncoderMode> kEncoderModes[]{
+    {EncoderMode::none, "none"}, {EncoderMode::quadrature, "quadrature"}, {EncoderMode::single, "single"}};
+constexpr base::EnumName<GpiodState> kGpiodStates[]{
+    {GpiodState::closed, "closed"}, {GpiodState::up, "up"}, {GpiodState::down, "down"}};
 
 }  // namespace
 
-std::string_view to_string(GpiodState s)
-{
-    switch (s) {
-    case GpiodState::closed: return "closed";
-    case GpiodState::up: return "up";
-    case GpiodState::down: return "down";
-    }
-    return "?";
-}
+std::string_view to_string(GpiodState s) { return base::name_of(kGpiodStates, s); }
 
 // The open chip and its requested lines: released, then closed, exactly once.
 struct GpiodLines::Chip {
@@ -204,7 +192,7 @@ bool GpiodLines::open()
         log_->info("{}: open, enable line {}{}, trigger {}, encoder {}", name_, options_.enable_line,
                    options_.enable_active_low ? " (active-low)" : "",
                    options_.trigger_line >= 0 ? fmt::format("line {}", options_.trigger_line) : std::string("none"),
-                   to_cstr(options_.encoder));
+                   base::name_of(kEncoderModes, options_.encoder));
         const std::lock_guard lock(error_mutex_);
         last_error_.clear();
     }

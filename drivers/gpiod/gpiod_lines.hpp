@@ -67,8 +67,6 @@ class GpiodLines final : public GpioLines {
 public:
     GpiodLines(GpiodOptions options, std::shared_ptr<spdlog::logger> log);
     ~GpiodLines() override;  // stops the thread, releases the lines, closes the chip
-    GpiodLines(const GpiodLines&) = delete;
-    GpiodLines& operator=(const GpiodLines&) = delete;
 
     // Opens the chip and requests the lines now, on the caller's thread;
     // false (logged, last_error()) leaves the lines `down`. Call before start().

@@ -46,8 +46,6 @@ class GpsdClient final : public GnssSource {
 public:
     GpsdClient(GnssSpec spec, std::shared_ptr<spdlog::logger> log, std::size_t ring_capacity = 256);
     ~GpsdClient() override;
-    GpsdClient(const GpsdClient&) = delete;
-    GpsdClient& operator=(const GpsdClient&) = delete;
 
     std::string_view name() const override { return name_; }
     bool start() override;

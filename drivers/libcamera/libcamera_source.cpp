@@ -22,6 +22,7 @@
 
 #include "stemd/base/spsc_ring.hpp"
 #include "stemd/base/clock.hpp"
+#include "stemd/base/enum_names.hpp"
 #include "stemd/base/unique_fd.hpp"
 #include "stemd/base/mapped_memory.hpp"
 
@@ -89,28 +90,20 @@ bool media_nodes_unregistered()
 
 }  // namespace
 
-std::string_view to_string(LibcameraSource::State s)
-{
-    switch (s) {
-    case LibcameraSource::State::closed: return "closed";
-    case LibcameraSource::State::opened: return "opened";
-    case LibcameraSource::State::streaming: return "streaming";
-    case LibcameraSource::State::failed: return "failed";
-    case LibcameraSource::State::backoff: return "backoff";
-    }
-    return "?";
-}
+namespace {
 
-std::string_view to_string(StreamLoss loss)
-{
-    switch (loss) {
-    case StreamLoss::none: return "none";
-    case StreamLoss::no_first_frame: return "no first frame after the start";
-    case StreamLoss::stalled: return "no frame any more";
-    case StreamLoss::failed_requests: return "requests keep completing with errors";
-    }
-    return "?";
-}
+constexpr base::EnumName<LibcameraSource::State> kStates[]{
+    {LibcameraSource::State::closed, "closed"}, {LibcameraSource::State::opened, "opened"},
+    {LibcameraSource::State::streaming, "streaming"}, {LibcameraSource::State::failed, "failed"},
+    {LibcameraSource::State::backoff, "backoff"}};
+constexpr base::EnumName<StreamLoss> kStreamLosses[]{
+    {StreamLoss::none, "none"}, {StreamLoss::no_first_frame, "no first frame after the start"},
+    {StreamLoss::stalled, "no frame any more"}, {StreamLoss::failed_requests, "requests keep completing with errors"}};
+
+}  // namespace
+
+std::string_view to_string(LibcameraSource::State s) { return base::name_of(kStates, s); }
+std::string_view to_string(StreamLoss loss) { return base::name_of(kStreamLosses, loss); }
 
 PlaneStatus copy_plane_to_bgr(const std::uint8_t* data, std::size_t bytesused, std::size_t stride, cv::Size size,
                               LibcameraByteOrder order, cv::Mat& bgr)

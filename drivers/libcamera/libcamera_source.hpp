@@ -182,8 +182,6 @@ public:
 
     LibcameraSource(LibcameraOptions options, std::shared_ptr<spdlog::logger> log);
     ~LibcameraSource() override;
-    LibcameraSource(const LibcameraSource&) = delete;
-    LibcameraSource& operator=(const LibcameraSource&) = delete;
 
     // "libcamera:<option>" until open() has found the camera, then "libcamera:<id>".
     std::string_view name() const override { return name_; }

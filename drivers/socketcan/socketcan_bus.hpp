@@ -65,8 +65,6 @@ class SocketCanBus final : public CanBus {
 public:
     SocketCanBus(SocketCanOptions options, std::shared_ptr<spdlog::logger> log);
     ~SocketCanBus() override;
-    SocketCanBus(const SocketCanBus&) = delete;
-    SocketCanBus& operator=(const SocketCanBus&) = delete;
 
     // Opens the socket now; false (logged) leaves the bus `down`, retried later.
     bool open();

@@ -78,8 +78,6 @@ public:
 
     PairedNirSource(PairedNirOptions options, std::shared_ptr<spdlog::logger> log);
     ~PairedNirSource() override;
-    PairedNirSource(const PairedNirSource&) = delete;
-    PairedNirSource& operator=(const PairedNirSource&) = delete;
 
     std::string_view name() const override { return name_; }
     bool open() override;

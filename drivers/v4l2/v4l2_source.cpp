@@ -16,64 +16,64 @@
 
 #include <opencv2/imgproc.hpp>
 #include "stemd/base/clock.hpp"
+#include "stemd/base/enum_names.hpp"
 
 namespace stemd::drivers {
 
 namespace {
 
-const char* state_name(V4l2Source::State s)
+constexpr base::EnumName<V4l2Source::State> kStates[]{
+    {V4l2Source::State::closed, "closed"}, {V4l2Source::State::opening, "opening"},
+    {V4l2Source::State::streaming, "streaming"}, {V4l2Source::State::failed, "failed"},
+    {V4l2Source::State::backoff, "backoff"}};
+
+// One row per pixel format: its option word, V4L2 fourcc and bytes per pixel.
+struct PixelFormatRow {
+    V4l2PixelFormat format;
+    std::string_view name;
+    std::uint32_t fourcc;
+    int bytes_per_pixel;
+};
+constexpr PixelFormatRow kPixelFormats[]{
+    {V4l2PixelFormat::yuyv, "yuyv", V4L2_PIX_FMT_YUYV, 2},
+    {V4l2PixelFormat::bgr24, "bgr24", V4L2_PIX_FMT_BGR24, 3},
+    {V4l2PixelFormat::grey, "grey", V4L2_PIX_FMT_GREY, 1},
+};
+
+const PixelFormatRow* row_of(V4l2PixelFormat format)
 {
-    switch (s) {
-    case V4l2Source::State::closed: return "closed";
-    case V4l2Source::State::opening: return "opening";
-    case V4l2Source::State::streaming: return "streaming";
-    case V4l2Source::State::failed: return "failed";
-    case V4l2Source::State::backoff: return "backoff";
-    }
-    return "?";
+    for (const PixelFormatRow& r : kPixelFormats)
+        if (r.format == format)
+            return &r;
+    return nullptr;
 }
 
 }  // namespace
 
 std::optional<V4l2PixelFormat> parse_v4l2_pixel_format(std::string_view text)
 {
-    if (text == "yuyv")
-        return V4l2PixelFormat::yuyv;
-    if (text == "bgr24")
-        return V4l2PixelFormat::bgr24;
-    if (text == "grey")
-        return V4l2PixelFormat::grey;
+    for (const PixelFormatRow& r : kPixelFormats)
+        if (r.name == text)
+            return r.format;
     return std::nullopt;
 }
 
 std::string_view to_string(V4l2PixelFormat format)
 {
-    switch (format) {
-    case V4l2PixelFormat::yuyv: return "yuyv";
-    case V4l2PixelFormat::bgr24: return "bgr24";
-    case V4l2PixelFormat::grey: return "grey";
-    }
-    return "?";
+    const PixelFormatRow* r = row_of(format);
+    return r ? r->name : "?";
 }
 
 std::uint32_t v4l2_fourcc_of(V4l2PixelFormat format)
 {
-    switch (format) {
-    case V4l2PixelFormat::yuyv: return V4L2_PIX_FMT_YUYV;
-    case V4l2PixelFormat::bgr24: return V4L2_PIX_FMT_BGR24;
-    case V4l2PixelFormat::grey: return V4L2_PIX_FMT_GREY;
-    }
-    return 0;
+    const PixelFormatRow* r = row_of(format);
+    return r ? r->fourcc : 0;
 }
 
 int bytes_per_pixel(V4l2PixelFormat format)
 {
-    switch (format) {
-    case V4l2PixelFormat::yuyv: return 2;
-    case V4l2PixelFormat::bgr24: return 3;
-    case V4l2PixelFormat::grey: return 1;
-    }
-    return 0;
+    const PixelFormatRow* r = row_of(format);
+    return r ? r->bytes_per_pixel : 0;
 }
 
 ConvertStatus convert_to_bgr(const std::uint8_t* data, std::size_t bytesused, std::size_t bytesperline,
@@ -154,7 +154,7 @@ bool V4l2Source::ioctl_retry(unsigned long request, void* arg) const
 bool V4l2Source::open()
 {
     if (state_ != State::closed) {
-        log_->error("{}: open() in state {}", name_, state_name(state_));
+        log_->error("{}: open() in state {}", name_, base::name_of(kStates, state_));
         return false;
     }
     if (!open_device()) {
@@ -283,7 +283,7 @@ bool V4l2Source::start_streaming()
 bool V4l2Source::start()
 {
     if (state_ != State::opening) {
-        log_->error("{}: start() in state {} (open() first)", name_, state_name(state_));
+        log_->error("{}: start() in state {} (open() first)", name_, base::name_of(kStates, state_));
         return false;
     }
     if (!start_streaming()) {

@@ -97,8 +97,6 @@ public:
 
     V4l2Source(V4l2Options options, std::shared_ptr<spdlog::logger> log);
     ~V4l2Source() override;
-    V4l2Source(const V4l2Source&) = delete;
-    V4l2Source& operator=(const V4l2Source&) = delete;
 
     std::string_view name() const override { return name_; }
     bool open() override;

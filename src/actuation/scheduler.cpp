@@ -5,38 +5,22 @@
 #include <limits>
 
 #include "stemd/actuation/fire_lag.hpp"
+#include "stemd/base/enum_names.hpp"
 
 namespace stemd::actuation {
 
-std::string_view to_string(TreatPolicy p)
-{
-    switch (p) {
-    case TreatPolicy::weeds_only: return "weeds_only";
-    case TreatPolicy::all: return "all";
-    }
-    return "?";
-}
+namespace {
 
-std::optional<TreatPolicy> parse_treat_policy(std::string_view s)
-{
-    if (s == "weeds_only")
-        return TreatPolicy::weeds_only;
-    if (s == "all")
-        return TreatPolicy::all;
-    return std::nullopt;
-}
+constexpr base::EnumName<TreatPolicy> kTreatPolicies[]{{TreatPolicy::weeds_only, "weeds_only"}, {TreatPolicy::all, "all"}};
+constexpr base::EnumName<ScheduleOutcome> kScheduleOutcomes[]{
+    {ScheduleOutcome::send, "send"}, {ScheduleOutcome::policy, "policy"}, {ScheduleOutcome::no_tool, "no_tool"},
+    {ScheduleOutcome::disabled, "disabled"}, {ScheduleOutcome::deadline_miss, "deadline_miss"}};
 
-std::string_view to_string(ScheduleOutcome o)
-{
-    switch (o) {
-    case ScheduleOutcome::send: return "send";
-    case ScheduleOutcome::policy: return "policy";
-    case ScheduleOutcome::no_tool: return "no_tool";
-    case ScheduleOutcome::disabled: return "disabled";
-    case ScheduleOutcome::deadline_miss: return "deadline_miss";
-    }
-    return "?";
-}
+}  // namespace
+
+std::string_view to_string(TreatPolicy p) { return base::name_of(kTreatPolicies, p); }
+std::optional<TreatPolicy> parse_treat_policy(std::string_view s) { return base::value_of(kTreatPolicies, s); }
+std::string_view to_string(ScheduleOutcome o) { return base::name_of(kScheduleOutcomes, o); }
 
 std::optional<Scheduler> Scheduler::make(std::span<const ToolSpec> tools, const SchedulerParams& params,
                                          std::string_view* error)

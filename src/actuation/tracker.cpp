@@ -24,6 +24,20 @@ TrackerParams sanitise(TrackerParams p)
     return p;
 }
 
+// What a track knows of its plant, as a Target and a RetiredTrack both
+// report it.
+template <typename TrackT, typename Out>
+void describe_plant(const TrackT& t, Out& out) noexcept
+{
+    out.s_mm = t.s_mm;
+    out.y_mm = t.y_mm;
+    out.plant_class = t.plant_class();
+    out.sightings = t.sightings;
+    out.leaves = t.leaves;
+    out.confidence = t.mean_confidence();
+    out.first_seq = t.first_seq;
+}
+
 }  // namespace
 
 Tracker::Tracker(const TrackerParams& params)
@@ -77,15 +91,9 @@ void Tracker::emit(Track& t, const TrackFrame& frame, bool by_exit) noexcept
     Target& o = out_[n_out_++];
     o.target_id = static_cast<std::uint16_t>(next_id_ % (protocol::kMaxTargetId + 1u));
     next_id_ = (next_id_ + 1) % (protocol::kMaxTargetId + 1u);
-    o.s_mm = t.s_mm;
-    o.y_mm = t.y_mm;
-    o.plant_class = t.plant_class();
-    o.sightings = t.sightings;
-    o.leaves = t.leaves;
-    o.confidence = t.mean_confidence();
+    describe_plant(t, o);
     o.by_exit = by_exit;
     o.t_emit_ns = frame.t_sample_ns;
-    o.first_seq = t.first_seq;
     t.target_id = o.target_id;
     t.emitted = true;
     ++counters_.confirmed;
@@ -103,13 +111,7 @@ void Tracker::retire(std::size_t i) noexcept
     RetiredTrack& r = retired_[n_retired_++];
     r.emitted = t.emitted;
     r.target_id = t.target_id;
-    r.s_mm = t.s_mm;
-    r.y_mm = t.y_mm;
-    r.plant_class = t.plant_class();
-    r.sightings = t.sightings;
-    r.leaves = t.leaves;
-    r.confidence = t.mean_confidence();
-    r.first_seq = t.first_seq;
+    describe_plant(t, r);
     r.last_seq = t.last_seq;
     t = Track{};
     --active_;

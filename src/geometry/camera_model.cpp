@@ -10,6 +10,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "one_line.hpp"
+#include "stemd/base/enum_names.hpp"
 
 namespace stemd::geometry {
 
@@ -63,43 +64,16 @@ bool finite(double v) { return std::isfinite(v); }
 
 using detail::one_line;
 
+constexpr base::EnumName<Forward> kForwards[]{
+    {Forward::up, "up"}, {Forward::down, "down"}, {Forward::left, "left"}, {Forward::right, "right"}};
+constexpr base::EnumName<ModelKind> kModelKinds[]{{ModelKind::nadir, "nadir"}, {ModelKind::calibrated, "calibrated"}};
+
 }  // namespace
 
-std::string_view to_string(Forward v)
-{
-    switch (v) {
-    case Forward::up: return "up";
-    case Forward::down: return "down";
-    case Forward::left: return "left";
-    case Forward::right: return "right";
-    }
-    return "?";
-}
-
-std::string_view to_string(ModelKind v)
-{
-    switch (v) {
-    case ModelKind::nadir: return "nadir";
-    case ModelKind::calibrated: return "calibrated";
-    }
-    return "?";
-}
-
-std::optional<Forward> parse_forward(std::string_view s)
-{
-    for (const Forward v : {Forward::up, Forward::down, Forward::left, Forward::right})
-        if (to_string(v) == s)
-            return v;
-    return std::nullopt;
-}
-
-std::optional<ModelKind> parse_model_kind(std::string_view s)
-{
-    for (const ModelKind v : {ModelKind::nadir, ModelKind::calibrated})
-        if (to_string(v) == s)
-            return v;
-    return std::nullopt;
-}
+std::string_view to_string(Forward v) { return base::name_of(kForwards, v); }
+std::string_view to_string(ModelKind v) { return base::name_of(kModelKinds, v); }
+std::optional<Forward> parse_forward(std::string_view s) { return base::value_of(kForwards, s); }
+std::optional<ModelKind> parse_model_kind(std::string_view s) { return base::value_of(kModelKinds, s); }
 
 cv::Point2d image_centre(cv::Size image_size)
 {

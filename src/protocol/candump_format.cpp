@@ -66,6 +66,22 @@ int hex_value(char c)
 
 bool is_space(char c) { return c == ' ' || c == '\t'; }
 
+void skip_spaces(std::string_view line, std::size_t& pos)
+{
+    while (pos < line.size() && is_space(line[pos]))
+        ++pos;
+}
+
+// The word at `pos` after any spaces; `pos` moves past it.
+std::string_view next_word(std::string_view line, std::size_t& pos)
+{
+    skip_spaces(line, pos);
+    const std::size_t begin = pos;
+    while (pos < line.size() && !is_space(line[pos]))
+        ++pos;
+    return line.substr(begin, pos - begin);
+}
+
 bool fail(std::string& error, std::string_view reason)
 {
     error.assign(reason);
@@ -155,24 +171,13 @@ bool parse_candump_line(std::string_view line, CandumpRecord& out, std::string& 
     std::size_t pos = close + 1;
     if (pos >= line.size() || !is_space(line[pos]))
         return fail(error, "expected a space after the timestamp");
-    while (pos < line.size() && is_space(line[pos]))
-        ++pos;
-    const std::size_t iface_begin = pos;
-    while (pos < line.size() && !is_space(line[pos]))
-        ++pos;
-    const std::string_view iface = line.substr(iface_begin, pos - iface_begin);
+    const std::string_view iface = next_word(line, pos);
     if (!valid_interface_name(iface))
         return fail(error, "bad interface name");
-    while (pos < line.size() && is_space(line[pos]))
-        ++pos;
 
     // "ID#DATA" [ " T" | " R" ]
-    const std::size_t frame_begin = pos;
-    while (pos < line.size() && !is_space(line[pos]))
-        ++pos;
-    const std::string_view text = line.substr(frame_begin, pos - frame_begin);
-    while (pos < line.size() && is_space(line[pos]))
-        ++pos;
+    const std::string_view text = next_word(line, pos);
+    skip_spaces(line, pos);
     const std::string_view rest = line.substr(pos);
     if (!rest.empty() && rest != "T" && rest != "R")
         return fail(error, "unexpected text after the frame");

@@ -1,6 +1,7 @@
 #include "stemd/protocol/messages.hpp"
 
 #include <algorithm>
+#include <type_traits>
 
 #include "stemd/protocol/e2e.hpp"
 
@@ -69,13 +70,18 @@ constexpr SignalDef kRxRejected{"rx_rejected", 56, 8, false, 0, 255, "",
 constexpr std::array kHeartbeatSignals{kCrc, kCounter, kState, kSent, kDeadlineMisses, kDropped, kRxRejected};
 
 // TOOL_FIRED repeats the TARGET's bits for the fields it echoes.
-constexpr SignalDef kFiredToolId{"tool_id", 12, 4, false, 0, kMaxToolId, "", "TARGET.tool_id of the command executed."};
-constexpr SignalDef kFiredTargetId{"target_id", 16, 12, false, 0, kMaxTargetId, "",
-                                   "TARGET.target_id of the command executed."};
-constexpr SignalDef kFiredLane{"lane", 28, 4, false, 0, kMaxLane, "", "TARGET.lane of the command executed."};
-constexpr SignalDef kFiredOdom{"fired_odom_mm", 32, kFireOdomBits, false, 0, kFireOdomModulo - 1, "mm",
-                               "ODOMETRY.odom_mm reading when the strike took effect (valve open, stamp down), "
-                               "modulo 2^18 mm. Minus TARGET.fire_odom_mm: the tool's lag in mm."};
+constexpr SignalDef echo(SignalDef s, std::string_view name, std::string_view comment)
+{
+    s.name = name;
+    s.comment = comment;
+    return s;
+}
+constexpr SignalDef kFiredToolId = echo(kToolId, "tool_id", "TARGET.tool_id of the command executed.");
+constexpr SignalDef kFiredTargetId = echo(kTargetId, "target_id", "TARGET.target_id of the command executed.");
+constexpr SignalDef kFiredLane = echo(kLane, "lane", "TARGET.lane of the command executed.");
+constexpr SignalDef kFiredOdom = echo(kFireOdom, "fired_odom_mm",
+                                      "ODOMETRY.odom_mm reading when the strike took effect (valve open, stamp down), "
+                                      "modulo 2^18 mm. Minus TARGET.fire_odom_mm: the tool's lag in mm.");
 constexpr std::array kToolFiredSignals{kCrc, kCounter, kFiredToolId, kFiredTargetId, kFiredLane, kFiredOdom};
 
 constexpr std::array kNodes{
@@ -248,15 +254,141 @@ CodecResult check_frame(const CanFrame& frame, const CanIds& ids, MessageKind ki
     return {};
 }
 
-template <typename T>
-constexpr T narrow(std::int64_t v)
+// ---- one field table per message: signal, member, and how a value goes on the wire ----
+
+enum class Wire : std::uint8_t {
+    exact,     // the member's value, range-checked
+    modulo,    // the member's low bits (a running count or an odometer reading)
+    saturate,  // the member's value, capped at the signal's maximum
+};
+
+template <typename>
+struct MemberOf;
+template <typename C, typename T>
+struct MemberOf<T C::*> {
+    using Class = C;
+    using Type = T;
+};
+
+template <auto Member>
+using ClassOf = typename MemberOf<decltype(Member)>::Class;
+
+template <typename Msg>
+struct FieldCodec {
+    const SignalDef* signal;
+    std::int64_t (*to_wire)(const Msg&, const SignalDef&);
+    void (*from_wire)(Msg&, std::int64_t);
+};
+
+template <auto Member, Wire W>
+std::int64_t member_to_wire(const ClassOf<Member>& msg, const SignalDef& s)
 {
-    return static_cast<T>(v);
+    const auto v = msg.*Member;
+    if constexpr (W == Wire::modulo)
+        return static_cast<std::int64_t>(static_cast<std::uint64_t>(v) & ((std::uint64_t{1} << s.length) - 1));
+    else if constexpr (W == Wire::saturate)
+        return static_cast<std::int64_t>(std::min<std::uint64_t>(v, static_cast<std::uint64_t>(s.max)));
+    else
+        return static_cast<std::int64_t>(v);
 }
 
-std::int64_t saturate(std::uint64_t v, const SignalDef& s)
+template <auto Member>
+void member_from_wire(ClassOf<Member>& msg, std::int64_t v)
 {
-    return static_cast<std::int64_t>(std::min<std::uint64_t>(v, static_cast<std::uint64_t>(s.max)));
+    using T = typename MemberOf<decltype(Member)>::Type;
+    if constexpr (std::is_same_v<T, bool>)
+        msg.*Member = v != 0;
+    else
+        msg.*Member = static_cast<T>(v);
+}
+
+template <auto Member, Wire W = Wire::exact>
+constexpr FieldCodec<ClassOf<Member>> field(const SignalDef& s)
+{
+    return {&s, &member_to_wire<Member, W>, &member_from_wire<Member>};
+}
+
+// A message's fields after the E2E pair, in the order encode and decode
+// visit them (the first out-of-range one is the one reported).
+template <typename Msg, std::size_t N>
+struct FieldTable {
+    MessageKind kind;
+    std::array<FieldCodec<Msg>, N> fields;
+};
+
+template <typename Msg, typename... More>
+constexpr FieldTable<Msg, 1 + sizeof...(More)> fields_of(MessageKind kind, FieldCodec<Msg> first, More... more)
+{
+    return {kind, {first, more...}};
+}
+
+constexpr auto kOdometryFields = fields_of(MessageKind::Odometry,
+    field<&Odometry::odom_mm>(kOdomMm),
+    field<&Odometry::speed_mm_per_s>(kSpeed));
+constexpr auto kTargetFields = fields_of(MessageKind::Target,
+    field<&TargetCommand::tool_id>(kToolId),
+    field<&TargetCommand::target_id>(kTargetId),
+    field<&TargetCommand::lane>(kLane),
+    field<&TargetCommand::fire_odom_mm, Wire::modulo>(kFireOdom),
+    field<&TargetCommand::lateral_mm>(kLateral),
+    field<&TargetCommand::plant_class>(kPlantClass));
+constexpr auto kToolStatusFields = fields_of(MessageKind::ToolStatus,
+    field<&ToolStatus::tools_ready_mask>(kReadyMask),
+    field<&ToolStatus::last_target_id>(kLastTargetId),
+    field<&ToolStatus::last_target_valid>(kLastTargetValid),
+    field<&ToolStatus::error_code>(kErrorCode),
+    field<&ToolStatus::targets_executed>(kExecuted));
+constexpr auto kHeartbeatFields = fields_of(MessageKind::Heartbeat,
+    field<&Heartbeat::state>(kState),
+    field<&Heartbeat::targets_sent, Wire::modulo>(kSent),
+    field<&Heartbeat::deadline_misses, Wire::saturate>(kDeadlineMisses),
+    field<&Heartbeat::targets_dropped, Wire::saturate>(kDropped),
+    field<&Heartbeat::rx_rejected, Wire::saturate>(kRxRejected));
+constexpr auto kToolFiredFields = fields_of(MessageKind::ToolFired,
+    field<&ToolFired::tool_id>(kFiredToolId),
+    field<&ToolFired::target_id>(kFiredTargetId),
+    field<&ToolFired::lane>(kFiredLane),
+    field<&ToolFired::fired_odom_mm, Wire::modulo>(kFiredOdom));
+
+// Every signal but the E2E pair is some member's, in the layout's order.
+template <typename Msg, std::size_t N>
+constexpr bool fields_match(const FieldTable<Msg, N>& table)
+{
+    const MessageDef& m = kMessages[static_cast<std::size_t>(table.kind)];
+    if (m.signals.size() != N + 2)
+        return false;
+    for (std::size_t i = 0; i < N; ++i)
+        if (m.signals[i + 2].name != table.fields[i].signal->name)
+            return false;
+    return true;
+}
+static_assert(fields_match(kOdometryFields) && fields_match(kTargetFields) && fields_match(kToolStatusFields)
+                  && fields_match(kHeartbeatFields) && fields_match(kToolFiredFields),
+              "field tables cover their messages");
+
+template <typename Msg, std::size_t N>
+CodecResult encode_fields(const FieldTable<Msg, N>& table, const Msg& msg, std::uint8_t counter, const CanIds& ids,
+                          CanFrame& out)
+{
+    Packer p;
+    for (const FieldCodec<Msg>& f : table.fields)
+        p.put(*f.signal, f.to_wire(msg, *f.signal));
+    return p.finish(ids, table.kind, counter, out);
+}
+
+template <typename Msg, std::size_t N>
+CodecResult decode_fields(const FieldTable<Msg, N>& table, const CanFrame& frame, const CanIds& ids, Msg& out)
+{
+    if (CodecResult r = check_frame(frame, ids, table.kind); !r)
+        return r;
+    Unpacker u(frame.data);
+    Msg m;
+    for (const FieldCodec<Msg>& f : table.fields)
+        f.from_wire(m, u.get(*f.signal));
+    if (CodecResult r = u.result(); !r)
+        return r;
+    out = m;
+    return {};
 }
 
 }  // namespace
@@ -296,148 +428,18 @@ std::string_view to_string(CodecError e)
     return "?";
 }
 
-// ---- ODOMETRY ----
+// ---- the messages' entry points: their field tables ----
 
-CodecResult encode(const Odometry& msg, std::uint8_t counter, const CanIds& ids, CanFrame& out)
-{
-    Packer p;
-    p.put(kOdomMm, msg.odom_mm);
-    p.put(kSpeed, msg.speed_mm_per_s);
-    return p.finish(ids, MessageKind::Odometry, counter, out);
-}
+CodecResult encode(const Odometry& m, std::uint8_t c, const CanIds& ids, CanFrame& out) { return encode_fields(kOdometryFields, m, c, ids, out); }
+CodecResult encode(const TargetCommand& m, std::uint8_t c, const CanIds& ids, CanFrame& out) { return encode_fields(kTargetFields, m, c, ids, out); }
+CodecResult encode(const ToolStatus& m, std::uint8_t c, const CanIds& ids, CanFrame& out) { return encode_fields(kToolStatusFields, m, c, ids, out); }
+CodecResult encode(const Heartbeat& m, std::uint8_t c, const CanIds& ids, CanFrame& out) { return encode_fields(kHeartbeatFields, m, c, ids, out); }
+CodecResult encode(const ToolFired& m, std::uint8_t c, const CanIds& ids, CanFrame& out) { return encode_fields(kToolFiredFields, m, c, ids, out); }
 
-CodecResult decode(const CanFrame& frame, const CanIds& ids, Odometry& out)
-{
-    if (CodecResult r = check_frame(frame, ids, MessageKind::Odometry); !r)
-        return r;
-    Unpacker u(frame.data);
-    Odometry m;
-    m.odom_mm = narrow<std::uint32_t>(u.get(kOdomMm));
-    m.speed_mm_per_s = narrow<std::int16_t>(u.get(kSpeed));
-    if (CodecResult r = u.result(); !r)
-        return r;
-    out = m;
-    return {};
-}
-
-// ---- TARGET ----
-
-CodecResult encode(const TargetCommand& msg, std::uint8_t counter, const CanIds& ids, CanFrame& out)
-{
-    Packer p;
-    p.put(kToolId, msg.tool_id);
-    p.put(kTargetId, msg.target_id);
-    p.put(kLane, msg.lane);
-    p.put(kFireOdom, msg.fire_odom_mm & (kFireOdomModulo - 1));  // modulo 2^18 by design
-    p.put(kLateral, msg.lateral_mm);
-    p.put(kPlantClass, to_value(msg.plant_class));
-    return p.finish(ids, MessageKind::Target, counter, out);
-}
-
-CodecResult decode(const CanFrame& frame, const CanIds& ids, TargetCommand& out)
-{
-    if (CodecResult r = check_frame(frame, ids, MessageKind::Target); !r)
-        return r;
-    Unpacker u(frame.data);
-    TargetCommand m;
-    m.tool_id = narrow<std::uint8_t>(u.get(kToolId));
-    m.target_id = narrow<std::uint16_t>(u.get(kTargetId));
-    m.lane = narrow<std::uint8_t>(u.get(kLane));
-    m.fire_odom_mm = narrow<std::uint32_t>(u.get(kFireOdom));
-    m.lateral_mm = narrow<std::int16_t>(u.get(kLateral));
-    m.plant_class = static_cast<PlantClass>(u.get(kPlantClass));
-    if (CodecResult r = u.result(); !r)
-        return r;
-    out = m;
-    return {};
-}
-
-// ---- TOOL_STATUS ----
-
-CodecResult encode(const ToolStatus& msg, std::uint8_t counter, const CanIds& ids, CanFrame& out)
-{
-    Packer p;
-    p.put(kReadyMask, msg.tools_ready_mask);
-    p.put(kLastTargetId, msg.last_target_id);
-    p.put(kLastTargetValid, msg.last_target_valid ? 1 : 0);
-    p.put(kErrorCode, msg.error_code);
-    p.put(kExecuted, msg.targets_executed);
-    return p.finish(ids, MessageKind::ToolStatus, counter, out);
-}
-
-CodecResult decode(const CanFrame& frame, const CanIds& ids, ToolStatus& out)
-{
-    if (CodecResult r = check_frame(frame, ids, MessageKind::ToolStatus); !r)
-        return r;
-    Unpacker u(frame.data);
-    ToolStatus m;
-    m.tools_ready_mask = narrow<std::uint16_t>(u.get(kReadyMask));
-    m.last_target_id = narrow<std::uint16_t>(u.get(kLastTargetId));
-    m.last_target_valid = u.get(kLastTargetValid) != 0;
-    m.error_code = narrow<std::uint8_t>(u.get(kErrorCode));
-    m.targets_executed = narrow<std::uint8_t>(u.get(kExecuted));
-    if (CodecResult r = u.result(); !r)
-        return r;
-    out = m;
-    return {};
-}
-
-// ---- HEARTBEAT ----
-
-CodecResult encode(const Heartbeat& msg, std::uint8_t counter, const CanIds& ids, CanFrame& out)
-{
-    Packer p;
-    p.put(kState, static_cast<std::int64_t>(msg.state));
-    p.put(kSent, static_cast<std::int64_t>(msg.targets_sent & 0xFFFF));  // modulo 2^16 by design
-    p.put(kDeadlineMisses, saturate(msg.deadline_misses, kDeadlineMisses));
-    p.put(kDropped, saturate(msg.targets_dropped, kDropped));
-    p.put(kRxRejected, saturate(msg.rx_rejected, kRxRejected));
-    return p.finish(ids, MessageKind::Heartbeat, counter, out);
-}
-
-CodecResult decode(const CanFrame& frame, const CanIds& ids, Heartbeat& out)
-{
-    if (CodecResult r = check_frame(frame, ids, MessageKind::Heartbeat); !r)
-        return r;
-    Unpacker u(frame.data);
-    Heartbeat m;
-    m.state = static_cast<DaemonState>(u.get(kState));
-    m.targets_sent = static_cast<std::uint64_t>(u.get(kSent));
-    m.deadline_misses = static_cast<std::uint64_t>(u.get(kDeadlineMisses));
-    m.targets_dropped = static_cast<std::uint64_t>(u.get(kDropped));
-    m.rx_rejected = static_cast<std::uint64_t>(u.get(kRxRejected));
-    if (CodecResult r = u.result(); !r)
-        return r;
-    out = m;
-    return {};
-}
-
-// ---- TOOL_FIRED ----
-
-CodecResult encode(const ToolFired& msg, std::uint8_t counter, const CanIds& ids, CanFrame& out)
-{
-    Packer p;
-    p.put(kFiredToolId, msg.tool_id);
-    p.put(kFiredTargetId, msg.target_id);
-    p.put(kFiredLane, msg.lane);
-    p.put(kFiredOdom, msg.fired_odom_mm & (kFireOdomModulo - 1));  // modulo 2^18 by design
-    return p.finish(ids, MessageKind::ToolFired, counter, out);
-}
-
-CodecResult decode(const CanFrame& frame, const CanIds& ids, ToolFired& out)
-{
-    if (CodecResult r = check_frame(frame, ids, MessageKind::ToolFired); !r)
-        return r;
-    Unpacker u(frame.data);
-    ToolFired m;
-    m.tool_id = narrow<std::uint8_t>(u.get(kFiredToolId));
-    m.target_id = narrow<std::uint16_t>(u.get(kFiredTargetId));
-    m.lane = narrow<std::uint8_t>(u.get(kFiredLane));
-    m.fired_odom_mm = narrow<std::uint32_t>(u.get(kFiredOdom));
-    if (CodecResult r = u.result(); !r)
-        return r;
-    out = m;
-    return {};
-}
+CodecResult decode(const CanFrame& frame, const CanIds& ids, Odometry& out) { return decode_fields(kOdometryFields, frame, ids, out); }
+CodecResult decode(const CanFrame& frame, const CanIds& ids, TargetCommand& out) { return decode_fields(kTargetFields, frame, ids, out); }
+CodecResult decode(const CanFrame& frame, const CanIds& ids, ToolStatus& out) { return decode_fields(kToolStatusFields, frame, ids, out); }
+CodecResult decode(const CanFrame& frame, const CanIds& ids, Heartbeat& out) { return decode_fields(kHeartbeatFields, frame, ids, out); }
+CodecResult decode(const CanFrame& frame, const CanIds& ids, ToolFired& out) { return decode_fields(kToolFiredFields, frame, ids, out); }
 
 }  // namespace stemd::protocol

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cstdio>
 
+#include <spdlog/fmt/fmt.h>
+
 #include "stemd/geometry/georef.hpp"
 
 namespace stemd::runtime {
@@ -13,56 +15,36 @@ namespace {
 
 std::string drops(const StatusSnapshot& now, const StatusSnapshot& before)
 {
-    char buf[256];
-    std::snprintf(buf, sizeof buf,
-                  "drops: ring_full %llu, overwritten %llu, results_full %llu, corrupt %llu, bad_size %llu, failed %llu",
-                  static_cast<unsigned long long>(now.ring_full - before.ring_full),
-                  static_cast<unsigned long long>(now.overwritten - before.overwritten),
-                  static_cast<unsigned long long>(now.results_full - before.results_full),
-                  static_cast<unsigned long long>(now.corrupt - before.corrupt),
-                  static_cast<unsigned long long>(now.bad_size - before.bad_size),
-                  static_cast<unsigned long long>(now.failed - before.failed));
-    return buf;
+    return fmt::format("drops: ring_full {}, overwritten {}, results_full {}, corrupt {}, bad_size {}, failed {}",
+                       now.ring_full - before.ring_full, now.overwritten - before.overwritten,
+                       now.results_full - before.results_full, now.corrupt - before.corrupt,
+                       now.bad_size - before.bad_size, now.failed - before.failed);
 }
 
 std::string source(const StatusSnapshot& now, const StatusSnapshot& before)
 {
-    char buf[128];
-    std::snprintf(buf, sizeof buf, " | source: timeouts %llu, errors %llu, reopens %llu",
-                  static_cast<unsigned long long>(now.source_timeouts - before.source_timeouts),
-                  static_cast<unsigned long long>(now.source_errors - before.source_errors),
-                  static_cast<unsigned long long>(now.source_reopens - before.source_reopens));
-    return buf;
+    return fmt::format(" | source: timeouts {}, errors {}, reopens {}", now.source_timeouts - before.source_timeouts,
+                       now.source_errors - before.source_errors, now.source_reopens - before.source_reopens);
 }
 
 // What was seen but not reported, and how far a paced replay fell behind
 // (the worst lateness is the whole run's).
 std::string behind(const StatusSnapshot& now, const StatusSnapshot& before)
 {
-    char buf[128];
-    std::snprintf(buf, sizeof buf, "over_capacity %llu, late %llu (worst %.1f ms)",
-                  static_cast<unsigned long long>(now.over_capacity - before.over_capacity),
-                  static_cast<unsigned long long>(now.late - before.late), now.worst_lateness_ms);
-    return buf;
+    return fmt::format("over_capacity {}, late {} (worst {:.1f} ms)", now.over_capacity - before.over_capacity,
+                       now.late - before.late, now.worst_lateness_ms);
 }
 
 std::string actuation(const StatusSnapshot& now, const StatusSnapshot& before)
 {
     if (!now.actuation)
         return "";
-    char buf[280];
-    std::snprintf(buf, sizeof buf,
-                  " | targets %llu, sent %llu, deadline_misses %llu, not_treated %llu, no_odometry %llu, bus_errors %llu, "
-                  "heartbeat_errors %llu, bad_class %llu",
-                  static_cast<unsigned long long>(now.targets - before.targets),
-                  static_cast<unsigned long long>(now.sent - before.sent),
-                  static_cast<unsigned long long>(now.deadline_misses - before.deadline_misses),
-                  static_cast<unsigned long long>(now.not_treated - before.not_treated),
-                  static_cast<unsigned long long>(now.no_odometry - before.no_odometry),
-                  static_cast<unsigned long long>(now.bus_errors - before.bus_errors),
-                  static_cast<unsigned long long>(now.heartbeat_errors - before.heartbeat_errors),
-                  static_cast<unsigned long long>(now.bad_class - before.bad_class));
-    return buf;
+    return fmt::format(" | targets {}, sent {}, deadline_misses {}, not_treated {}, no_odometry {}, bus_errors {}, "
+                       "heartbeat_errors {}, bad_class {}",
+                       now.targets - before.targets, now.sent - before.sent,
+                       now.deadline_misses - before.deadline_misses, now.not_treated - before.not_treated,
+                       now.no_odometry - before.no_odometry, now.bus_errors - before.bus_errors,
+                       now.heartbeat_errors - before.heartbeat_errors, now.bad_class - before.bad_class);
 }
 
 // Tool timing, whole run: per tool that fired or leads its commands, e.g.
@@ -72,25 +54,17 @@ std::string tool_timing(const StatusSnapshot& s)
     if (!s.actuation)
         return "";
     std::string out;
-    char buf[256];
     for (std::size_t i = 0; i < s.n_tools && i < s.tool_timing.size(); ++i) {
         const StatusSnapshot::ToolTiming& t = s.tool_timing[i];
         if (t.fired == 0 && t.latency_ms == 0 && !t.learning)
             continue;
-        std::snprintf(buf, sizeof buf,
-                      " | tool %u: fired %llu, lag %.1f mm %.1f ms (p95 %.1f mm %.2f ms), strike p95 %.2f mm, "
-                      "latency %.1f ms%s",
-                      static_cast<unsigned>(t.tool_id), static_cast<unsigned long long>(t.fired), t.lag_mean_mm,
-                      t.lag_mean_ms, t.lag_p95_mm, t.lag_p95_ms, t.strike_p95_mm, t.latency_ms,
-                      t.learning ? " learned" : "");
-        out += buf;
+        out += fmt::format(" | tool {}: fired {}, lag {:.1f} mm {:.1f} ms (p95 {:.1f} mm {:.2f} ms), strike p95 "
+                           "{:.2f} mm, latency {:.1f} ms{}",
+                           static_cast<unsigned>(t.tool_id), t.fired, t.lag_mean_mm, t.lag_mean_ms, t.lag_p95_mm,
+                           t.lag_p95_ms, t.strike_p95_mm, t.latency_ms, t.learning ? " learned" : "");
     }
-    if (s.rx_tool_fired > 0 || s.compensation_misses > 0) {
-        std::snprintf(buf, sizeof buf, " | fired_unmatched %llu, compensation_misses %llu",
-                      static_cast<unsigned long long>(s.fired_unmatched),
-                      static_cast<unsigned long long>(s.compensation_misses));
-        out += buf;
-    }
+    if (s.rx_tool_fired > 0 || s.compensation_misses > 0)
+        out += fmt::format(" | fired_unmatched {}, compensation_misses {}", s.fired_unmatched, s.compensation_misses);
     return out;
 }
 
@@ -115,14 +89,12 @@ std::string gnss(const StatusSnapshot& s)
 
 std::string durations(const StatusSnapshot& s)
 {
-    char buf[280];
-    int n = std::snprintf(buf, sizeof buf, "latency p50 %.2f p99 %.2f ms | pipeline p50 %.2f p99 %.2f ms",
-                          s.latency.p50_ms, s.latency.p99_ms, s.pipeline.p50_ms, s.pipeline.p99_ms);
-    if (s.actuation && n > 0 && static_cast<std::size_t>(n) < sizeof buf)
-        std::snprintf(buf + n, sizeof buf - static_cast<std::size_t>(n),
-                      " | capture to send p50 %.2f p99 %.2f max %.2f ms", s.send.p50_ms, s.send.p99_ms,
-                      s.send.max_ms);
-    return buf;
+    std::string out = fmt::format("latency p50 {:.2f} p99 {:.2f} ms | pipeline p50 {:.2f} p99 {:.2f} ms",
+                                  s.latency.p50_ms, s.latency.p99_ms, s.pipeline.p50_ms, s.pipeline.p99_ms);
+    if (s.actuation)
+        out += fmt::format(" | capture to send p50 {:.2f} p99 {:.2f} max {:.2f} ms", s.send.p50_ms, s.send.p99_ms,
+                           s.send.max_ms);
+    return out;
 }
 
 }  // namespace
@@ -130,42 +102,35 @@ std::string durations(const StatusSnapshot& s)
 std::string format_status(const StatusSnapshot& now, const StatusSnapshot& before)
 {
     const double dt_s = std::max(1e-9, static_cast<double>(now.t_ns - before.t_ns) / 1e9);
-    char buf[96];
-    std::snprintf(buf, sizeof buf, "in %.1f fps, out %.1f fps, bare soil %llu, ",
-                  static_cast<double>(now.frames_in - before.frames_in) / dt_s,
-                  static_cast<double>(now.frames_out - before.frames_out) / dt_s,
-                  static_cast<unsigned long long>(now.no_vegetation - before.no_vegetation));
-    return buf + behind(now, before) + " | " + drops(now, before) + source(now, before) + actuation(now, before) + " | " + durations(now) +
-           tool_timing(now) + gnss(now);
+    return fmt::format("in {:.1f} fps, out {:.1f} fps, bare soil {}, ",
+                       static_cast<double>(now.frames_in - before.frames_in) / dt_s,
+                       static_cast<double>(now.frames_out - before.frames_out) / dt_s,
+                       now.no_vegetation - before.no_vegetation)
+           + behind(now, before) + " | " + drops(now, before) + source(now, before) + actuation(now, before) + " | "
+           + durations(now) + tool_timing(now) + gnss(now);
 }
 
 std::string format_latency_changes(const StatusSnapshot& now, const StatusSnapshot& before)
 {
     std::string out;
-    char buf[128];
     for (std::size_t i = 0; i < now.n_tools && i < now.tool_timing.size(); ++i) {
         const StatusSnapshot::ToolTiming& t = now.tool_timing[i];
         const double was = i < before.n_tools ? before.tool_timing[i].latency_ms : t.latency_ms;
         if (t.latency_ms == was)
             continue;
-        std::snprintf(buf, sizeof buf, "%stool %u: latency %.1f ms (%s, was %.1f ms)", out.empty() ? "" : "; ",
-                      static_cast<unsigned>(t.tool_id), t.latency_ms, t.learning ? "learned" : "set", was);
-        out += buf;
+        out += fmt::format("{}tool {}: latency {:.1f} ms ({}, was {:.1f} ms)", out.empty() ? "" : "; ",
+                           static_cast<unsigned>(t.tool_id), t.latency_ms, t.learning ? "learned" : "set", was);
     }
     return out;
 }
 
 std::string format_summary(const StatusSnapshot& end, double run_s)
 {
-    char buf[200];
-    std::snprintf(buf, sizeof buf, "%llu frames in, %llu out, %llu stems in %.2f s (%.1f fps out), %llu bare soil, ",
-                  static_cast<unsigned long long>(end.frames_in), static_cast<unsigned long long>(end.frames_out),
-                  static_cast<unsigned long long>(end.stems_out), run_s,
-                  run_s > 0 ? static_cast<double>(end.frames_out) / run_s : 0.0,
-                  static_cast<unsigned long long>(end.no_vegetation));
-    return buf + behind(end, StatusSnapshot{}) + " | " + drops(end, StatusSnapshot{}) +
-           source(end, StatusSnapshot{}) + actuation(end, StatusSnapshot{}) + " | " + durations(end) +
-           tool_timing(end) + gnss(end);
+    return fmt::format("{} frames in, {} out, {} stems in {:.2f} s ({:.1f} fps out), {} bare soil, ", end.frames_in,
+                       end.frames_out, end.stems_out, run_s,
+                       run_s > 0 ? static_cast<double>(end.frames_out) / run_s : 0.0, end.no_vegetation)
+           + behind(end, StatusSnapshot{}) + " | " + drops(end, StatusSnapshot{}) + source(end, StatusSnapshot{})
+           + actuation(end, StatusSnapshot{}) + " | " + durations(end) + tool_timing(end) + gnss(end);
 }
 
 }  // namespace stemd::runtime

@@ -1,5 +1,7 @@
 #include "presets.hpp"
 
+#include "stemd/base/enum_names.hpp"
+
 namespace stemd::synth {
 
 PresetSpec preset_spec(Preset preset)
@@ -27,23 +29,14 @@ PresetSpec preset_spec(Preset preset)
             .fragmentation = 0.3};
 }
 
-std::optional<Preset> parse_preset(std::string_view name)
-{
-    for (const Preset p : {Preset::early, Preset::late, Preset::dense, Preset::seedling})
-        if (name == to_string(p))
-            return p;
-    return std::nullopt;
-}
+namespace {
 
-std::string_view to_string(Preset preset)
-{
-    switch (preset) {
-    case Preset::early: return "early";
-    case Preset::late: return "late";
-    case Preset::dense: return "dense";
-    case Preset::seedling: return "seedling";
-    }
-    return "late";
-}
+constexpr base::EnumName<Preset> kPresets[]{
+    {Preset::early, "early"}, {Preset::late, "late"}, {Preset::dense, "dense"}, {Preset::seedling, "seedling"}};
+
+}  // namespace
+
+std::optional<Preset> parse_preset(std::string_view name) { return base::value_of(kPresets, name); }
+std::string_view to_string(Preset preset) { return base::name_of(kPresets, preset, "late"); }
 
 }  // namespace stemd::synth

@@ -83,6 +83,15 @@ void row_context(const Detections& det, double gsd, std::size_t plants,
         features[i][f_row_offset_mm] = static_cast<float>(std::abs(det.plants[i].centre_of_mass.x - row_x) * gsd);
 }
 
+// A YAML sequence of strings under `key`.
+void write_list(cv::FileStorage& fs, const char* key, const std::vector<std::string>& items)
+{
+    fs << key << "[";
+    for (const std::string& item : items)
+        fs << item;
+    fs << "]";
+}
+
 }  // namespace
 
 std::string_view feature_name(int feature)
@@ -421,17 +430,11 @@ bool PlantClassifier::save(const std::filesystem::path& path, ModelInfo info, st
         }
         fs << "stemd_plant_classifier" << "{";
         fs << "features_version" << info.features_version;
-        fs << "feature_names" << "[";
-        for (const std::string& name : info.feature_names)
-            fs << name;
-        fs << "]";
+        write_list(fs, "feature_names", info.feature_names);
         fs << "gsd_mm_per_px" << info.gsd_mm_per_px;
         fs << "channels" << std::string(channels_name(info.nir));
         fs << "segmentation" << info.segmentation;
-        fs << "recordings" << "[";
-        for (const std::string& r : info.recordings)
-            fs << r;
-        fs << "]";
+        write_list(fs, "recordings", info.recordings);
         fs << "trained_utc" << info.trained_utc;
         fs << "trees" << info.trees;
         fs << "cross_validation" << info.cross_validation;

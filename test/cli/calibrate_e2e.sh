@@ -13,13 +13,7 @@ stemd="$3"
 for b in "$calibrate" "$views" "$stemd"; do
   [ -x "$b" ] || { echo "FAIL: $b is not an executable" >&2; exit 1; }
 done
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-
-fail() {
-  echo "FAIL: $*" >&2
-  exit 1
-}
+. "$(dirname "$0")/../support/script.sh"
 
 "$views" "$tmp/img" || fail "rendering the views failed"
 

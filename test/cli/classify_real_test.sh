@@ -8,16 +8,13 @@
 # (exit 77) when the data is absent, as on a user's machine.
 #   classify_real_test.sh TOOLS_DIR SOURCE_DIR
 set -euo pipefail
-tools=$1
-src=$2
+tools=$1 src=$2
 data=${STEMD_REAL_DATA:-$src/../shared/data}
 if [ ! -f "$data/carrot-dev/frames.csv" ] || [ ! -d "$data/cwfid-train/annotations" ]; then
   echo "SKIP: real data sets carrot-dev/ and cwfid-train/ absent under $data (set STEMD_REAL_DATA)"
   exit 77
 fi
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+. "$(dirname "$0")/../support/script.sh"
 
 STEMD_CLASSMAP="$tools/stemd-classmap" "$src/tools/cwfid-recording.sh" "$data/cwfid-train" "$tmp/cwfid" >/dev/null
 head -1 "$tmp/cwfid/frames.csv" | grep -q ',class$' || fail "cwfid-recording.sh wrote no class column"

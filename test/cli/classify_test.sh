@@ -4,11 +4,8 @@
 # class columns, class maps, and the refusals (GSD, channels, no model).
 #   classify_test.sh TOOLS_DIR SOURCE_DIR
 set -euo pipefail
-tools=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+tools=$1 src=$2
+. "$(dirname "$0")/../support/script.sh"
 
 "$tools/stemd-synth" --strip --out "$tmp/rec" --length-mm 1500 --width 640 --height 480 --seed 5 >/dev/null
 

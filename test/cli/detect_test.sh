@@ -3,11 +3,8 @@
 # option, the three segmentations, bad configuration and a corrupt frame.
 #   detect_test.sh TOOLS_DIR SOURCE_DIR
 set -euo pipefail
-tools=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+tools=$1 src=$2
+. "$(dirname "$0")/../support/script.sh"
 
 "$tools/stemd-synth" --out "$tmp/rec" --preset late --frames 3 --seed 11 >/dev/null
 

@@ -6,13 +6,7 @@ set -euo pipefail
 
 eval_bin="$1/stemd-eval"
 [ -x "$eval_bin" ] || { echo "FAIL: $eval_bin is not an executable" >&2; exit 1; }
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-
-fail() {
-  echo "FAIL: $*" >&2
-  exit 1
-}
+. "$(dirname "$0")/../support/script.sh"
 
 # expect_json EXPECTED ARGS...: exit 0 and stdout exactly the one line EXPECTED.
 expect_json() {

@@ -5,9 +5,7 @@
 #   sweep_test.sh TOOLS_DIR SOURCE_DIR
 set -euo pipefail
 tools=$1
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+. "$(dirname "$0")/../support/script.sh"
 
 "$tools/stemd-synth" --out "$tmp/rec" --preset late --frames 4 --seed 23 >/dev/null
 "$tools/stemd-eval" --sweep "$tmp/rec/stems.csv" "$tmp/rec" --radii 1,10 >"$tmp/table.txt" || fail "sweep exited $?"

@@ -6,13 +6,7 @@ set -euo pipefail
 
 synth="$1/stemd-synth"
 [ -x "$synth" ] || { echo "FAIL: $synth is not an executable" >&2; exit 1; }
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-
-fail() {
-  echo "FAIL: $*" >&2
-  exit 1
-}
+. "$(dirname "$0")/../support/script.sh"
 
 args=(--strip --length-mm 400 --speed-kmh 6 --fps 25 --preset dense --seed 3 --width 640 --height 480)
 "$synth" "${args[@]}" --out "$tmp/a" >"$tmp/out" || fail "stemd-synth --strip failed"

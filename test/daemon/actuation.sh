@@ -12,14 +12,9 @@
 # Usage: actuation.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
 stemd=$1 tools=$2 src=$3
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+. "$(dirname "$0")/../support/script.sh"
 
-# 15 fps at 2.5 km/h: the same 4.6 mm per frame as 30 fps at 5 km/h, with
-# a frame period that sanitizer builds (~35 ms per frame) keep up with.
-"$tools/stemd-synth" --strip --out "$tmp/strip" --preset early --seed 5 --fragment 0 --length-mm 2000 \
-  --fps 15 --speed-kmh 2.5 >/dev/null
+synth_strip "$tmp/strip" 2000
 "$stemd" --config "$src/config/stemd.yaml" --replay "$tmp/strip" --once \
   --can-log "$tmp/can.log" --map "$tmp/map.jsonl" 2>"$tmp/err" || fail "stemd exited $?: $(tail -5 "$tmp/err")"
 

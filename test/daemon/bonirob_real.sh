@@ -17,9 +17,7 @@ if [ ! -f "$data/frames.csv" ]; then
   echo "SKIP: real data $data is absent (set STEMD_REAL_DATA to the folder holding bonirob/)"
   exit 77
 fi
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+. "$(dirname "$0")/../support/script.sh"
 
 # The two plants seen twice (ids 1 and 2).
 awk -F, 'NR == 1 || $1 == 1 || $1 == 2' "$data/plants.csv" >"$tmp/seen-twice.csv"

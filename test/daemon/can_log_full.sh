@@ -4,12 +4,9 @@
 #   can_log_full.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
 stemd=$1 tools=$2 src=$3
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+. "$(dirname "$0")/../support/script.sh"
 
-"$tools/stemd-synth" --strip --out "$tmp/strip" --preset early --seed 5 --fragment 0 --length-mm 600 \
-  --fps 15 --speed-kmh 2.5 >/dev/null
+synth_strip "$tmp/strip" 600
 "$stemd" --config "$src/config/stemd.yaml" --replay "$tmp/strip" --once --can-log "$tmp/can.log" 2>"$tmp/err" ||
   fail "a writable log exited $?: $(tail -3 "$tmp/err")"
 grep -q "total: .* sent [1-9][0-9]*, .* bus_errors 0," "$tmp/err" || fail "nothing sent: $(grep total: "$tmp/err")"

@@ -9,14 +9,10 @@
 # Usage: classify.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
 stemd=$1 tools=$2 src=$3
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+. "$(dirname "$0")/../support/script.sh"
 
-"$tools/stemd-synth" --strip --out "$tmp/train" --preset early --seed 6 --fragment 0 --length-mm 3000 \
-  --fps 15 --speed-kmh 2.5 >/dev/null
-"$tools/stemd-synth" --strip --out "$tmp/strip" --preset early --seed 5 --fragment 0 --length-mm 2000 \
-  --fps 15 --speed-kmh 2.5 >/dev/null
+synth_strip "$tmp/train" 3000 6
+synth_strip "$tmp/strip" 2000
 "$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" "$tmp/train" >"$tmp/train.txt" 2>&1 ||
   fail "stemd-train exited $?: $(cat "$tmp/train.txt")"
 # The replayed strip without its class column (t_ns,rgb,nir,mask,odom_mm).

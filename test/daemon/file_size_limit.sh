@@ -5,15 +5,12 @@
 #   file_size_limit.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
 stemd=$1 tools=$2 src=$3
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+. "$(dirname "$0")/../support/script.sh"
 
 # 3 m at 2.5 km/h: a paced replay of 4.3 s, whose HEARTBEATs alone (every
 # 100 ms, ~45 bytes a line) pass the 1 KiB limit however many TARGETs a
 # loaded machine gets out in time.
-"$tools/stemd-synth" --strip --out "$tmp/strip" --preset early --seed 5 --fragment 0 --length-mm 3000 \
-  --fps 15 --speed-kmh 2.5 >/dev/null
+synth_strip "$tmp/strip" 3000
 # stderr goes through a pipe to a cat outside the limit: a file would be
 # held to the limit too and lose stemd's last lines.
 set +e

@@ -6,9 +6,7 @@
 #   inputs.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
 stemd=$1 tools=$2 src=$3
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+. "$(dirname "$0")/../support/script.sh"
 # A stall must fail the test, not hang it.
 run() { timeout 60 "$@"; }
 
@@ -103,8 +101,7 @@ grep -q "total: 2 frames in, 2 out, 512 stems .*over_capacity $((2 * over)), " "
   fail "stemd total: $(grep total: "$tmp/err")"
 
 # --- Class values above 2 (no such class): counted in the total line.
-"$tools/stemd-synth" --strip --out "$tmp/strip" --preset early --seed 5 --fragment 0 --length-mm 600 \
-  --fps 15 --speed-kmh 2.5 >/dev/null
+synth_strip "$tmp/strip" 600
 "$stemd" --replay "$tmp/strip" "${fast[@]}" 2>"$tmp/err" || fail "strip: $(tail -3 "$tmp/err")"
 grep -q "total: .*, bad_class 0 |" "$tmp/err" || fail "good class maps: $(grep total: "$tmp/err")"
 python3 - "$tmp/strip/class" <<'PY'

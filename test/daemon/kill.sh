@@ -7,13 +7,9 @@
 #   kill.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
 stemd=$1 tools=$2 src=$3
-tmp=$(mktemp -d)
-pid=
-trap '[ -n "$pid" ] && kill -KILL "$pid" 2>/dev/null; rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+. "$(dirname "$0")/../support/script.sh"
 
-"$tools/stemd-synth" --strip --out "$tmp/strip" --preset early --seed 5 --fragment 0 --length-mm 1500 \
-  --fps 15 --speed-kmh 2.5 >/dev/null
+synth_strip "$tmp/strip" 1500
 # Looping: the run cannot end before the kill.
 "$stemd" --config "$src/config/stemd.yaml" --replay "$tmp/strip" --map "$tmp/map.jsonl" \
   --detections-csv "$tmp/d.csv" --can-log "$tmp/can.log" 2>"$tmp/err" &
@@ -29,7 +25,6 @@ done
 lines are held back while stemd runs"
 kill -KILL "$pid"
 wait "$pid" 2>/dev/null || true
-pid=
 
 python3 - "$tmp/map.jsonl" "$tmp/d.csv" "$tmp/can.log" <<'PY' || fail "incomplete lines after SIGKILL"
 import json, re, sys

@@ -3,36 +3,13 @@
 # while the threads run (WATCHDOG_USEC set), STATUS= lines, STOPPING=1.
 #   notify.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
-stemd=$1
-tools=$2
-src=$3
-tmp=$(mktemp -d)
-trap 'kill "$listener" 2>/dev/null || true; rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
-command -v python3 >/dev/null || { echo "SKIP: python3 (the stand-in socket) is not installed"; exit 77; }
+stemd=$1 tools=$2 src=$3
+. "$(dirname "$0")/../support/script.sh"
 
 "$tools/stemd-synth" --out "$tmp/rec" --preset late --frames 20 --fps 10 >/dev/null
 
 socket="$tmp/notify.sock"
-python3 - "$socket" "$tmp/messages" <<'PY' &
-import socket, sys
-s = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
-s.bind(sys.argv[1])
-s.settimeout(30)
-with open(sys.argv[2], "w", buffering=1) as out:
-    open(sys.argv[1] + ".ready", "w").close()
-    while True:
-        try:
-            msg = s.recv(4096).decode()
-        except socket.timeout:
-            break
-        out.write(msg.replace("\n", " ") + "\n")
-        if msg == "STOPPING=1":
-            break
-PY
-listener=$!
-for _ in $(seq 100); do [ -e "$socket.ready" ] && break; sleep 0.1; done
-[ -e "$socket.ready" ] || fail "the stand-in socket did not come up"
+start_notify_listener "$socket" "$tmp/messages" 30
 
 # 20 frames at 10 fps: 2 s of replay; watchdog 0.4 s, so WATCHDOG=1 every 0.1 s.
 NOTIFY_SOCKET="$socket" WATCHDOG_USEC=400000 "$stemd" --config "$src/config/stemd.yaml" \

@@ -5,15 +5,10 @@
 # --seconds, SIGTERM, an existing DIR and a bad key.
 #   record.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
-stemd=$1
-tools=$2
-src=$3
+stemd=$1 tools=$2 src=$3
 record=$tools/stemd-record
 [ -x "$record" ] || { echo "FAIL: $record not built (ninja stemd-record)" >&2; exit 1; }
-tmp=$(mktemp -d)
-pid=
-trap '[ -n "$pid" ] && kill -KILL "$pid" 2>/dev/null; rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+. "$(dirname "$0")/../support/script.sh"
 rows() { echo $(($(wc -l <"$1") - 1)); }
 
 "$tools/stemd-synth" --out "$tmp/src" --preset late --frames 5 >/dev/null

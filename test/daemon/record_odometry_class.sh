@@ -4,13 +4,10 @@
 # `stemd-synth --strip` recording, which has both.
 #   record_odometry_class.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
-stemd=$1
-tools=$2
+stemd=$1 tools=$2
 record=$tools/stemd-record
 [ -x "$record" ] || { echo "FAIL: $record not built (ninja stemd-record)" >&2; exit 1; }
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+. "$(dirname "$0")/../support/script.sh"
 # Column $2 of frames.csv in $1, by its header name.
 column() { awk -F, -v name="$2" 'NR == 1 { for (i = 1; i <= NF; ++i) if ($i == name) c = i; next } { print $c }' "$1"; }
 

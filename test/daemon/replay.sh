@@ -3,12 +3,8 @@
 # to stemd-detect, an odom_mm column, a corrupt frame, --check-config.
 #   replay.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
-stemd=$1
-tools=$2
-src=$3
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+stemd=$1 tools=$2 src=$3
+. "$(dirname "$0")/../support/script.sh"
 
 "$tools/stemd-synth" --out "$tmp/rec" --preset late --frames 5 >/dev/null
 

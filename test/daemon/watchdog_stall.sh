@@ -6,15 +6,8 @@
 # would kill and restart it. Both runs replay the same looping recording.
 #   watchdog_stall.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
-stemd=$1
-tools=$2
-src=$3
-tmp=$(mktemp -d)
-listener=
-daemon=
-trap 'kill $listener $daemon 2>/dev/null || true; rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
-command -v python3 >/dev/null || { echo "SKIP: python3 (the stand-in socket) is not installed"; exit 77; }
+stemd=$1 tools=$2 src=$3
+. "$(dirname "$0")/../support/script.sh"
 
 "$tools/stemd-synth" --out "$tmp/rec" --preset late --frames 20 --fps 10 >/dev/null
 
@@ -30,28 +23,11 @@ run() {
   local name=$1
   shift
   local socket="$tmp/$name.sock"
-  python3 - "$socket" "$tmp/$name.messages" <<'PY' &
-import socket, sys, time
-s = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
-s.bind(sys.argv[1])
-s.settimeout(120)
-with open(sys.argv[2], "w", buffering=1) as out:
-    open(sys.argv[1] + ".ready", "w").close()
-    while True:
-        try:
-            msg = s.recv(4096).decode()
-        except socket.timeout:
-            break
-        out.write("%.3f %s\n" % (time.monotonic(), msg.replace("\n", " ")))
-        if msg == "STOPPING=1":
-            break
-PY
-  listener=$!
-  for _ in $(seq 100); do [ -e "$socket.ready" ] && break; sleep 0.1; done
-  [ -e "$socket.ready" ] || fail "the stand-in socket did not come up"
+  start_notify_listener "$socket" "$tmp/$name.messages" 120 stamp
   NOTIFY_SOCKET="$socket" WATCHDOG_USEC=$watchdog_usec "$stemd" --config "$src/config/stemd.yaml" \
     --set source.replay_loop=true "$@" --replay "$tmp/rec" >/dev/null 2>"$tmp/$name.err" &
   daemon=$!
+  pid="$listener $daemon"
   # Condition first (generous deadline: a loaded machine), then a fixed
   # observation window measured in watchdog intervals.
   local n=0
@@ -66,9 +42,8 @@ PY
   sent=$(python3 -c 'import time; print("%.3f" % time.monotonic())')
   kill -TERM "$daemon"
   wait "$daemon" || fail "$name: stemd exited $? on SIGTERM: $(cat "$tmp/$name.err")"
-  daemon=
   wait "$listener" || true
-  listener=
+  pid=
   echo "$sent" > "$tmp/$name.sigterm"
 }
 

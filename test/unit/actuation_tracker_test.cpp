@@ -25,11 +25,11 @@ constexpr double kStepMm = 30;
 constexpr double kHalfViewMm = 150;
 constexpr double kNoiseMm = 1.0;
 
-TrackerParams params()
+TrackerParams params(int confirm_frames = 3)
 {
     TrackerParams p;
     p.association_radius_mm = 10;
-    p.confirm_frames = 3;
+    p.confirm_frames = confirm_frames;
     p.exit_margin_mm = 40;  // > kStepMm
     p.max_missed_frames = 3;
     return p;
@@ -205,9 +205,7 @@ TEST(ActuationTracker, ASingleSightingInMidViewIsRetiredUnconfirmed)
 
 TEST(ActuationTracker, AnEmittedPlantIsNeverEmittedAgain)
 {
-    TrackerParams p = params();
-    p.confirm_frames = 1;
-    Tracker tracker(p);
+    Tracker tracker(params(1));
     const std::vector<Plant> plants = {{1000, 0}, {1100, 100}};
     const auto targets = drive(tracker, plants, 700, 1400, kAlways);
     EXPECT_EQ(targets.size(), 2u);
@@ -216,9 +214,7 @@ TEST(ActuationTracker, AnEmittedPlantIsNeverEmittedAgain)
 
 TEST(ActuationTracker, FusionIsConfidenceWeightedAndClassVotesByConfidence)
 {
-    TrackerParams p = params();
-    p.confirm_frames = 3;
-    Tracker tracker(p);
+    Tracker tracker(params(3));
     const TrackDetection a{1000, 10, 0.75f, PlantClass::Crop, 1};
     const TrackDetection b{1004, 14, 0.25f, PlantClass::Weed, 4};
     const TrackDetection c{1002, 12, 0.25f, PlantClass::Weed, 2};
@@ -235,9 +231,7 @@ TEST(ActuationTracker, FusionIsConfidenceWeightedAndClassVotesByConfidence)
 
 TEST(ActuationTracker, GreedyClosestFirstIsOneToOne)
 {
-    TrackerParams p = params();
-    p.confirm_frames = 10;
-    Tracker tracker(p);
+    Tracker tracker(params(10));
     const TrackDetection first[] = {{1000, 0, 1, PlantClass::Weed, 0}, {1008, 0, 1, PlantClass::Weed, 0}};
     tracker.update(frame_at(1000, first));
     EXPECT_EQ(tracker.active_tracks(), 2u);
@@ -267,9 +261,7 @@ TEST(ActuationTracker, CapacityDropsAreCounted)
 
 TEST(ActuationTracker, TargetIdsWrapAt4096)
 {
-    TrackerParams p = params();
-    p.confirm_frames = 1;
-    Tracker tracker(p);
+    Tracker tracker(params(1));
     std::vector<std::uint16_t> ids;
     for (int i = 0; i < 4098; ++i) {
         const double odom = 1000.0 + 400.0 * i;  // each plant alone in its own frame

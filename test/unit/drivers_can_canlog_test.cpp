@@ -21,6 +21,7 @@
 #include "stemd/protocol/candump_format.hpp"
 #include "stemd/protocol/messages.hpp"
 #include "stemd/base/clock.hpp"
+#include "temp_dir_test.hpp"
 
 namespace fs = std::filesystem;
 using namespace stemd;
@@ -79,16 +80,7 @@ CanLogOptions to(const fs::path& path, const char* interface = "can0",
     return o;
 }
 
-class CanLogTest : public ::testing::Test {
-protected:
-    void SetUp() override
-    {
-        dir_ = fs::temp_directory_path() / ("stemd-canlog-" + std::to_string(std::random_device{}()));
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
-    fs::path dir_;
-};
+using CanLogTest = stemd::test::TempDirTest;
 
 }  // namespace
 

@@ -15,6 +15,7 @@
 #include <spdlog/spdlog.h>
 
 #include "socketcan/socketcan_bus.hpp"
+#include "captured_log.hpp"
 #include "stemd/base/clock.hpp"
 
 using namespace stemd;
@@ -24,11 +25,7 @@ namespace {
 
 constexpr std::int64_t kSecond = 1'000'000'000;
 
-struct CapturedLog {
-    std::ostringstream out;
-    std::shared_ptr<spdlog::logger> logger =
-        std::make_shared<spdlog::logger>("socketcan-test", std::make_shared<spdlog::sinks::ostream_sink_st>(out));
-};
+using stemd::test::CapturedLog;
 
 SocketCanOptions on(const char* interface, std::int64_t reopen_min_ns = 10'000'000,
                     std::int64_t reopen_max_ns = 1'000'000'000)
@@ -55,7 +52,7 @@ TEST(SocketCan, NonexistentInterfaceIsAClearErrorNamingIt)
     // interface lookup (ENODEV). Either way the message names the interface and errno.
     EXPECT_NE(bus.last_error().find("stemdnocan9"), std::string::npos) << bus.last_error();
     EXPECT_NE(bus.last_error().find("errno"), std::string::npos) << bus.last_error();
-    EXPECT_NE(log.out.str().find("stemdnocan9"), std::string::npos) << log.out.str();
+    EXPECT_NE(log.text().find("stemdnocan9"), std::string::npos) << log.text();
 
     EXPECT_EQ(bus.send(kFrame, stemd::base::monotonic_ns() + kSecond), SendResult::error);
     protocol::CanFrame got;
@@ -77,7 +74,7 @@ TEST(SocketCan, RepeatedReopenFailuresAreLoggedOnce)
     EXPECT_FALSE(bus.receive(got, 30'000'000));  // several reopen attempts on the backoff schedule
     for (int i = 0; i < 20; ++i)
         EXPECT_EQ(bus.send(kFrame, stemd::base::monotonic_ns() + kSecond), SendResult::error);
-    const std::string text = log.out.str();
+    const std::string text = log.text();
     EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << text;
 }
 

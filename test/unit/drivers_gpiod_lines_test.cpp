@@ -13,16 +13,13 @@
 #include <spdlog/spdlog.h>
 
 #include "gpiod/gpiod_lines.hpp"
+#include "captured_log.hpp"
 
 using namespace stemd::drivers;
 
 namespace {
 
-struct CapturedLog {
-    std::ostringstream out;
-    std::shared_ptr<spdlog::logger> logger =
-        std::make_shared<spdlog::logger>("gpiod-test", std::make_shared<spdlog::sinks::ostream_sink_mt>(out));
-};
+using stemd::test::CapturedLog;
 
 GpiodOptions missing_chip()
 {
@@ -48,7 +45,7 @@ TEST(GpiodLines, MissingChipIsAClearError)
     EXPECT_NE(err.find("stemd-no-such-gpiochip"), std::string::npos) << err;
     EXPECT_NE(err.find("gpiod_chip_open_lookup"), std::string::npos) << err;
     EXPECT_NE(err.find("errno"), std::string::npos) << err;
-    EXPECT_NE(log.out.str().find("stemd-no-such-gpiochip"), std::string::npos) << log.out.str();
+    EXPECT_NE(log.text().find("stemd-no-such-gpiochip"), std::string::npos) << log.text();
     EXPECT_FALSE(lines.enabled());
     EXPECT_FALSE(lines.set_trigger(true));
     EXPECT_FALSE(lines.pulse(10));
@@ -67,7 +64,7 @@ TEST(GpiodLines, RetriesInTheBackgroundAndStops)
     EXPECT_GE(lines.counters().errors, 3U);  // several reopen attempts...
     lines.stop();                            // (the log is read once the thread is gone)
     std::size_t logged = 0;
-    for (std::size_t pos = 0; (pos = log.out.str().find("gpiod_chip_open_lookup", pos)) != std::string::npos; ++pos)
+    for (std::size_t pos = 0; (pos = log.text().find("gpiod_chip_open_lookup", pos)) != std::string::npos; ++pos)
         ++logged;
     EXPECT_EQ(logged, 1U);  // ...logged once
 }

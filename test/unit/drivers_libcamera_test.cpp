@@ -18,17 +18,14 @@
 #include <spdlog/spdlog.h>
 
 #include "libcamera/libcamera_source.hpp"
+#include "captured_log.hpp"
 
 using namespace stemd::drivers;
 using namespace std::chrono_literals;
 
 namespace {
 
-struct CapturedLog {
-    std::shared_ptr<std::ostringstream> text = std::make_shared<std::ostringstream>();
-    std::shared_ptr<spdlog::logger> logger = std::make_shared<spdlog::logger>(
-        "libcamera-test", std::make_shared<spdlog::sinks::ostream_sink_mt>(*text));
-};
+using stemd::test::CapturedLog;
 
 // A packed plane of `size` with rows `stride` apart (padding 0xEE), pixel
 // (x, y) = bytes (x, y, x + y) in memory.
@@ -190,7 +187,7 @@ TEST(LibcameraSource, NoMatchingCameraIsAClearErrorNotACrash)
     source.stop();
     EXPECT_EQ(source.libcamera_counters().errors, 1u);
     EXPECT_EQ(source.counters().delivered, 0u);
-    const std::string text = log.text->str();
+    const std::string text = log.text();
     EXPECT_NE(text.find("libcamera:stemd-no-such-camera: source.libcamera_camera: no camera matches "
                         "'stemd-no-such-camera' (cameras: "),
               std::string::npos)
@@ -205,7 +202,7 @@ TEST(LibcameraSource, IndexBeyondTheCamerasIsAClearError)
     const LibcameraOptions options{.camera = std::string("99")};
     LibcameraSource source(options, log.logger);
     EXPECT_FALSE(source.open());
-    const std::string text = log.text->str();
+    const std::string text = log.text();
     EXPECT_NE(text.find("libcamera:99: source.libcamera_camera: no camera with index 99 (cameras: "),
               std::string::npos)
         << text;

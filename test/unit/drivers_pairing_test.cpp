@@ -24,6 +24,7 @@
 #include <spdlog/spdlog.h>
 
 #include "stemd/drivers/timestamp_pairing.hpp"
+#include "captured_log.hpp"
 #include "v4l2/paired_nir_source.hpp"
 
 using stemd::drivers::PairDecision;
@@ -401,30 +402,22 @@ TEST(TimestampPairer, OutOfOrderFrameIsRejectedAndCounted)
     EXPECT_EQ(p.counters().unpaired_nir, 1u);
 }
 
-TEST(TimestampPairer, StalledNirDeviceForcesTheOldestRgbOut)
+TEST(TimestampPairer, AStalledDeviceForcesTheOldestOfTheOtherOut)
 {
-    TimestampPairer<4> p(5 * ms);
-    std::vector<Event> ev;
-    for (int i = 0; i < 10; ++i)
-        ev.push_back({PairSide::rgb, i * kPeriod});
-    const auto o = run(p, ev, false);
-    EXPECT_EQ(o.unpaired_rgb.size(), 6u);  // 4 still held
-    EXPECT_EQ(o.forced, 6u);
-    EXPECT_EQ(o.unpaired_rgb.front(), 0);
-    EXPECT_EQ(p.pending(PairSide::rgb), 4u);
-    EXPECT_EQ(p.counters().forced, 6u);
-}
-
-TEST(TimestampPairer, StalledRgbDeviceForcesTheOldestNirOut)
-{
-    TimestampPairer<4> p(5 * ms);
-    std::vector<Event> ev;
-    for (int i = 0; i < 10; ++i)
-        ev.push_back({PairSide::nir, i * kPeriod});
-    const auto o = run(p, ev, false);
-    EXPECT_EQ(o.unpaired_nir.size(), 6u);
-    EXPECT_EQ(o.forced, 6u);
-    EXPECT_EQ(p.pending(PairSide::nir), 4u);
+    for (const PairSide side : {PairSide::rgb, PairSide::nir}) {
+        SCOPED_TRACE(side == PairSide::rgb ? "NIR stalled" : "RGB stalled");
+        TimestampPairer<4> p(5 * ms);
+        std::vector<Event> ev;
+        for (int i = 0; i < 10; ++i)
+            ev.push_back({side, i * kPeriod});
+        const auto o = run(p, ev, false);
+        const auto& unpaired = side == PairSide::rgb ? o.unpaired_rgb : o.unpaired_nir;
+        EXPECT_EQ(unpaired.size(), 6u);  // 4 still held
+        EXPECT_EQ(o.forced, 6u);
+        EXPECT_EQ(unpaired.front(), 0);
+        EXPECT_EQ(p.pending(side), 4u);
+        EXPECT_EQ(p.counters().forced, 6u);
+    }
 }
 
 TEST(TimestampPairer, ForceOnAFullNirSidePairsThePendingRgbFirst)
@@ -587,20 +580,22 @@ TEST(TimestampPairer, CapacityFourKeepsUpWithTwoInterleavedCameras)
 // --- PairedNirSource without devices (the VM check, test/vm/paired_nir_check.cpp,
 // runs it on two vivid instances) ---
 
+using stemd::test::CapturedLog;
+
 namespace {
-struct PairedLog {
-    std::shared_ptr<std::ostringstream> text = std::make_shared<std::ostringstream>();
-    std::shared_ptr<spdlog::logger> logger =
-        std::make_shared<spdlog::logger>("paired-test", std::make_shared<spdlog::sinks::ostream_sink_mt>(*text));
-};
+stemd::drivers::PairedNirOptions paired_devices(const char* rgb, const char* nir)
+{
+    stemd::drivers::PairedNirOptions options;
+    options.rgb.device = rgb;
+    options.nir.device = nir;
+    return options;
+}
 }  // namespace
 
 TEST(PairedNirSource, MissingNirDeviceIsAClearErrorAndNextFails)
 {
-    PairedLog log;
-    stemd::drivers::PairedNirOptions options;
-    options.rgb.device = "/dev/stemd-no-such-rgb";
-    options.nir.device = "/dev/stemd-no-such-nir";
+    CapturedLog log;
+    const auto options = paired_devices("/dev/stemd-no-such-rgb", "/dev/stemd-no-such-nir");
     stemd::drivers::PairedNirSource source(options, log.logger);
     EXPECT_EQ(source.name(), "paired:/dev/stemd-no-such-rgb+/dev/stemd-no-such-nir");
     EXPECT_TRUE(source.realtime());
@@ -613,30 +608,26 @@ TEST(PairedNirSource, MissingNirDeviceIsAClearErrorAndNextFails)
     source.stop();
     EXPECT_EQ(source.counters().delivered, 0u);
     EXPECT_EQ(source.paired_counters().unpaired_rgb, 0u);
-    EXPECT_NE(log.text->str().find("/dev/stemd-no-such-rgb: cannot open"), std::string::npos) << log.text->str();
+    EXPECT_NE(log.text().find("/dev/stemd-no-such-rgb: cannot open"), std::string::npos) << log.text();
 }
 
 TEST(PairedNirSource, RgbDeviceThatIsNoV4l2DeviceIsAClearError)
 {
-    PairedLog log;
-    stemd::drivers::PairedNirOptions options;
-    options.rgb.device = "/dev/null";
+    CapturedLog log;
+    auto options = paired_devices("/dev/null", "/dev/stemd-no-such-nir");
     options.rgb.size = {320, 240};
-    options.nir.device = "/dev/stemd-no-such-nir";
     options.nir.pixel_format = stemd::drivers::V4l2PixelFormat::yuyv;
     stemd::drivers::PairedNirSource source(options, log.logger);
     EXPECT_EQ(source.nir_source().name(), "v4l2:/dev/stemd-no-such-nir");
     EXPECT_FALSE(source.open());  // /dev/null is no V4L2 device
-    EXPECT_NE(log.text->str().find("/dev/null: VIDIOC_QUERYCAP"), std::string::npos) << log.text->str();
+    EXPECT_NE(log.text().find("/dev/null: VIDIOC_QUERYCAP"), std::string::npos) << log.text();
 }
 
 TEST(PairedNirSource, TheSameDeviceTwiceIsRejected)
 {
-    PairedLog log;
-    stemd::drivers::PairedNirOptions options;
-    options.rgb.device = "/dev/video0";
-    options.nir.device = "/dev/video0";
+    CapturedLog log;
+    const auto options = paired_devices("/dev/video0", "/dev/video0");
     stemd::drivers::PairedNirSource source(options, log.logger);
     EXPECT_FALSE(source.open());
-    EXPECT_NE(log.text->str().find("the same device /dev/video0"), std::string::npos) << log.text->str();
+    EXPECT_NE(log.text().find("the same device /dev/video0"), std::string::npos) << log.text();
 }

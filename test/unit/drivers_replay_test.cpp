@@ -17,6 +17,7 @@
 
 #include "forged_png.hpp"
 #include "replay/replay_source.hpp"
+#include "temp_dir_test.hpp"
 
 namespace fs = std::filesystem;
 using namespace stemd::drivers;
@@ -31,14 +32,13 @@ std::shared_ptr<spdlog::logger> quiet_logger()
     return std::make_shared<spdlog::logger>("replay-test", std::make_shared<spdlog::sinks::null_sink_mt>());
 }
 
-class ReplayTest : public ::testing::Test {
+class ReplayTest : public stemd::test::TempDirTest {
 protected:
     void SetUp() override
     {
-        dir_ = fs::temp_directory_path() / ("stemd-replay-" + std::to_string(std::random_device{}()));
+        TempDirTest::SetUp();
         fs::create_directories(dir_ / "rgb");
     }
-    void TearDown() override { fs::remove_all(dir_); }
 
     // Frame i is filled with the value 10 * (i + 1); t_ns = i * period_ns.
     // An odom_mm column rides along, as a recorder may write it.
@@ -65,7 +65,19 @@ protected:
         return ReplaySource({.dir = dir_, .pacing = pacing, .loop = loop, .preload = preload}, quiet_logger());
     }
 
-    fs::path dir_;
+    // Runs `body` on a started fast, non-looping source, once decoding each
+    // frame as it comes and once preloaded: both must behave alike.
+    template <typename Body>
+    void each_preload(Body body)
+    {
+        for (const bool preload : {false, true}) {
+            SCOPED_TRACE(preload ? "preload" : "decode per frame");
+            auto source = make(ReplayOptions::Pacing::fast, false, preload);
+            ASSERT_TRUE(source.open());
+            ASSERT_TRUE(source.start());
+            body(source);
+        }
+    }
 };
 
 }  // namespace
@@ -73,11 +85,7 @@ protected:
 TEST_F(ReplayTest, DeliversEveryFrameOnceIntoTheCallersSlot)
 {
     write_recording(3, 1'000'000);
-    for (const bool preload : {false, true}) {
-        SCOPED_TRACE(preload ? "preload" : "decode per frame");
-        auto source = make(ReplayOptions::Pacing::fast, false, preload);
-        ASSERT_TRUE(source.open());
-        ASSERT_TRUE(source.start());
+    each_preload([&](ReplaySource& source) {
         EXPECT_FALSE(source.realtime());
         Frame f = slot();
         const uchar* pixels = f.bgr.data;
@@ -93,7 +101,7 @@ TEST_F(ReplayTest, DeliversEveryFrameOnceIntoTheCallersSlot)
         EXPECT_EQ(source.next(f, 1s), NextStatus::end_of_stream);
         EXPECT_EQ(source.next(f, 1s), NextStatus::end_of_stream);
         EXPECT_EQ(source.counters().delivered, 3u);
-    }
+    });
 }
 
 TEST_F(ReplayTest, CorruptAndWrongSizeFramesAreCountedAndSkipped)
@@ -101,11 +109,7 @@ TEST_F(ReplayTest, CorruptAndWrongSizeFramesAreCountedAndSkipped)
     write_recording(4, 1'000'000);
     std::ofstream(dir_ / "rgb/1.png") << "not a png";
     cv::imwrite((dir_ / "rgb/2.png").string(), cv::Mat(kSize.height + 1, kSize.width, CV_8UC3, cv::Scalar::all(1)));
-    for (const bool preload : {false, true}) {
-        SCOPED_TRACE(preload ? "preload" : "decode per frame");
-        auto source = make(ReplayOptions::Pacing::fast, false, preload);
-        ASSERT_TRUE(source.open());
-        ASSERT_TRUE(source.start());
+    each_preload([&](ReplaySource& source) {
         Frame f = slot();
         const uchar* pixels = f.bgr.data;
         EXPECT_EQ(source.next(f, 1s), NextStatus::frame);
@@ -119,7 +123,7 @@ TEST_F(ReplayTest, CorruptAndWrongSizeFramesAreCountedAndSkipped)
         EXPECT_EQ(source.counters().corrupt, 1u);
         EXPECT_EQ(source.counters().bad_size, 1u);
         EXPECT_EQ(source.counters().delivered, 2u);
-    }
+    });
 }
 
 TEST_F(ReplayTest, MissingFileIsCountedAsCorrupt)
@@ -237,28 +241,20 @@ void write_class_recording(const fs::path& dir, int frames)
 TEST_F(ReplayTest, OdometerComesFromTheRecording)
 {
     write_recording(3, 1'000'000);
-    for (const bool preload : {false, true}) {
-        SCOPED_TRACE(preload ? "preload" : "decode per frame");
-        auto source = make(ReplayOptions::Pacing::fast, false, preload);
-        ASSERT_TRUE(source.open());
-        ASSERT_TRUE(source.start());
+    each_preload([&](ReplaySource& source) {
         Frame f = slot();
         for (int i = 0; i < 3; ++i) {
             ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
             EXPECT_EQ(f.odom_mm, 12.5 * i);
             EXPECT_FALSE(f.has_class_map);
         }
-    }
+    });
 }
 
 TEST_F(ReplayTest, ClassMapsFillTheClassPlaneWhenTheSlotHasOne)
 {
     write_class_recording(dir_, 4);
-    for (const bool preload : {false, true}) {
-        SCOPED_TRACE(preload ? "preload" : "decode per frame");
-        auto source = make(ReplayOptions::Pacing::fast, false, preload);
-        ASSERT_TRUE(source.open());
-        ASSERT_TRUE(source.start());
+    each_preload([&](ReplaySource& source) {
         Frame f = slot();
         f.plant_class = cv::Mat(kSize, CV_8UC1, cv::Scalar(77));
         const uchar* class_pixels = f.plant_class.data;
@@ -277,7 +273,7 @@ TEST_F(ReplayTest, ClassMapsFillTheClassPlaneWhenTheSlotHasOne)
                 EXPECT_EQ(f.odom_mm, 46.0 * i);
         }
         EXPECT_EQ(source.next(f, 1s), NextStatus::end_of_stream);
-    }
+    });
 }
 
 TEST_F(ReplayTest, ClassMapsAreIgnoredWithoutAClassPlane)
@@ -301,11 +297,7 @@ TEST_F(ReplayTest, CorruptAndWrongSizeClassMapsSkipTheFrame)
     write_class_recording(dir_, 4);
     std::ofstream(dir_ / "class/1.png") << "not a png";
     cv::imwrite((dir_ / "class/3.png").string(), cv::Mat(kSize.height, kSize.width + 2, CV_8UC1, cv::Scalar(1)));
-    for (const bool preload : {false, true}) {
-        SCOPED_TRACE(preload ? "preload" : "decode per frame");
-        auto source = make(ReplayOptions::Pacing::fast, false, preload);
-        ASSERT_TRUE(source.open());
-        ASSERT_TRUE(source.start());
+    each_preload([&](ReplaySource& source) {
         Frame f = slot();
         f.plant_class = cv::Mat::zeros(kSize, CV_8UC1);
         ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
@@ -320,7 +312,7 @@ TEST_F(ReplayTest, CorruptAndWrongSizeClassMapsSkipTheFrame)
         EXPECT_EQ(source.counters().corrupt, 1u);
         EXPECT_EQ(source.counters().bad_size, 1u);
         EXPECT_EQ(source.counters().delivered, 2u);
-    }
+    });
 }
 
 TEST_F(ReplayTest, BadOdometerFailsToOpen)

@@ -15,6 +15,7 @@
 #include <spdlog/spdlog.h>
 
 #include "v4l2/v4l2_source.hpp"
+#include "captured_log.hpp"
 
 using namespace stemd::drivers;
 using namespace std::chrono_literals;
@@ -43,11 +44,7 @@ void expect_near(cv::Vec3b got, cv::Vec3b want, int tolerance)
         EXPECT_NEAR(got[c], want[c], tolerance) << "channel " << c;
 }
 
-struct CapturedLog {
-    std::shared_ptr<std::ostringstream> text = std::make_shared<std::ostringstream>();
-    std::shared_ptr<spdlog::logger> logger =
-        std::make_shared<spdlog::logger>("v4l2-test", std::make_shared<spdlog::sinks::ostream_sink_mt>(*text));
-};
+using stemd::test::CapturedLog;
 
 }  // namespace
 
@@ -199,7 +196,7 @@ TEST(V4l2Source, MissingDeviceIsAClearErrorNotACrash)
     source.stop();
     EXPECT_EQ(source.counters().errors, 1u);
     EXPECT_EQ(source.counters().delivered, 0u);
-    const std::string text = log.text->str();
+    const std::string text = log.text();
     EXPECT_NE(text.find("/dev/stemd-no-such-video-device: cannot open: No such file or directory (errno 2)"),
               std::string::npos)
         << text;
@@ -212,7 +209,7 @@ TEST(V4l2Source, NotAVideoDeviceIsAClearError)
     options.device = "/dev/null";
     V4l2Source source(options, log.logger);
     EXPECT_FALSE(source.open());
-    const std::string text = log.text->str();
+    const std::string text = log.text();
     EXPECT_NE(text.find("/dev/null: VIDIOC_QUERYCAP (not a V4L2 device?)"), std::string::npos) << text;
     EXPECT_NE(text.find("(errno 25)"), std::string::npos) << text;  // ENOTTY
 }

@@ -1,4 +1,5 @@
 #include "stemd/eval/eval.hpp"
+#include "temp_dir_test.hpp"
 
 #include <cmath>
 #include <filesystem>
@@ -216,16 +217,8 @@ TEST(EvalMatch, InvalidToleranceOrGsdMatchesNothing)
 
 // --- read_stem_points --------------------------------------------------------
 
-class EvalRead : public ::testing::Test {
+class EvalRead : public stemd::test::TempDirTest {
 protected:
-    void SetUp() override
-    {
-        dir_ = fs::temp_directory_path() /
-               ("stemd-eval-test-" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
-        fs::remove_all(dir_);
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
 
     fs::path write(const std::string& name, const std::string& text)
     {
@@ -233,8 +226,6 @@ protected:
         std::ofstream(path) << text;
         return path;
     }
-
-    fs::path dir_;
 };
 
 TEST_F(EvalRead, GroundTruthColumnsByHeader)

@@ -16,6 +16,7 @@
 
 #include "stemd/geometry/camera_model.hpp"
 #include "stemd/geometry/field.hpp"
+#include "temp_dir_test.hpp"
 
 namespace fs = std::filesystem;
 using namespace stemd::geometry;
@@ -360,16 +361,20 @@ TEST(CalibratedCamera, RejectsBadIntrinsicsAndHeights)
 
 // --- calibration files ------------------------------------------------------
 
-class CalibrationFileTest : public ::testing::Test {
+// Read back exactly what test_intrinsics(n_dist) wrote, at 1280x960.
+void expect_written_intrinsics(const Intrinsics& k, int n_dist)
+{
+    const Intrinsics expected = test_intrinsics(n_dist);
+    EXPECT_EQ(k.fx, expected.fx);
+    EXPECT_EQ(k.fy, expected.fy);
+    EXPECT_EQ(k.cx, expected.cx);
+    EXPECT_EQ(k.cy, expected.cy);
+    EXPECT_EQ(k.dist, expected.dist);
+    EXPECT_EQ(k.image_size, cv::Size(1280, 960));
+}
+
+class CalibrationFileTest : public stemd::test::TempDirTest {
 protected:
-    void SetUp() override
-    {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir_ = fs::temp_directory_path() /
-               (std::string("stemd-geometry-") + info->name() + "-" + std::to_string(::getpid()));
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
 
     fs::path write_calibration(const std::string& name, bool with_matrix, bool with_dist, int n_dist = 5)
     {
@@ -384,8 +389,6 @@ protected:
         out << "avg_reprojection_error" << 0.21;
         return path;
     }
-
-    fs::path dir_;
 };
 
 TEST_F(CalibrationFileTest, ReadsWhatOpenCvWrites)
@@ -395,13 +398,7 @@ TEST_F(CalibrationFileTest, ReadsWhatOpenCvWrites)
         std::string error;
         const auto k = read_calibration(path.string(), &error);
         ASSERT_TRUE(k) << error;
-        const Intrinsics expected = test_intrinsics(n);
-        EXPECT_EQ(k->fx, expected.fx);
-        EXPECT_EQ(k->fy, expected.fy);
-        EXPECT_EQ(k->cx, expected.cx);
-        EXPECT_EQ(k->cy, expected.cy);
-        EXPECT_EQ(k->dist, expected.dist);
-        EXPECT_EQ(k->image_size, cv::Size(1280, 960));
+        expect_written_intrinsics(*k, n);
     }
 }
 
@@ -465,13 +462,7 @@ TEST_F(CalibrationFileTest, ReadsRosCameraInfo)
     std::string error;
     const auto k = read_calibration(path.string(), &error);
     ASSERT_TRUE(k) << error;
-    const Intrinsics expected = test_intrinsics(8);
-    EXPECT_EQ(k->fx, expected.fx);
-    EXPECT_EQ(k->fy, expected.fy);
-    EXPECT_EQ(k->cx, expected.cx);
-    EXPECT_EQ(k->cy, expected.cy);
-    EXPECT_EQ(k->dist, expected.dist);
-    EXPECT_EQ(k->image_size, cv::Size(1280, 960));
+    expect_written_intrinsics(*k, 8);
 
     // ROS leaves the list empty for a camera without distortion.
     const fs::path empty = dir_ / "no_distortion.yaml";

@@ -7,20 +7,15 @@
 #include <random>
 
 #include "stemd/io/recording.hpp"
+#include "temp_dir_test.hpp"
 
 namespace fs = std::filesystem;
 using namespace stemd::io;
 
 namespace {
 
-class RecordingTest : public ::testing::Test {
+class RecordingTest : public stemd::test::TempDirTest {
 protected:
-    void SetUp() override
-    {
-        dir_ = fs::temp_directory_path() / ("stemd-recording-" + std::to_string(std::random_device{}()));
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
 
     std::optional<Recording> read(const std::string& csv)
     {
@@ -29,8 +24,6 @@ protected:
         return read_recording(dir_, error_);
     }
     std::string where(int line) const { return (dir_ / "frames.csv").string() + ":" + std::to_string(line) + ": "; }
-
-    fs::path dir_;
     std::string error_;
 };
 

@@ -103,7 +103,9 @@ struct Stage {
     FakeGpio* gpio = nullptr;
 };
 
-Stage make_stage(const ActuationConfig& config, bool with_gpio = false)
+// with_gpio: GPIO lines whose encoder is `encoder`.
+Stage make_stage(const ActuationConfig& config, bool with_gpio = false,
+                 drivers::EncoderMode encoder = drivers::EncoderMode::none)
 {
     Stage run;
     ActuationStage::Parts parts;
@@ -112,6 +114,7 @@ Stage make_stage(const ActuationConfig& config, bool with_gpio = false)
     parts.bus = std::move(bus);
     if (with_gpio) {
         auto gpio = std::make_unique<FakeGpio>();
+        gpio->encoder_mode_value = encoder;
         run.gpio = gpio.get();
         parts.gpio = std::move(gpio);
     }
@@ -139,14 +142,35 @@ int frames_for(const std::vector<Plant>& plants)
     return static_cast<int>((plants.back().s_mm + kSize.height * kGsd) / (kSpeed / 30.0)) + 2;
 }
 
+// Every frame of the strip through the stage, each handed over `pipeline_ns`
+// after its capture.
+void drive(Stage& run, const std::vector<Plant>& plants, std::int64_t pipeline_ns, bool class_map = false,
+           bool with_odom = true)
+{
+    for (int k = 0; k < frames_for(plants); ++k) {
+        const auto r = frame(plants, k, class_map, with_odom);
+        run.stage->on_frame(*r, r->t_sample_ns + pipeline_ns);
+    }
+}
+
+// Each TARGET fires within `tol_mm` of some plant's fire position (its
+// along-track position plus `offset_mm`).
+void expect_at_fire_positions(const std::vector<protocol::TargetCommand>& sent, const std::vector<Plant>& plants,
+                              double offset_mm, double tol_mm)
+{
+    for (const auto& t : sent) {
+        bool found = false;
+        for (const Plant& p : plants)
+            found = found || std::abs(t.fire_odom_mm - (p.s_mm + offset_mm)) <= tol_mm;
+        EXPECT_TRUE(found) << t.fire_odom_mm;
+    }
+}
+
 TEST(ActuationStage, EveryPlantBecomesExactlyOneTargetAtItsFirePosition)
 {
     const auto plants = strip(30);
     Stage run = make_stage(base_config());
-    for (int k = 0; k < frames_for(plants); ++k) {
-        const auto r = frame(plants, k);
-        run.stage->on_frame(*r, r->t_sample_ns + 3'000'000);   // 3 ms pipeline
-    }
+    drive(run, plants, 3'000'000);   // 3 ms pipeline
     const auto sent = targets(*run.bus);
     ASSERT_EQ(sent.size(), plants.size());
     std::map<std::size_t, int> hits;
@@ -179,10 +203,7 @@ TEST(ActuationStage, EnableInactiveSendsNothingAndCountsEveryTarget)
     const auto plants = strip(10);
     Stage run = make_stage(base_config(), true);
     run.gpio->enable = false;
-    for (int k = 0; k < frames_for(plants); ++k) {
-        const auto r = frame(plants, k);
-        run.stage->on_frame(*r, r->t_sample_ns + 3'000'000);
-    }
+    drive(run, plants, 3'000'000);
     EXPECT_TRUE(targets(*run.bus).empty());
     EXPECT_EQ(run.stage->counters().disabled.load(), plants.size());
     EXPECT_EQ(run.stage->counters().sent.load(), 0u);
@@ -254,12 +275,9 @@ TEST(ActuationStage, SlowPipelineMakesDeadlineMissesThatAreNeverSent)
     config.tools[0].offset_mm = 150;   // a tool close behind the camera
     config.max_extrapolation_ns = 2'000'000'000;
     Stage run = make_stage(config);
-    for (int k = 0; k < frames_for(plants); ++k) {
-        const auto r = frame(plants, k);
-        // 400 ms late: the machine has moved 556 mm since the capture, past
-        // every fire position (a plant is confirmed at most ~160 mm ahead).
-        run.stage->on_frame(*r, r->t_sample_ns + 400'000'000);
-    }
+    // 400 ms late: the machine has moved 556 mm since the capture, past
+    // every fire position (a plant is confirmed at most ~160 mm ahead).
+    drive(run, plants, 400'000'000);
     EXPECT_TRUE(targets(*run.bus).empty());
     EXPECT_EQ(run.stage->counters().deadline_misses.load(), plants.size());
     EXPECT_EQ(run.stage->counters().send_latency.total().count, 0u) << "nothing was sent";
@@ -294,10 +312,7 @@ TEST(ActuationStage, FramesWithoutOdometryAreNotActuated)
 {
     const auto plants = strip(5);
     Stage run = make_stage(base_config());   // odometry.source: recording
-    for (int k = 0; k < frames_for(plants); ++k) {
-        const auto r = frame(plants, k, false, /*with_odom=*/false);
-        run.stage->on_frame(*r, r->t_sample_ns + 3'000'000);
-    }
+    drive(run, plants, 3'000'000, false, /*with_odom=*/false);
     EXPECT_TRUE(targets(*run.bus).empty());
     EXPECT_EQ(run.stage->counters().no_odometry.load(), static_cast<std::uint64_t>(frames_for(plants)));
 }
@@ -312,10 +327,7 @@ TEST(ActuationStage, AutoPolicyTreatsOnlyWeedsWithAClassMapAndEverythingWithout)
     config.policy = PolicyChoice::automatic;
     for (const bool class_map : {true, false}) {
         Stage run = make_stage(config);
-        for (int k = 0; k < frames_for(plants); ++k) {
-            const auto r = frame(plants, k, class_map);
-            run.stage->on_frame(*r, r->t_sample_ns + 3'000'000);
-        }
+        drive(run, plants, 3'000'000, class_map);
         const auto sent = targets(*run.bus);
         if (class_map) {
             EXPECT_EQ(sent.size(), weeds);
@@ -420,11 +432,6 @@ TEST(ActuationStage, HeartbeatEveryIntervalWithState)
     EXPECT_EQ(run.stage->counters().heartbeats.load(), 10u);
 }
 
-}  // namespace
-}  // namespace stemd::runtime
-
-namespace stemd::runtime {
-namespace {
 
 TEST(ActuationStage, ConstantSpeedOdometryNeverGoesStale)
 {
@@ -437,27 +444,14 @@ TEST(ActuationStage, ConstantSpeedOdometryNeverGoesStale)
     config.odometry = OdometrySource::constant;
     config.speed_mm_per_s = kSpeed;
     Stage run = make_stage(config);
-    for (int k = 0; k < frames_for(plants); ++k) {
-        const auto r = frame(plants, k, false, /*with_odom=*/false);
-        run.stage->on_frame(*r, r->t_sample_ns + 400'000'000);
-    }
+    drive(run, plants, 400'000'000, false, /*with_odom=*/false);
     EXPECT_EQ(run.stage->counters().no_odometry.load(), 0u);
     EXPECT_EQ(targets(*run.bus).size(), plants.size());
     // The constant odometer starts at 0 with the first frame, like the
     // recording's: the fire positions are the same.
-    for (const auto& t : targets(*run.bus)) {
-        bool found = false;
-        for (const Plant& p : plants)
-            found = found || std::abs(t.fire_odom_mm - (p.s_mm + 600.0)) <= 1.0;
-        EXPECT_TRUE(found) << t.fire_odom_mm;
-    }
+    expect_at_fire_positions(targets(*run.bus), plants, 600, 1.0);
 }
 
-}  // namespace
-}  // namespace stemd::runtime
-
-namespace stemd::runtime {
-namespace {
 
 TEST(ActuationStage, WheelEncoderOdometry)
 {
@@ -467,21 +461,8 @@ TEST(ActuationStage, WheelEncoderOdometry)
     ActuationConfig config = base_config();
     config.odometry = OdometrySource::encoder;
     config.encoder_mm_per_tick = 0.1;
-    Stage run;
-    {
-        ActuationStage::Parts parts;
-        auto bus = std::make_unique<FakeBus>();
-        run.bus = bus.get();
-        parts.bus = std::move(bus);
-        auto gpio = std::make_unique<FakeGpio>();
-        gpio->encoder_mode_value = drivers::EncoderMode::quadrature;
-        run.gpio = gpio.get();
-        parts.gpio = std::move(gpio);
-        std::string error;
-        run.stage = ActuationStage::make(config, nadir_camera(), kSize, std::move(parts),
-                                         runtime::make_logger("actuator-test"), error);
-        ASSERT_TRUE(run.stage) << error;
-    }
+    Stage run = make_stage(config, true, drivers::EncoderMode::quadrature);
+    ASSERT_TRUE(run.stage);
     const int n = frames_for(plants);
     for (std::int64_t t = kT0 - 20'000'000, k = 0; k < n; t += 5'000'000) {
         // 5 km/h: ticks of 0.1 mm.
@@ -495,12 +476,7 @@ TEST(ActuationStage, WheelEncoderOdometry)
     }
     const auto sent = targets(*run.bus);
     ASSERT_EQ(sent.size(), plants.size());
-    for (const auto& t : sent) {
-        bool found = false;
-        for (const Plant& p : plants)   // encoder offset 50000 ticks = 5000 mm
-            found = found || std::abs(t.fire_odom_mm - (p.s_mm + 5000.0 + 600.0)) <= 2.0;
-        EXPECT_TRUE(found) << t.fire_odom_mm;
-    }
+    expect_at_fire_positions(sent, plants, 5000 + 600, 2.0);   // encoder offset 50000 ticks = 5000 mm
 }
 
 TEST(ActuationStage, EncoderOdometryWithoutAnEncoderIsRefused)
@@ -515,11 +491,6 @@ TEST(ActuationStage, EncoderOdometryWithoutAnEncoderIsRefused)
     EXPECT_NE(error.find("encoder"), std::string::npos) << error;
 }
 
-}  // namespace
-}  // namespace stemd::runtime
-
-namespace stemd::runtime {
-namespace {
 
 TEST(ActuationStage, PlantsCutByTheAlongTrackBordersAreNotTrackedButLateralOnesAre)
 {
@@ -547,11 +518,6 @@ TEST(ActuationStage, PlantsCutByTheAlongTrackBordersAreNotTrackedButLateralOnesA
     EXPECT_EQ(run.stage->counters().targets.load(), 2u);
 }
 
-}  // namespace
-}  // namespace stemd::runtime
-
-namespace stemd::runtime {
-namespace {
 
 TEST(ActuationStage, FailedHeartbeatsAreNotCountedAsDroppedTargets)
 {
@@ -598,11 +564,6 @@ TEST(ActuationStage, HeartbeatKeepsItsCadenceWhenPollsComeLate)
     }
 }
 
-}  // namespace
-}  // namespace stemd::runtime
-
-namespace stemd::runtime {
-namespace {
 
 // The recording's odometer handed over at capture (the daemon's capture
 // thread does) keeps the actuator's odometer as fresh as the camera, so a
@@ -632,12 +593,7 @@ TEST(ActuationStage, RecordingOdometerGivenAtCaptureOutlivesASlowPipeline)
     }
     EXPECT_EQ(at_capture.stage->counters().no_odometry.load(), 0u);
     EXPECT_EQ(targets(*at_capture.bus).size(), plants.size());
-    for (const auto& t : targets(*at_capture.bus)) {
-        bool found = false;
-        for (const Plant& p : plants)
-            found = found || std::abs(t.fire_odom_mm - (p.s_mm + 600.0)) <= 1.0;
-        EXPECT_TRUE(found) << t.fire_odom_mm;
-    }
+    expect_at_fire_positions(targets(*at_capture.bus), plants, 600, 1.0);
     EXPECT_TRUE(targets(*with_result.bus).empty());
     EXPECT_EQ(with_result.stage->counters().no_odometry.load(), plants.size());
 }

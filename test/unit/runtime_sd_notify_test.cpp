@@ -15,7 +15,17 @@ using stemd::runtime::SystemdNotifier;
 
 namespace {
 
-// A bound datagram socket; `name` starting with '@' is abstract.
+class Env {
+public:
+    Env(const char* key, const std::string& value) : key_(key) { ::setenv(key, value.c_str(), 1); }
+    ~Env() { ::unsetenv(key_); }
+
+private:
+    const char* key_;
+};
+
+// A bound datagram socket; `name` starting with '@' is abstract. Named in
+// NOTIFY_SOCKET while it lives, as systemd names its socket to a service.
 class FakeSystemd {
 public:
     explicit FakeSystemd(const std::string& name) : name_(name)
@@ -53,15 +63,7 @@ private:
     std::string name_;
     int fd_ = -1;
     bool bound_ = false;
-};
-
-class Env {
-public:
-    Env(const char* key, const std::string& value) : key_(key) { ::setenv(key, value.c_str(), 1); }
-    ~Env() { ::unsetenv(key_); }
-
-private:
-    const char* key_;
+    Env notify_socket_{"NOTIFY_SOCKET", name_};
 };
 
 }  // namespace
@@ -80,7 +82,6 @@ TEST(SdNotify, SendsToAPathSocket)
     const std::string path = "/tmp/stemd-notify-test-" + std::to_string(::getpid());
     FakeSystemd systemd(path);
     ASSERT_TRUE(systemd.bound());
-    const Env env("NOTIFY_SOCKET", path);
     SystemdNotifier n;
     ASSERT_TRUE(n.enabled()) << n.error();
     EXPECT_TRUE(n.notify("READY=1"));
@@ -94,7 +95,6 @@ TEST(SdNotify, SendsToAnAbstractSocket)
     const std::string name = "@stemd-notify-test-" + std::to_string(::getpid());
     FakeSystemd systemd(name);
     ASSERT_TRUE(systemd.bound());
-    const Env env("NOTIFY_SOCKET", name);
     SystemdNotifier n;
     EXPECT_TRUE(n.notify("WATCHDOG=1"));
     EXPECT_EQ(systemd.receive(), "WATCHDOG=1");

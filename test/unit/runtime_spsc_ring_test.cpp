@@ -8,19 +8,12 @@
 #include <thread>
 #include <vector>
 
+#include "big_item.hpp"
 #include "stemd/base/spsc_ring.hpp"
 
 using stemd::base::SpscRing;
 
-namespace {
-
-// A large item, built in place (like FrameResult).
-struct Big {
-    std::uint64_t seq = 0;
-    std::array<std::uint64_t, 64> payload{};
-};
-
-}  // namespace
+using Big = stemd::test::BigItem<64>;
 
 TEST(SpscRing, RejectsZeroCapacity)
 {

@@ -9,18 +9,12 @@
 #include <thread>
 #include <vector>
 
+#include "big_item.hpp"
 #include "stemd/base/triple_buffer.hpp"
 
 using stemd::base::TripleBuffer;
 
-namespace {
-
-struct Big {
-    std::uint64_t seq = 0;
-    std::array<std::uint64_t, 256> payload{};
-};
-
-}  // namespace
+using Big = stemd::test::BigItem<256>;
 
 TEST(TripleBuffer, NothingToTakeBeforeThePublication)
 {

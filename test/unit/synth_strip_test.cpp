@@ -12,6 +12,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "synth_test_util.hpp"
 #include "stemd/eval/eval.hpp"
 #include "stemd/geometry/camera_model.hpp"
 #include "stemd/geometry/field.hpp"
@@ -23,12 +24,8 @@ using namespace stemd::synth;
 
 namespace {
 
-bool same_bytes(const cv::Mat& a, const cv::Mat& b)
-{
-    if (a.size() != b.size() || a.type() != b.type() || !a.isContinuous() || !b.isContinuous())
-        return false;
-    return std::memcmp(a.data, b.data, a.total() * a.elemSize()) == 0;
-}
+using stemd::test::expect_same_planes;
+using stemd::test::same_bytes;
 
 StripOptions options(Preset preset, double length_mm, std::uint64_t seed = 11)
 {
@@ -73,9 +70,7 @@ TEST(SynthStrip, SameOptionsGiveSameBytes)
     const StripOptions o = options(Preset::dense, 400, 5);
     const Strip a = generate_strip(o), b = generate_strip(o);
     ASSERT_EQ(a.frame_count, b.frame_count);
-    EXPECT_TRUE(same_bytes(a.bgr, b.bgr));
-    EXPECT_TRUE(same_bytes(a.nir, b.nir));
-    EXPECT_TRUE(same_bytes(a.mask, b.mask));
+    expect_same_planes(a, b);
     EXPECT_TRUE(same_bytes(a.plant_class, b.plant_class));
     ASSERT_EQ(a.plants.size(), b.plants.size());
     for (std::size_t i = 0; i < a.plants.size(); ++i) {

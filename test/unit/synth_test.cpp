@@ -7,6 +7,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "synth_test_util.hpp"
 #include "stemd/synth/synth.hpp"
 
 using namespace stemd::synth;
@@ -25,12 +26,8 @@ Frame make(Preset preset, std::uint64_t seed, int index, double fragmentation = 
     return generate_frame(options, index);
 }
 
-bool same_bytes(const cv::Mat& a, const cv::Mat& b)
-{
-    if (a.size() != b.size() || a.type() != b.type() || !a.isContinuous() || !b.isContinuous())
-        return false;
-    return std::memcmp(a.data, b.data, a.total() * a.elemSize()) == 0;
-}
+using stemd::test::expect_same_planes;
+using stemd::test::same_bytes;
 
 // Connected regions of the mask (8-connected), as the detector sees them.
 struct Regions {
@@ -93,9 +90,7 @@ TEST(SynthDeterminism, SameInputsGiveSameBytes)
 {
     const Frame a = make(Preset::dense, 42, 3);
     const Frame b = make(Preset::dense, 42, 3);
-    EXPECT_TRUE(same_bytes(a.bgr, b.bgr));
-    EXPECT_TRUE(same_bytes(a.nir, b.nir));
-    EXPECT_TRUE(same_bytes(a.mask, b.mask));
+    expect_same_planes(a, b);
     ASSERT_EQ(a.stems.size(), b.stems.size());
     for (std::size_t i = 0; i < a.stems.size(); ++i) {
         EXPECT_EQ(a.stems[i].x_px, b.stems[i].x_px);

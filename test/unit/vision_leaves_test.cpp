@@ -64,13 +64,23 @@ TEST(Hull, SameVerticesAsOpenCv)
     }
 }
 
+namespace {
+
+// The contour's convexity defects deeper than min_depth_px.
+std::vector<Defect> defects_of(const std::vector<cv::Point>& contour, float min_depth_px)
+{
+    std::vector<Defect> defects;
+    defects.reserve(64);
+    convexity_defects(contour, hull_of(contour), min_depth_px, defects);
+    return defects;
+}
+
+}  // namespace
+
 TEST(Defects, PlusShapeHasFourDeepCuts)
 {
     const auto contour = largest_contour(plus_mask());
-    const auto hull = hull_of(contour);
-    std::vector<Defect> defects;
-    defects.reserve(64);
-    convexity_defects(contour, hull, 5.0f, defects);
+    const auto defects = defects_of(contour, 5.0f);
     ASSERT_EQ(defects.size(), 4u);
     for (const auto& d : defects) {
         const cv::Point cut = contour[static_cast<std::size_t>(d.deepest)];
@@ -93,11 +103,7 @@ TEST(Defects, PlusShapeHasFourDeepCuts)
 
 TEST(Defects, ThresholdIsStrict)
 {
-    const auto contour = largest_contour(plus_mask());
-    const auto hull = hull_of(contour);
-    std::vector<Defect> defects;
-    defects.reserve(64);
-    convexity_defects(contour, hull, 100.0f, defects);
+    const auto defects = defects_of(largest_contour(plus_mask()), 100.0f);
     EXPECT_TRUE(defects.empty());
 }
 

@@ -164,14 +164,25 @@ std::vector<std::uint8_t> frame_at(const cv::Mat& field, double odom_mm, const v
   return out;
 }
 
-void feed(const std::string& cap_dev, const std::string& out_dev, std::vector<std::string> cmd) {
-  std::signal(SIGUSR1, on_signal);
+// SIGTERM and SIGINT end a feeder's loop.
+void stop_on_signals() {
   std::signal(SIGTERM, on_signal);
   std::signal(SIGINT, on_signal);
-  const cv::Mat field = draw_field();
-  stemd::vmprobe::VividLoopback loop(cap_dev, out_dev);
+}
+
+// The loopback's output as BGR24 at the vivid size; its format as set.
+v4l2_pix_format bgr_output(stemd::vmprobe::VividLoopback& loop, const std::string& out_dev) {
   const v4l2_pix_format pix = loop.set_output_format(V4L2_PIX_FMT_BGR24, kWidth, kHeight);
   if (pix.bytesperline < kWidth * 3) fail(out_dev + ": bytesperline " + std::to_string(pix.bytesperline));
+  return pix;
+}
+
+void feed(const std::string& cap_dev, const std::string& out_dev, std::vector<std::string> cmd) {
+  std::signal(SIGUSR1, on_signal);
+  stop_on_signals();
+  const cv::Mat field = draw_field();
+  stemd::vmprobe::VividLoopback loop(cap_dev, out_dev);
+  const v4l2_pix_format pix = bgr_output(loop, out_dev);
   const auto soil = frame_at(field, kStripBottomMm - 2 * kHalfViewMm, pix);  // bottom of the strip: no plant
   // Two output buffers, vivid's least: an image is shown after those queued
   // before it, and on a loaded host vivid takes them at a few per second, so
@@ -234,12 +245,10 @@ void feed(const std::string& cap_dev, const std::string& out_dev, std::vector<st
 // enabled and has frames). A lost device (the camera unplugged) ends it
 // with an error, as a feeder whose output node is gone.
 void loop_feed(const std::string& cap_dev, const std::string& out_dev) {
-  std::signal(SIGTERM, on_signal);
-  std::signal(SIGINT, on_signal);
+  stop_on_signals();
   const cv::Mat field = draw_field();
   stemd::vmprobe::VividLoopback loop(cap_dev, out_dev);
-  const v4l2_pix_format pix = loop.set_output_format(V4L2_PIX_FMT_BGR24, kWidth, kHeight);
-  if (pix.bytesperline < kWidth * 3) fail(out_dev + ": bytesperline " + std::to_string(pix.bytesperline));
+  const v4l2_pix_format pix = bgr_output(loop, out_dev);
   const auto soil = frame_at(field, kStripBottomMm - 2 * kHalfViewMm, pix);
   loop.start(soil, 2);  // as feed()
   info("ready: " + out_dev + " -> " + cap_dev + " BGR24 640x480, the field over and over");

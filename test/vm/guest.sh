@@ -14,6 +14,8 @@
 
 # A check that hangs is killed after this (its own waits end long before).
 check_timeout=400
+# The checks that run their probe step by step give each step this long.
+step_timeout=120
 
 mode=$1
 shift
@@ -55,24 +57,82 @@ within() {
   done
 }
 
-# --- SocketCAN on vcan0 ------------------------------------------------------
-check_can() {
-  [ -n "$can" ] || skip "can probe not built"
+# value_of KEY ARGS...: the value of KEY=VALUE among ARGS (empty when absent).
+value_of() {
+  _key=$1
+  shift
+  for kv in "$@"; do
+    case $kv in "$_key"=*) echo "${kv#*=}" ;; esac
+  done
+}
+# vcan_up: vcan0 up, created unless a check before did.
+vcan_up() {
   modprobe can-raw && modprobe vcan || die "modprobe can-raw vcan"
-  ip link add dev vcan0 type vcan && ip link set vcan0 up || die "creating vcan0"
-
-  echo "== probe sends, candump receives"
-  frame=1A5#0102030405060708
-  hostrun candump -L -n 1 -T 5000 vcan0 > /tmp/candump.out 2>&1 &
+  ip link show vcan0 > /dev/null 2>&1 || ip link add dev vcan0 type vcan || die "creating vcan0"
+  ip link set vcan0 up || die "vcan0 up"
+}
+# candump is ready once its socket is on vcan0's receive list; sending
+# earlier would lose the frame.
+# candump_one OUT: candump for one frame (5 s at most) in the background ($dump).
+candump_one() {
+  hostrun candump -L -n 1 -T 5000 vcan0 > "$1" 2>&1 &
   dump=$!
-  # candump is ready once its socket is on vcan0's receive list; sending
-  # earlier would lose the frame.
   n=0
   until grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all; do
     n=$((n + 1))
     [ $n -le 100 ] || die "candump did not start listening on vcan0"
     sleep 0.05
   done
+}
+# candump_start LOG ERR: candump line-buffered (stdbuf -oL: each line reaches
+# LOG as it comes) in the background ($dump).
+candump_start() {
+  hostrun stdbuf -oL candump -L vcan0 > "$1" 2> "$2" &
+  dump=$!
+  within 60 grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all || die "candump did not start listening on vcan0"
+}
+# mount_configfs: configfs only once gpio-sim is loaded; a check before may
+# have mounted it.
+mount_configfs() {
+  grep -q ' /sys/kernel/config configfs ' /proc/mounts ||
+    mount -t configfs none /sys/kernel/config || die "mount configfs"
+}
+# sim_chip NAME NUM_LINES LABEL N:NAME...: a live gpio-sim chip ($c: its
+# configfs directory, $chip: its name, $sim: its sysfs directory), labelled
+# LABEL unless that is empty, line N named NAME. configfs only once gpio-sim
+# is loaded, or its directory is missing.
+sim_chip() {
+  modprobe gpio-sim || die "modprobe gpio-sim"
+  mount_configfs
+  c=/sys/kernel/config/gpio-sim/$1
+  mkdir "$c" "$c/bank0" || die "gpio-sim configfs"
+  echo "$2" > "$c/bank0/num_lines"
+  [ -z "$3" ] || echo "$3" > "$c/bank0/label"
+  shift 3
+  for l in "$@"; do
+    mkdir "$c/bank0/line${l%%:*}" && echo "${l#*:}" > "$c/bank0/line${l%%:*}/name"
+  done
+  echo 1 > "$c/live" || die "gpio-sim: going live"
+  chip=$(cat "$c/bank0/chip_name")
+  sim=/sys/devices/platform/$(cat "$c/dev_name")/$chip
+}
+# mark_udev_initialized: libcamera only takes devices udev has "initialized";
+# there is no udev here, so write that mark into the (tmpfs) udev database
+# for every node.
+mark_udev_initialized() {
+  for d in /sys/class/video4linux/* /sys/bus/media/devices/* /sys/class/v4l-subdev/*; do
+    [ -e "$d/dev" ] && echo "I:1" > "/host/run/udev/data/c$(cat "$d/dev")"
+  done
+}
+
+# --- SocketCAN on vcan0 ------------------------------------------------------
+check_can() {
+  [ -n "$can" ] || skip "can probe not built"
+  vcan_up
+
+  echo "== probe sends, candump receives"
+  frame=1A5#0102030405060708
+  candump_one /tmp/candump.out
   hostrun "$can" send vcan0 "$frame" || die "can probe send"
   wait $dump || die "candump exited $? ($(cat /tmp/candump.out))"
   echo "candump: $(cat /tmp/candump.out)"
@@ -107,18 +167,7 @@ check_v4l2() {
 # --- GPIO on gpio-sim ----------------------------------------------------------
 check_gpio() {
   [ -n "$gpio" ] || skip "gpio probe not built: libgpiod-dev (1.x) was missing when CMake configured"
-  modprobe gpio-sim || die "modprobe gpio-sim"
-  # configfs only once gpio-sim is loaded, or its directory is missing.
-  mount -t configfs none /sys/kernel/config || die "mount configfs"
-  c=/sys/kernel/config/gpio-sim/stemd
-  mkdir "$c" "$c/bank0" || die "gpio-sim configfs"
-  echo 4 > "$c/bank0/num_lines"
-  for l in 0:valve_out 1:endstop_in 2:spare_in; do
-    mkdir "$c/bank0/line${l%%:*}" && echo "${l#*:}" > "$c/bank0/line${l%%:*}/name"
-  done
-  echo 1 > "$c/live" || die "gpio-sim: going live"
-  chip=$(cat "$c/bank0/chip_name")
-  sim=/sys/devices/platform/$(cat "$c/dev_name")/$chip
+  sim_chip stemd 4 "" 0:valve_out 1:endstop_in 2:spare_in
   echo "gpio-sim chip $chip, sysfs $sim"
 
   echo "== edges on $chip line 1 from gpio-sim pulls"
@@ -142,21 +191,14 @@ check_gpio() {
 check_libcamera() {
   [ -n "$libcamera" ] || skip "libcamera probe not built: libcamera-dev was missing when CMake configured"
   modprobe vimc || die "modprobe vimc"
-  # libcamera only takes devices udev has "initialized"; there is no udev
-  # here, so write that mark into the (tmpfs) udev database for every node.
-  for d in /sys/class/video4linux/* /sys/bus/media/devices/* /sys/class/v4l-subdev/*; do
-    [ -e "$d/dev" ] && echo "I:1" > "/host/run/udev/data/c$(cat "$d/dev")"
-  done
+  mark_udev_initialized
   echo "== list cameras and grab a frame"
   hostrun env LIBCAMERA_LOG_LEVELS='*:ERROR' "$libcamera" vimc || die "libcamera probe"
 }
 
 # --- v4l2_source: the project's V4L2 source (drivers/v4l2) on vivid loopback ---
 # KEY v4l2_source: host path of stemd-vm-v4l2-source-check.
-v4l2_source=
-for kv in "$@"; do
-  case $kv in v4l2_source=*) v4l2_source=${kv#v4l2_source=} ;; esac
-done
+v4l2_source=$(value_of v4l2_source "$@")
 check_v4l2_source() {
   [ -n "$v4l2_source" ] || skip "v4l2_source check not built"
   # Same vivid instance as check_v4l2 (a no-op if that check loaded it).
@@ -172,23 +214,16 @@ extra_checks="$extra_checks v4l2_source"
 
 # --- socketcan: the project's SocketCAN driver (drivers/socketcan) on vcan0 ---
 # KEY socketcan: host path of stemd-vm-socketcan-check. Each step has its own
-# timeout (socketcan_timeout), well inside check_timeout.
-socketcan=
-for kv in "$@"; do
-  case $kv in socketcan=*) socketcan=${kv#socketcan=} ;; esac
-done
-socketcan_timeout=120
+# timeout (step_timeout), well inside check_timeout.
+socketcan=$(value_of socketcan "$@")
 check_socketcan() {
   [ -n "$socketcan" ] || skip "socketcan check not built"
-  sc() { timeout -s KILL "$socketcan_timeout" hostrun "$socketcan" "$@"; }
+  sc() { timeout -s KILL "$step_timeout" hostrun "$socketcan" "$@"; }
   # Precomputed with the protocol encoder (E2E CRC + counter): a change in
   # the encoder or the driver shows up as a mismatch.
   target=301#3223D254400DFFBA    # TARGET id 1234, tool 2, lane 5, fire 200000 mm, -321 mm, weed; counter 3
   odometry=300#3D0706120F0024FA  # ODOMETRY 987654 mm, -1500 mm/s; counter 7
-  modprobe can-raw && modprobe vcan || die "modprobe can-raw vcan"
-  # check_can may have created vcan0 already.
-  ip link show vcan0 > /dev/null 2>&1 || ip link add dev vcan0 type vcan || die "creating vcan0"
-  ip link set vcan0 up || die "vcan0 up"
+  vcan_up
 
   echo "== the protocol encoder gives the precomputed frames"
   sc frames > /tmp/sc_frames.out 2>&1 || die "socketcan-check frames ($(cat /tmp/sc_frames.out))"
@@ -197,14 +232,7 @@ check_socketcan() {
   grep -qx "odometry $odometry" /tmp/sc_frames.out || die "ODOMETRY encodes differently from $odometry"
 
   echo "== SocketCanBus sends an E2E TARGET, candump receives"
-  hostrun candump -L -n 1 -T 5000 vcan0 > /tmp/sc_candump.out 2>&1 &
-  dump=$!
-  n=0
-  until grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all; do
-    n=$((n + 1))
-    [ $n -le 100 ] || die "candump did not start listening on vcan0"
-    sleep 0.05
-  done
+  candump_one /tmp/sc_candump.out
   sc send vcan0 || die "SocketCanBus send"
   wait $dump || die "candump exited $? ($(cat /tmp/sc_candump.out))"
   echo "candump: $(cat /tmp/sc_candump.out)"
@@ -223,18 +251,13 @@ extra_checks="$extra_checks socketcan"
 
 # --- libcamera_source: the project's libcamera source (drivers/libcamera) on vimc ---
 # KEY libcamera_source: host path of stemd-vm-libcamera-source-check.
-libcamera_source=
-for kv in "$@"; do
-  case $kv in libcamera_source=*) libcamera_source=${kv#libcamera_source=} ;; esac
-done
+libcamera_source=$(value_of libcamera_source "$@")
 check_libcamera_source() {
   [ -n "$libcamera_source" ] || skip "libcamera_source check not built: libcamera-dev was missing when CMake configured"
   # As check_libcamera (a no-op if that check did it): vimc, and the udev
   # "initialized" mark libcamera needs for every node.
   modprobe vimc || die "modprobe vimc"
-  for d in /sys/class/video4linux/* /sys/bus/media/devices/* /sys/class/v4l-subdev/*; do
-    [ -e "$d/dev" ] && echo "I:1" > "/host/run/udev/data/c$(cat "$d/dev")"
-  done
+  mark_udev_initialized
   echo "== LibcameraSource on vimc: colour bars, timestamps, counters, reopen by id"
   hostrun env LIBCAMERA_LOG_LEVELS='*:ERROR' "$libcamera_source" capture vimc "$out" || die "LibcameraSource on vimc"
 }
@@ -245,30 +268,13 @@ extra_checks="$extra_checks libcamera_source"
 # (configfs "stemd_gpiod": 0 cam_trigger, 1 enable, 2 enc_a, 3 enc_b), so it
 # does not depend on check_gpio. The check runs each pull or toggle itself,
 # one edge at a time (libgpiod 1.6 reads an edge's level late: see
-# tools/vm/README.md). Each step has its own timeout (gpiod_timeout).
-gpiod=
-for kv in "$@"; do
-  case $kv in gpiod=*) gpiod=${kv#gpiod=} ;; esac
-done
-gpiod_timeout=120
+# tools/vm/README.md). Each step has its own timeout (step_timeout).
+gpiod=$(value_of gpiod "$@")
 check_gpiod() {
   [ -n "$gpiod" ] || skip "gpiod check not built: libgpiod-dev (1.x) was missing when CMake configured"
-  gc() { timeout -s KILL "$gpiod_timeout" hostrun "$gpiod" "$@"; }
-  modprobe gpio-sim || die "modprobe gpio-sim"
-  # configfs only once gpio-sim is loaded; check_gpio may have mounted it.
-  grep -q ' /sys/kernel/config configfs ' /proc/mounts ||
-    mount -t configfs none /sys/kernel/config || die "mount configfs"
-  c=/sys/kernel/config/gpio-sim/stemd_gpiod
-  mkdir "$c" "$c/bank0" || die "gpio-sim configfs"
-  echo 4 > "$c/bank0/num_lines"
+  gc() { timeout -s KILL "$step_timeout" hostrun "$gpiod" "$@"; }
   # A fixed label: the chip may come back under another number (see "lost").
-  echo stemd-gpiod > "$c/bank0/label"
-  for l in 0:cam_trigger 1:enable 2:enc_a 3:enc_b; do
-    mkdir "$c/bank0/line${l%%:*}" && echo "${l#*:}" > "$c/bank0/line${l%%:*}/name"
-  done
-  echo 1 > "$c/live" || die "gpio-sim: going live"
-  chip=$(cat "$c/bank0/chip_name")
-  sim=/sys/devices/platform/$(cat "$c/dev_name")/$chip
+  sim_chip stemd_gpiod 4 stemd-gpiod 0:cam_trigger 1:enable 2:enc_a 3:enc_b
   echo "gpio-sim chip $chip, sysfs $sim"
 
   for al in 0 1; do
@@ -314,9 +320,7 @@ extra_checks="$extra_checks gpiod"
 check_libcamera_reopen() {
   [ -n "$libcamera_source" ] || skip "libcamera_source check not built: libcamera-dev was missing when CMake configured"
   modprobe vimc || die "modprobe vimc"
-  for d in /sys/class/video4linux/* /sys/bus/media/devices/* /sys/class/v4l-subdev/*; do
-    [ -e "$d/dev" ] && echo "I:1" > "/host/run/udev/data/c$(cat "$d/dev")"
-  done
+  mark_udev_initialized
   [ -e /sys/bus/platform/drivers/vimc/vimc.0 ] || die "vimc.0 is not bound to vimc"
   echo "== LibcameraSource: vimc.0 unbound while streaming (timeouts, backoff), bound again (frames resume)"
   hostrun env LIBCAMERA_LOG_LEVELS='*:ERROR' "$libcamera_source" unplug vimc "$out" -- sh -c '
@@ -340,10 +344,7 @@ extra_checks="$extra_checks libcamera_reopen"
 # RGB scene (BGR24), instance 001 the NIR scene (GREY); each has its own
 # output -> capture loopback. After the other vivid checks: it reloads vivid
 # with two instances (they loaded one).
-paired_nir=
-for kv in "$@"; do
-  case $kv in paired_nir=*) paired_nir=${kv#paired_nir=} ;; esac
-done
+paired_nir=$(value_of paired_nir "$@")
 check_paired_nir() {
   [ -n "$paired_nir" ] || skip "paired_nir check not built"
   if grep -q '^vivid ' /proc/modules; then rmmod vivid || die "rmmod vivid"; fi
@@ -364,31 +365,16 @@ extra_checks="$extra_checks paired_nir"
 # speed; sends on vcan0 (candump -L records it); its enable input is line 0
 # of its own gpio-sim chip. The check pulls that line down between the two
 # groups of plants. Last: it takes vivid as the checks before left it.
-daemon=; stemd=
-for kv in "$@"; do
-  case $kv in
-    daemon=*) daemon=${kv#daemon=} ;;
-    stemd=*) stemd=${kv#stemd=} ;;
-  esac
-done
+daemon=$(value_of daemon "$@")
+stemd=$(value_of stemd "$@")
 check_daemon() {
   [ -n "$daemon" ] && [ -n "$stemd" ] || skip "daemon check not built: libgpiod-dev (1.x) was missing when CMake configured"
   grep -q '^vivid ' /proc/modules || modprobe vivid n_devs=1 node_types=0x101 || die "modprobe vivid"
   cap=$(v4l_node vivid-000-vid-cap) || die "no vivid capture node"
   outn=$(v4l_node vivid-000-vid-out) || die "no vivid output node"
-  modprobe can-raw && modprobe vcan || die "modprobe can-raw vcan"
-  ip link show vcan0 > /dev/null 2>&1 || ip link add dev vcan0 type vcan || die "creating vcan0"
-  ip link set vcan0 up || die "vcan0 up"
-  modprobe gpio-sim || die "modprobe gpio-sim"
-  grep -q ' /sys/kernel/config configfs ' /proc/mounts ||
-    mount -t configfs none /sys/kernel/config || die "mount configfs"
-  c=/sys/kernel/config/gpio-sim/stemd_daemon
-  mkdir "$c" "$c/bank0" "$c/bank0/line0" || die "gpio-sim configfs"
-  echo 2 > "$c/bank0/num_lines"
-  echo enable > "$c/bank0/line0/name"
-  echo 1 > "$c/live" || die "gpio-sim: going live"
-  chip=$(cat "$c/bank0/chip_name")
-  pull=/sys/devices/platform/$(cat "$c/dev_name")/$chip/sim_gpio0/pull
+  vcan_up
+  sim_chip stemd_daemon 2 "" 0:enable
+  pull=$sim/sim_gpio0/pull
   echo pull-up > "$pull" || die "pull-up enable"
   echo "vivid $outn -> $cap, vcan0, gpio-sim $chip line 0 (enable) pulled up"
 
@@ -397,10 +383,7 @@ check_daemon() {
   feeder=$!
   within 120 grep -q '^ready' /tmp/feeder.log || die "feeder did not get ready: $(cat /tmp/feeder.log)"
   echo "t=$(uptime_s) s: $(cat /tmp/feeder.log)"
-  hostrun stdbuf -oL candump -L vcan0 > /tmp/daemon.candump 2> /tmp/candump.err &
-  dump=$!
-  # As check_can: candump is ready once its socket is on vcan0's receive list.
-  within 60 grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all || die "candump did not start listening on vcan0"
+  candump_start /tmp/daemon.candump /tmp/candump.err
   sets=
   for s in $(hostrun "$daemon" config) source.v4l2_device="$cap" can.interface=vcan0 gpio.chip="$chip" gpio.enable_line=0; do
     sets="$sets --set $s"
@@ -539,18 +522,8 @@ check_faults() {
   vivid_dev=$(ls /sys/bus/platform/drivers/vivid | grep '^vivid') || die "vivid's platform device"
   cap=$(v4l_node vivid-000-vid-cap) || die "no vivid capture node"
   outn=$(v4l_node vivid-000-vid-out) || die "no vivid output node"
-  modprobe can-raw && modprobe vcan || die "modprobe can-raw vcan"
-  ip link show vcan0 > /dev/null 2>&1 || ip link add dev vcan0 type vcan || die "creating vcan0"
-  ip link set vcan0 up || die "vcan0 up"
-  modprobe gpio-sim || die "modprobe gpio-sim"
-  grep -q ' /sys/kernel/config configfs ' /proc/mounts ||
-    mount -t configfs none /sys/kernel/config || die "mount configfs"
-  c=/sys/kernel/config/gpio-sim/stemd_faults
-  mkdir "$c" "$c/bank0" "$c/bank0/line0" || die "gpio-sim configfs"
-  echo 2 > "$c/bank0/num_lines"
-  echo stemd-faults > "$c/bank0/label"
-  echo enable > "$c/bank0/line0/name"
-  echo 1 > "$c/live" || die "gpio-sim: going live"
+  vcan_up
+  sim_chip stemd_faults 2 stemd-faults 0:enable
   pull_up() { echo pull-up > "/sys/devices/platform/$(cat "$c/dev_name")/$(cat "$c/bank0/chip_name")/sim_gpio0/pull"; }
   pull_up || die "pull-up enable"
   echo "vivid $vivid_dev: $outn -> $cap, vcan0, gpio-sim $(cat "$c/bank0/chip_name") (stemd-faults) line 0 (enable) pulled up"
@@ -558,9 +531,7 @@ check_faults() {
   hostrun "$daemon" loop "$cap" "$outn" > /tmp/faults-feeder.log 2>&1 &
   feeder=$!
   within 120 grep -q '^ready' /tmp/faults-feeder.log || die "feeder did not get ready: $(cat /tmp/faults-feeder.log)"
-  hostrun stdbuf -oL candump -L vcan0 > /tmp/faults.candump 2> /tmp/faults-candump.err &
-  dump=$!
-  within 60 grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all || die "candump did not start listening on vcan0"
+  candump_start /tmp/faults.candump /tmp/faults-candump.err
   sets=
   for s in $(hostrun "$daemon" config) $fault_settings source.v4l2_device="$cap" can.interface=vcan0 gpio.chip=stemd-faults gpio.enable_line=0; do
     sets="$sets --set $s"
@@ -724,19 +695,12 @@ extra_checks="$extra_checks faults"
 # lane 5, fire_odom_mm 7000, weed; counter 0: 5 s of driving, room for a
 # slow emulated guest to send it in time). The strike must land 56 mm
 # (1.4 m/s x 40 ms) past it, reported on stdout and as TOOL_FIRED (base+4).
-toolsim=
-for kv in "$@"; do
-  case $kv in toolsim=*) toolsim=${kv#toolsim=} ;; esac
-done
+toolsim=$(value_of toolsim "$@")
 check_toolsim() {
   [ -n "$toolsim" ] || skip "stemd-toolsim not built"
   target=301#A820D254581B0080
-  modprobe can-raw && modprobe vcan || die "modprobe can-raw vcan"
-  ip link show vcan0 > /dev/null 2>&1 || ip link add dev vcan0 type vcan || die "creating vcan0"
-  ip link set vcan0 up || die "vcan0 up"
-  hostrun stdbuf -oL candump -L vcan0 > /tmp/toolsim.candump 2> /tmp/toolsim.candump.err &
-  dump=$!
-  within 60 grep -q '^ *vcan0 ' /proc/net/can/rcvlist_all || die "candump did not start listening on vcan0"
+  vcan_up
+  candump_start /tmp/toolsim.candump /tmp/toolsim.candump.err
   hostrun "$toolsim" --interface vcan0 --delay-ms 40 --speed-mm-per-s 1400 --duration-s 8 > /tmp/toolsim.out 2>&1 &
   sim=$!
   # It listens once it drives (its first ODOMETRY, 300#, is on the bus).

@@ -50,12 +50,8 @@
 
 namespace {
 
-using stemd::drivers::Frame;
-using stemd::drivers::LibcameraOptions;
-using stemd::drivers::LibcameraSource;
-using stemd::drivers::NextStatus;
-using stemd::vmprobe::fail;
-using stemd::vmprobe::info;
+using namespace stemd::drivers;
+using namespace stemd::vmprobe;
 
 // libcamera 0.0.3's vimc pipeline assumes the old x3 scaler and takes only
 // multiples of 6 (640x480 is adjusted to 636x480).

@@ -39,14 +39,8 @@
 
 namespace {
 
-using stemd::vmprobe::control_named;
-using stemd::vmprobe::fail;
-using stemd::vmprobe::info;
-using stemd::vmprobe::set_control;
-using stemd::vmprobe::VividLoopback;
+using namespace stemd::vmprobe;
 
-constexpr int kWidth = 640;
-constexpr int kHeight = 480;
 constexpr int kPassPairs = 20;   // phase 1: good pairs needed
 constexpr int kDropPairs = 30;   // phases 2, 3: pairs read while one side drops
 constexpr int kMaxCalls = 600;   // next() calls per phase at most
@@ -65,13 +59,13 @@ constexpr int kPlantRadius = 40;
 const cv::Rect kSoilPatch{8, 8, 24, 24};
 
 cv::Mat draw_rgb() {
-  cv::Mat bgr(kHeight, kWidth, CV_8UC3, cv::Scalar(kSoil[0], kSoil[1], kSoil[2]));
+  cv::Mat bgr(kVividHeight, kVividWidth, CV_8UC3, cv::Scalar(kSoil[0], kSoil[1], kSoil[2]));
   for (const cv::Point& p : kPlants) cv::circle(bgr, p, kPlantRadius, cv::Scalar(kLeaf[0], kLeaf[1], kLeaf[2]), cv::FILLED);
   return bgr;
 }
 
 cv::Mat draw_nir() {
-  cv::Mat grey(kHeight, kWidth, CV_8UC1, cv::Scalar(kNirSoil));
+  cv::Mat grey(kVividHeight, kVividWidth, CV_8UC1, cv::Scalar(kNirSoil));
   for (const cv::Point& p : kPlants) cv::circle(grey, p, kPlantRadius, cv::Scalar(kNirLeaf), cv::FILLED);
   return grey;
 }
@@ -106,11 +100,11 @@ class Loopback {
       : cap_dev_(cap_dev), loop_(cap_dev, out_dev) {
     drop_ctrl_ = control_named(loop_.cap_fd(), cap_dev, "Percentage of Dropped Buffers");
     drop_percent(0);
-    const v4l2_pix_format pix = loop_.set_output_format(fourcc, kWidth, kHeight);
+    const v4l2_pix_format pix = loop_.set_output_format(fourcc, kVividWidth, kVividHeight);
     const std::size_t row = static_cast<std::size_t>(image.cols) * image.elemSize();
-    if (pix.bytesperline < row || pix.sizeimage < pix.bytesperline * kHeight) fail(out_dev + ": unexpected stride");
+    if (pix.bytesperline < row || pix.sizeimage < pix.bytesperline * kVividHeight) fail(out_dev + ": unexpected stride");
     std::vector<std::uint8_t> bytes(pix.sizeimage, 0);
-    for (int y = 0; y < kHeight; ++y)
+    for (int y = 0; y < kVividHeight; ++y)
       std::memcpy(bytes.data() + static_cast<std::size_t>(y) * pix.bytesperline, image.ptr(y), row);
     loop_.start(std::move(bytes), 6);  // vivid holds one while it shows it; several so a slow loop does not starve it
   }
@@ -144,15 +138,15 @@ void loop(const std::string& rgb_cap, const std::string& rgb_out, const std::str
   Loopback nir_loop(nir_cap, nir_out, V4L2_PIX_FMT_GREY, nir_scene);
 
   stemd::drivers::Frame slot;
-  slot.bgr = cv::Mat(kHeight, kWidth, CV_8UC3, cv::Scalar::all(0));
-  slot.nir = cv::Mat(kHeight, kWidth, CV_8UC1, cv::Scalar::all(0));
+  slot.bgr = cv::Mat(kVividHeight, kVividWidth, CV_8UC3, cv::Scalar::all(0));
+  slot.nir = cv::Mat(kVividHeight, kVividWidth, CV_8UC1, cv::Scalar::all(0));
   const std::uint8_t* const bgr_data = slot.bgr.data;
   const std::uint8_t* const nir_data = slot.nir.data;
   auto log = spdlog::stdout_logger_mt("paired");
   stemd::drivers::PairedNirOptions options;
   options.rgb.device = rgb_cap;
   options.rgb.pixel_format = stemd::drivers::V4l2PixelFormat::bgr24;
-  options.rgb.size = {kWidth, kHeight};
+  options.rgb.size = {kVividWidth, kVividHeight};
   options.rgb.fps = 60;
   options.nir.device = nir_cap;
   options.nir.fps = 60;
@@ -213,20 +207,19 @@ void loop(const std::string& rgb_cap, const std::string& rgb_out, const std::str
                    static_cast<double>(min_offset) / 1e6, static_cast<double>(max_offset) / 1e6, counters_text(cs)));
   c0 = cs;
 
-  info("== vivid drops 50% of the NIR device's buffers");
-  nir_loop.drop_percent(50);
-  read_pairs("NIR drops", kDropPairs);
-  nir_loop.drop_percent(0);
-  auto c1 = source.paired_counters();
-  info("NIR drops: " + counters_text(c1));
+  // vivid drops half of one device's buffers while pairs are read.
+  const auto dropping = [&](const std::string& side, Loopback& loop) {
+    info("== vivid drops 50% of the " + side + " device's buffers");
+    loop.drop_percent(50);
+    read_pairs((side + " drops").c_str(), kDropPairs);
+    loop.drop_percent(0);
+    const auto c = source.paired_counters();
+    info(side + " drops: " + counters_text(c));
+    return c;
+  };
+  const auto c1 = dropping("NIR", nir_loop);
   if (c1.unpaired_rgb <= c0.unpaired_rgb) fail("NIR frames dropped, but unpaired_rgb did not grow");
-
-  info("== vivid drops 50% of the RGB device's buffers");
-  rgb_loop.drop_percent(50);
-  read_pairs("RGB drops", kDropPairs);
-  rgb_loop.drop_percent(0);
-  auto c2 = source.paired_counters();
-  info("RGB drops: " + counters_text(c2));
+  const auto c2 = dropping("RGB", rgb_loop);
   if (c2.unpaired_nir <= c1.unpaired_nir) fail("RGB frames dropped, but unpaired_nir did not grow");
 
   if (c2.bad_size != 0 || c2.rgb.errors != 0 || c2.nir.errors != 0) fail("errors: " + counters_text(c2));

@@ -28,16 +28,7 @@
 
 namespace {
 
-using stemd::vmprobe::fail;
-using stemd::vmprobe::fail_errno;
-using stemd::vmprobe::Fd;
-using stemd::vmprobe::info;
-using stemd::vmprobe::Mapping;
-using stemd::vmprobe::open_device;
-using stemd::vmprobe::VividLoopback;
-
-constexpr unsigned kWidth = 640;
-constexpr unsigned kHeight = 480;
+using namespace stemd::vmprobe;
 
 void require_caps(int fd, const std::string& device, std::uint32_t caps, const char* what) {
   v4l2_capability cap{};
@@ -48,7 +39,7 @@ void require_caps(int fd, const std::string& device, std::uint32_t caps, const c
 }
 
 v4l2_pix_format set_yuyv(int fd, const std::string& device, v4l2_buf_type type) {
-  return stemd::vmprobe::set_format(fd, device, type, V4L2_PIX_FMT_YUYV, kWidth, kHeight);
+  return set_format(fd, device, type, V4L2_PIX_FMT_YUYV, kVividWidth, kVividHeight);
 }
 
 std::vector<Mapping> request_buffers(int fd, const std::string& device, v4l2_buf_type type, unsigned count) {
@@ -164,7 +155,7 @@ void loopback(const std::string& cap_dev, const std::string& out_dev, const std:
   require_caps(loop.out_fd(), out_dev, V4L2_CAP_VIDEO_OUTPUT | V4L2_CAP_STREAMING, "output");
 
   const auto cap_pix = set_yuyv(cap, cap_dev, V4L2_BUF_TYPE_VIDEO_CAPTURE);
-  const auto out_pix = loop.set_output_format(V4L2_PIX_FMT_YUYV, kWidth, kHeight);
+  const auto out_pix = loop.set_output_format(V4L2_PIX_FMT_YUYV, kVividWidth, kVividHeight);
   if (cap_pix.bytesperline != out_pix.bytesperline || cap_pix.sizeimage != out_pix.sizeimage) {
     fail("capture and output layouts differ (bytesperline " + std::to_string(cap_pix.bytesperline) + " vs " +
          std::to_string(out_pix.bytesperline) + ")");

@@ -44,12 +44,8 @@
 namespace {
 
 using stemd::drivers::V4l2PixelFormat;
-using stemd::vmprobe::fail;
-using stemd::vmprobe::info;
-using stemd::vmprobe::VividLoopback;
+using namespace stemd::vmprobe;
 
-constexpr int kWidth = 640;
-constexpr int kHeight = 480;
 constexpr int kPassFrames = 5;     // consecutive good frames needed
 constexpr int kMaxFrames = 60;     // frames captured at most
 constexpr double kMaxStemErrorPx = 3.0;
@@ -73,7 +69,7 @@ using stemd::base::monotonic_ns;
 
 // Leaves are ellipses radiating from the stem, each from the stem outwards.
 cv::Mat draw_scene() {
-  cv::Mat bgr(kHeight, kWidth, CV_8UC3, cv::Scalar(kSoil[0], kSoil[1], kSoil[2]));
+  cv::Mat bgr(kVividHeight, kVividWidth, CV_8UC3, cv::Scalar(kSoil[0], kSoil[1], kSoil[2]));
   cv::Mat noise(bgr.size(), CV_8UC3);
   cv::RNG rng(0x5eed);
   rng.fill(noise, cv::RNG::UNIFORM, 0, 8);
@@ -157,9 +153,9 @@ std::string judge(const cv::Mat& bgr, stemd::vision::Workspace& ws, stemd::visio
 
 void selftest(V4l2PixelFormat format) {
   const cv::Mat scene = draw_scene();
-  const std::size_t bpl = static_cast<std::size_t>(kWidth) * static_cast<std::size_t>(stemd::drivers::bytes_per_pixel(format));
-  const auto bytes = encode(scene, format, bpl, bpl * kHeight);
-  cv::Mat slot(kHeight, kWidth, CV_8UC3, cv::Scalar::all(0));
+  const std::size_t bpl = static_cast<std::size_t>(kVividWidth) * static_cast<std::size_t>(stemd::drivers::bytes_per_pixel(format));
+  const auto bytes = encode(scene, format, bpl, bpl * kVividHeight);
+  cv::Mat slot(kVividHeight, kVividWidth, CV_8UC3, cv::Scalar::all(0));
   if (stemd::drivers::convert_to_bgr(bytes.data(), bytes.size(), bpl, slot.size(), format, slot) !=
       stemd::drivers::ConvertStatus::ok)
     fail("convert_to_bgr failed");
@@ -173,7 +169,7 @@ void loop(const std::string& cap_dev, const std::string& out_dev, V4l2PixelForma
   // Routing and controls on the capture side; V4l2Source opens the node again.
   VividLoopback out(cap_dev, out_dev);
   const v4l2_pix_format pix =
-      out.set_output_format(stemd::drivers::v4l2_fourcc_of(format), kWidth, kHeight);
+      out.set_output_format(stemd::drivers::v4l2_fourcc_of(format), kVividWidth, kVividHeight);
 
   const cv::Mat scene = draw_scene();
   const auto image = encode(scene, format, pix.bytesperline, pix.sizeimage);
@@ -183,7 +179,7 @@ void loop(const std::string& cap_dev, const std::string& out_dev, V4l2PixelForma
   // Everything the loop needs exists before streaming starts, so that the
   // first frames do not wait in the queue while it is made.
   stemd::drivers::Frame slot;
-  slot.bgr = cv::Mat(kHeight, kWidth, CV_8UC3, cv::Scalar::all(0));
+  slot.bgr = cv::Mat(kVividHeight, kVividWidth, CV_8UC3, cv::Scalar::all(0));
   const std::uint8_t* const slot_data = slot.bgr.data;
   stemd::vision::Workspace ws(slot.bgr.size(), stemd::vision::Params{});
   stemd::vision::Detections det;
@@ -191,7 +187,7 @@ void loop(const std::string& cap_dev, const std::string& out_dev, V4l2PixelForma
   stemd::drivers::V4l2Options options;
   options.device = cap_dev;
   options.pixel_format = format;
-  options.size = {kWidth, kHeight};
+  options.size = {kVividWidth, kVividHeight};
   options.buffers = 4;
   options.fps = 60;
   stemd::drivers::V4l2Source source(options, log);

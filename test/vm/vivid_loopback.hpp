@@ -130,6 +130,10 @@ inline v4l2_pix_format set_format(int fd, const std::string& device, v4l2_buf_ty
   return pix;
 }
 
+// The frame size of the loopback's timings (V4L2_DV_BT_DMT_640X480P60).
+constexpr int kVividWidth = 640;
+constexpr int kVividHeight = 480;
+
 // One vivid instance set up to loop its HDMI output to its HDMI capture at
 // 640x480p60; owns both fds and the output buffers, stops the output stream
 // on destruction. The capture side is only routed: whoever captures (a probe,

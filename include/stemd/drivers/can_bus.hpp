@@ -20,6 +20,7 @@
 
 #include "stemd/protocol/can_frame.hpp"
 #include "stemd/base/clock.hpp"
+#include "stemd/base/non_copyable.hpp"
 
 namespace stemd::drivers {
 
@@ -50,7 +51,7 @@ struct CanBusCounters {
     std::uint64_t rx = 0;                     // data frames delivered by receive()
 };
 
-class CanBus {
+class CanBus : base::NonCopyable {
 public:
     virtual ~CanBus() = default;
 

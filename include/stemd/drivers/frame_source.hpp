@@ -18,6 +18,7 @@
 #include <opencv2/core/mat.hpp>
 
 #include "stemd/drivers/source_counters.hpp"
+#include "stemd/base/non_copyable.hpp"
 
 namespace stemd::drivers {
 
@@ -83,7 +84,7 @@ enum class NextStatus : std::uint8_t {
     failed,         // the source failed (already logged); stop using it
 };
 
-class FrameSource {
+class FrameSource : base::NonCopyable {
 public:
     virtual ~FrameSource() = default;
 

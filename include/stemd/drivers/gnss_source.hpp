@@ -8,6 +8,8 @@
 #include <memory>
 #include <string_view>
 
+#include "stemd/base/non_copyable.hpp"
+
 namespace stemd::drivers {
 
 struct GnssFix {
@@ -31,7 +33,7 @@ struct GnssCounters {
     std::uint64_t failures = 0;     // failed connections and lost streams
 };
 
-class GnssSource {
+class GnssSource : base::NonCopyable {
 public:
     virtual ~GnssSource() = default;
     virtual std::string_view name() const = 0;   // e.g. "gpsd localhost:2947"

@@ -25,6 +25,7 @@
 #include <cstdint>
 #include <string_view>
 #include "stemd/base/clock.hpp"
+#include "stemd/base/non_copyable.hpp"
 
 namespace stemd::drivers {
 
@@ -155,7 +156,7 @@ struct GpioCounters {
     std::uint64_t trigger_pulses = 0; // pulse() calls that drove the line
 };
 
-class GpioLines {
+class GpioLines : base::NonCopyable {
 public:
     virtual ~GpioLines() = default;
 

@@ -1,0 +1,31 @@
+# shellcheck shell=bash
+# Sourced by the command-line tests (test/cli, test/daemon, test/web) after
+# `set -euo pipefail`: a scratch folder $tmp removed at exit, the background
+# processes whose ids are in $pid (a space-separated list) killed first, and
+# fail MESSAGE.
+tmp=$(mktemp -d)
+pid=
+trap 'kill -KILL $pid 2>/dev/null || true; rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+support_dir=$(dirname "${BASH_SOURCE[0]}")
+
+# synth_strip DIR LENGTH_MM [SEED]: a moving field strip at 15 fps and
+# 2.5 km/h (the same 4.6 mm per frame as 30 fps at 5 km/h, with a frame
+# period that sanitizer builds keep up with), early preset, no fragment.
+synth_strip() {
+  "$tools/stemd-synth" --strip --out "$1" --preset early --seed "${3:-5}" --fragment 0 --length-mm "$2" \
+    --fps 15 --speed-kmh 2.5 >/dev/null
+}
+
+# start_notify_listener SOCKET OUT TIMEOUT_S [stamp]: a stand-in for
+# systemd's notify socket in the background (its id in $listener), one line
+# per message in OUT ("<monotonic s> <message>" with stamp); returns once
+# the socket is bound.
+start_notify_listener() {
+  command -v python3 >/dev/null || { echo "SKIP: python3 (the stand-in socket) is not installed"; exit 77; }
+  python3 "$support_dir/notify_listener.py" "$@" &
+  listener=$!
+  pid="$pid $listener"
+  for _ in $(seq 100); do [ -e "$1.ready" ] && break; sleep 0.1; done
+  [ -e "$1.ready" ] || fail "the stand-in socket did not come up"
+}
