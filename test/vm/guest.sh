@@ -475,7 +475,7 @@ count_between() {
 }
 # states_between FROM TO: the HEARTBEAT states (byte 1's high nibble) between two markers.
 states_between() {
-  awk -v from="$2#" -v to="$3#" '
+  awk -v from="$1#" -v to="$2#" '
     index($3, from) == 1 { on = 1; next }
     index($3, to) == 1 { on = 0 }
     on && index($3, "303#") == 1 { s[substr($3, 7, 1)] = 1 }
