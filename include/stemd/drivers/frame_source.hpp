@@ -56,11 +56,13 @@ struct Frame {
     cv::Mat plant_class;
     bool has_class_map = false;
     // CLOCK_MONOTONIC of the exposure: the sensor's timestamp (V4L2 buffer,
-    // libcamera SensorTimestamp), or when a replayed frame was due. Latency
-    // and odometry are measured from it, as the scene is what it was then.
+    // libcamera SensorTimestamp), or when a replayed frame was handed over
+    // (stamping it when it was due would count its decode as latency).
+    // Latency and odometry are measured from it, as the scene is what it
+    // was then.
     std::int64_t t_sample_ns = 0;
     // CLOCK_MONOTONIC when the source handed the frame over; later than
-    // t_sample_ns by the driver's queueing, or by how late replay fell behind.
+    // t_sample_ns by the driver's queueing.
     std::int64_t t_delivered_ns = 0;
     std::int64_t t_recorded_ns = 0;  // the frame's own time: the camera's timestamp, or a recording's t_ns
     // The odometer at capture (mm, monotonic) when the source knows it (a
