@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include "temp_dir_test.hpp"
 #include "config_test_util.hpp"
 
 #include "stemd/runtime/actuation_config.hpp"
@@ -55,29 +56,8 @@ std::vector<Tool> tools_of(const Config& config)
 
 const Tool kDefaultTool{0, 600, -220, 220, 1};
 
-class ConfigListTest : public ::testing::Test {
+class ConfigListTest : public stemd::test::TempDirTest {
 protected:
-    void SetUp() override
-    {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir_ = fs::temp_directory_path() /
-               ("stemd-config-lists-test-" + std::to_string(::getpid()) + "-" + info->name());
-        fs::remove_all(dir_);
-        fs::create_directories(dir_);
-    }
-    void TearDown() override
-    {
-        std::error_code ec;
-        fs::remove_all(dir_, ec);
-    }
-
-    fs::path write(const std::string& text, const std::string& name = "test.yaml")
-    {
-        const fs::path path = dir_ / name;
-        std::ofstream(path, std::ios::binary) << text;
-        return path;
-    }
-
     // Loading `text` fails with exactly "FILE:LINE: key 'KEY': MESSAGE" (no
     // key part when `key` is empty), and the list is left as it was.
     void expect_error(const std::string& text, int line, const std::string& key, const std::string& message)
@@ -95,8 +75,6 @@ protected:
         EXPECT_EQ(tools_of(config), (std::vector<Tool>{{0, 700, -220, 220, 1}}));
         EXPECT_EQ(config.item_origin_of("tools", 0, "offset_mm"), "--set");
     }
-
-    fs::path dir_;
 };
 
 // --- schema ----------------------------------------------------------------------

@@ -15,6 +15,7 @@
 
 #include <gtest/gtest.h>
 
+#include "temp_dir_test.hpp"
 #include "config_test_util.hpp"
 
 #include "stemd/config/config.hpp"
@@ -70,29 +71,8 @@ void expect_schema_defaults(const Config& config)
 }
 
 // Temporary config files, removed after each test.
-class ConfigFileTest : public ::testing::Test {
+class ConfigFileTest : public stemd::test::TempDirTest {
 protected:
-    void SetUp() override
-    {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir_ = fs::temp_directory_path() /
-               ("stemd-config-test-" + std::to_string(::getpid()) + "-" + info->name());
-        fs::remove_all(dir_);
-        fs::create_directories(dir_);
-    }
-    void TearDown() override
-    {
-        std::error_code ec;
-        fs::remove_all(dir_, ec);
-    }
-
-    fs::path write(const std::string& text, const std::string& name = "test.yaml")
-    {
-        const fs::path path = dir_ / name;
-        std::ofstream(path, std::ios::binary) << text;
-        return path;
-    }
-
     // Loading `text` fails at `line` on `key`; the message contains `fragment`
     // and the configuration keeps every previous value.
     void expect_error(const std::string& text, int line, const std::string& key, const std::string& fragment)
@@ -114,8 +94,6 @@ protected:
         for (const KeySpec& spec : schema())
             EXPECT_EQ(config.origin_of(spec.key), "default") << spec.key;
     }
-
-    fs::path dir_;
 };
 
 // --- schema ----------------------------------------------------------------

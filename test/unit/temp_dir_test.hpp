@@ -4,6 +4,7 @@
 #pragma once
 
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -22,6 +23,14 @@ protected:
         std::filesystem::create_directories(dir_);
     }
     void TearDown() override { std::filesystem::remove_all(dir_); }
+
+    // `text` as the file `name` in the folder, byte for byte.
+    std::filesystem::path write(const std::string& text, const std::string& name = "test.yaml")
+    {
+        const std::filesystem::path path = dir_ / name;
+        std::ofstream(path, std::ios::binary) << text;
+        return path;
+    }
 
     std::filesystem::path dir_;
 };
