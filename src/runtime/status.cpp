@@ -3,7 +3,6 @@
 #include <time.h>
 
 #include <algorithm>
-#include <cstdio>
 
 #include <spdlog/fmt/fmt.h>
 
@@ -74,17 +73,10 @@ std::string gnss(const StatusSnapshot& s)
         return "";
     const std::string_view mode = geometry::mode_name(s.gnss_mode);
     const std::string_view status = geometry::status_name(s.gnss_status);
-    char eph[64];
-    if (s.gnss_eph_mm < 0)
-        std::snprintf(eph, sizeof eph, "eph unknown");
-    else
-        std::snprintf(eph, sizeof eph, "eph %.1f mm%s", s.gnss_eph_mm,
-                      s.gnss_eph_mm > s.gnss_max_eph_mm ? " over gnss.max_eph_mm" : "");
-    char buf[200];
-    std::snprintf(buf, sizeof buf, " | gnss: %.*s %.*s, %s, fixes %llu, degraded %llu", static_cast<int>(mode.size()),
-                  mode.data(), static_cast<int>(status.size()), status.data(), eph,
-                  static_cast<unsigned long long>(s.gnss_fixes), static_cast<unsigned long long>(s.gnss_degraded));
-    return buf;
+    const std::string eph = s.gnss_eph_mm < 0 ? std::string("eph unknown")
+                                              : fmt::format("eph {:.1f} mm{}", s.gnss_eph_mm,
+                                                            s.gnss_eph_mm > s.gnss_max_eph_mm ? " over gnss.max_eph_mm" : "");
+    return fmt::format(" | gnss: {} {}, {}, fixes {}, degraded {}", mode, status, eph, s.gnss_fixes, s.gnss_degraded);
 }
 
 std::string durations(const StatusSnapshot& s)
