@@ -11,7 +11,7 @@ if [ -f "$out/skip" ]; then
   exit 77
 fi
 if [ ! -f "$out/$check.rc" ]; then
-  echo "FAILED: no result for $check in $out (the VM did not run it; see $out/console.log)"
+  echo "FAILED: no result for $check in $out (the VM did not run it; see the console-*.log files there)"
   exit 1
 fi
 cat "$out/$check.log" 2>/dev/null || true
