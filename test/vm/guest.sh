@@ -410,7 +410,9 @@ check_daemon() {
   # Ends the wait early when stemd has exited.
   daemon_active() { grep -q ' vcan0 303#..[23]' /tmp/daemon.candump || ! kill -0 $daemon_pid 2>/dev/null; }
   if ! within 180 daemon_active || ! grep -q ' vcan0 303#..[23]' /tmp/daemon.candump; then
-    cat /tmp/stemd.log; kill -KILL $daemon_pid $feeder $dump 2>/dev/null; die "stemd did not become active (within 180 s)"
+    cat /tmp/stemd.log
+    if gone $daemon_pid; then wait $daemon_pid; echo "stemd ended with status $? (128 + N: signal N)"; fi
+    kill -KILL $daemon_pid $feeder $dump 2>/dev/null; die "stemd did not become active (within 180 s)"
   fi
   echo "t=$(uptime_s) s: stemd active; feeding the field"
   kill -USR1 $feeder
