@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# CTest fixture "vm": boots the test VM (three times) and runs every guest check
+# CTest fixture "vm": boots the test VM (four times) and runs every guest check
 # (test/vm/guest.sh), leaving per-check results in OUTDIR for test/vm/check.sh.
 #
 #   boot.sh CACHE_DIR OUTDIR KEY=VALUE...   (KEYs as guest.sh takes them)
@@ -29,7 +29,8 @@ done
 
 # Boots: checks that unplug a gpio-sim chip under a requested line go last in
 # a boot of their own, because Debian 12's kernel may not survive a later GPIO
-# request in the same boot (see check_gpiod_lost in guest.sh). Each boot's
+# request in the same boot (see check_gpiod_lost in guest.sh); the systemd
+# watchdog check starts udevd and a journal, so it has its own too. Each boot's
 # console is kept as console-NAME.log.
 # The VM's own deadline stays under the CTest TIMEOUT so that a hang is
 # reported by run.sh (exit 125 with the console), not killed silently. It is
@@ -39,6 +40,7 @@ boots=(
   "main can,v4l2,gpio,libcamera,v4l2_source,socketcan,libcamera_source,gpiod,libcamera_reopen,paired_nir,daemon,toolsim 1200"
   "faults faults 600"
   "gpiod_lost gpiod_lost 300"
+  "watchdog watchdog 900"
 )
 failed=0
 for b in "${boots[@]}"; do

@@ -733,6 +733,72 @@ check_toolsim() {
 }
 extra_checks="$extra_checks toolsim"
 
+# --- watchdog: systemd restarts a stemd whose processing thread is stuck ---
+# KEYs watchdog (the stemd binary) and synth (stemd-synth). The host's own
+# systemd runs as PID 1 of a PID and mount namespace chrooted into the host
+# root, with the shipped unit (systemd/stemd.service.in: Type=notify,
+# WatchdogSec=, Restart=) and a drop-in that only makes it run here: the
+# build's binary replaying a looping synthetic recording with
+# debug.stall_processing_after_frames, as root (the read-only host root has no
+# stemd user and no /var/lib to create), with the paths it reads bound in.
+# It must see the watchdog run out, kill stemd and start it again, twice.
+# Its own boot: systemd starts udevd and the journal, which the other checks
+# do not expect.
+watchdog=$(value_of watchdog "$@")
+synth=$(value_of synth "$@")
+check_watchdog() {
+  [ -n "$watchdog" ] && [ -n "$synth" ] || skip "stemd or stemd-synth not built"
+  [ -x /host/lib/systemd/systemd ] || skip "no systemd on the host (/lib/systemd/systemd)"
+  src=$(cd "$(dirname "$0")/../.." && pwd)  # /host/... as the guest sees the tree
+  rec=$out/watchdog-rec
+  hostrun "$synth" --out "$rec" --preset late --frames 20 --fps 10 > /dev/null || die "stemd-synth"
+  units=/host/run/systemd/system
+  mkdir -p "$units/stemd.service.d"
+  sed -e 's|@STEMD_INSTALL_BINDIR@|/usr/bin|; s|@STEMD_INSTALL_CONFDIR@|/etc/stemd|' \
+    "$src/systemd/stemd.service.in" > "$units/stemd.service" || die "the unit"
+  cat > "$units/stemd.service.d/vm.conf" <<UNIT
+[Service]
+ExecStart=
+ExecStart=$watchdog --config ${src#/host}/config/stemd.yaml --set source.replay_loop=true --set debug.stall_processing_after_frames=20 --replay $rec
+User=root
+Group=root
+# The unit's PrivateTmp= and ProtectHome= hide /tmp and /home, where a build
+# tree may live: bind what the run reads back in.
+BindReadOnlyPaths=$watchdog ${src#/host}/config $rec
+SupplementaryGroups=
+StateDirectory=
+LogsDirectory=
+StandardError=journal
+UNIT
+  printf '[Unit]\nDescription=stemd watchdog check\nWants=stemd.service\n' > "$units/stemd-vm.target"
+  echo "== systemd (PID 1 of its own namespace) starts stemd.service: WatchdogSec, Restart from the shipped unit"
+  grep -E '^(Type|WatchdogSec|Restart|RestartSec)=' "$units/stemd.service"
+  unshare -p -f -m sh -c 'mount -t proc proc /host/proc && exec chroot /host env container=stemd-vm \
+    /lib/systemd/systemd --unit=stemd-vm.target' > /tmp/systemd.log 2>&1 &
+  # sd CMD...: CMD inside systemd's namespaces and root (systemctl, journalctl).
+  sd_pid() { ps -o pid,args | awk '$2 == "/lib/systemd/systemd" && $3 == "--unit=stemd-vm.target" { print $1 }'; }
+  sd() { nsenter -t "$(sd_pid)" -m -p -r "$@"; }
+  sd_end() {
+    sd journalctl -u stemd.service --no-pager > "/host$out/watchdog-journal.log" 2>&1
+    # SIGRTMIN+4: a container's systemd powers off (stops stemd, exits).
+    p=$(sd_pid)
+    [ -z "$p" ] || kill -38 $p
+    within 60 sh -c '[ -z "$(ps -o args | grep "^/lib/systemd/systemd --unit=stemd-vm.target")" ]' || kill -KILL $p
+  }
+  restarts() { sd systemctl show -P NRestarts stemd.service 2>/dev/null; }
+  restarted() { [ "$(restarts)" -ge 2 ] 2>/dev/null; }
+  if ! within 300 restarted; then
+    sd systemctl status --no-pager stemd.service; sd_end; tail -n 30 "/host$out/watchdog-journal.log"
+    die "systemd did not restart the stuck stemd twice within 300 s"
+  fi
+  sd_end
+  grep -E 'stalling after|withholding the watchdog|Watchdog timeout|Scheduled restart|Started stemd' "/host$out/watchdog-journal.log" | head -n 12
+  [ "$(grep -c 'Watchdog timeout' "/host$out/watchdog-journal.log")" -ge 2 ] ||
+    die "the restarts were not for the watchdog: $(grep -E 'Main process exited|Failed with' "/host$out/watchdog-journal.log" | head -n 4)"
+  echo "NRestarts >= 2, each after 'Watchdog timeout': systemd killed the stuck stemd and started it again"
+}
+extra_checks="$extra_checks watchdog"
+
 if [ "$mode" = one ]; then
   "check_$check"
   exit $?

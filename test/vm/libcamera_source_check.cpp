@@ -58,7 +58,6 @@ using namespace stemd::vmprobe;
 constexpr int kWidth = 636;
 constexpr int kHeight = 480;
 constexpr int kFrames = 6;
-constexpr std::int64_t kMaxAgeNs = 2'000'000'000;
 // vimc under TCG emulation is slow to start: the first frame may take seconds.
 constexpr auto kFirstFrameWait = std::chrono::seconds(20);
 
@@ -148,6 +147,9 @@ void capture(const std::string& camera, const std::string& dump_dir) {
     id = source.camera_id();
     info("camera id '" + id + "', " + std::to_string(source.buffer_count()) + " buffers, byte order " +
          (source.byte_order() == stemd::drivers::LibcameraByteOrder::bgr ? "B,G,R (RGB888)" : "R,G,B (BGR888)"));
+    // Every frame is captured after this and delivered before its "now": in
+    // CLOCK_MONOTONIC's domain, however slowly a loaded emulated guest runs.
+    const std::int64_t t_before_start = monotonic_ns();
     if (!source.start()) fail("start " + id);
 
     std::int64_t last_t = 0;
@@ -163,9 +165,9 @@ void capture(const std::string& camera, const std::string& dump_dir) {
            std::to_string((now - frame.t_sample_ns) / 1'000'000) + " ms before now");
       if (frame.bgr.data != slot_data || frame.bgr.size() != cv::Size(kWidth, kHeight) || frame.bgr.type() != CV_8UC3)
         fail(tag + ": the slot was reallocated or resized");
-      if (frame.t_sample_ns > now || now - frame.t_sample_ns > kMaxAgeNs)
-        fail(tag + ": t_sample_ns " + std::to_string(frame.t_sample_ns) + " is not within 2 s before now " +
-             std::to_string(now));
+      if (frame.t_sample_ns < t_before_start || frame.t_sample_ns > now)
+        fail(tag + ": t_sample_ns " + std::to_string(frame.t_sample_ns) + " is not between the start " +
+             std::to_string(t_before_start) + " and now " + std::to_string(now));
       if (frame.t_recorded_ns != frame.t_sample_ns) fail(tag + ": t_recorded_ns differs from t_sample_ns");
       if (n > 0 && frame.t_sample_ns <= last_t)
         fail(tag + ": timestamp " + std::to_string(frame.t_sample_ns) + " not after the previous " +
