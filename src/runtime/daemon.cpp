@@ -158,6 +158,11 @@ bool Daemon::start()
     // Before the threads, so that their stacks are locked too.
     if (config_.mlockall)
         note(lock_all_memory());
+    // From the source's start until the threads have their priorities, this
+    // thread must not wait behind other load: see StartupPriority.
+    const StartupPriority startup(
+        std::max({config_.capture.fifo_priority, config_.processing.fifo_priority, config_.actuator.fifo_priority}));
+    note(startup.failure());
     // After the lock, which can take seconds over a preloaded recording: a
     // paced replay's clock starts here, so its first frames are not late.
     if (!source_->start()) {
