@@ -206,6 +206,25 @@ int run(int argc, char** argv, Phase& phase)
         }
         web_token = *token;
     }
+    // Where plants' classes come from: one provider, so a model and another
+    // provider named together is a mistake, not a choice.
+    using runtime::ClassProviderChoice;
+    const bool has_model = !daemon_config.classify.model.empty();
+    ClassProviderChoice provider = daemon_config.classify.provider;
+    if (provider == ClassProviderChoice::automatic)
+        provider = has_model ? ClassProviderChoice::model : ClassProviderChoice::recording;
+    if (provider == ClassProviderChoice::model && !has_model) {
+        std::cerr << "stemd: " << config.blame("classify.provider", "model needs classify.model") << "\n";
+        return kUsageError;
+    }
+    if (provider != ClassProviderChoice::model && has_model) {
+        std::cerr << "stemd: " << config.blame("classify.model", "is set, but classify.provider is not model") << "\n";
+        return kUsageError;
+    }
+    if (provider == ClassProviderChoice::socket && daemon_config.classify.socket.empty()) {
+        std::cerr << "stemd: " << config.blame("classify.provider", "socket needs classify.socket") << "\n";
+        return kUsageError;
+    }
     // The crop/weed model: refused at start, like any other bad setting,
     // when it is unreadable or made for another camera.
     std::optional<vision::PlantClassifier> classifier;
@@ -221,24 +240,6 @@ int run(int argc, char** argv, Phase& phase)
             std::cerr << "stemd: " << config.blame("classify.model", *why) << "\n";
             return kUsageError;
         }
-    }
-    // Where plants' classes come from: one provider, so a model and another
-    // provider named together is a mistake, not a choice.
-    using runtime::ClassProviderChoice;
-    ClassProviderChoice provider = daemon_config.classify.provider;
-    if (provider == ClassProviderChoice::automatic)
-        provider = classifier ? ClassProviderChoice::model : ClassProviderChoice::recording;
-    if (provider == ClassProviderChoice::model && !classifier) {
-        std::cerr << "stemd: " << config.blame("classify.provider", "model needs classify.model") << "\n";
-        return kUsageError;
-    }
-    if (provider != ClassProviderChoice::model && classifier) {
-        std::cerr << "stemd: " << config.blame("classify.model", "is set, but classify.provider is not model") << "\n";
-        return kUsageError;
-    }
-    if (provider == ClassProviderChoice::socket && daemon_config.classify.socket.empty()) {
-        std::cerr << "stemd: " << config.blame("classify.provider", "socket needs classify.socket") << "\n";
-        return kUsageError;
     }
     if (args.check_config) {
         std::cout << "stemd: configuration ok\n";

@@ -39,6 +39,25 @@ run() {
 # count NAME FIELD: a figure of the classes part of the total line.
 count() { sed -n "s/.*classes: .*$2 \([0-9]*\).*/\1/p" <<<"$total"; }
 
+# One provider: a socket without its path, the model provider without a
+# model, or a model beside another provider, is refused at start (exit 2).
+refused() {
+  local why=$1
+  shift
+  set +e
+  "$stemd" --config "$src/config/stemd.yaml" "$@" --replay "$tmp/strip" --once --check-config >/dev/null 2>"$tmp/refused"
+  local rc=$?
+  set -e
+  [ $rc -eq 2 ] || fail "$why: exit $rc"
+  grep -q "$why" "$tmp/refused" || fail "$why: $(cat "$tmp/refused")"
+}
+refused "socket needs classify.socket" --set classify.provider=socket
+refused "model needs classify.model" --set classify.provider=model
+refused "classify.provider is not model" --set classify.provider=socket --set classify.socket="$sock" \
+  --set classify.model="$tmp/any.yaml"
+"$stemd" --config "$src/config/stemd.yaml" --set classify.provider=socket --set classify.socket="$sock" \
+  --replay "$tmp/strip" --once --check-config >/dev/null || fail "a socket provider's configuration was refused"
+
 # Serving, with one malformed message first and a hang-up after 10 frames.
 run serve 2000 serve --garbage --reconnect-after 10
 grep -q "listening on $sock" "$tmp/serve.err" || fail "the socket is not named at start"
