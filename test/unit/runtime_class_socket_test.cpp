@@ -6,6 +6,7 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <cstring>
 #include <functional>
@@ -133,6 +134,45 @@ TEST(ClassSlotTable, AFullTableReplacesTheOldestFrame)
     // Larger than a slot: refused.
     const std::uint8_t big[6] = {};
     EXPECT_FALSE(table.store(400, 3, 2, big, 0));
+}
+
+TEST(ClassSlotTable, AReaderNeverSeesAMapBeingWritten)
+{
+    // The receiver writes maps (and, now and then, the previous frame's
+    // again, into the slot the reader may be reading) while the actuator
+    // takes them: each map must come out whole, its bytes and size those of
+    // its own frame. The writer keeps at most slots - 1 frames ahead, as a
+    // pipeline does, so none is replaced unread.
+    constexpr std::int64_t kFrames = 20000;
+    ClassSlotTable table(4, 64);
+    std::atomic<std::int64_t> taken{0};
+    std::thread writer([&] {
+        std::uint8_t map[64];
+        for (std::int64_t t = 1; t <= kFrames; ++t) {
+            while (t - taken.load(std::memory_order_acquire) > 3)
+                std::this_thread::yield();
+            for (std::int64_t again : {t, t - 1}) {
+                if (again < 1 || (again != t && t % 3 != 0))
+                    continue;
+                std::memset(map, static_cast<int>(again % 251), sizeof map);
+                ASSERT_TRUE(table.store(again, 1 + static_cast<int>(again % 8), 8, map, 0));
+            }
+        }
+    });
+    long torn = 0;
+    for (std::int64_t t = 1; t <= kFrames; ++t) {
+        ClassSlotTable::Lookup r;
+        while ((r = table.lookup(t, 0, 1, [&](const cv::Mat& m) {
+                    const bool whole = m.cols == 1 + static_cast<int>(t % 8) && m.rows == 8 &&
+                                       cv::countNonZero(m != static_cast<int>(t % 251)) == 0;
+                    torn += !whole;
+                })) == ClassSlotTable::Lookup::miss)
+            std::this_thread::yield();
+        ASSERT_EQ(r, ClassSlotTable::Lookup::hit) << "frame " << t;
+        taken.store(t, std::memory_order_release);
+    }
+    writer.join();
+    EXPECT_EQ(torn, 0);
 }
 
 vision::Plant plant_at(float x, float y)
