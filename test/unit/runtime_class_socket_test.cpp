@@ -22,6 +22,7 @@
 #include "stemd/runtime/class_provider.hpp"
 #include "stemd/runtime/class_slots.hpp"
 #include "stemd/runtime/class_socket.hpp"
+#include "runtime_test_util.hpp"
 #include "temp_dir_test.hpp"
 
 namespace stemd::runtime {
@@ -205,17 +206,7 @@ TEST(PlantClassesFromMap, ACoarseMapIsScaledToTheFrame)
     EXPECT_EQ(out[0], PlantClass::Unknown);
 }
 
-// Waits for `done` with a deadline; false if it never came.
-bool wait_for(const std::function<bool()>& done, std::chrono::milliseconds limit = std::chrono::seconds(10))
-{
-    const auto end = std::chrono::steady_clock::now() + limit;
-    while (!done()) {
-        if (std::chrono::steady_clock::now() > end)
-            return false;
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
-    return true;
-}
+bool wait_for(const std::function<bool()>& done) { return test::wait_for(done, std::chrono::seconds(10)); }
 
 class SocketClassProviderTest : public test::TempDirTest {
 protected:
