@@ -29,6 +29,7 @@
 #include "stemd/runtime/camera_config.hpp"
 #include "stemd/config/command_line.hpp"
 #include "stemd/config/config.hpp"
+#include "stemd/runtime/class_socket.hpp"
 #include "stemd/runtime/daemon.hpp"
 #include "stemd/runtime/sd_notify.hpp"
 #include "stemd/runtime/detection_sink.hpp"
@@ -205,6 +206,25 @@ int run(int argc, char** argv, Phase& phase)
         }
         web_token = *token;
     }
+    // Where plants' classes come from: one provider, so a model and another
+    // provider named together is a mistake, not a choice.
+    using runtime::ClassProviderChoice;
+    const bool has_model = !daemon_config.classify.model.empty();
+    ClassProviderChoice provider = daemon_config.classify.provider;
+    if (provider == ClassProviderChoice::automatic)
+        provider = has_model ? ClassProviderChoice::model : ClassProviderChoice::recording;
+    if (provider == ClassProviderChoice::model && !has_model) {
+        std::cerr << "stemd: " << config.blame("classify.provider", "model needs classify.model") << "\n";
+        return kUsageError;
+    }
+    if (provider != ClassProviderChoice::model && has_model) {
+        std::cerr << "stemd: " << config.blame("classify.model", "is set, but classify.provider is not model") << "\n";
+        return kUsageError;
+    }
+    if (provider == ClassProviderChoice::socket && daemon_config.classify.socket.empty()) {
+        std::cerr << "stemd: " << config.blame("classify.provider", "socket needs classify.socket") << "\n";
+        return kUsageError;
+    }
     // The crop/weed model: refused at start, like any other bad setting,
     // when it is unreadable or made for another camera.
     std::optional<vision::PlantClassifier> classifier;
@@ -268,7 +288,12 @@ int run(int argc, char** argv, Phase& phase)
         log->info("classify.model {}: trained on {} at {} mm/px, {}", daemon_config.classify.model,
                   classifier->info().recordings.empty() ? std::string("?") : classifier->info().recordings.front(),
                   classifier->info().gsd_mm_per_px, vision::channels_name(classifier->info().nir));
-        daemon->set_classifier(std::move(*classifier));
+        daemon->set_class_provider(std::make_unique<runtime::ModelClassProvider>(
+            std::move(*classifier), daemon_config.frame_size, daemon_config.vision,
+            daemon_config.classify.min_confidence, daemon_config.classify.weed_confidence));
+    } else if (provider == ClassProviderChoice::socket) {
+        daemon->set_class_provider(std::make_unique<runtime::SocketClassProvider>(
+            daemon_config.classify.socket, daemon_config.frame_size, daemon_config.classify.provider_timeout_ms));
     }
     // The live view's feed is allocated now, with everything else; its
     // server starts once the daemon runs.

@@ -218,6 +218,17 @@ constexpr std::array kSchema{
     bind<STEMD_KEY(daemon.vision.grass_max_hull_fill)>(
         {"stem.grass_max_hull_fill", real, "fraction", 0, 2, "0.4", "",
             "robust estimator: grass also covers less than this fraction of its convex hull; 1 or more: width alone"}),
+    bind_choice<STEMD_KEY(daemon.classify.provider),
+                std::array{runtime::ClassProviderChoice::automatic, runtime::ClassProviderChoice::model,
+                           runtime::ClassProviderChoice::recording, runtime::ClassProviderChoice::socket}>(
+        {"classify.provider", choice, "", 0, 0, "auto", "auto|model|recording|socket",
+            "where plants' classes come from: model (classify.model), recording (a replayed recording's class column), socket (another process over classify.socket), or auto (model when classify.model is set, else recording)"}),
+    bind<STEMD_KEY(daemon.classify.socket)>(
+        {"classify.socket", text, "", 0, 0, "none", "",
+            "provider socket: the Unix socket stemd listens on for a class provider's class maps; none: not set"}),
+    bind<STEMD_KEY(daemon.classify.provider_timeout_ms)>(
+        {"classify.provider_timeout_ms", real, "ms", 1, 10000, "100", "",
+            "provider socket: a frame whose class map has not come this long after capture has its plants unknown (never treated under weeds_only), counted as class_timeouts"}),
     bind<STEMD_KEY(daemon.classify.model)>(
         {"classify.model", text, "", 0, 0, "none", "",
             "crop/weed model written by stemd-train (trained for this camera, GSD and crop); none: no classifier, plants are unknown"}),
@@ -358,7 +369,7 @@ constexpr std::array kSchema{
 
     bind_choice<STEMD_KEY(actuation.policy), std::array{PolicyChoice::automatic, PolicyChoice::weeds_only, PolicyChoice::all}>(
         {"scheduler.policy", choice, "", 0, 0, "auto", "auto|weeds_only|all",
-            "which plants are treated: weeds_only, all, or auto (weeds_only when classify.model is set or the frames carry a class map, all without); unknown plants are never treated under weeds_only"}),
+            "which plants are treated: weeds_only, all, or auto (weeds_only when a class provider gives the frame classes: classify.model, a socket provider, or the recording's class map; all without); unknown plants are never treated under weeds_only"}),
     bind<STEMD_KEY(actuation.scheduler.lead_ms)>(
         {"scheduler.lead_ms", real, "ms", 0, 1000, "20", "",
             "a command must reach the tool controller at least this long before the plant is under the tool"}),
@@ -477,7 +488,7 @@ constexpr std::array kSections{
     SectionSpec{"plants", "", "Plants: the blobs of the closed mask, grouped across small gaps."},
     SectionSpec{"leaves", "", "Leaves: the plant's contour cut at its deep convexity defects."},
     SectionSpec{"stem", "", "The stem: from the leaf directions, or the centre of mass as the fallback."},
-    SectionSpec{"classify", "", "Crop or weed per plant: a model trained by stemd-train (README, \"Crop or weed\")."},
+    SectionSpec{"classify", "", "Crop or weed per plant: a model trained by stemd-train, a recording's class column, or another process over a socket (README, \"Crop or weed\")."},
     SectionSpec{"source", "The daemon (stemd): frames, rings, threads, status, logging",
                 "Where frames come from. Real-time settings (threads.*) are off by default; on the robot, e.g. "
                 "capture_priority: 40, actuator_priority: 45, processing_priority: 30, processing_cpu: 1, "

@@ -43,39 +43,6 @@ private:
     int rounds_ = 0;
 };
 
-// The class of each plant with a stem: the majority of crop and weed pixels
-// of the class map in a 9x9 window around the stem (the stem itself may lie
-// on soil between leaves); Unknown when there are none. Returns the number
-// of plants whose window holds values that are no class (above 2): they are
-// counted rather than the recording refused, since a class map is only seen
-// once its frame is decoded, and the field engineer needs to know the
-// labels are broken while the rest of the run goes on.
-std::uint64_t classify_plants(const cv::Mat& class_map, const vision::Detections& detections,
-                              std::array<PlantClass, vision::kMaxPlants>& out)
-{
-    std::uint64_t bad = 0;
-    constexpr int kHalf = 4;
-    for (std::size_t i = 0; i < detections.plants.size(); ++i) {
-        const vision::Plant& p = detections.plants[i];
-        out[i] = PlantClass::Unknown;
-        if (!p.has_stem)
-            continue;
-        const int cx = static_cast<int>(std::lround(p.stem.x)), cy = static_cast<int>(std::lround(p.stem.y));
-        int crop = 0, weed = 0, other = 0;
-        for (int y = std::max(cy - kHalf, 0); y <= std::min(cy + kHalf, class_map.rows - 1); ++y) {
-            const std::uint8_t* row = class_map.ptr<std::uint8_t>(y);
-            for (int x = std::max(cx - kHalf, 0); x <= std::min(cx + kHalf, class_map.cols - 1); ++x) {
-                crop += plant_class_from_value(row[x]) == PlantClass::Crop;
-                weed += plant_class_from_value(row[x]) == PlantClass::Weed;
-                other += row[x] > 2;
-            }
-        }
-        out[i] = weed > crop ? PlantClass::Weed : crop > weed ? PlantClass::Crop : PlantClass::Unknown;
-        bad += other > 0;
-    }
-    return bad;
-}
-
 }  // namespace
 
 Daemon::Daemon(const DaemonConfig& config, std::unique_ptr<drivers::FrameSource> source,
@@ -95,6 +62,7 @@ Daemon::Daemon(const DaemonConfig& config, std::unique_ptr<drivers::FrameSource>
       // One sample per frame between capture and the actuator, and room to spare.
       captured_odometry_(2 * (config.ring_capacity + config.results_capacity + 4)),
       workspace_(std::make_unique<vision::Workspace>(config.frame_size, config.vision)),
+      classes_(std::make_unique<RecordingClassProvider>()),
       vision_params_([&config](vision::Params& slot) { slot = config.vision; })
 {
     for (std::size_t i = 0; i < pool_.size(); ++i)
@@ -126,10 +94,9 @@ void Daemon::attach_live_feed(LiveFeed* feed)
         actuation_->set_live_feed(feed);
 }
 
-void Daemon::set_classifier(vision::PlantClassifier model)
+void Daemon::set_class_provider(std::unique_ptr<ClassProvider> provider)
 {
-    classify_workspace_ = std::make_unique<vision::ClassifyWorkspace>(config_.frame_size, config_.vision);
-    classifier_ = std::move(model);
+    classes_ = std::move(provider);
 }
 
 Daemon::~Daemon()
@@ -150,6 +117,11 @@ bool Daemon::start()
                config_.overflow == OverflowPolicy::drop_newest ? "drop_newest" : "overwrite_oldest",
                results_.capacity(), workspace_->reserved_bytes() / 1048576.0);
 
+    if (!classes_->start()) {
+        log_->error("classify.provider {}: cannot start", classes_->name());
+        return false;
+    }
+    classes_started_ = true;
     std::string failures;
     auto note = [&failures](const std::string& f) {
         if (!f.empty())
@@ -196,6 +168,8 @@ bool Daemon::join()
         if (t->joinable())
             t->join();
     source_->stop();
+    if (classes_started_)
+        classes_->stop();
     joined_ = true;
     if (!sink_->close())
         sink_ok_.store(false);
@@ -323,6 +297,7 @@ void Daemon::capture_loop()
         source_ok_ns_.store(t_got_ns, std::memory_order_relaxed);
         hand->seq = seq++;
         bump(counters_->capture.frames);
+        classes_->on_capture(*hand);
         // The recording's odometer reaches the actuator now, not after the
         // pipeline: a slow frame must not make the odometer look stale. A
         // full ring loses nothing, the frame carries the same sample.
@@ -415,27 +390,10 @@ void Daemon::processing_loop()
             result->pipeline_ns = times.total_ns;
             result->name = frame->name;
             result->odom_mm = frame->odom_mm;
-            if (classifier_ && result->detections.status == vision::DetectStatus::ok) {
-                // The model's class, even where a recording has a class
-                // column too: what runs in the field is what a replay shows.
-                // A frame without its rgb image leaves every plant unknown.
-                const vision::FrameView view{.bgr = frame->bgr, .nir = frame->nir, .mask = frame->mask};
-                vision::plant_features(view, params, *workspace_, result->detections, *classify_workspace_);
-                const auto features = classify_workspace_->features();
-                for (std::size_t i = 0; i < result->detections.plants.size(); ++i)
-                    result->plant_class[i] =
-                        i < features.size()
-                            ? vision::decide_class(classifier_->weed_probability(features[i]),
-                                                   config_.classify.min_confidence,
-                                                   config_.classify.weed_confidence)
-                            : PlantClass::Unknown;
-                result->has_class_map = true;
-            } else {
-                result->has_class_map = frame->has_class_map && !frame->plant_class.empty();
-            }
-            if (result->has_class_map && !classifier_)
-                bump(counters_->processing.bad_class,
-                     classify_plants(frame->plant_class, result->detections, result->plant_class));
+            result->has_class_map = false;
+            result->classes_pending = false;
+            if (result->detections.status == vision::DetectStatus::ok)
+                classes_->classify(*frame, params, *workspace_, *result);
             bump(counters_->processing.frames);
             ++processed;
             counters_->processing.pipeline.record(times.total_ns);
@@ -496,6 +454,13 @@ void Daemon::actuator_loop()
             idle.wait();
             continue;
         }
+        // Classes from another process wait here, not in the pipeline, up
+        // to their timeout after capture (the provider decides; it never
+        // blocks): the odometer, the heartbeat and the bus are still served.
+        if (result->classes_pending && !classes_->resolve(*result, base::monotonic_ns())) {
+            idle.wait();
+            continue;
+        }
         idle.reset();
         const std::int64_t t_start_ns = base::monotonic_ns();
         const std::int64_t latency_ns = t_start_ns - result->t_sample_ns;
@@ -539,7 +504,13 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
     s.over_capacity = counters_->processing.plants_over_capacity.load(std::memory_order_relaxed);
     s.late = source.late;
     s.worst_lateness_ms = source.worst_lateness_ms;
-    s.bad_class = counters_->processing.bad_class.load(std::memory_order_relaxed);
+    const ClassCounters& classes = classes_->counters();
+    s.bad_class = classes.bad_class.load(std::memory_order_relaxed);
+    s.class_socket = classes_->name() == "socket";
+    s.class_maps = classes.maps.load(std::memory_order_relaxed);
+    s.class_timeouts = classes.timeouts.load(std::memory_order_relaxed);
+    s.class_bad_messages = classes.bad_messages.load(std::memory_order_relaxed);
+    s.class_peers = classes.peers.load(std::memory_order_relaxed);
     s.source_timeouts = source.timeouts;
     s.source_errors = source.errors;
     s.source_reopens = source.reopens;

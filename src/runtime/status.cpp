@@ -79,6 +79,15 @@ std::string gnss(const StatusSnapshot& s)
     return fmt::format(" | gnss: {} {}, {}, fixes {}, degraded {}", mode, status, eph, s.gnss_fixes, s.gnss_degraded);
 }
 
+std::string class_socket(const StatusSnapshot& now, const StatusSnapshot& before)
+{
+    if (!now.class_socket)
+        return "";
+    return fmt::format(" | classes: maps {}, class_timeouts {}, bad_messages {}, peers {}",
+                       now.class_maps - before.class_maps, now.class_timeouts - before.class_timeouts,
+                       now.class_bad_messages - before.class_bad_messages, now.class_peers - before.class_peers);
+}
+
 std::string durations(const StatusSnapshot& s)
 {
     std::string out = fmt::format("latency p50 {:.2f} p99 {:.2f} ms | pipeline p50 {:.2f} p99 {:.2f} ms",
@@ -98,7 +107,7 @@ std::string format_status(const StatusSnapshot& now, const StatusSnapshot& befor
                        static_cast<double>(now.frames_in - before.frames_in) / dt_s,
                        static_cast<double>(now.frames_out - before.frames_out) / dt_s,
                        now.no_vegetation - before.no_vegetation)
-           + behind(now, before) + " | " + drops(now, before) + source(now, before) + actuation(now, before) + " | "
+           + behind(now, before) + " | " + drops(now, before) + source(now, before) + actuation(now, before) + class_socket(now, before) + " | "
            + durations(now) + tool_timing(now) + gnss(now);
 }
 
@@ -122,7 +131,7 @@ std::string format_summary(const StatusSnapshot& end, double run_s)
                        end.frames_out, end.stems_out, run_s,
                        run_s > 0 ? static_cast<double>(end.frames_out) / run_s : 0.0, end.no_vegetation)
            + behind(end, StatusSnapshot{}) + " | " + drops(end, StatusSnapshot{}) + source(end, StatusSnapshot{})
-           + actuation(end, StatusSnapshot{}) + " | " + durations(end) + tool_timing(end) + gnss(end);
+           + actuation(end, StatusSnapshot{}) + class_socket(end, StatusSnapshot{}) + " | " + durations(end) + tool_timing(end) + gnss(end);
 }
 
 }  // namespace stemd::runtime

@@ -17,6 +17,20 @@ synth_strip() {
     --fps 15 --speed-kmh 2.5 >/dev/null
 }
 
+# score_weeds_only STRIP CAN_LOG MAP CONFIG: stemd-eval of a run under
+# weeds only against the strip's plants; fails on any command near a plant
+# that is no weed, on no weed commanded, and on a crop sent in the plant
+# map. Sets $matched, the weeds commanded.
+score_weeds_only() {
+  "$tools/stemd-eval" --targets "$1/plants.csv" "$2" --config "$4" --treat weeds --tol-mm 5 >"$tmp/score" 2>&1 || true
+  cat "$tmp/score"
+  grep -q '^extra            0 commands near no plant' "$tmp/score" || fail "a command for a plant that is no weed"
+  matched=$(sed -n 's/^matched *\([0-9]*\) plants.*/\1/p' "$tmp/score")
+  [ -n "$matched" ] && [ "$matched" -gt 0 ] || fail "no weed treated"
+  grep -q '"class":"crop"' "$3" || fail "no plant classed crop in the map"
+  if grep '"class":"crop"' "$3" | grep -q '"reason":"sent"'; then fail "a crop was sent"; fi
+}
+
 # start_notify_listener SOCKET OUT TIMEOUT_S [stamp]: a stand-in for
 # systemd's notify socket in the background (its id in $listener), one line
 # per message in OUT ("<monotonic s> <message>" with stamp); returns once

@@ -10,7 +10,14 @@
 
 #include "counting_new.hpp"
 
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <unistd.h>
+
 #include <atomic>
+#include <cstring>
+#include <filesystem>
 #include <cstdlib>
 #include <fstream>
 #include <memory>
@@ -25,6 +32,8 @@
 #include "canlog/canlog_bus.hpp"
 #include "stemd/base/clock.hpp"
 #include "stemd/runtime/actuation_stage.hpp"
+#include "stemd/runtime/class_message.hpp"
+#include "stemd/runtime/class_socket.hpp"
 #include "stemd/runtime/daemon.hpp"
 #include "stemd/runtime/live_feed.hpp"
 #include "stemd/runtime/logging.hpp"
@@ -309,6 +318,71 @@ TEST(DaemonRealTime, ActuationAllocatesNothingPerFrame)
 TEST(DaemonRealTime, WebViewWithAClientAllocatesNothingPerFrame)
 {
     run_actuation(true);
+}
+
+// The socket class provider's per-frame path: a frame handed over at
+// capture, sent, its map received and stored by the receiver thread, looked
+// up by the actuator (a hit, then a frame past its timeout). Nothing
+// allocates once the peer is connected; log lines (connect, hang-up, bad
+// messages) are not per frame.
+TEST(DaemonRealTime, SocketClassProviderAllocatesNothingPerFrame)
+{
+    const std::string path = (std::filesystem::temp_directory_path() /
+                              ("stemd-class-alloc-" + std::to_string(::getpid()) + ".sock")).string();
+    runtime::SocketClassProvider provider(path, {400, 200}, 60'000);
+    ASSERT_TRUE(provider.start());
+    const int peer = ::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0);
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    std::memcpy(addr.sun_path, path.data(), path.size());
+    ASSERT_EQ(::connect(peer, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)), 0);
+    const std::int64_t deadline_ns = base::monotonic_ns() + 10'000'000'000;
+    while (!provider.peer_connected() && base::monotonic_ns() < deadline_ns)
+        base::sleep_for_ns(1'000'000);
+    ASSERT_TRUE(provider.peer_connected());
+
+    // Everything the test side needs, allocated before counting.
+    std::vector<std::uint8_t> rx(runtime::kFrameMessageHeaderBytes + runtime::kFrameMessageMaxName);
+    std::vector<std::uint8_t> map(runtime::kClassMapHeaderBytes + 100 * 50, 2);
+    auto frame = std::make_unique<drivers::Frame>();
+    frame->name.assign("rgb/000000.png");
+    auto result = std::make_unique<runtime::FrameResult>();
+    vision::Plant plant;
+    plant.stem = {200, 100};
+    result->detections.plants.push_back(plant);
+    const vision::Params params;
+    const vision::Workspace workspace({400, 200}, params);
+
+    const long before = stemd::test::allocations();
+    bool hit = true;
+    for (std::uint64_t i = 0; i < 20 && hit; ++i) {
+        frame->t_sample_ns = base::monotonic_ns();
+        frame->seq = i;
+        provider.on_capture(*frame);
+        pollfd p{.fd = peer, .events = POLLIN, .revents = 0};
+        hit = ::poll(&p, 1, 10'000) == 1 && ::recv(peer, rx.data(), rx.size(), 0) > 0;
+        runtime::encode_class_map_header(
+            frame->t_sample_ns, 100, 50,
+            std::span<std::uint8_t, runtime::kClassMapHeaderBytes>(map.data(), runtime::kClassMapHeaderBytes));
+        hit = hit && ::send(peer, map.data(), map.size(), 0) == static_cast<ssize_t>(map.size());
+        result->t_sample_ns = frame->t_sample_ns;
+        provider.classify(*frame, params, workspace, *result);
+        while (hit && !provider.resolve(*result, base::monotonic_ns()) && base::monotonic_ns() < deadline_ns)
+            base::sleep_for_ns(100'000);
+        hit = hit && !result->classes_pending && result->plant_class[0] == PlantClass::Weed;
+    }
+    // Past its timeout: unknown, counted.
+    result->t_sample_ns -= 120'000'000'000;
+    result->classes_pending = true;
+    const bool expired = provider.resolve(*result, base::monotonic_ns());
+    const long allocated = stemd::test::allocations() - before;
+    EXPECT_TRUE(hit) << "a frame's map did not come back";
+    EXPECT_TRUE(expired);
+    EXPECT_EQ(provider.counters().maps.load(), 20u);
+    EXPECT_EQ(provider.counters().timeouts.load(), 1u);
+    EXPECT_EQ(allocated, 0);
+    ::close(peer);
+    provider.stop();
 }
 
 TEST(DaemonRealTime, TheCounterSeesAllocations)

@@ -37,13 +37,13 @@
 #include "stemd/geometry/odometry.hpp"
 #include "stemd/base/triple_buffer.hpp"
 #include "stemd/runtime/actuation_stage.hpp"
+#include "stemd/runtime/class_provider.hpp"
 #include "stemd/runtime/daemon_config.hpp"
 #include "stemd/runtime/detection_sink.hpp"
 #include "stemd/runtime/frame_pool.hpp"
 #include "stemd/runtime/live_feed.hpp"
 #include "stemd/base/spsc_ring.hpp"
 #include "stemd/runtime/status.hpp"
-#include "stemd/vision/classify.hpp"
 #include "stemd/vision/detect.hpp"
 
 namespace stemd::runtime {
@@ -65,12 +65,13 @@ public:
     // daemon runs without them.
     bool start();
 
-    // Before start(): every plant gets its class from `model` (weed
-    // probability against config.classify.min_confidence) instead of a
-    // recording's class column, and the scheduler's auto policy treats
-    // weeds only. The model must fit the configuration (checked by the
-    // caller: PlantClassifier::mismatch).
-    void set_classifier(vision::PlantClassifier model);
+    // Before start(): where plants' classes come from (class_provider.hpp);
+    // without a call, a recording's class column (RecordingClassProvider).
+    // A provider that gives every result classes (the model, a socket)
+    // makes the scheduler's auto policy treat weeds only. A model must fit
+    // the configuration (checked by the caller: PlantClassifier::mismatch).
+    void set_class_provider(std::unique_ptr<ClassProvider> provider);
+    const ClassProvider& class_provider() const { return *classes_; }
 
     // Before start(): the live view's feed (owned by the caller, outliving
     // the threads). The processing thread publishes frames into it when a
@@ -145,8 +146,8 @@ private:
     base::SpscRing<FrameResult> results_;          // processing -> actuator, built in place
     base::SpscRing<geometry::OdomSample> captured_odometry_;   // capture -> actuator: frames' own odom_mm
     const std::unique_ptr<vision::Workspace> workspace_;   // the processing thread's
-    std::optional<vision::PlantClassifier> classifier_;
-    std::unique_ptr<vision::ClassifyWorkspace> classify_workspace_;   // the processing thread's
+    std::unique_ptr<ClassProvider> classes_;
+    bool classes_started_ = false;
     LiveFeed* live_feed_ = nullptr;
     base::TripleBuffer<vision::Params> vision_params_;   // writers -> processing thread
     std::mutex vision_params_writer_;                     // one writer at a time (never the processing thread)

@@ -24,8 +24,19 @@ struct ThreadSettings {
     int cpu = -1;
 };
 
-// classify.*: the crop/weed model of vision/classify.
+// classify.provider: where plants' classes come from (class_provider.hpp).
+enum class ClassProviderChoice : std::uint8_t {
+    automatic,   // model when classify.model is set, else recording
+    model,       // classify.model (required)
+    recording,   // a replayed recording's class column
+    socket,      // another process, over classify.socket
+};
+
+// classify.*: the crop/weed model of vision/classify, or another provider.
 struct ClassifyConfig {
+    ClassProviderChoice provider = ClassProviderChoice::automatic;
+    std::string socket;                 // empty: none
+    double provider_timeout_ms = 100;   // socket: a frame's classes after this are unknown
     std::string model;             // empty: none
     double min_confidence = 0.6;   // probability
     double weed_confidence = 0.85;   // probability

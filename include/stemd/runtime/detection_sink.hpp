@@ -29,6 +29,7 @@ struct FrameResult {
     std::int64_t pipeline_ns = 0;      // detect() wall time
     double odom_mm = 0;                // the frame's odometer (recording column); NaN if unknown
     bool has_class_map = false;        // plant_class below is meaningful
+    bool classes_pending = false;      // plant_class still to come (ClassProvider::resolve)
     drivers::FrameName name;
     vision::Detections detections;
     // Per plant (parallel to detections.plants): the class map's value at

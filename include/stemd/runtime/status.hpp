@@ -37,9 +37,6 @@ struct Counters {
         std::atomic<std::uint64_t> no_vegetation{0};   // frames with no vegetation at all (bare soil)
         std::atomic<std::uint64_t> results_full{0};    // result ring full: result dropped
         std::atomic<std::uint64_t> plants_over_capacity{0};   // plants beyond vision::kMaxPlants in a frame
-        // Plants whose class-map window held values other than 0, 1, 2 (no
-        // such class: the plant is taken as unclassified).
-        std::atomic<std::uint64_t> bad_class{0};
         DurationHistogram pipeline;                    // detect() wall time
         DurationHistogram cycle;                       // a frame's whole turn: detect, classes, live view copy
     } processing;
@@ -68,6 +65,11 @@ struct StatusSnapshot {
     std::uint64_t late = 0;            // paced replay: frames the source came to late
     double worst_lateness_ms = 0;      // paced replay: the most a frame was late (whole run)
     std::uint64_t bad_class = 0;       // plants with class-map values other than 0, 1, 2
+    // classify.provider socket: class maps received, frames whose map came
+    // too late or never (plants unknown), malformed messages dropped,
+    // connections accepted.
+    bool class_socket = false;
+    std::uint64_t class_maps = 0, class_timeouts = 0, class_bad_messages = 0, class_peers = 0;
     // The source's own: waits without a frame, failures (a camera unplugged),
     // successful reopens after one.
     std::uint64_t source_timeouts = 0, source_errors = 0, source_reopens = 0;
