@@ -36,7 +36,8 @@ if [ "${STEMD_TEST_SKIP_SANITIZE:-0}" != 1 ]; then
 fi
 # --- TSan: the daemon's rings and threads ------------------------------------
 # Only the runtime and driver tests (ring stress, the three threads, the
-# allocation test), so the step stays short. tools/tsan.supp: third-party only.
+# allocation test, the class provider's slots and socket, the start-up
+# priority), so the step stays short. tools/tsan.supp: third-party only.
 if [ "${STEMD_TEST_SKIP_SANITIZE:-0}" != 1 ]; then
   step "TSan build (runtime, drivers)"
   cmake -S . -B build/tsan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g" \
@@ -44,7 +45,7 @@ if [ "${STEMD_TEST_SKIP_SANITIZE:-0}" != 1 ]; then
   cmake --build build/tsan -j "$jobs" --target stemd-runtime-tests stemd-drivers-tests
   step "TSan tests"
   TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$PWD/tools/tsan.supp" \
-    ctest --test-dir build/tsan --output-on-failure -j "$jobs" -L unit -R '^(SpscRing|TripleBuffer|Daemon|ReplayTest)'
+    ctest --test-dir build/tsan --output-on-failure -j "$jobs" -L unit -R '^(SpscRing|TripleBuffer|Daemon|ReplayTest|ClassSlotTable|SocketClassProvider|StartupPriority)'
 fi
 # --- libFuzzer: every parser of outside input (test/fuzz) -------------------
 # clang with ASan+UBSan; each fuzzer runs a fixed number of inputs from a
