@@ -19,9 +19,16 @@ std::size_t first_different_line(std::string_view a, std::string_view b)
 
 }  // namespace
 
-int write_or_check_generated(std::string_view tool, const std::string& text, const std::string& path, bool check,
+void add_generated_file_options(CLI::App& app, GeneratedFileArgs& args)
+{
+    app.add_option("--out", args.out)->excludes(app.add_option("--check", args.check));
+}
+
+int write_or_check_generated(std::string_view tool, const std::string& text, const GeneratedFileArgs& args,
                              std::string_view source, std::string_view regenerate)
 {
+    const bool check = !args.check.empty();
+    const std::string& path = check ? args.check : args.out;
     if (path.empty()) {
         std::cout << text;
         return std::cout.flush() ? 0 : 1;
@@ -37,7 +44,7 @@ int write_or_check_generated(std::string_view tool, const std::string& text, con
             return 0;
         std::cerr << tool << ": " << path << " differs from " << source << " from line "
                   << first_different_line(actual, text) << ".\nRegenerate it, and commit it with the table:\n  "
-                  << regenerate << '\n';
+                  << regenerate << " --out " << path << '\n';
         return 1;
     }
     std::ofstream out(path, std::ios::binary);

@@ -1,6 +1,5 @@
 // stemd-dbc: writes the DBC of stemd's CAN messages (config/stemd.dbc) from
 // the message table, or checks that a file holds exactly that text.
-#include <iostream>
 #include <sstream>
 #include <string>
 
@@ -10,28 +9,19 @@
 
 using namespace stemd;
 
-namespace {
-
-const char* const kUsage =
-    "usage: stemd-dbc [--out FILE | --check FILE]\n"
-    "  (no option)   write the DBC to standard output\n"
-    "  --out FILE    write it to FILE\n"
-    "  --check FILE  exit 0 if FILE is exactly the DBC this build writes, 1 if not\n";
-
-}  // namespace
-
 int main(int argc, char** argv)
 {
+    const std::string usage = "usage: stemd-dbc [--out FILE | --check FILE]\n"
+                              "  (no option)   write the DBC to standard output\n" +
+                              std::string(tools::kGeneratedFileUsage);
     CLI::App app{"stemd-dbc"};
-    std::string out, check;
-    app.add_option("--out", out)->excludes(app.add_option("--check", check));
-    if (const auto exit_code = tools::parse(app, argc, argv, {.tool = "stemd-dbc", .usage = kUsage,
+    tools::GeneratedFileArgs args;
+    tools::add_generated_file_options(app, args);
+    if (const auto exit_code = tools::parse(app, argc, argv, {.tool = "stemd-dbc", .usage = usage,
                                                                .usage_after_error = true}))
         return *exit_code;
     std::ostringstream text;
     protocol::write_dbc(text);
-    const std::string& path = check.empty() ? out : check;
-    return tools::write_or_check_generated("stemd-dbc", text.str(), path, !check.empty(),
-                                           "the message table (src/protocol/messages.cpp)",
-                                           std::string(argv[0]) + " --out " + path);
+    return tools::write_or_check_generated("stemd-dbc", text.str(), args,
+                                           "the message table (src/protocol/messages.cpp)", argv[0]);
 }

@@ -54,11 +54,11 @@ bool CanLogBus::open()
 SendResult CanLogBus::send(const protocol::CanFrame& frame, std::int64_t deadline_ns)
 {
     if (base::monotonic_ns() >= deadline_ns) {
-        deadline_misses_.fetch_add(1, std::memory_order_relaxed);
+        CanBusCounterCells::bump(counters_.deadline_misses);
         return SendResult::deadline_passed;
     }
     if (!file_.is_open()) {
-        errors_.fetch_add(1, std::memory_order_relaxed);
+        CanBusCounterCells::bump(counters_.errors);
         return SendResult::error;
     }
     std::array<char, protocol::kCandumpLineMax + 1> line{};
@@ -67,13 +67,13 @@ SendResult CanLogBus::send(const protocol::CanFrame& frame, std::int64_t deadlin
     const std::size_t n = protocol::format_candump_line(std::span<char>(line.data(), protocol::kCandumpLineMax),
                                                          t_us, options_.interface, frame);
     if (n == 0) {
-        errors_.fetch_add(1, std::memory_order_relaxed);
+        CanBusCounterCells::bump(counters_.errors);
         log_->error("{}: frame id 0x{:X} dlc {} cannot be written as a candump line", name_, frame.id, frame.dlc);
         return SendResult::error;
     }
     line[n] = '\n';
     if (const int e = file_.write({line.data(), n + 1}); e != 0) {
-        errors_.fetch_add(1, std::memory_order_relaxed);
+        CanBusCounterCells::bump(counters_.errors);
         // Logged once: a full disk fails every line after the first.
         if (!write_error_logged_)
             log_->error("{}: write failed: {} (errno {}); frames that cannot be written are counted as bus errors",
@@ -81,7 +81,7 @@ SendResult CanLogBus::send(const protocol::CanFrame& frame, std::int64_t deadlin
         write_error_logged_ = true;
         return SendResult::error;
     }
-    sent_.fetch_add(1, std::memory_order_relaxed);
+    CanBusCounterCells::bump(counters_.sent);
     return SendResult::sent;
 }
 
@@ -95,13 +95,7 @@ bool CanLogBus::receive(protocol::CanFrame& /*out*/, std::int64_t timeout_ns, st
 
 CanBusCounters CanLogBus::counters() const
 {
-    return {.sent = sent_.load(std::memory_order_relaxed),
-            .tx_queue_full_retries = 0,
-            .deadline_misses = deadline_misses_.load(std::memory_order_relaxed),
-            .errors = errors_.load(std::memory_order_relaxed),
-            .bus_off = 0,
-            .error_passive = 0,
-            .rx = 0};
+    return counters_.load();
 }
 
 }  // namespace stemd::drivers

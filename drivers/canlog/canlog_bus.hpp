@@ -57,7 +57,7 @@ public:
     bool receive(protocol::CanFrame& out, std::int64_t timeout_ns, std::int64_t& t_rx_ns) override;
     CanBusCounters counters() const override;
     // Frames that could not be written: the log is incomplete.
-    bool output_lost() const override { return errors_.load(std::memory_order_relaxed) > 0; }
+    bool output_lost() const override { return counters_.errors.load(std::memory_order_relaxed) > 0; }
 
 private:
     const CanLogOptions options_;
@@ -66,9 +66,7 @@ private:
     base::RecordFile file_;
     bool write_error_logged_ = false;
 
-    std::atomic<std::uint64_t> sent_{0};
-    std::atomic<std::uint64_t> deadline_misses_{0};
-    std::atomic<std::uint64_t> errors_{0};
+    CanBusCounterCells counters_;
 };
 
 }  // namespace stemd::drivers

@@ -224,7 +224,7 @@ SendResult SocketCanBus::send(const protocol::CanFrame& frame, std::int64_t dead
 {
     const std::uint32_t max_id = frame.extended ? protocol::kMaxExtendedId : protocol::kMaxStandardId;
     if (frame.dlc > CAN_MAX_DLEN || frame.id > max_id) {
-        errors_.fetch_add(1, std::memory_order_relaxed);
+        CanBusCounterCells::bump(counters_.errors);
         log_->error("{}: invalid frame (id 0x{:X}, dlc {}) not sent", name_, frame.id, frame.dlc);
         return SendResult::error;
     }
@@ -236,21 +236,21 @@ SendResult SocketCanBus::send(const protocol::CanFrame& frame, std::int64_t dead
     for (;;) {
         const std::int64_t now = base::monotonic_ns();
         if (now >= deadline_ns) {
-            deadline_misses_.fetch_add(1, std::memory_order_relaxed);
+            CanBusCounterCells::bump(counters_.deadline_misses);
             log_->debug("{}: deadline passed, frame 0x{:03X} not sent", name_, frame.id);
             return SendResult::deadline_passed;
         }
         if (!ensure_open(now)) {
-            errors_.fetch_add(1, std::memory_order_relaxed);
+            CanBusCounterCells::bump(counters_.errors);
             return SendResult::error;
         }
         const ssize_t n = ::write(fd_.get(), &cf, sizeof cf);
         if (n == static_cast<ssize_t>(sizeof cf)) {
-            sent_.fetch_add(1, std::memory_order_relaxed);
+            CanBusCounterCells::bump(counters_.sent);
             return SendResult::sent;
         }
         if (n >= 0) {
-            errors_.fetch_add(1, std::memory_order_relaxed);
+            CanBusCounterCells::bump(counters_.errors);
             fail("short write", EIO);
             return SendResult::error;
         }
@@ -258,18 +258,18 @@ SendResult SocketCanBus::send(const protocol::CanFrame& frame, std::int64_t dead
         if (e == EINTR)
             continue;
         if (e == ENOBUFS || e == EAGAIN) {
-            retries_.fetch_add(1, std::memory_order_relaxed);
+            CanBusCounterCells::bump(counters_.tx_queue_full_retries);
             const std::int64_t left = deadline_ns - base::monotonic_ns();
             if (e == ENOBUFS)
                 sleep_for_ns(std::min(left, kEnobufsPauseNs));
             else if (left > 0 && wait_fd(fd_.get(), POLLOUT, left) < 0 && errno != EINTR) {
-                errors_.fetch_add(1, std::memory_order_relaxed);
+                CanBusCounterCells::bump(counters_.errors);
                 fail("poll(POLLOUT)", errno);
                 return SendResult::error;
             }
             continue;  // the deadline is checked before the next write
         }
-        errors_.fetch_add(1, std::memory_order_relaxed);
+        CanBusCounterCells::bump(counters_.errors);
         if (is_down_errno(e))
             go_down("write", e);
         else
@@ -293,7 +293,7 @@ bool SocketCanBus::receive(protocol::CanFrame& out, std::int64_t timeout_ns, std
         if (ready < 0) {
             if (errno == EINTR)
                 continue;
-            errors_.fetch_add(1, std::memory_order_relaxed);
+            CanBusCounterCells::bump(counters_.errors);
             fail("poll(POLLIN)", errno);
             return false;
         }
@@ -312,7 +312,7 @@ bool SocketCanBus::receive(protocol::CanFrame& out, std::int64_t timeout_ns, std
             const int e = errno;
             if (e == EINTR || e == EAGAIN)
                 continue;
-            errors_.fetch_add(1, std::memory_order_relaxed);
+            CanBusCounterCells::bump(counters_.errors);
             if (!is_down_errno(e)) {
                 fail("read", e);
                 return false;
@@ -336,7 +336,7 @@ bool SocketCanBus::receive(protocol::CanFrame& out, std::int64_t timeout_ns, std
         out.data.fill(0);
         std::memcpy(out.data.data(), cf.data, cf.len);
         t_rx_ns = receive_time_ns(msg);
-        rx_.fetch_add(1, std::memory_order_relaxed);
+        CanBusCounterCells::bump(counters_.rx);
         return true;
     }
 }
@@ -345,12 +345,12 @@ void SocketCanBus::handle_error_frame(std::uint32_t can_id, const std::uint8_t (
 {
     const CanErrorInfo info = decode_error_frame(can_id, data);
     if (info.bus_off) {
-        bus_off_.fetch_add(1, std::memory_order_relaxed);
+        CanBusCounterCells::bump(counters_.bus_off);
         log_->error("{}: controller is bus-off (error frame 0x{:X})", name_, can_id);
         set_state(SocketCanState::bus_off);
     }
     if (info.error_passive) {
-        error_passive_.fetch_add(1, std::memory_order_relaxed);
+        CanBusCounterCells::bump(counters_.error_passive);
         log_->warn("{}: controller is error-passive (ctrl 0x{:02X})", name_, data[1]);
         if (state() != SocketCanState::bus_off)
             set_state(SocketCanState::error_passive);
@@ -366,13 +366,7 @@ void SocketCanBus::handle_error_frame(std::uint32_t can_id, const std::uint8_t (
 
 CanBusCounters SocketCanBus::counters() const
 {
-    return {.sent = sent_.load(std::memory_order_relaxed),
-            .tx_queue_full_retries = retries_.load(std::memory_order_relaxed),
-            .deadline_misses = deadline_misses_.load(std::memory_order_relaxed),
-            .errors = errors_.load(std::memory_order_relaxed),
-            .bus_off = bus_off_.load(std::memory_order_relaxed),
-            .error_passive = error_passive_.load(std::memory_order_relaxed),
-            .rx = rx_.load(std::memory_order_relaxed)};
+    return counters_.load();
 }
 
 }  // namespace stemd::drivers

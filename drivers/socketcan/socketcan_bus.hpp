@@ -101,13 +101,7 @@ private:
     bool was_up_ = false;  // for the "up again" log line
     std::string last_error_;
 
-    std::atomic<std::uint64_t> sent_{0};
-    std::atomic<std::uint64_t> retries_{0};
-    std::atomic<std::uint64_t> deadline_misses_{0};
-    std::atomic<std::uint64_t> errors_{0};
-    std::atomic<std::uint64_t> bus_off_{0};
-    std::atomic<std::uint64_t> error_passive_{0};
-    std::atomic<std::uint64_t> rx_{0};
+    CanBusCounterCells counters_;
     std::atomic<std::uint64_t> reopens_{0};
 };
 

@@ -62,7 +62,6 @@ constexpr std::string_view kDocumentedHeader =
 
 }  // namespace
 
-
 std::string ConfigError::to_string() const
 {
     std::string out = origin;
@@ -140,7 +139,7 @@ std::optional<ConfigError> Config::set_override(std::string_view key_equals_valu
     const std::string key(trim(key_equals_value.substr(0, eq)));
     if (eq == std::string_view::npos || key.empty())
         return ConfigError{origin, 0, "", "expected KEY=VALUE, e.g. --set closing.radius_px=6"};
-    if (const ListSpec* list = find_list(key.substr(0, key.find_first_of(".["))))
+    if (const ListSpec* list = list_of_key(key))
         return set_item_override(*list, key, key_equals_value.substr(eq + 1), origin);
     const KeySpec* spec = find_key(key);
     if (spec == nullptr)
@@ -177,9 +176,7 @@ std::optional<ConfigError> Config::set_item_override(const ListSpec& list, std::
                                " appends one")};
     if (index == size) {
         if (size >= list.max_items)
-            return ConfigError{origin, 0, full,
-                               cat("more than ", std::to_string(list.max_items), " items; '", section,
-                                   "' holds at most ", std::to_string(list.max_items))};
+            return ConfigError{origin, 0, full, too_many_items(list)};
         std::vector<ConfigValue> item = default_item(list);
         // The appended item's unique key: the lowest value no other item has.
         if (const KeySpec* unique = find_item_key(section, list.unique_key);
@@ -225,7 +222,7 @@ std::string Config::origin_of(std::string_view key) const
     if (spec != nullptr)
         return values_[index_of(*spec)].origin;
     // A list item's key, as errors name it: "tools[1].offset_mm".
-    const ListSpec* list = find_list(key.substr(0, key.find_first_of(".[")));
+    const ListSpec* list = list_of_key(key);
     std::size_t index = 0;
     std::string_view leaf;
     if (list == nullptr || !parse_item_key(key, list->section, index, leaf))

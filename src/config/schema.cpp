@@ -671,7 +671,7 @@ std::string schema_markdown()
     const auto row = [&out](const KeySpec& spec) {
         std::string range;
         if (spec.type == integer || spec.type == real)
-            range = cat("[", format_number(spec.min), ", ", format_number(spec.max), "]");
+            range = detail::bounds_text(spec);
         else if (spec.type == choice)
             range = cat("`", list_choices(spec, "`, `"), "`");
         else if (spec.type == boolean)

@@ -9,7 +9,6 @@ namespace stemd::config::detail {
 
 namespace {
 
-
 // "a, b, c": the names `name_of` gives, each once, in order.
 template <class Range, class NameOf>
 std::string joined(const Range& range, NameOf name_of)
@@ -64,6 +63,13 @@ const KeySpec* nearest(std::string_view name, std::span<const KeySpec> keys)
     return best;
 }
 
+// The escapes of a double-quoted string that --set reads and to_yaml()
+// writes: \" \\ \n \t (to_yaml() writes other control bytes as YAML's \xXX).
+struct Escape {
+    char letter;
+    char value;
+};
+constexpr Escape kEscapes[] = {{'"', '"'}, {'\\', '\\'}, {'n', '\n'}, {'t', '\t'}};
 
 // Parses the text after "=" of --set KEY=VALUE (not YAML: '#' is literal and
 // a lone "-" is a plain value, "standard output").
@@ -83,15 +89,12 @@ std::optional<std::string> parse_scalar(std::string_view raw, Scalar& out)
             }
             if (++i == raw.size())
                 break;
-            switch (raw[i]) {
-            case '"': out.text += '"'; break;
-            case '\\': out.text += '\\'; break;
-            case 'n': out.text += '\n'; break;
-            case 't': out.text += '\t'; break;
-            default:
+            const auto escape = std::find_if(std::begin(kEscapes), std::end(kEscapes),
+                                             [&](const Escape& e) { return e.letter == raw[i]; });
+            if (escape == std::end(kEscapes))
                 return cat("unsupported escape '\\", std::string_view(&raw[i], 1),
                            "' in a double-quoted string (use \\\", \\\\, \\n or \\t)");
-            }
+            out.text += escape->value;
         }
         if (i >= raw.size())
             return std::string("unterminated double-quoted string");
@@ -109,34 +112,27 @@ std::optional<std::string> parse_scalar(std::string_view raw, Scalar& out)
     return std::nullopt;
 }
 
-
 std::string yaml_quoted(std::string_view s)
 {
     std::string out = "\"";
     for (const char c : s) {
-        switch (c) {
-        case '"': out += "\\\""; break;
-        case '\\': out += "\\\\"; break;
-        case '\n': out += "\\n"; break;
-        case '\t': out += "\\t"; break;
-        default:
-            if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {  // YAML's \xXX escape
-                constexpr std::string_view kHex = "0123456789abcdef";
-                const auto byte = static_cast<unsigned char>(c);
-                out += cat("\\x", std::string_view(&kHex[byte >> 4], 1), std::string_view(&kHex[byte & 15], 1));
-            } else {
-                out += c;
-            }
-        }
+        const auto escape = std::find_if(std::begin(kEscapes), std::end(kEscapes),
+                                         [&](const Escape& e) { return e.value == c; });
+        const auto byte = static_cast<unsigned char>(c);
+        constexpr std::string_view kHex = "0123456789abcdef";
+        if (escape != std::end(kEscapes))
+            out += cat("\\", std::string_view(&escape->letter, 1));
+        else if (byte < 0x20 || byte == 0x7f)
+            out += cat("\\x", kHex.substr(byte >> 4, 1), kHex.substr(byte & 15, 1));
+        else
+            out += c;
     }
     return out + "\"";
 }
 
-
 std::string range_text(const KeySpec& spec)
 {
-    return cat("[", format_number(spec.min), ", ", format_number(spec.max), "]", spec.unit.empty() ? "" : " ",
-               spec.unit);
+    return cat(bounds_text(spec), spec.unit.empty() ? "" : " ", spec.unit);
 }
 
 double number_of(const KeySpec& spec, const ConfigValue& value)
@@ -207,6 +203,12 @@ std::string unknown_key_message(std::string_view key)
     return cat("unknown key; the sections are: ", list_sections());
 }
 
+std::string too_many_items(const ListSpec& list)
+{
+    const std::string most = std::to_string(list.max_items);
+    return cat("more than ", most, " items; '", list.section, "' holds at most ", most);
+}
+
 std::string item_name(std::string_view section, std::size_t index)
 {
     return cat(section, "[", std::to_string(index), "]");
@@ -234,7 +236,10 @@ std::string unknown_item_key_message(const ListSpec& list, std::size_t index, st
         return cat("unknown key; did you mean ", quote(item_key_name(list.section, index, item_leaf_of(*best))), "?");
     return cat("unknown key; a ", list.section, " item has: ", joined(item_keys(list.section), item_leaf_of));
 }
-// A value as written: bare, or quoted (a YAML quoted scalar in a file, a
+const ListSpec* list_of_key(std::string_view key)
+{
+    return find_list(key.substr(0, key.find_first_of(".[")));
+}
 
 bool parse_item_key(std::string_view key, std::string_view section, std::size_t& index, std::string_view& leaf)
 {
@@ -259,7 +264,6 @@ bool parse_item_key(std::string_view key, std::string_view section, std::size_t&
     leaf = rest;
     return is_valid_name(leaf) && leaf.find('.') == std::string_view::npos;
 }
-
 
 std::optional<std::string> parse_value(const KeySpec& spec, const Scalar& scalar, ConfigValue& out)
 {
@@ -318,6 +322,10 @@ std::size_t index_of(const KeySpec& spec)
     return static_cast<std::size_t>(&spec - schema().data());
 }
 
+std::string bounds_text(const KeySpec& spec)
+{
+    return cat("[", format_number(spec.min), ", ", format_number(spec.max), "]");
+}
 
 std::string value_text(const KeySpec& spec, const ConfigValue& value)
 {
@@ -330,7 +338,6 @@ std::string value_text(const KeySpec& spec, const ConfigValue& value)
     }
     return "?";
 }
-
 
 // The schema's defaults are valid (the tests check); a bad one would leave
 // the zero value rather than throw.
@@ -406,7 +413,7 @@ std::string about_text(const KeySpec& spec, bool sentence)
         if (!sentence)
             return range_text(spec);
         return cat(spec.type == ValueType::integer ? "Integer, " : "Real, ", spec.unit, spec.unit.empty() ? "" : ", ",
-                   "range [", format_number(spec.min), ", ", format_number(spec.max), "].");
+                   "range ", bounds_text(spec), ".");
     case ValueType::boolean: return sentence ? "Boolean." : "true or false";
     case ValueType::choice: return sentence ? cat("Choice: ", list_choices(spec, " | "), ".") : list_choices(spec, "|");
     case ValueType::text: return sentence ? "Text." : "text";

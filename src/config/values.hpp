@@ -43,9 +43,15 @@ std::string list_sections();                   // "camera, segment, ..., tools"
 std::string unknown_key_message(std::string_view key);
 std::string unknown_item_key_message(const ListSpec& list, std::size_t index, std::string_view leaf);
 
+// "more than 16 items; 'tools' holds at most 16".
+std::string too_many_items(const ListSpec& list);
+
 // "tools[1]" and "tools[1].offset_mm": how errors name an item and its keys.
 std::string item_name(std::string_view section, std::size_t index);
 std::string item_key_name(std::string_view section, std::size_t index, std::string_view leaf);
+// The list section whose item a key names ("tools.1.offset_mm" or
+// "tools[1].offset_mm": "tools"), or nullptr.
+const ListSpec* list_of_key(std::string_view key);
 // "tools.1.offset_mm" or "tools[1].offset_mm" -> 1, "offset_mm".
 bool parse_item_key(std::string_view key, std::string_view section, std::size_t& index, std::string_view& leaf);
 
@@ -71,6 +77,8 @@ std::optional<std::string> set_value(const KeySpec& spec, std::string_view raw, 
 ConfigValue default_value(const KeySpec& spec);
 std::vector<ConfigValue> default_item(const ListSpec& list);  // every key at its default
 
+// A numeric key's range as errors, config files and the README write it: "[0, 50]".
+std::string bounds_text(const KeySpec& spec);
 // A value as a config file writes it ("6", "0.33", "\"a b\"").
 std::string value_text(const KeySpec& spec, const ConfigValue& value);
 // What a key accepts: "[0, 50] px", "true or false", "a|b" (`sentence`:

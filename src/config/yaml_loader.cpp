@@ -459,8 +459,7 @@ private:
                 ? line_at(dash)
                 : line_of(item);
             if (i >= list.max_items)
-                return error(item_line, name, cat("more than ", std::to_string(list.max_items), " items; '",
-                                                  section, "' holds at most ", std::to_string(list.max_items)));
+                return error(item_line, name, too_many_items(list));
             if (item.kind == Kind::null)
                 return error(item_line, name, cat("empty item; an item starts with '- ' and its first key ('- ",
                                                   first_key, ": ...')"));
@@ -515,7 +514,6 @@ private:
     TreeBuilder tree_;
     std::map<std::string, int, std::less<>> key_lines_;  // sections and keys ("tools[1].id"): their lines
 };
-
 
 }  // namespace
 

@@ -19,6 +19,7 @@
 
 #include "libcamera/libcamera_source.hpp"
 #include "captured_log.hpp"
+#include "frame_source_test_util.hpp"
 
 using namespace stemd::drivers;
 using namespace std::chrono_literals;
@@ -178,15 +179,8 @@ TEST(LibcameraSource, NoMatchingCameraIsAClearErrorNotACrash)
     const LibcameraOptions options{.camera = std::string("stemd-no-such-camera")};
     LibcameraSource source(options, log.logger);
     EXPECT_EQ(source.name(), "libcamera:stemd-no-such-camera");
-    EXPECT_FALSE(source.open());
-    EXPECT_EQ(source.state(), LibcameraSource::State::failed);
-    EXPECT_FALSE(source.start());
-    Frame frame;
-    frame.bgr = cv::Mat(480, 640, CV_8UC3);
-    EXPECT_EQ(source.next(frame, 10ms), NextStatus::failed);
-    source.stop();
+    stemd::test::expect_unopenable(source);
     EXPECT_EQ(source.libcamera_counters().errors, 1u);
-    EXPECT_EQ(source.counters().delivered, 0u);
     const std::string text = log.text();
     EXPECT_NE(text.find("libcamera:stemd-no-such-camera: source.libcamera_camera: no camera matches "
                         "'stemd-no-such-camera' (cameras: "),

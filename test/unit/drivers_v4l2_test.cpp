@@ -16,6 +16,7 @@
 
 #include "v4l2/v4l2_source.hpp"
 #include "captured_log.hpp"
+#include "frame_source_test_util.hpp"
 
 using namespace stemd::drivers;
 using namespace std::chrono_literals;
@@ -187,15 +188,7 @@ TEST(V4l2Source, MissingDeviceIsAClearErrorNotACrash)
     options.clock = [] { return std::int64_t{0}; };
     V4l2Source source(options, log.logger);
     EXPECT_EQ(source.name(), "v4l2:/dev/stemd-no-such-video-device");
-    EXPECT_FALSE(source.open());
-    EXPECT_EQ(source.state(), V4l2Source::State::failed);
-    EXPECT_FALSE(source.start());
-    Frame frame;
-    frame.bgr = cv::Mat(480, 640, CV_8UC3);
-    EXPECT_EQ(source.next(frame, 10ms), NextStatus::failed);
-    source.stop();
-    EXPECT_EQ(source.counters().errors, 1u);
-    EXPECT_EQ(source.counters().delivered, 0u);
+    stemd::test::expect_unopenable(source);
     const std::string text = log.text();
     EXPECT_NE(text.find("/dev/stemd-no-such-video-device: cannot open: No such file or directory (errno 2)"),
               std::string::npos)

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <string>
 #include <unistd.h>
 
@@ -43,6 +44,15 @@ std::filesystem::path temp_log(const char* name)
     return std::filesystem::temp_directory_path() / (std::string("stemd-eval-") + name + "-" + std::to_string(::getpid()) + ".log");
 }
 
+// The log as stemd-eval reads it; a log it cannot read fails the test, with the reason.
+std::optional<eval::TargetLog> read_log(const std::filesystem::path& path)
+{
+    std::string error;
+    auto log = eval::read_target_log(path, *protocol::CanIds::make(0x300), error);
+    EXPECT_TRUE(log) << error;
+    return log;
+}
+
 }  // namespace
 
 TEST(EvalTargets, ALatencyLeadIsScoredAtTheStrikePointNotTheCommand)
@@ -65,9 +75,8 @@ TEST(EvalTargets, ALatencyLeadIsScoredAtTheStrikePointNotTheCommand)
         w.write(protocol::TargetCommand{.target_id = 2, .tool_id = 0, .lane = 0, .fire_odom_mm = 2600 - 56,
                                         .lateral_mm = -20, .plant_class = PlantClass::Weed});
     }
-    std::string error;
-    const auto log = eval::read_target_log(path, *protocol::CanIds::make(0x300), error);
-    ASSERT_TRUE(log) << error;
+    const auto log = read_log(path);
+    ASSERT_TRUE(log);
     ASSERT_EQ(log->targets.size(), 2u);
     EXPECT_DOUBLE_EQ(log->speed_mm_per_s[0], 1400);
     EXPECT_TRUE(std::isnan(log->fired_odom_mm[0]));
@@ -93,9 +102,8 @@ TEST(EvalTargets, WithoutOdometryFramesTheConfiguredSpeedGivesTheLead)
         w.write(protocol::TargetCommand{.target_id = 1, .tool_id = 3, .lane = 0, .fire_odom_mm = 5000,
                                         .lateral_mm = 0, .plant_class = PlantClass::Weed});
     }
-    std::string error;
-    const auto log = eval::read_target_log(path, *protocol::CanIds::make(0x300), error);
-    ASSERT_TRUE(log) << error;
+    const auto log = read_log(path);
+    ASSERT_TRUE(log);
     std::array<double, 16> latency{};
     latency[3] = 25;
     // 2000 mm/s x 25 ms.
@@ -121,9 +129,8 @@ TEST(EvalTargets, TheToolsOwnFiredReportIsTheStrikePoint)
         w.write(protocol::ToolFired{.target_id = 7, .tool_id = 0, .lane = 2, .fired_odom_mm = 500});
         w.write(protocol::ToolFired{.target_id = 7, .tool_id = 1, .lane = 2, .fired_odom_mm = 10});
     }
-    std::string error;
-    const auto log = eval::read_target_log(path, *protocol::CanIds::make(0x300), error);
-    ASSERT_TRUE(log) << error;
+    const auto log = read_log(path);
+    ASSERT_TRUE(log);
     ASSERT_EQ(log->targets.size(), 2u);
     EXPECT_DOUBLE_EQ(log->fired_odom_mm[0], 10);
     EXPECT_TRUE(std::isnan(log->fired_odom_mm[1]));

@@ -2,35 +2,12 @@
 // top of the ones before it), then --set overrides, each value checked
 // against the schema (type, range, choices) as it arrives.
 //
-// A config file is YAML, read with yaml-cpp (see config/stemd.yaml), in one
-// shape: a map of sections, each a map of scalars.
-//
-//   # a comment
-//   closing:              # a section
-//     radius_px: 10       # key: value, one level only
-//
-// Values are YAML scalars: integers, reals, bare words, true/false, or quoted
-// strings ("a \"b\" \\ c", 'it''s'); a quoted value is text, never a number
-// or a boolean. "key:", "key: ~" and "key: null" are empty values (an error);
-// a bare - starts a YAML list item, so the text "-" is written quoted. Keys
-// are flattened to "section.key". Keys a file does not mention keep their
-// previous value. Anything else is an error naming file, line and key: a value
-// where a section belongs, a section without keys, nesting deeper than one
-// level, a list outside a list section, an unknown or duplicate key or
-// section, a wrong type or range, a tab in the indentation, a YAML syntax
-// error ("invalid YAML: ..."), more than one YAML document.
-//
-// List sections (schema.hpp, ListSpec; "tools") hold a list of maps
-// of scalars:
-//
-//   tools:
-//     - id: 0            # an item starts with "- " and its first key
-//       offset_mm: 600   # its other keys are aligned with the first
-//     - id: 1
-//
-// A file with a list section replaces the whole list; an item's omitted keys
-// take the item defaults. Without a file the list is one item at the
-// defaults. Errors name the item: "key 'tools[1].offset_mm'".
+// A config file is YAML (read with yaml-cpp) in one shape: a map of
+// sections, each a map of scalars, "section.key" once flattened; a list
+// section ("tools", ListSpec) holds a list of such maps and a file's list
+// replaces the whole list. The format and its errors: README,
+// "Configuration", and the header of config/stemd.yaml. Every error names
+// file, line and key ("key 'tools[1].offset_mm'").
 //
 // --set values are not YAML: "--set can.log_file=-" is the text "-", and a
 // value may be double-quoted ("a \"b\"").

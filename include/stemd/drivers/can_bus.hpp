@@ -15,6 +15,7 @@
 
 #include <time.h>
 
+#include <atomic>
 #include <cstdint>
 #include <string_view>
 
@@ -49,6 +50,33 @@ struct CanBusCounters {
     std::uint64_t bus_off = 0;                // bus-off events reported by the controller
     std::uint64_t error_passive = 0;          // error-passive events reported by the controller
     std::uint64_t rx = 0;                     // data frames delivered by receive()
+};
+
+// The counters as atomics, one set for every backend (a backend leaves the
+// ones it has no use for at 0): the thread driving the bus adds, any thread
+// loads. Relaxed: each only grows, and no reader needs two of them to agree.
+struct CanBusCounterCells {
+    std::atomic<std::uint64_t> sent{0};
+    std::atomic<std::uint64_t> tx_queue_full_retries{0};
+    std::atomic<std::uint64_t> deadline_misses{0};
+    std::atomic<std::uint64_t> errors{0};
+    std::atomic<std::uint64_t> bus_off{0};
+    std::atomic<std::uint64_t> error_passive{0};
+    std::atomic<std::uint64_t> rx{0};
+
+    static void bump(std::atomic<std::uint64_t>& cell) { cell.fetch_add(1, std::memory_order_relaxed); }
+
+    CanBusCounters load() const
+    {
+        const auto get = [](const std::atomic<std::uint64_t>& c) { return c.load(std::memory_order_relaxed); };
+        return {.sent = get(sent),
+                .tx_queue_full_retries = get(tx_queue_full_retries),
+                .deadline_misses = get(deadline_misses),
+                .errors = get(errors),
+                .bus_off = get(bus_off),
+                .error_passive = get(error_passive),
+                .rx = get(rx)};
+    }
 };
 
 class CanBus : base::NonCopyable {
