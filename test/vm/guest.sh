@@ -397,6 +397,11 @@ check_daemon() {
   feeder=$!
   within 120 grep -q '^ready' /tmp/feeder.log || die "feeder did not get ready: $(cat /tmp/feeder.log)"
   echo "t=$(uptime_s) s: $(cat /tmp/feeder.log)"
+  # The host's stalls of the emulated CPUs, which a heartbeat gap is not
+  # blamed for (daemon_check.cpp's ticker).
+  hostrun "$daemon" ticker "$out/daemon-stalls.txt" > /tmp/ticker.log 2>&1 &
+  ticker=$!
+  within 60 grep -q '^ready' /tmp/ticker.log || die "the stall ticker did not start: $(cat /tmp/ticker.log)"
   candump_start /tmp/daemon.candump /tmp/candump.err
   sets=
   for s in $(hostrun "$daemon" config) source.v4l2_device="$cap" can.interface=vcan0 gpio.chip="$chip" gpio.enable_line=0; do
@@ -412,13 +417,13 @@ check_daemon() {
   if ! within 180 daemon_active || ! grep -q ' vcan0 303#..[23]' /tmp/daemon.candump; then
     cat /tmp/stemd.log
     if gone $daemon_pid; then wait $daemon_pid; echo "stemd ended with status $? (128 + N: signal N)"; fi
-    kill -KILL $daemon_pid $feeder $dump 2>/dev/null; die "stemd did not become active (within 180 s)"
+    kill -KILL $daemon_pid $feeder $dump $ticker 2>/dev/null; die "stemd did not become active (within 180 s)"
   fi
   echo "t=$(uptime_s) s: stemd active; feeding the field"
   kill -USR1 $feeder
   feeder_done() { grep -q '^done' /tmp/feeder.log || ! kill -0 $feeder 2>/dev/null; }
   if ! within 180 feeder_done || ! grep -q '^done' /tmp/feeder.log; then
-    cat /tmp/feeder.log /tmp/stemd.log; kill $daemon_pid $dump 2>/dev/null; die "feeder did not finish (within 180 s)"
+    cat /tmp/feeder.log /tmp/stemd.log; kill $daemon_pid $dump $ticker 2>/dev/null; die "feeder did not finish (within 180 s)"
   fi
   # The last plants' outcomes reach a heartbeat: wait (bounded) until the
   # newest HEARTBEAT's targets_dropped (bits 44..55: byte 5's high nibble,
@@ -447,7 +452,9 @@ check_daemon() {
   rc=$?
   kill -TERM $feeder; wait $feeder; frc=$?
   kill -INT $dump; wait $dump
+  kill -TERM $ticker; wait $ticker
   echo "--- stemd log"; cat /tmp/stemd.log; echo "---"
+  cat /tmp/ticker.log
   cat /tmp/feeder.log
   rm -f "/host$out/daemon.candump"
   cp /tmp/daemon.candump "/host$out/daemon.candump"
@@ -459,7 +466,7 @@ check_daemon() {
   # The summary's heartbeat_errors (the last of the status lines' figures):
   # heartbeats stemd could not send, which the alive counter skips.
   hb_errors=$(grep -o 'heartbeat_errors [0-9]*' /tmp/stemd.log | tail -n 1 | cut -d' ' -f2)
-  hostrun "$daemon" verify "$out/daemon.candump" "$out/daemon-map.jsonl" "${hb_errors:-0}" || die "the daemon's CAN frames"
+  hostrun "$daemon" verify "$out/daemon.candump" "$out/daemon-map.jsonl" "${hb_errors:-0}" "$out/daemon-stalls.txt" || die "the daemon's CAN frames"
 }
 extra_checks="$extra_checks daemon"
 
