@@ -599,27 +599,9 @@ std::string format_number(double value)
     return std::string(buffer.data(), end);
 }
 
-std::string schema_markdown()
+std::string bounds_text(const KeySpec& spec)
 {
-    std::string out =
-        "| key | type | unit | default | range / choices | meaning |\n"
-        "|---|---|---|---|---|---|\n";
-    const auto row = [&out](const KeySpec& spec) {
-        std::string range;
-        if (spec.type == integer || spec.type == real)
-            range = detail::bounds_text(spec);
-        else if (spec.type == choice)
-            range = cat("`", list_choices(spec, "`, `"), "`");
-        else if (spec.type == boolean)
-            range = "`true`, `false`";
-        out += cat("| `", spec.key, "` | ", to_string(spec.type), " | ", spec.unit, " | `", spec.default_value,
-                   "` | ", range, " | ", spec.help, " |\n");
-    };
-    for (const KeySpec& spec : kSchema)
-        row(spec);
-    for (const KeySpec& spec : kItemSchema)
-        row(spec);
-    return out;
+    return cat("[", format_number(spec.min), ", ", format_number(spec.max), "]");
 }
 
 }  // namespace stemd::config

@@ -322,11 +322,6 @@ std::size_t index_of(const KeySpec& spec)
     return static_cast<std::size_t>(&spec - schema().data());
 }
 
-std::string bounds_text(const KeySpec& spec)
-{
-    return cat("[", format_number(spec.min), ", ", format_number(spec.max), "]");
-}
-
 std::string value_text(const KeySpec& spec, const ConfigValue& value)
 {
     switch (spec.type) {
@@ -405,18 +400,14 @@ std::string printable(std::string_view s)
     return out;
 }
 
-std::string about_text(const KeySpec& spec, bool sentence)
+std::string about_text(const KeySpec& spec)
 {
     switch (spec.type) {
     case ValueType::integer:
-    case ValueType::real:
-        if (!sentence)
-            return range_text(spec);
-        return cat(spec.type == ValueType::integer ? "Integer, " : "Real, ", spec.unit, spec.unit.empty() ? "" : ", ",
-                   "range ", bounds_text(spec), ".");
-    case ValueType::boolean: return sentence ? "Boolean." : "true or false";
-    case ValueType::choice: return sentence ? cat("Choice: ", list_choices(spec, " | "), ".") : list_choices(spec, "|");
-    case ValueType::text: return sentence ? "Text." : "text";
+    case ValueType::real: return range_text(spec);
+    case ValueType::boolean: return "true or false";
+    case ValueType::choice: return list_choices(spec, "|");
+    case ValueType::text: return "text";
     }
     return "?";
 }

@@ -77,13 +77,10 @@ std::optional<std::string> set_value(const KeySpec& spec, std::string_view raw, 
 ConfigValue default_value(const KeySpec& spec);
 std::vector<ConfigValue> default_item(const ListSpec& list);  // every key at its default
 
-// A numeric key's range as errors, config files and the README write it: "[0, 50]".
-std::string bounds_text(const KeySpec& spec);
 // A value as a config file writes it ("6", "0.33", "\"a b\"").
 std::string value_text(const KeySpec& spec, const ConfigValue& value);
-// What a key accepts: "[0, 50] px", "true or false", "a|b" (`sentence`:
-// "Integer, px, range [0, 50].", "Boolean.", "Choice: a | b.").
-std::string about_text(const KeySpec& spec, bool sentence = false);
+// What a key accepts: "[0, 50] px", "true or false", "a|b", "text".
+std::string about_text(const KeySpec& spec);
 
 // What is wrong with item `index` of a list, given the other items: its
 // upper key not above its lower key, or its unique key's value used by
