@@ -2,12 +2,15 @@
 
 #include <string_view>
 
+#include "stemd/base/strings.hpp"
 #include "stemd/config/config.hpp"
 #include "stemd/config/schema.hpp"
 
 namespace stemd::config {
 
 namespace {
+
+using base::cat;
 
 constexpr std::string_view kHeader =
     "# stemd configuration: every key at its default.\n"
@@ -32,7 +35,7 @@ std::string wrapped_comment(std::string_view indent, std::string_view text)
 {
     constexpr std::size_t kWidth = 79;
     std::string out;
-    std::string line = std::string(indent) + "#";
+    std::string line = cat(indent, "#");
     for (std::size_t at = 0; at < text.size();) {
         const std::size_t end = std::min(text.find(' ', at), text.size());
         const std::string_view word = text.substr(at, end - at);
@@ -40,10 +43,10 @@ std::string wrapped_comment(std::string_view indent, std::string_view text)
         if (word.empty())
             continue;
         if (line.size() + 1 + word.size() > kWidth && line.size() > indent.size() + 1) {
-            out += line + "\n";
-            line = std::string(indent) + "#";
+            out += cat(line, "\n");
+            line = cat(indent, "#");
         }
-        line.append(" ").append(word);
+        line += cat(" ", word);
     }
     return out + line + "\n";
 }
@@ -54,14 +57,10 @@ std::string about(const KeySpec& spec)
     switch (spec.type) {
     case ValueType::integer:
     case ValueType::real:
-        return std::string(spec.type == ValueType::integer ? "Integer, " : "Real, ")
-            .append(spec.unit)
-            .append(spec.unit.empty() ? "" : ", ")
-            .append("range ")
-            .append(bounds_text(spec))
-            .append(".");
+        return cat(spec.type == ValueType::integer ? "Integer, " : "Real, ", spec.unit, spec.unit.empty() ? "" : ", ",
+                   "range ", bounds_text(spec), ".");
     case ValueType::boolean: return "Boolean.";
-    case ValueType::choice: return std::string("Choice: ").append(list_choices(spec, " | ")).append(".");
+    case ValueType::choice: return cat("Choice: ", list_choices(spec, " | "), ".");
     case ValueType::text: return "Text.";
     }
     return "?";
@@ -74,28 +73,20 @@ std::string section_lines(std::string_view name, std::string_view fallback)
     std::string out;
     for (const SectionSpec& section : section_schema())
         if (section.name == name && !section.group.empty())
-            out.append("\n# --- ").append(section.group).append(" ---\n");
+            out += cat("\n# --- ", section.group, " ---\n");
     out += "\n";
     for (const SectionSpec& section : section_schema())
         if (section.name == name)
-            out += wrapped_comment("", section.help.empty() ? std::string(fallback) + "." : std::string(section.help));
-    return out + std::string(name) + ":\n";
+            out += wrapped_comment("", section.help.empty() ? cat(fallback, ".") : std::string(section.help));
+    return cat(out, name, ":\n");
 }
 
 // One key: its help and what it accepts above it, then "name: value".
 std::string key_lines(std::string_view indent, std::string_view first, std::string_view name, const KeySpec& spec,
                       const std::string& value)
 {
-    return wrapped_comment(indent, std::string(spec.help) + ".")
-        .append(indent)
-        .append("# ")
-        .append(about(spec))
-        .append("\n")
-        .append(first)
-        .append(name)
-        .append(": ")
-        .append(value)
-        .append("\n");
+    return cat(wrapped_comment(indent, cat(spec.help, ".")), indent, "# ", about(spec), "\n", first, name, ": ", value,
+               "\n");
 }
 
 }  // namespace
@@ -120,7 +111,7 @@ std::string documented_yaml()
         for (std::size_t i = 0; i < defaults.list_size(list.section); ++i)
             for (std::size_t k = 0; k < keys.size(); ++k) {
                 const std::string_view leaf = item_leaf_of(keys[k]);
-                const std::string key = std::string(list.section) + "[" + std::to_string(i) + "]." + std::string(leaf);
+                const std::string key = cat(list.section, "[", std::to_string(i), "].", leaf);
                 out += key_lines("    ", k == 0 ? "  - " : "    ", leaf, keys[k], defaults.value_of(key));
             }
     }
@@ -137,12 +128,11 @@ std::string schema_markdown()
         if (spec.type == ValueType::integer || spec.type == ValueType::real)
             range = bounds_text(spec);
         else if (spec.type == ValueType::choice)
-            range = std::string("`").append(list_choices(spec, "`, `")).append("`");
+            range = cat("`", list_choices(spec, "`, `"), "`");
         else if (spec.type == ValueType::boolean)
             range = "`true`, `false`";
-        out.append("| `").append(spec.key).append("` | ").append(to_string(spec.type)).append(" | ").append(spec.unit);
-        out.append(" | `").append(spec.default_value).append("` | ").append(range).append(" | ").append(spec.help);
-        out.append(" |\n");
+        out += cat("| `", spec.key, "` | ", to_string(spec.type), " | ", spec.unit, " | `", spec.default_value, "` | ",
+                   range, " | ", spec.help, " |\n");
     };
     for (const KeySpec& spec : schema())
         row(spec);

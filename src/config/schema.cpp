@@ -16,7 +16,7 @@ namespace stemd::config {
 
 namespace {
 
-using detail::cat;
+using base::cat;
 
 using enum ValueType;
 using geometry::Forward;

@@ -142,15 +142,6 @@ double number_of(const KeySpec& spec, const ConfigValue& value)
 
 }  // namespace
 
-std::string_view trim(std::string_view s)
-{
-    const std::size_t first = s.find_first_not_of(kWhitespace);
-    if (first == std::string_view::npos)
-        return {};
-    const std::size_t last = s.find_last_not_of(kWhitespace);
-    return s.substr(first, last - first + 1);
-}
-
 std::string quote(std::string_view s)
 {
     return cat("'", s, "'");

@@ -10,24 +10,17 @@
 #include <string_view>
 #include <vector>
 
+#include "stemd/base/strings.hpp"
 #include "stemd/config/config.hpp"
 #include "stemd/config/schema.hpp"
 
 namespace stemd::config::detail {
 
+using base::cat;
+using base::trim;
+
 constexpr std::string_view kWhitespace = " \t";
 
-// Concatenation without "literal" + std::string&&, which GCC 12 at -O3
-// misreports under -Wrestrict.
-template <class... Parts>
-std::string cat(const Parts&... parts)
-{
-    std::string out;
-    (out.append(std::string_view(parts)), ...);
-    return out;
-}
-
-std::string_view trim(std::string_view s);
 std::string quote(std::string_view s);  // 'text'
 // Control characters become '?': an error message stays one line.
 std::string printable(std::string_view s);
