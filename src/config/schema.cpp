@@ -8,6 +8,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "stemd/base/enum_names.hpp"
 #include "stemd/config/config.hpp"
 #include "stemd/config/settings.hpp"
 #include "values.hpp"
@@ -492,14 +493,9 @@ constexpr std::array kItemSchema{
 
 std::string_view to_string(ValueType type)
 {
-    switch (type) {
-    case integer: return "integer";
-    case real: return "real";
-    case choice: return "choice";
-    case boolean: return "boolean";
-    case text: return "text";
-    }
-    return "?";
+    constexpr base::EnumName<ValueType> kNames[] = {
+        {integer, "integer"}, {real, "real"}, {choice, "choice"}, {boolean, "boolean"}, {text, "text"}};
+    return base::name_of(kNames, type);
 }
 
 std::span<const SectionSpec> section_schema()
