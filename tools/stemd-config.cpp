@@ -3,10 +3,9 @@
 // key table; or a check that config/stemd.yaml is exactly the generated text.
 #include <string>
 
+#include "config_docs.hpp"
 #include "generated_file.hpp"
 #include "tool_cli.hpp"
-#include "stemd/config/config.hpp"
-#include "stemd/config/schema.hpp"
 
 using namespace stemd;
 
@@ -26,9 +25,7 @@ int main(int argc, char** argv)
     if (const auto exit_code = tools::parse(app, argc, argv, {.tool = "stemd-config", .usage = usage,
                                                                .usage_after_error = true}))
         return *exit_code;
-    using stemd::config::Config;
-    const std::string text = yaml->parsed() ? Config{}.to_yaml(Config::YamlComments::documentation)
-                                            : stemd::config::schema_markdown();
+    const std::string text = yaml->parsed() ? config::documented_yaml() : config::schema_markdown();
     return tools::write_or_check_generated("stemd-config", text, args,
                                            "the configuration schema (src/config/schema.cpp)",
                                            std::string(argv[0]) + " yaml");

@@ -21,45 +21,6 @@ namespace {
 
 constexpr std::size_t kMaxConfigBytes = 1024 * 1024;
 
-// `text` as "# " comment lines of at most 79 columns after `indent`.
-std::string wrapped_comment(std::string_view indent, std::string_view text)
-{
-    constexpr std::size_t kWidth = 79;
-    std::string out;
-    std::string line = cat(indent, "#");
-    for (std::size_t at = 0; at < text.size();) {
-        const std::size_t end = std::min(text.find(' ', at), text.size());
-        const std::string_view word = text.substr(at, end - at);
-        at = end + 1;
-        if (word.empty())
-            continue;
-        if (line.size() + 1 + word.size() > kWidth && line.size() > indent.size() + 1) {
-            out += cat(line, "\n");
-            line = cat(indent, "#");
-        }
-        line += cat(" ", word);
-    }
-    return out + line + "\n";
-}
-
-constexpr std::string_view kDocumentedHeader =
-    "# stemd configuration: every key at its default.\n"
-    "#\n"
-    "# Format: YAML (read with yaml-cpp) in one shape: top-level \"section:\" lines,\n"
-    "# then \"key: value\" lines indented by spaces (never tabs), one level deep;\n"
-    "# the list section \"tools\" holds \"- key: value\" items instead. Values are\n"
-    "# integers, reals, bare words, true/false or quoted strings (\"-\" for a dash:\n"
-    "# a bare - starts a YAML list item); '#' starts a comment on its own line or\n"
-    "# after a value (preceded by a space). Unknown or duplicate keys, deeper\n"
-    "# nesting and out-of-range values are errors. A file need not list every\n"
-    "# key: keys it leaves out keep their defaults. stemd and the tools take\n"
-    "# --config FILE, repeated to layer files (a later file wins key by key), and\n"
-    "# --set section.key=value (e.g. --set closing.radius_px=6), which wins over\n"
-    "# the files.\n"
-    "#\n"
-    "# Generated from the schema (src/config/schema.cpp), like the README's table:\n"
-    "#   stemd-config yaml --out config/stemd.yaml\n";
-
 }  // namespace
 
 std::string ConfigError::to_string() const
@@ -216,24 +177,33 @@ Settings Config::settings() const
     return settings;
 }
 
-std::string Config::origin_of(std::string_view key) const
+const ConfigValue* Config::find_value(std::string_view key, const KeySpec*& spec) const
 {
-    const KeySpec* spec = find_key(key);
+    spec = find_key(key);
     if (spec != nullptr)
-        return values_[index_of(*spec)].origin;
+        return &values_[index_of(*spec)];
     // A list item's key, as errors name it: "tools[1].offset_mm".
     const ListSpec* list = list_of_key(key);
     std::size_t index = 0;
     std::string_view leaf;
-    if (list == nullptr || !parse_item_key(key, list->section, index, leaf))
-        return "";
-    return item_origin_of(list->section, index, leaf);
+    if (list == nullptr || !parse_item_key(key, list->section, index, leaf) ||
+        (spec = find_item_key(list->section, leaf)) == nullptr || index >= lists_[list_index(*list)].items.size())
+        return nullptr;
+    return &lists_[list_index(*list)].items[index][item_key_index(*list, *spec)];
+}
+
+std::string Config::origin_of(std::string_view key) const
+{
+    const KeySpec* spec = nullptr;
+    const ConfigValue* value = find_value(key, spec);
+    return value == nullptr ? std::string() : value->origin;
 }
 
 std::string Config::value_of(std::string_view key) const
 {
-    const KeySpec* spec = find_key(key);
-    return spec == nullptr ? std::string() : value_text(*spec, values_[index_of(*spec)]);
+    const KeySpec* spec = nullptr;
+    const ConfigValue* value = find_value(key, spec);
+    return value == nullptr ? std::string() : value_text(*spec, *value);
 }
 
 std::string Config::blame(std::string_view key, std::string_view message) const
@@ -252,57 +222,32 @@ std::size_t Config::list_size(std::string_view section) const
 
 std::string Config::item_origin_of(std::string_view section, std::size_t index, std::string_view key) const
 {
-    const ListSpec* list = find_list(section);
-    const KeySpec* spec = find_item_key(section, key);
-    if (list == nullptr || spec == nullptr || index >= lists_[list_index(*list)].items.size())
-        return "";
-    return lists_[list_index(*list)].items[index][item_key_index(*list, *spec)].origin;
+    return origin_of(item_key_name(section, index, key));
 }
 
-std::string Config::to_yaml(YamlComments comments) const
+std::string Config::to_yaml() const
 {
-    const bool documented = comments == YamlComments::documentation;
-    std::string out = documented ? std::string(kDocumentedHeader)
-                                 : "# stemd effective configuration: value  # unit, range or choices; origin\n";
-    const auto section_heading = [&](std::string_view name, std::string_view list_help) {
-        if (!documented) {
-            out += cat(name, ":\n");
-            return;
-        }
-        for (const SectionSpec& section : section_schema())
-            if (section.name == name && !section.group.empty())
-                out += cat("\n# --- ", section.group, " ---\n");
-        out += "\n";
-        for (const SectionSpec& section : section_schema())
-            if (section.name == name)
-                out += wrapped_comment("", section.help.empty() ? cat(list_help, ".") : std::string(section.help));
-        out += cat(name, ":\n");
-    };
-    // One key: its documentation above it, or its range and origin after it.
-    const auto key_line = [&](std::string_view indent, std::string_view first, const KeySpec& spec,
+    std::string out = "# stemd effective configuration: value  # unit, range or choices; origin\n";
+    const auto key_line = [&](std::string_view first, std::string_view name, const KeySpec& spec,
                               const ConfigValue& value) {
-        if (documented)
-            out += cat(wrapped_comment(indent, cat(spec.help, ".")), indent, "# ", about_text(spec, true), "\n");
-        out += cat(first, item_list_of(spec).empty() ? leaf_of(spec.key) : item_leaf_of(spec), ": ",
-                   value_text(spec, value));
-        out += documented ? "\n" : cat("  # ", about_text(spec), "; ", printable(value.origin), "\n");
+        out += cat(first, name, ": ", value_text(spec, value), "  # ", about_text(spec), "; ", printable(value.origin),
+                   "\n");
     };
     std::string_view section;
     for (const KeySpec& spec : schema()) {
         if (section_of(spec.key) != section) {
             section = section_of(spec.key);
-            section_heading(section, "");
+            out += cat(section, ":\n");
         }
-        key_line("  ", "  ", spec, values_[index_of(spec)]);
+        key_line("  ", leaf_of(spec.key), spec, values_[index_of(spec)]);
     }
     // List sections: "- " before each item's first key.
     for (const ListSpec& list : list_schema()) {
-        section_heading(list.section, list.help);
-        for (const std::vector<ConfigValue>& item : lists_[list_index(list)].items) {
-            const std::span<const KeySpec> keys = item_keys(list.section);
+        out += cat(list.section, ":\n");
+        const std::span<const KeySpec> keys = item_keys(list.section);
+        for (const std::vector<ConfigValue>& item : lists_[list_index(list)].items)
             for (std::size_t k = 0; k < keys.size(); ++k)
-                key_line("    ", k == 0 ? "  - " : "    ", keys[k], item[k]);
-        }
+                key_line(k == 0 ? "  - " : "    ", item_leaf_of(keys[k]), keys[k], item[k]);
     }
     return out;
 }

@@ -142,15 +142,6 @@ double number_of(const KeySpec& spec, const ConfigValue& value)
 
 }  // namespace
 
-std::string_view trim(std::string_view s)
-{
-    const std::size_t first = s.find_first_not_of(kWhitespace);
-    if (first == std::string_view::npos)
-        return {};
-    const std::size_t last = s.find_last_not_of(kWhitespace);
-    return s.substr(first, last - first + 1);
-}
-
 std::string quote(std::string_view s)
 {
     return cat("'", s, "'");
@@ -322,11 +313,6 @@ std::size_t index_of(const KeySpec& spec)
     return static_cast<std::size_t>(&spec - schema().data());
 }
 
-std::string bounds_text(const KeySpec& spec)
-{
-    return cat("[", format_number(spec.min), ", ", format_number(spec.max), "]");
-}
-
 std::string value_text(const KeySpec& spec, const ConfigValue& value)
 {
     switch (spec.type) {
@@ -405,18 +391,14 @@ std::string printable(std::string_view s)
     return out;
 }
 
-std::string about_text(const KeySpec& spec, bool sentence)
+std::string about_text(const KeySpec& spec)
 {
     switch (spec.type) {
     case ValueType::integer:
-    case ValueType::real:
-        if (!sentence)
-            return range_text(spec);
-        return cat(spec.type == ValueType::integer ? "Integer, " : "Real, ", spec.unit, spec.unit.empty() ? "" : ", ",
-                   "range ", bounds_text(spec), ".");
-    case ValueType::boolean: return sentence ? "Boolean." : "true or false";
-    case ValueType::choice: return sentence ? cat("Choice: ", list_choices(spec, " | "), ".") : list_choices(spec, "|");
-    case ValueType::text: return sentence ? "Text." : "text";
+    case ValueType::real: return range_text(spec);
+    case ValueType::boolean: return "true or false";
+    case ValueType::choice: return list_choices(spec, "|");
+    case ValueType::text: return "text";
     }
     return "?";
 }

@@ -10,24 +10,17 @@
 #include <string_view>
 #include <vector>
 
+#include "stemd/base/strings.hpp"
 #include "stemd/config/config.hpp"
 #include "stemd/config/schema.hpp"
 
 namespace stemd::config::detail {
 
+using base::cat;
+using base::trim;
+
 constexpr std::string_view kWhitespace = " \t";
 
-// Concatenation without "literal" + std::string&&, which GCC 12 at -O3
-// misreports under -Wrestrict.
-template <class... Parts>
-std::string cat(const Parts&... parts)
-{
-    std::string out;
-    (out.append(std::string_view(parts)), ...);
-    return out;
-}
-
-std::string_view trim(std::string_view s);
 std::string quote(std::string_view s);  // 'text'
 // Control characters become '?': an error message stays one line.
 std::string printable(std::string_view s);
@@ -77,13 +70,10 @@ std::optional<std::string> set_value(const KeySpec& spec, std::string_view raw, 
 ConfigValue default_value(const KeySpec& spec);
 std::vector<ConfigValue> default_item(const ListSpec& list);  // every key at its default
 
-// A numeric key's range as errors, config files and the README write it: "[0, 50]".
-std::string bounds_text(const KeySpec& spec);
 // A value as a config file writes it ("6", "0.33", "\"a b\"").
 std::string value_text(const KeySpec& spec, const ConfigValue& value);
-// What a key accepts: "[0, 50] px", "true or false", "a|b" (`sentence`:
-// "Integer, px, range [0, 50].", "Boolean.", "Choice: a | b.").
-std::string about_text(const KeySpec& spec, bool sentence = false);
+// What a key accepts: "[0, 50] px", "true or false", "a|b", "text".
+std::string about_text(const KeySpec& spec);
 
 // What is wrong with item `index` of a list, given the other items: its
 // upper key not above its lower key, or its unique key's value used by

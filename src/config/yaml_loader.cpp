@@ -117,7 +117,6 @@ public:
             text.remove_prefix(3);
         text_ = std::string(text);
         for (std::size_t at = 0; at < text_.size(); at = std::min(text_.find('\n', at), text_.size()) + 1) {
-            starts_.push_back(at);
             const std::string_view line = std::string_view(text_).substr(at, text_.find('\n', at) - at);
             lines_.push_back(line.ends_with('\r') ? line.substr(0, line.size() - 1) : line);
         }
@@ -179,12 +178,6 @@ private:
     {
         return line >= 1 && line <= static_cast<int>(lines_.size()) ? lines_[static_cast<std::size_t>(line - 1)]
                                                                     : std::string_view();
-    }
-
-    // The 1-based line holding offset `pos`.
-    int line_at(std::size_t pos) const
-    {
-        return static_cast<int>(std::upper_bound(starts_.begin(), starts_.end(), pos) - starts_.begin());
     }
 
     // The key a line holds, as errors name it ("closing.radius_px",
@@ -456,7 +449,7 @@ private:
             // that of the '-' before it.
             const std::size_t dash = offset_of(item) == 0 ? std::string::npos : text_.rfind('-', offset_of(item) - 1);
             const int item_line = item.kind == Kind::null && dash != std::string::npos && dash >= offset_of(value)
-                ? line_at(dash)
+                ? 1 + static_cast<int>(std::count(text_.begin(), text_.begin() + static_cast<long>(dash), '\n'))
                 : line_of(item);
             if (i >= list.max_items)
                 return error(item_line, name, too_many_items(list));
@@ -509,7 +502,6 @@ private:
     std::vector<ConfigValue>& values_;
     std::vector<ListValue>& lists_;
     std::string text_;
-    std::vector<std::size_t> starts_;      // where each line starts
     std::vector<std::string_view> lines_;  // each line of text_, without "\r\n" or "\n"
     TreeBuilder tree_;
     std::map<std::string, int, std::less<>> key_lines_;  // sections and keys ("tools[1].id"): their lines

@@ -12,20 +12,12 @@
 
 #include <opencv2/core.hpp>
 
+#include "stemd/base/strings.hpp"
 #include "stemd/io/csv.hpp"
 
 namespace stemd::eval {
 
 namespace {
-
-std::string_view trim(std::string_view s)
-{
-    const auto first = s.find_first_not_of(" \t");
-    if (first == std::string_view::npos)
-        return {};
-    const auto last = s.find_last_not_of(" \t");
-    return s.substr(first, last - first + 1);
-}
 
 std::string join(const std::vector<std::string>& fields)
 {
@@ -179,7 +171,7 @@ std::optional<IouResult> mask_iou(const cv::Mat& predicted, const cv::Mat& groun
 
 bool parse_finite(std::string_view text, double& out)
 {
-    text = trim(text);
+    text = base::trim(text);
     if (text.empty())
         return false;
     const char* const end = text.data() + text.size();

@@ -6,31 +6,16 @@
 #include <cstring>
 #include <fstream>
 
+#include "stemd/base/strings.hpp"
 #include "stemd/config/schema.hpp"
 
 namespace stemd::web {
 
 namespace {
 
+using base::cat;
+
 constexpr std::string_view kSpace = " \t\r\n";
-
-std::string_view trim(std::string_view s)
-{
-    const std::size_t first = s.find_first_not_of(kSpace);
-    if (first == std::string_view::npos)
-        return {};
-    return s.substr(first, s.find_last_not_of(kSpace) - first + 1);
-}
-
-// Joined with append: GCC 12 warns falsely (-Wrestrict) on some chains of
-// std::string operator+.
-template <class... Parts>
-std::string cat(const Parts&... parts)
-{
-    std::string out;
-    (out.append(std::string_view(parts)), ...);
-    return out;
-}
 
 }  // namespace
 
@@ -57,7 +42,7 @@ std::optional<std::string> read_token_file(const std::string& path, std::string&
         error = cat(path, ": cannot read the token", in.bad() ? ": read error" : " (empty file)");
         return std::nullopt;
     }
-    const std::string token(trim(line));
+    const std::string token(base::trim(line, kSpace));
     if (token.size() < kMinTokenChars) {
         error = cat(path, ": the token has ", std::to_string(token.size()), " characters, at least ",
                     std::to_string(kMinTokenChars), " are needed");

@@ -16,6 +16,7 @@
 #include <gtest/gtest.h>
 
 #include "temp_dir_test.hpp"
+#include "config_docs.hpp"
 #include "config_test_util.hpp"
 
 #include "stemd/config/config.hpp"

@@ -80,7 +80,8 @@ public:
     std::string origin_of(std::string_view key) const;
 
     // A key's value as a config file writes it ("5", "0.33", "true",
-    // "robust"); "" for a key the schema does not have.
+    // "robust"); "" for a key the schema does not have. A list item's key
+    // is named as in origin_of().
     std::string value_of(std::string_view key) const;
 
     // A problem with a key's value as errors name it: "FILE:LINE: key 'k':
@@ -94,12 +95,11 @@ public:
 
     // The effective configuration as a config file (every key, with its unit,
     // range and origin in a comment); load_text() of it gives the same values.
-    // `documentation`: no origins, each key's help, type, unit and range
-    // above it, each section's help (config/stemd.yaml is Config{}'s).
-    enum class YamlComments { origins, documentation };
-    std::string to_yaml(YamlComments comments = YamlComments::origins) const;
+    std::string to_yaml() const;
 
 private:
+    // The value `key` names (as origin_of() takes it) and its row; nullptr if none.
+    const detail::ConfigValue* find_value(std::string_view key, const KeySpec*& spec) const;
     std::optional<ConfigError> set_item_override(const ListSpec& list, std::string_view key,
                                                  std::string_view raw_value, const std::string& origin);
 

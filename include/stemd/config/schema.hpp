@@ -108,9 +108,7 @@ std::string list_choices(const KeySpec& spec, std::string_view separator = ", ")
 // that reads back as the same double ("0.33", "10", "100000").
 std::string format_number(double value);
 
-// The schema as a Markdown table for the README:
-// key | type | unit | default | range / choices | meaning; the keys of
-// schema(), then the list item keys ("tools[].offset_mm").
-std::string schema_markdown();
+// A numeric key's range as errors, config files and the README write it: "[0, 50]".
+std::string bounds_text(const KeySpec& spec);
 
 }  // namespace stemd::config
