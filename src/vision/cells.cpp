@@ -82,7 +82,7 @@ CellWorkspace::CellWorkspace(cv::Size frame_size, double gsd_mm_per_px, double c
         reciprocal_[i] = 1.0f / static_cast<float>(i);
 }
 
-void cell_features(const FrameView& frame, const Params& params, const Workspace& dws, const Detections& det,
+void cell_features(const FrameView& frame, const Params& /*params*/, const Workspace& dws, const Detections& det,
                    const ClassifyWorkspace& plants, CellWorkspace& ws)
 {
     ws.vegetated_count_ = 0;
@@ -350,7 +350,6 @@ void cell_features(const FrameView& frame, const Params& params, const Workspace
         f[c_width_rel] = static_cast<float>(f[c_width_mm] / frame_width_mm);
         ws.vegetated_[ws.vegetated_count_++] = static_cast<std::uint32_t>(i);
     }
-    (void)params;
 }
 
 void classify_cells(const PlantClassifier& model, double min_confidence, double weed_confidence, CellWorkspace& ws)
