@@ -1,9 +1,11 @@
-// stemd-train: trains the crop/weed classifier (vision/classify) from
-// recordings with a class column, prints cross-validated figures split by
-// frame, and writes one model file.
+// stemd-train: trains the crop/weed classifier (the plant forest of
+// vision/classify and the cell forest of vision/cells) from recordings with
+// a class column, prints cross-validated figures split by frame, and writes
+// one model file.
 //   stemd-train --out MODEL [--config FILE] [--set K=V]... [--folds N]
-//               [--trees N] [--seed N] [--test-on RECORDING]...
-//               [--test-set K=V]... RECORDING...
+//               [--trees N] [--max-depth N] [--cell-mm MM] [--cell-trees N]
+//               [--cell-max-depth N] [--cell-samples N] [--seed N]
+//               [--test-on RECORDING]... [--test-set K=V]... RECORDING...
 #include <algorithm>
 #include <chrono>
 #include <cmath>

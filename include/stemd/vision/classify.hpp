@@ -1,12 +1,15 @@
 // Crop or weed, per plant: a fixed-length feature vector for each plant
 // detect() found (colour, texture, shape in millimetres, lateral position),
 // a random forest (OpenCV ml RTrees) that gives each plant a weed
-// probability, and the per-pixel class map that follows from it.
+// probability, and the per-pixel class map that follows from it. The
+// model file also holds the cell forest of vision/cells, which classes
+// each few millimetres of vegetation (and, through them, the plants) when
+// present.
 //
 // The features are computed from the same frame, parameters and Workspace
 // as detect(), so training (stemd-train) and use (stemd-detect, stemd) see
 // the same plants. A trained model is one file (OpenCV FileStorage, YAML or
-// JSON by extension) holding the forest and what it was trained on: feature
+// JSON by extension) holding the forests and what they were trained on: feature
 // names and version, camera GSD, channels, recordings, date and the
 // cross-validated figures. A model only holds for the camera, GSD and crop
 // it was trained on: loading checks the first two.
