@@ -33,6 +33,7 @@
 #include "stemd/runtime/daemon_config.hpp"
 #include "stemd/runtime/logging.hpp"
 #include "stemd/synth/synth.hpp"
+#include "stemd/vision/cells.hpp"
 #include "stemd/vision/classify.hpp"
 #include "stemd/vision/detect.hpp"
 #include "tool_cli.hpp"
@@ -53,6 +54,8 @@ Setup* g_setup = nullptr;  // benchmark callbacks are plain functions
 
 struct ClassifySetup {
     std::unique_ptr<vision::ClassifyWorkspace> workspace;
+    std::unique_ptr<vision::CellWorkspace> cells;
+    std::array<float, vision::kMaxPlants> probabilities{};
     std::optional<vision::PlantClassifier> model;
     std::array<PlantClass, vision::kMaxPlants> classes{};
 };
@@ -77,10 +80,10 @@ void bench_classify(benchmark::State& state)
         const std::int64_t cpu0 = thread_cpu_ns();
         const auto t0 = std::chrono::steady_clock::now();
         vision::plant_features(view, s.params, *s.workspace, s.detections, *c.workspace);
-        const auto features = c.workspace->features();
-        for (std::size_t i = 0; i < features.size(); ++i)
-            c.classes[i] = vision::decide_class(c.model->weed_probability(features[i]), decision.min_confidence,
-                                                decision.weed_confidence);
+        vision::cell_features(view, s.params, *s.workspace, s.detections, *c.workspace, *c.cells);
+        vision::classify_cells(*c.model, decision.min_confidence, decision.weed_confidence, *c.cells);
+        vision::classify_plants(*c.model, *c.workspace, *c.cells, s.detections.plants.size(), decision.min_confidence,
+                                decision.weed_confidence, c.probabilities, c.classes);
         const auto t1 = std::chrono::steady_clock::now();
         const std::int64_t cpu1 = thread_cpu_ns();
         benchmark::DoNotOptimize(c.classes.data());
@@ -90,20 +93,26 @@ void bench_classify(benchmark::State& state)
         state.counters["cpu_ms"] = static_cast<double>(cpu1 - cpu0) / 1e6;
     }
     state.counters["plants"] = static_cast<double>(s.detections.plants.size());
+    state.counters["cells"] = static_cast<double>(c.cells->vegetated().size());
 }
 
 // Without a model file: a forest of the default size on the bench frames'
 // plants, labelled by area with every third label flipped, so that the
 // trees grow to their depth limit as on hard real data (predict's cost is
 // the trees' count and depth, not what they learned).
-std::optional<vision::PlantClassifier> bench_forest(Setup& s, vision::ClassifyWorkspace& workspace, std::string& error)
+std::optional<vision::PlantClassifier> bench_forest(Setup& s, vision::ClassifyWorkspace& workspace,
+                                                    vision::CellWorkspace& cells, std::string& error)
 {
     std::vector<vision::FeatureRow> rows;
+    std::vector<vision::CellRow> cell_rows;
     for (const synth::Frame& f : s.frames) {
         const vision::FrameView view{.bgr = f.bgr, .nir = f.nir, .mask = f.mask};
         vision::detect(view, s.params, *s.workspace, s.detections);
         vision::plant_features(view, s.params, *s.workspace, s.detections, workspace);
         rows.insert(rows.end(), workspace.features().begin(), workspace.features().end());
+        vision::cell_features(view, s.params, *s.workspace, s.detections, workspace, cells);
+        for (const std::uint32_t c : cells.vegetated())
+            cell_rows.push_back(cells.row(c));
     }
     if (rows.size() < 4) {
         error = "too few plants on the bench frames to train a forest";
@@ -121,7 +130,20 @@ std::optional<vision::PlantClassifier> bench_forest(Setup& s, vision::ClassifyWo
         const bool weed = (rows[i][vision::f_log_area_mm2] < median) != (i % 3 == 0);
         labels.at<int>(static_cast<int>(i)) = to_value(weed ? PlantClass::Weed : PlantClass::Crop);
     }
-    return vision::PlantClassifier::train(samples, labels, vision::ForestOptions{}, error);
+    auto model = vision::PlantClassifier::train(samples, labels, vision::ForestOptions{}, error);
+    if (!model || cell_rows.size() < 4)
+        return model;
+    // The cells alike: labelled by fill, every third flipped.
+    cv::Mat cell_samples(static_cast<int>(cell_rows.size()), vision::kCellFeatureCount, CV_32FC1);
+    cv::Mat cell_labels(static_cast<int>(cell_rows.size()), 1, CV_32SC1);
+    for (std::size_t i = 0; i < cell_rows.size(); ++i) {
+        std::copy(cell_rows[i].begin(), cell_rows[i].end(), cell_samples.ptr<float>(static_cast<int>(i)));
+        const bool weed = (cell_rows[i][vision::c_fill] < 0.5f) != (i % 3 == 0);
+        cell_labels.at<int>(static_cast<int>(i)) = to_value(weed ? PlantClass::Weed : PlantClass::Crop);
+    }
+    if (!model->train_cells(cell_samples, cell_labels, vision::kDefaultCellForest, vision::kDefaultCellMm, error))
+        return std::nullopt;
+    return model;
 }
 
 // A bus that takes every frame and keeps nothing.
@@ -304,11 +326,20 @@ int main(int argc, char** argv)
 
     ClassifySetup classify_setup;
     {
-        classify_setup.workspace =
-            std::make_unique<vision::ClassifyWorkspace>(setup.frames.front().bgr.size(), setup.params);
+        const cv::Size size = setup.frames.front().bgr.size();
+        classify_setup.workspace = std::make_unique<vision::ClassifyWorkspace>(size, setup.params);
         std::string error;
-        classify_setup.model = model_path.empty() ? bench_forest(setup, *classify_setup.workspace, error)
-                                                  : vision::PlantClassifier::load(model_path, error);
+        if (model_path.empty()) {
+            classify_setup.cells =
+                std::make_unique<vision::CellWorkspace>(size, setup.params.gsd_mm_per_px, vision::kDefaultCellMm);
+            classify_setup.model = bench_forest(setup, *classify_setup.workspace, *classify_setup.cells, error);
+        } else {
+            classify_setup.model = vision::PlantClassifier::load(model_path, error);
+            // The model's own cells: as many per frame as on its camera.
+            if (classify_setup.model)
+                classify_setup.cells = std::make_unique<vision::CellWorkspace>(
+                    size, classify_setup.model->info().gsd_mm_per_px, classify_setup.model->info().cell_mm);
+        }
         if (!classify_setup.model) {
             std::fprintf(stderr, "stemd-bench: classify: %s\n", error.c_str());
             return 1;

@@ -10,6 +10,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <ctime>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -20,6 +21,7 @@
 #include "stemd/io/csv.hpp"
 #include "stemd/io/recording.hpp"
 #include "stemd/config/config.hpp"
+#include "stemd/vision/cells.hpp"
 #include "stemd/vision/classify.hpp"
 #include "stemd/vision/detect.hpp"
 #include "stemd/viz/overlay.hpp"
@@ -94,6 +96,15 @@ double median(std::vector<double> v)
     return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
+// This thread's CPU time: on a loaded machine the wall time also holds the
+// time other processes had the core.
+std::int64_t thread_cpu_ns()
+{
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
 bool ensure_dir(const std::string& dir, std::string& error)
 {
     std::error_code ec;
@@ -164,10 +175,11 @@ int main(int argc, char** argv)
 
     std::unique_ptr<vision::Workspace> workspace;
     std::unique_ptr<vision::ClassifyWorkspace> classify_workspace;
+    std::unique_ptr<vision::CellWorkspace> cell_workspace;
     std::array<float, vision::kMaxPlants> weed_probability{};
     std::array<PlantClass, vision::kMaxPlants> plant_class{};
     cv::Mat class_image;
-    std::vector<double> classify_ms;
+    std::vector<double> classify_ms, classify_cpu_ms;
     auto detections = std::make_unique<vision::Detections>();
     std::vector<double> stage_ms[6];
     int skipped = 0, plants_total = 0, stemless_total = 0;
@@ -184,8 +196,10 @@ int main(int argc, char** argv)
         const cv::Size size = params.segmentation == vision::Segmentation::mask ? mask.size() : bgr.size();
         if (!workspace || workspace->frame_size() != size)
             workspace = std::make_unique<vision::Workspace>(size, params);
-        if (model && (!classify_workspace || classify_workspace->frame_size() != size))
+        if (model && (!classify_workspace || classify_workspace->frame_size() != size)) {
             classify_workspace = std::make_unique<vision::ClassifyWorkspace>(size, params);
+            cell_workspace = std::make_unique<vision::CellWorkspace>(size, params.gsd_mm_per_px, model->info().cell_mm);
+        }
         vision::StageTimes times;
         vision::detect({.bgr = bgr, .nir = frame.nir, .mask = mask}, params, *workspace, *detections, &times);
         if (detections->status != vision::DetectStatus::ok) {
@@ -201,15 +215,15 @@ int main(int argc, char** argv)
                 ++skipped;
                 continue;
             }
-            const std::int64_t t0 = base::monotonic_ns();
+            const std::int64_t t0 = base::monotonic_ns(), cpu0 = thread_cpu_ns();
             const vision::FrameView view{.bgr = bgr, .nir = frame.nir, .mask = mask};
             vision::plant_features(view, params, *workspace, d, *classify_workspace);
-            for (std::size_t i = 0; i < d.plants.size(); ++i) {
-                weed_probability[i] = model->weed_probability(classify_workspace->features()[i]);
-                plant_class[i] = vision::decide_class(weed_probability[i], classify.min_confidence,
-                                                     classify.weed_confidence);
-            }
+            vision::cell_features(view, params, *workspace, d, *classify_workspace, *cell_workspace);
+            vision::classify_cells(*model, classify.min_confidence, classify.weed_confidence, *cell_workspace);
+            vision::classify_plants(*model, *classify_workspace, *cell_workspace, d.plants.size(),
+                                    classify.min_confidence, classify.weed_confidence, weed_probability, plant_class);
             classify_ms.push_back(static_cast<double>(base::monotonic_ns() - t0) / 1e6);
+            classify_cpu_ms.push_back(static_cast<double>(thread_cpu_ns() - cpu0) / 1e6);
         }
         int from_leaves = 0, with_stem = 0;
         for (std::size_t i = 0; i < d.plants.size(); ++i) {
@@ -227,7 +241,11 @@ int main(int argc, char** argv)
                      << confidence;
                 if (model) {
                     char probability[16];
-                    std::snprintf(probability, sizeof probability, "%.3f", weed_probability[i]);
+                    // Empty when no classified cell holds the plant.
+                    if (weed_probability[i] >= 0)
+                        std::snprintf(probability, sizeof probability, "%.3f", weed_probability[i]);
+                    else
+                        probability[0] = '\0';
                     *csv << ',' << to_string(plant_class[i]) << ',' << probability;
                 }
                 *csv << '\n';
@@ -250,7 +268,10 @@ int main(int argc, char** argv)
             }
         }
         if (!args.class_dir.empty()) {
-            vision::class_map(*workspace, *classify_workspace, {plant_class.data(), d.plants.size()}, class_image);
+            if (model->has_cells())
+                vision::cell_class_map(*workspace, *cell_workspace, class_image);
+            else
+                vision::class_map(*workspace, *classify_workspace, {plant_class.data(), d.plants.size()}, class_image);
             const auto path = (fs::path(args.class_dir) / out_name).string();
             if (!cv::imwrite(path, class_image)) {
                 std::cerr << "stemd-detect: " << path << ": cannot write\n";
@@ -287,8 +308,10 @@ int main(int argc, char** argv)
                      stage_ms[5].size(), median(stage_ms[0]), median(stage_ms[1]), median(stage_ms[2]),
                      median(stage_ms[3]), median(stage_ms[4]), median(stage_ms[5]));
     if (args.timing && !classify_ms.empty())
-        std::fprintf(stderr, "timing median over %zu frames: classify %.3f ms (features, forest, decision)\n",
-                     classify_ms.size(), median(classify_ms));
+        std::fprintf(stderr,
+                     "timing median over %zu frames: classify %.3f ms, thread CPU %.3f ms (plant and cell features, "
+                     "forests, decisions)\n",
+                     classify_ms.size(), median(classify_ms), median(classify_cpu_ms));
     report << jobs.size() - skipped << " frames, " << plants_total << " stems, " << stemless_total
            << " stemless plants, " << over_capacity_total << " plants over capacity (" << vision::kMaxPlants
            << " a frame)";

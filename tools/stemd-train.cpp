@@ -1,9 +1,11 @@
-// stemd-train: trains the crop/weed classifier (vision/classify) from
-// recordings with a class column, prints cross-validated figures split by
-// frame, and writes one model file.
+// stemd-train: trains the crop/weed classifier (the plant forest of
+// vision/classify and the cell forest of vision/cells) from recordings with
+// a class column, prints cross-validated figures split by frame, and writes
+// one model file.
 //   stemd-train --out MODEL [--config FILE] [--set K=V]... [--folds N]
-//               [--trees N] [--seed N] [--test-on RECORDING]...
-//               [--test-set K=V]... RECORDING...
+//               [--trees N] [--max-depth N] [--cell-mm MM] [--cell-trees N]
+//               [--cell-max-depth N] [--cell-samples N] [--seed N]
+//               [--test-on RECORDING]... [--test-set K=V]... RECORDING...
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -11,7 +13,9 @@
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
+#include <iomanip>
 #include <iostream>
+#include <optional>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -23,6 +27,7 @@
 #include "stemd/config/command_line.hpp"
 #include "stemd/config/config.hpp"
 #include "stemd/io/recording.hpp"
+#include "stemd/vision/cells.hpp"
 #include "stemd/vision/classify.hpp"
 #include "stemd/vision/detect.hpp"
 #include "tool_cli.hpp"
@@ -44,44 +49,34 @@ struct Sample {
     long weed_px = 0;
 };
 
-struct FrameSamples {
-    std::string name;
-    std::vector<Sample> plants;
-    long gt_crop_px = 0;    // every crop and weed pixel of the class image
-    long gt_weed_px = 0;
-    int unlabelled = 0;     // plants with no crop or weed pixel under them (soil found as vegetation)
+// One cell of one frame with labelled vegetation: its row and label (the
+// majority of its segmented vegetation pixels' human classes).
+struct CellSample {
+    vision::CellRow row;
+    int label = 0;
 };
 
-// Runs the pipeline and the features on every frame that has a class image.
-bool collect(const std::vector<std::string>& recordings, const config::ConfigArgs& config_args,
-             std::vector<FrameSamples>& out, vision::Params& params_out, std::string& error)
-{
-    config::Config config;
-    if (const auto config_error = config::build_config(config_args, config)) {
-        error = config_error->to_string();
-        return false;
-    }
-    const vision::Params params = config.settings().daemon.vision;
-    params_out = params;
-    for (const std::string& r : recordings) {
-        if (!io::is_recording_dir(r)) {
-            error = r + ": not a recording directory (frames.csv with a class column)";
-            return false;
-        }
-    }
-    std::vector<tools::FrameJob> jobs;
-    if (!tools::collect_frames(recordings, params.segmentation, jobs, error))
-        return false;
+struct FrameSamples {
+    std::size_t job = 0;    // index into the frame jobs, to run the frame again for scoring
+    std::string name;
+    std::vector<Sample> plants;
+    std::vector<CellSample> cells;
+};
+
+// detect(), the plant features and the cell features of one frame, and its
+// class image; the workspaces follow the frame size.
+struct Pipeline {
+    vision::Params params;
+    double cell_mm = 3;
     std::unique_ptr<vision::Workspace> ws;
     std::unique_ptr<vision::ClassifyWorkspace> cws;
-    auto det = std::make_unique<vision::Detections>();
+    std::unique_ptr<vision::CellWorkspace> cells;
+    std::unique_ptr<vision::Detections> det = std::make_unique<vision::Detections>();
     tools::LoadedFrame frame;
     cv::Mat class_image;
-    for (const tools::FrameJob& job : jobs) {
-        if (job.plant_class.empty()) {
-            std::cerr << "stemd-train: " << job.image << ": no class image, skipped\n";
-            continue;
-        }
+
+    bool run(const tools::FrameJob& job, std::string& error)
+    {
         if (!tools::load_frame(job, params.segmentation, true, frame, error))
             return false;
         if (frame.bgr.empty()) {
@@ -98,6 +93,7 @@ bool collect(const std::vector<std::string>& recordings, const config::ConfigArg
         if (!ws || ws->frame_size() != size) {
             ws = std::make_unique<vision::Workspace>(size, params);
             cws = std::make_unique<vision::ClassifyWorkspace>(size, params);
+            cells = std::make_unique<vision::CellWorkspace>(size, params.gsd_mm_per_px, cell_mm);
         }
         const vision::FrameView view{.bgr = frame.bgr, .nir = frame.nir, .mask = frame.mask};
         vision::detect(view, params, *ws, *det);
@@ -106,47 +102,116 @@ bool collect(const std::vector<std::string>& recordings, const config::ConfigArg
             return false;
         }
         vision::plant_features(view, params, *ws, *det, *cws);
+        vision::cell_features(view, params, *ws, *det, *cws, *cells);
+        return true;
+    }
 
-        FrameSamples fs_out;
-        fs_out.name = job.image;
-        std::vector<long> crop(det->plants.size(), 0), weed(det->plants.size(), 0);
+    // Each plant's crop and weed pixels: the class image under its
+    // segmented vegetation pixels.
+    void plant_truth(std::vector<long>& crop, std::vector<long>& weed) const
+    {
+        crop.assign(det->plants.size(), 0);
+        weed.assign(det->plants.size(), 0);
         const vision::BitMask& vegetation = ws->vegetation();
-        for (int y = 0; y < size.height; ++y) {
+        for (int y = 0; y < class_image.rows; ++y) {
             const auto* cls = class_image.ptr<std::uint8_t>(y);
             const auto* index = cws->plant_index().ptr<std::uint16_t>(y);
-            for (int x = 0; x < size.width; ++x) {
-                const PlantClass c = plant_class_from_value(cls[x]);
-                fs_out.gt_crop_px += c == PlantClass::Crop;
-                fs_out.gt_weed_px += c == PlantClass::Weed;
+            for (int x = 0; x < class_image.cols; ++x) {
                 if (index[x] == 0 || !vegetation.get(x, y))
                     continue;
-                crop[index[x] - 1u] += c == PlantClass::Crop;
-                weed[index[x] - 1u] += c == PlantClass::Weed;
+                crop[index[x] - 1u] += plant_class_from_value(cls[x]) == PlantClass::Crop;
+                weed[index[x] - 1u] += plant_class_from_value(cls[x]) == PlantClass::Weed;
             }
         }
-        for (std::size_t i = 0; i < det->plants.size(); ++i) {
-            if (crop[i] + weed[i] == 0) {
-                ++fs_out.unlabelled;
-                continue;
-            }
-            Sample s;
-            s.features = cws->features()[i];
-            s.label = to_value(crop[i] >= weed[i] ? PlantClass::Crop : PlantClass::Weed);
-            s.crop_px = crop[i];
-            s.weed_px = weed[i];
-            fs_out.plants.push_back(s);
-        }
-        out.push_back(std::move(fs_out));
     }
-    if (out.empty()) {
+};
+
+// Loads the configuration's vision parameters.
+bool load_params(const config::ConfigArgs& config_args, vision::Params& params, std::string& error)
+{
+    config::Config config;
+    if (const auto config_error = config::build_config(config_args, config)) {
+        error = config_error->to_string();
+        return false;
+    }
+    params = config.settings().daemon.vision;
+    return true;
+}
+
+bool frame_jobs(const std::vector<std::string>& recordings, const vision::Params& params,
+                std::vector<tools::FrameJob>& jobs, std::string& error)
+{
+    for (const std::string& r : recordings) {
+        if (!io::is_recording_dir(r)) {
+            error = r + ": not a recording directory (frames.csv with a class column)";
+            return false;
+        }
+    }
+    std::vector<tools::FrameJob> all;
+    if (!tools::collect_frames(recordings, params.segmentation, all, error))
+        return false;
+    for (tools::FrameJob& job : all) {
+        if (job.plant_class.empty())
+            std::cerr << "stemd-train: " << job.image << ": no class image, skipped\n";
+        else
+            jobs.push_back(std::move(job));
+    }
+    if (jobs.empty()) {
         error = "no frame with a class image";
         return false;
     }
     return true;
 }
 
-void to_matrices(const std::vector<FrameSamples>& frames, const std::vector<std::size_t>& which, cv::Mat& samples,
-                 cv::Mat& labels)
+// The training rows of every frame: plants and cells.
+bool collect(const std::vector<tools::FrameJob>& jobs, Pipeline& pipeline, std::vector<FrameSamples>& out,
+             std::string& error)
+{
+    for (std::size_t j = 0; j < jobs.size(); ++j) {
+        if (!pipeline.run(jobs[j], error))
+            return false;
+        FrameSamples fs_out;
+        fs_out.job = j;
+        fs_out.name = jobs[j].image;
+        std::vector<long> crop, weed;
+        pipeline.plant_truth(crop, weed);
+        for (std::size_t i = 0; i < pipeline.det->plants.size(); ++i) {
+            if (crop[i] + weed[i] == 0)
+                continue;
+            Sample s;
+            s.features = pipeline.cws->features()[i];
+            s.label = to_value(crop[i] >= weed[i] ? PlantClass::Crop : PlantClass::Weed);
+            s.crop_px = crop[i];
+            s.weed_px = weed[i];
+            fs_out.plants.push_back(s);
+        }
+        // Each cell's crop and weed pixels among its segmented vegetation.
+        const vision::CellWorkspace& cells = *pipeline.cells;
+        std::vector<int> cell_crop(cells.cells(), 0), cell_weed(cells.cells(), 0);
+        const vision::BitMask& vegetation = pipeline.ws->vegetation();
+        for (int y = 0; y < pipeline.class_image.rows; ++y) {
+            const auto* cls = pipeline.class_image.ptr<std::uint8_t>(y);
+            for (int x = 0; x < pipeline.class_image.cols; ++x) {
+                if (!vegetation.get(x, y))
+                    continue;
+                const std::size_t c = cells.cell_of(x, y);
+                cell_crop[c] += plant_class_from_value(cls[x]) == PlantClass::Crop;
+                cell_weed[c] += plant_class_from_value(cls[x]) == PlantClass::Weed;
+            }
+        }
+        for (const std::uint32_t c : cells.vegetated()) {
+            if (cell_crop[c] + cell_weed[c] == 0)
+                continue;
+            fs_out.cells.push_back(
+                {cells.row(c), to_value(cell_crop[c] >= cell_weed[c] ? PlantClass::Crop : PlantClass::Weed)});
+        }
+        out.push_back(std::move(fs_out));
+    }
+    return true;
+}
+
+void plant_matrices(const std::vector<FrameSamples>& frames, const std::vector<std::size_t>& which, cv::Mat& samples,
+                    cv::Mat& labels)
 {
     int rows = 0;
     for (const std::size_t f : which)
@@ -162,39 +227,104 @@ void to_matrices(const std::vector<FrameSamples>& frames, const std::vector<std:
         }
 }
 
+// The cell rows of the frames `which`; at most `limit` of them, taken at an
+// even stride so that every frame keeps its share (deterministic).
+void cell_matrices(const std::vector<FrameSamples>& frames, const std::vector<std::size_t>& which, int limit,
+                   cv::Mat& samples, cv::Mat& labels)
+{
+    long total = 0;
+    for (const std::size_t f : which)
+        total += static_cast<long>(frames[f].cells.size());
+    const double stride = std::max(1.0, static_cast<double>(total) / std::max(limit, 1));
+    const int rows = static_cast<int>(static_cast<double>(total) / stride);
+    samples.create(rows, vision::kCellFeatureCount, CV_32FC1);
+    labels.create(rows, 1, CV_32SC1);
+    long k = 0;
+    int r = 0;
+    double next = 0;
+    for (const std::size_t f : which)
+        for (const CellSample& s : frames[f].cells) {
+            if (static_cast<double>(k++) >= next && r < rows) {
+                std::copy(s.row.begin(), s.row.end(), samples.ptr<float>(r));
+                labels.at<int>(r) = s.label;
+                ++r;
+                next += stride;
+            }
+        }
+    if (r < rows) {
+        samples = samples.rowRange(0, r).clone();
+        labels = labels.rowRange(0, r).clone();
+    }
+}
+
 // How a weed probability becomes a class (classify.*).
 struct Decision {
     double min_confidence;
     double weed_confidence;
 };
 
-// Figures over held-out frames.
+// Where a plant's class comes from.
+enum class PlantSource { forest, cells, stem };
+constexpr const char* kSourceNames[] = {"the plant forest", "the share of its cells",
+                                        "the class map around its stem (9x9 window)"};
+
+// Figures over held-out frames, for one decision.
 struct Figures {
-    long plants[3][3] = {};   // [truth crop/weed][said unknown/crop/weed]
+    long plants[3][3][3] = {};   // [source][truth crop/weed][said unknown/crop/weed]
     long px_crop_total = 0, px_weed_total = 0;
     long px_crop_right = 0, px_weed_right = 0;
     long px_crop_as_weed = 0;
-    long px_crop_ceiling = 0, px_weed_ceiling = 0;   // every plant given its majority class
+    long px_crop_ceiling = 0, px_weed_ceiling = 0;   // every segmented pixel right
     int frames = 0, unlabelled = 0;
 
-    void add(const FrameSamples& frame, const vision::PlantClassifier& model, const Decision& decision)
+    // Scores the frame `p` ran last: its class map from the cells, and its
+    // plants by each source. `probabilities` (per plant, from the cells) out.
+    void add(Pipeline& p, const vision::PlantClassifier& model, const Decision& decision, cv::Mat& map,
+             std::vector<std::pair<int, float>>* out_of_fold)
     {
         ++frames;
-        unlabelled += frame.unlabelled;
-        px_crop_total += frame.gt_crop_px;
-        px_weed_total += frame.gt_weed_px;
-        for (const Sample& s : frame.plants) {
-            (s.label == to_value(PlantClass::Crop) ? px_crop_ceiling : px_weed_ceiling) +=
-                s.label == to_value(PlantClass::Crop) ? s.crop_px : s.weed_px;
-            const PlantClass said = vision::decide_class(model.weed_probability(s.features), decision.min_confidence,
-                                                         decision.weed_confidence);
-            ++plants[s.label][to_value(said)];
-            if (said == PlantClass::Crop)
-                px_crop_right += s.crop_px;
-            if (said == PlantClass::Weed) {
-                px_weed_right += s.weed_px;
-                px_crop_as_weed += s.crop_px;
+        vision::classify_cells(model, decision.min_confidence, decision.weed_confidence, *p.cells);
+        vision::cell_class_map(*p.ws, *p.cells, map);
+        const vision::BitMask& vegetation = p.ws->vegetation();
+        for (int y = 0; y < map.rows; ++y) {
+            const auto* cls = p.class_image.ptr<std::uint8_t>(y);
+            const auto* said = map.ptr<std::uint8_t>(y);
+            for (int x = 0; x < map.cols; ++x) {
+                const PlantClass truth = plant_class_from_value(cls[x]);
+                if (truth != PlantClass::Crop && truth != PlantClass::Weed)
+                    continue;
+                const bool crop = truth == PlantClass::Crop;
+                (crop ? px_crop_total : px_weed_total) += 1;
+                (crop ? px_crop_ceiling : px_weed_ceiling) += vegetation.get(x, y);
+                const PlantClass s = plant_class_from_value(said[x]);
+                px_crop_right += crop && s == PlantClass::Crop;
+                px_weed_right += !crop && s == PlantClass::Weed;
+                px_crop_as_weed += crop && s == PlantClass::Weed;
             }
+        }
+        std::vector<long> crop, weed;
+        p.plant_truth(crop, weed);
+        const std::size_t n = p.det->plants.size();
+        std::array<float, vision::kMaxPlants> share{};
+        vision::plant_probabilities_from_cells(*p.cells, n, share);
+        std::array<PlantClass, vision::kMaxPlants> stem{};
+        vision::plant_classes_from_map(map, map.size(), *p.det, stem);
+        for (std::size_t i = 0; i < n; ++i) {
+            if (crop[i] + weed[i] == 0) {
+                ++unlabelled;
+                continue;
+            }
+            const int label = to_value(crop[i] >= weed[i] ? PlantClass::Crop : PlantClass::Weed);
+            const PlantClass said[3] = {
+                vision::decide_class(model.weed_probability(p.cws->features()[i]), decision.min_confidence,
+                                     decision.weed_confidence),
+                share[i] < 0 ? PlantClass::Unknown
+                             : vision::decide_class(share[i], decision.min_confidence, decision.weed_confidence),
+                stem[i]};
+            for (int s = 0; s < 3; ++s)
+                ++plants[s][label][to_value(said[s])];
+            if (out_of_fold && share[i] >= 0)
+                out_of_fold->emplace_back(label, share[i]);
         }
     }
 
@@ -202,31 +332,36 @@ struct Figures {
     {
         auto ratio = [](double a, double b) { return b > 0 ? a / b : 0.0; };
         const int C = to_value(PlantClass::Crop), W = to_value(PlantClass::Weed), U = to_value(PlantClass::Unknown);
-        const double crop_plants = plants[C][U] + plants[C][C] + plants[C][W];
-        const double weed_plants = plants[W][U] + plants[W][C] + plants[W][W];
-        const double crop_recall = ratio(plants[C][C], crop_plants);
-        const double weed_recall = ratio(plants[W][W], weed_plants);
-        const double crop_precision = ratio(plants[C][C], plants[C][C] + plants[W][C]);
-        const double weed_precision = ratio(plants[W][W], plants[W][W] + plants[C][W]);
         const double px_crop_recall = ratio(px_crop_right, px_crop_total);
         const double px_weed_recall = ratio(px_weed_right, px_weed_total);
+        std::string out;
         char buf[1024];
-        std::snprintf(
-            buf, sizeof buf,
-            "%s (%d frames, min_confidence %.2f, weed_confidence %.2f)\n"
-            "  plants: %.0f crop, %.0f weed (%d more found on soil, not scored)\n"
-            "  crop: precision %.3f recall %.3f | weed: precision %.3f recall %.3f | unknown: %ld crop, %ld weed\n"
-            "  crop safety: %ld of %.0f crop plants called weed (%.1f %%)\n"
-            "  pixels of vegetation: crop recall %.3f, weed recall %.3f, balanced accuracy %.3f; crop pixels called "
-            "weed %.1f %%\n"
-            "  (per-plant ceiling, every plant right: balanced accuracy %.3f; the rest is plants of both classes "
-            "merged into one, and vegetation the segmentation missed)\n",
-            title.c_str(), frames, decision.min_confidence, decision.weed_confidence, crop_plants, weed_plants, unlabelled, crop_precision, crop_recall,
-            weed_precision, weed_recall, plants[C][U], plants[W][U], plants[C][W], crop_plants,
-            100 * ratio(plants[C][W], crop_plants), px_crop_recall, px_weed_recall,
-            0.5 * (px_crop_recall + px_weed_recall), 100 * ratio(px_crop_as_weed, px_crop_total),
-            0.5 * (ratio(px_crop_ceiling, px_crop_total) + ratio(px_weed_ceiling, px_weed_total)));
-        return buf;
+        std::snprintf(buf, sizeof buf,
+                      "%s (%d frames, min_confidence %.2f, weed_confidence %.2f)\n"
+                      "  pixels of vegetation (class map from the cells): crop recall %.3f, weed recall %.3f, "
+                      "balanced accuracy %.3f; crop pixels called weed %.1f %%\n"
+                      "  (segmentation ceiling, every segmented pixel right: balanced accuracy %.3f)\n",
+                      title.c_str(), frames, decision.min_confidence, decision.weed_confidence, px_crop_recall,
+                      px_weed_recall, 0.5 * (px_crop_recall + px_weed_recall),
+                      100 * ratio(px_crop_as_weed, px_crop_total),
+                      0.5 * (ratio(px_crop_ceiling, px_crop_total) + ratio(px_weed_ceiling, px_weed_total)));
+        out += buf;
+        for (int s = 0; s < 3; ++s) {
+            const auto& m = plants[s];
+            const double crop_plants = m[C][U] + m[C][C] + m[C][W];
+            const double weed_plants = m[W][U] + m[W][C] + m[W][W];
+            std::snprintf(
+                buf, sizeof buf,
+                "  plants by %s: %.0f crop, %.0f weed (%d more found on soil, not scored)\n"
+                "    crop: precision %.3f recall %.3f | weed: precision %.3f recall %.3f | unknown: %ld crop, %ld "
+                "weed\n"
+                "    crop safety: %ld of %.0f crop plants called weed (%.1f %%)\n",
+                kSourceNames[s], crop_plants, weed_plants, unlabelled, ratio(m[C][C], m[C][C] + m[W][C]),
+                ratio(m[C][C], crop_plants), ratio(m[W][W], m[W][W] + m[C][W]), ratio(m[W][W], weed_plants), m[C][U],
+                m[W][U], m[C][W], crop_plants, 100 * ratio(m[C][W], crop_plants));
+            out += buf;
+        }
+        return out;
     }
 };
 
@@ -253,13 +388,22 @@ int main(int argc, char** argv)
     std::vector<std::string> recordings;
     int folds = 5;
     vision::ForestOptions forest;
+    vision::ForestOptions cell_forest = vision::kDefaultCellForest;
+    double cell_mm = vision::kDefaultCellMm;
+    int cell_samples = 40000;
     app.add_option("--out", out_path, "model file to write (.yaml or .json)")->required();
     tools::add_config_options(app, config_args);
     app.add_option("--folds", folds, "cross-validation folds; frame i is in fold i mod N")
         ->check(CLI::Range(2, 100));
-    app.add_option("--trees", forest.trees, "trees in the forest")->check(CLI::Range(1, 1000));
-    app.add_option("--max-depth", forest.max_depth, "depth limit of each tree")->check(CLI::Range(1, 50));
-    app.add_option("--seed", forest.seed, "seed of the forest's random draws");
+    app.add_option("--trees", forest.trees, "trees in the plant forest")->check(CLI::Range(1, 1000));
+    app.add_option("--max-depth", forest.max_depth, "depth limit of each plant tree")->check(CLI::Range(1, 50));
+    app.add_option("--cell-mm", cell_mm, "side of the classified cells, in mm")->check(CLI::Range(0.5, 50.0));
+    app.add_option("--cell-trees", cell_forest.trees, "trees in the cell forest")->check(CLI::Range(1, 1000));
+    app.add_option("--cell-max-depth", cell_forest.max_depth, "depth limit of each cell tree")
+        ->check(CLI::Range(1, 50));
+    app.add_option("--cell-samples", cell_samples, "at most this many cells train a cell forest (an even stride)")
+        ->check(CLI::Range(100, 10000000));
+    app.add_option("--seed", forest.seed, "seed of the forests' random draws");
     app.add_option("--test-on", test_recordings,
                    "also score the final model on this recording (another camera or field)")
         ->allow_extra_args(false);
@@ -268,16 +412,21 @@ int main(int argc, char** argv)
     app.add_option("RECORDING", recordings, "recording directories with a class column")->required();
     if (const auto exit_code = tools::parse(app, argc, argv, {.tool = "stemd-train", .after = " (see --help)"}))
         return *exit_code;
+    cell_forest.seed = forest.seed;
 
-    std::vector<FrameSamples> frames;
-    vision::Params params;
     std::string error;
-    if (!collect(recordings, config_args, frames, params, error)) {
+    Pipeline pipeline;
+    pipeline.cell_mm = cell_mm;
+    std::vector<tools::FrameJob> jobs;
+    std::vector<FrameSamples> frames;
+    if (!load_params(config_args, pipeline.params, error) || !frame_jobs(recordings, pipeline.params, jobs, error) ||
+        !collect(jobs, pipeline, frames, error)) {
         std::cerr << "stemd-train: " << error << "\n";
         return kUsageError;
     }
+    const vision::Params params = pipeline.params;
     config::Config config;
-    (void)config::build_config(config_args, config);   // checked by collect()
+    (void)config::build_config(config_args, config);   // checked by load_params()
     const Decision decision{config.settings().daemon.classify.min_confidence,
                             config.settings().daemon.classify.weed_confidence};
     const Decision symmetric{0.5, 0.5};
@@ -286,33 +435,49 @@ int main(int argc, char** argv)
         return kUsageError;
     }
 
-    // Cross-validation by frame: every plant of a frame is in the same fold,
-    // so no plant is scored by a forest that saw its own frame.
-    Figures cv_figures, cv_figures_half;
-    std::vector<std::pair<int, float>> out_of_fold;   // (label, weed probability)
-    for (int k = 0; k < folds; ++k) {
-        std::vector<std::size_t> train, test;
-        for (std::size_t f = 0; f < frames.size(); ++f)
-            (static_cast<int>(f % static_cast<std::size_t>(folds)) == k ? test : train).push_back(f);
+    auto train = [&](const std::vector<std::size_t>& which, std::string& why) -> std::optional<vision::PlantClassifier> {
         cv::Mat samples, labels;
-        to_matrices(frames, train, samples, labels);
-        const auto model = vision::PlantClassifier::train(samples, labels, forest, error);
+        plant_matrices(frames, which, samples, labels);
+        auto model = vision::PlantClassifier::train(samples, labels, forest, why);
+        if (!model)
+            return std::nullopt;
+        cell_matrices(frames, which, cell_samples, samples, labels);
+        if (!model->train_cells(samples, labels, cell_forest, cell_mm, why)) {
+            why = "cells: " + why;
+            return std::nullopt;
+        }
+        return model;
+    };
+
+    // Cross-validation by frame: every plant and cell of a frame is in the
+    // same fold, so none is scored by a forest that saw its own frame.
+    Figures cv_figures, cv_figures_half;
+    std::vector<std::pair<int, float>> out_of_fold;   // (label, weed probability from the cells)
+    cv::Mat map;
+    for (int k = 0; k < folds; ++k) {
+        std::vector<std::size_t> train_frames, test_frames;
+        for (std::size_t f = 0; f < frames.size(); ++f)
+            (static_cast<int>(f % static_cast<std::size_t>(folds)) == k ? test_frames : train_frames).push_back(f);
+        const auto model = train(train_frames, error);
         if (!model) {
             std::cerr << "stemd-train: fold " << k << ": " << error << "\n";
             return 1;
         }
-        for (const std::size_t f : test) {
-            cv_figures.add(frames[f], *model, decision);
-            cv_figures_half.add(frames[f], *model, symmetric);
-            for (const Sample& s : frames[f].plants)
-                out_of_fold.emplace_back(s.label, model->weed_probability(s.features));
+        for (const std::size_t f : test_frames) {
+            if (!pipeline.run(jobs[frames[f].job], error)) {
+                std::cerr << "stemd-train: " << error << "\n";
+                return 1;
+            }
+            cv_figures_half.add(pipeline, *model, symmetric, map, nullptr);
+            cv_figures.add(pipeline, *model, decision, map, &out_of_fold);
         }
     }
     std::ostringstream sweep;
     {
         // What each weed bar would give, out of fold: the trade-off between
         // crop safety and weeds treated that classify.weed_confidence picks.
-        sweep << "  weed bar (out of fold): crop plants called weed / weed recall:";
+        sweep << "  weed bar (out of fold, plants by the share of their cells): crop plants called weed / weed "
+                 "recall:";
         for (int bar = 50; bar <= 95; bar += 5) {
             long crops = 0, crop_weed = 0, weeds = 0, weed_weed = 0;
             for (const auto& [label, p] : out_of_fold) {
@@ -329,33 +494,55 @@ int main(int argc, char** argv)
         sweep << "\n";
     }
     std::ostringstream report;
-    report << cv_figures_half.text(std::to_string(folds) + "-fold cross-validation by frame", symmetric)
+    char cells_line[160];
+    std::snprintf(cells_line, sizeof cells_line, "cells of %.2f mm (%d px), cell forest %d trees of depth %d\n",
+                  cell_mm, pipeline.cells ? pipeline.cells->cell_px() : 0, cell_forest.trees, cell_forest.max_depth);
+    report << cells_line
+           << cv_figures_half.text(std::to_string(folds) + "-fold cross-validation by frame", symmetric)
            << cv_figures.text(std::to_string(folds) + "-fold cross-validation by frame", decision) << sweep.str();
 
     std::vector<std::size_t> all(frames.size());
     for (std::size_t f = 0; f < frames.size(); ++f)
         all[f] = f;
-    cv::Mat samples, labels;
-    to_matrices(frames, all, samples, labels);
-    const auto model = vision::PlantClassifier::train(samples, labels, forest, error);
+    const auto model = train(all, error);
     if (!model) {
         std::cerr << "stemd-train: " << error << "\n";
         return 1;
     }
     std::cout << report.str();
+    {
+        // Which cell features carry the forest (OpenCV's permutation importance).
+        const cv::Mat& importance = model->cell_importance();
+        std::vector<std::pair<float, int>> ranked;
+        for (int f = 0; f < importance.cols * importance.rows; ++f)
+            ranked.emplace_back(importance.at<float>(f), f);
+        std::sort(ranked.rbegin(), ranked.rend());
+        std::cout << "cell feature importance:";
+        for (std::size_t i = 0; i < ranked.size() && i < 12; ++i)
+            std::cout << (i ? ", " : " ") << vision::cell_feature_name(ranked[i].second) << " "
+                      << std::setprecision(3) << ranked[i].first;
+        std::cout << "\n";
+    }
 
     if (!test_recordings.empty()) {
         config::ConfigArgs test_args = config_args;
         test_args.sets.insert(test_args.sets.end(), test_sets.begin(), test_sets.end());
-        std::vector<FrameSamples> test_frames;
-        vision::Params test_params;
-        if (!collect(test_recordings, test_args, test_frames, test_params, error)) {
+        Pipeline test_pipeline;
+        test_pipeline.cell_mm = cell_mm;
+        std::vector<tools::FrameJob> test_jobs;
+        if (!load_params(test_args, test_pipeline.params, error) ||
+            !frame_jobs(test_recordings, test_pipeline.params, test_jobs, error)) {
             std::cerr << "stemd-train: --test-on: " << error << "\n";
             return kUsageError;
         }
         Figures test_figures;
-        for (const FrameSamples& f : test_frames)
-            test_figures.add(f, *model, decision);
+        for (const tools::FrameJob& job : test_jobs) {
+            if (!test_pipeline.run(job, error)) {
+                std::cerr << "stemd-train: --test-on: " << error << "\n";
+                return kUsageError;
+            }
+            test_figures.add(test_pipeline, *model, decision, map, nullptr);
+        }
         std::cout << test_figures.text("the model (all training frames) on --test-on", decision);
     }
 
@@ -371,8 +558,14 @@ int main(int argc, char** argv)
         std::cerr << "stemd-train: " << error << "\n";
         return 1;
     }
-    std::cout << out_path << ": " << samples.rows << " plants from " << frames.size() << " frames, "
-              << model->info().trees << " trees, " << vision::channels_name(info.nir) << ", camera.gsd_mm_per_px "
+    long plants = 0, cells = 0;
+    for (const FrameSamples& f : frames) {
+        plants += static_cast<long>(f.plants.size());
+        cells += static_cast<long>(f.cells.size());
+    }
+    std::cout << out_path << ": " << plants << " plants and " << cells << " labelled cells from " << frames.size()
+              << " frames, " << model->info().trees << " plant trees, " << model->info().cell_trees
+              << " cell trees, " << vision::channels_name(info.nir) << ", camera.gsd_mm_per_px "
               << info.gsd_mm_per_px << "\n";
     return 0;
 }

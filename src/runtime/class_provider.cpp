@@ -7,43 +7,10 @@
 
 namespace stemd::runtime {
 
-std::uint64_t plant_classes_from_map(const cv::Mat& class_map, cv::Size frame_size,
-                                     const vision::Detections& detections,
-                                     std::array<PlantClass, vision::kMaxPlants>& out) noexcept
-{
-    std::uint64_t bad = 0;
-    constexpr double kHalf = 4;   // the window's half-width in frame pixels
-    const double sx = static_cast<double>(class_map.cols) / std::max(frame_size.width, 1);
-    const double sy = static_cast<double>(class_map.rows) / std::max(frame_size.height, 1);
-    for (std::size_t i = 0; i < detections.plants.size(); ++i) {
-        const vision::Plant& p = detections.plants[i];
-        out[i] = PlantClass::Unknown;
-        if (!p.has_stem || class_map.empty())
-            continue;
-        // The window's pixels in the map: the frame pixels' cells, however
-        // coarse the map (one cell at least).
-        const int x0 = std::max(static_cast<int>(std::floor((p.stem.x - kHalf) * sx)), 0);
-        const int x1 = std::min(static_cast<int>(std::floor((p.stem.x + kHalf) * sx)), class_map.cols - 1);
-        const int y0 = std::max(static_cast<int>(std::floor((p.stem.y - kHalf) * sy)), 0);
-        const int y1 = std::min(static_cast<int>(std::floor((p.stem.y + kHalf) * sy)), class_map.rows - 1);
-        int crop = 0, weed = 0, other = 0;
-        for (int y = y0; y <= y1; ++y) {
-            const std::uint8_t* row = class_map.ptr<std::uint8_t>(y);
-            for (int x = x0; x <= x1; ++x) {
-                crop += plant_class_from_value(row[x]) == PlantClass::Crop;
-                weed += plant_class_from_value(row[x]) == PlantClass::Weed;
-                other += row[x] > 2;
-            }
-        }
-        out[i] = weed > crop ? PlantClass::Weed : crop > weed ? PlantClass::Crop : PlantClass::Unknown;
-        bad += other > 0;
-    }
-    return bad;
-}
-
 ModelClassProvider::ModelClassProvider(vision::PlantClassifier model, cv::Size frame_size,
                                        const vision::Params& params, double min_confidence, double weed_confidence)
-    : model_(std::move(model)), workspace_(frame_size, params), min_confidence_(min_confidence),
+    : model_(std::move(model)), workspace_(frame_size, params),
+      cells_(frame_size, params.gsd_mm_per_px, model_.info().cell_mm), min_confidence_(min_confidence),
       weed_confidence_(weed_confidence)
 {
 }
@@ -55,13 +22,18 @@ void ModelClassProvider::classify(const drivers::Frame& frame, const vision::Par
     // what runs in the field is what a replay shows. A frame without its
     // rgb image leaves every plant unknown.
     const vision::FrameView view{.bgr = frame.bgr, .nir = frame.nir, .mask = frame.mask};
+    // Each plant's class from the share of its cells (vision/cells): on the
+    // shared sets as safe for the crop as the class map around the stem,
+    // and it treats more weeds (README, Crop or weed).
     vision::plant_features(view, params, workspace, result.detections, workspace_);
-    const auto features = workspace_.features();
-    for (std::size_t i = 0; i < result.detections.plants.size(); ++i)
-        result.plant_class[i] =
-            i < features.size()
-                ? vision::decide_class(model_.weed_probability(features[i]), min_confidence_, weed_confidence_)
-                : PlantClass::Unknown;
+    vision::cell_features(view, params, workspace, result.detections, workspace_, cells_);
+    vision::classify_cells(model_, min_confidence_, weed_confidence_, cells_);
+    const std::size_t plants = result.detections.plants.size();
+    std::fill(result.plant_class.begin(), result.plant_class.begin() + static_cast<std::ptrdiff_t>(plants),
+              PlantClass::Unknown);
+    if (workspace_.features().size() == plants)
+        vision::classify_plants(model_, workspace_, cells_, plants, min_confidence_, weed_confidence_,
+                                probabilities_, result.plant_class);
     result.has_class_map = true;
 }
 

@@ -1,5 +1,7 @@
 #include "stemd/vision/classify.hpp"
 
+#include "stemd/vision/cells.hpp"
+
 #include <algorithm>
 #include <bit>
 #include <cstdio>
@@ -118,6 +120,7 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
     // A frame the workspaces were not made for, or without its rgb image,
     // gives no features: its plants stay unclassified.
     ws.plants_ = 0;
+    ws.frame_brightness_ = 0;
     // Only what the last frame wrote: the whole map would be 2.5 MB per frame.
     for (int y = ws.dirty_.y; y < ws.dirty_.y + ws.dirty_.height; ++y)
         std::memset(ws.plant_index_.ptr<std::uint16_t>(y) + ws.dirty_.x, 0,
@@ -257,6 +260,7 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
     }
     const double frame_brightness =
         std::max(static_cast<double>(frame_sum) / static_cast<double>(std::max(frame_samples, 1L)), 1.0);
+    ws.frame_brightness_ = static_cast<float>(frame_brightness);
     const double gsd = params.gsd_mm_per_px;
     for (std::size_t i = 0; i < ws.plants_; ++i) {
         const Plant& plant = det.plants[i];
@@ -311,6 +315,40 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
     row_context(det, gsd, ws.plants_, ws.features_);
 }
 
+std::uint64_t plant_classes_from_map(const cv::Mat& class_map, cv::Size frame_size,
+                                     const Detections& detections,
+                                     std::array<PlantClass, kMaxPlants>& out) noexcept
+{
+    std::uint64_t bad = 0;
+    constexpr double kHalf = 4;   // the window's half-width in frame pixels
+    const double sx = static_cast<double>(class_map.cols) / std::max(frame_size.width, 1);
+    const double sy = static_cast<double>(class_map.rows) / std::max(frame_size.height, 1);
+    for (std::size_t i = 0; i < detections.plants.size(); ++i) {
+        const Plant& p = detections.plants[i];
+        out[i] = PlantClass::Unknown;
+        if (!p.has_stem || class_map.empty())
+            continue;
+        // The window's pixels in the map: the frame pixels' cells, however
+        // coarse the map (one cell at least).
+        const int x0 = std::max(static_cast<int>(std::floor((p.stem.x - kHalf) * sx)), 0);
+        const int x1 = std::min(static_cast<int>(std::floor((p.stem.x + kHalf) * sx)), class_map.cols - 1);
+        const int y0 = std::max(static_cast<int>(std::floor((p.stem.y - kHalf) * sy)), 0);
+        const int y1 = std::min(static_cast<int>(std::floor((p.stem.y + kHalf) * sy)), class_map.rows - 1);
+        int crop = 0, weed = 0, other = 0;
+        for (int y = y0; y <= y1; ++y) {
+            const std::uint8_t* row = class_map.ptr<std::uint8_t>(y);
+            for (int x = x0; x <= x1; ++x) {
+                crop += plant_class_from_value(row[x]) == PlantClass::Crop;
+                weed += plant_class_from_value(row[x]) == PlantClass::Weed;
+                other += row[x] > 2;
+            }
+        }
+        out[i] = weed > crop ? PlantClass::Weed : crop > weed ? PlantClass::Crop : PlantClass::Unknown;
+        bad += other > 0;
+    }
+    return bad;
+}
+
 PlantClass decide_class(float weed_probability, double min_confidence, double weed_confidence)
 {
     // In float, as the probability is: 0.7f must pass a 0.7 bar.
@@ -351,24 +389,27 @@ void class_map(const Workspace& dws, const ClassifyWorkspace& ws, std::span<cons
 
 std::string_view channels_name(bool nir) { return nir ? "rgb+nir" : "rgb"; }
 
-std::optional<PlantClassifier> PlantClassifier::train(const cv::Mat& samples, const cv::Mat& labels,
-                                                      const ForestOptions& options, std::string& error)
+namespace {
+
+// A forest on rows of `columns` features with labels 1 crop, 2 weed
+// (internally 0 crop, 1 weed: PREDICT_SUM over the trees then counts the
+// weed votes); null with `error` set if it cannot be trained.
+cv::Ptr<cv::ml::RTrees> train_forest(const cv::Mat& samples, const cv::Mat& labels, int columns,
+                                     const ForestOptions& options, bool importance, std::string& error)
 {
-    if (samples.type() != CV_32FC1 || samples.cols != kPlantFeatureCount || labels.type() != CV_32SC1 ||
+    if (samples.type() != CV_32FC1 || samples.cols != columns || labels.type() != CV_32SC1 ||
         labels.rows != samples.rows || labels.cols != 1) {
-        error = "training data must be CV_32F rows of " + std::to_string(kPlantFeatureCount) +
+        error = "training data must be CV_32F rows of " + std::to_string(columns) +
                 " features with one CV_32S label each";
-        return std::nullopt;
+        return {};
     }
-    // Internally 0 = crop, 1 = weed: PREDICT_SUM over the trees then counts
-    // the weed votes.
     cv::Mat responses(labels.rows, 1, CV_32SC1);
     int counts[2] = {0, 0};
     for (int i = 0; i < labels.rows; ++i) {
         const int label = labels.at<int>(i);
         if (label != to_value(PlantClass::Crop) && label != to_value(PlantClass::Weed)) {
             error = "label " + std::to_string(label) + " is neither crop (1) nor weed (2)";
-            return std::nullopt;
+            return {};
         }
         responses.at<int>(i) = label == to_value(PlantClass::Weed) ? 1 : 0;
         ++counts[responses.at<int>(i)];
@@ -376,37 +417,84 @@ std::optional<PlantClassifier> PlantClassifier::train(const cv::Mat& samples, co
     if (counts[0] == 0 || counts[1] == 0) {
         error = "training needs crop and weed plants (" + std::to_string(counts[0]) + " crop, " +
                 std::to_string(counts[1]) + " weed)";
-        return std::nullopt;
+        return {};
     }
-    PlantClassifier model;
-    model.forest_ = cv::ml::RTrees::create();
-    model.forest_->setMaxDepth(options.max_depth);
-    model.forest_->setMinSampleCount(options.min_sample_count);
-    model.forest_->setActiveVarCount(0);   // sqrt of the feature count per split
-    model.forest_->setCalculateVarImportance(false);
-    model.forest_->setTermCriteria(cv::TermCriteria(cv::TermCriteria::MAX_ITER, options.trees, 0));
+    auto forest = cv::ml::RTrees::create();
+    forest->setMaxDepth(options.max_depth);
+    forest->setMinSampleCount(options.min_sample_count);
+    forest->setActiveVarCount(0);   // sqrt of the feature count per split
+    forest->setCalculateVarImportance(importance);
+    forest->setTermCriteria(cv::TermCriteria(cv::TermCriteria::MAX_ITER, options.trees, 0));
     if (options.balance_classes) {
         const double total = counts[0] + counts[1];
         cv::Mat priors = (cv::Mat_<float>(1, 2) << static_cast<float>(total / (2.0 * counts[0])),
                           static_cast<float>(total / (2.0 * counts[1])));
-        model.forest_->setPriors(priors);
+        forest->setPriors(priors);
     }
     try {
         // The forest draws its bootstrap samples and split variables from
         // the thread's cv::theRNG(): seeded, the same data gives the same forest.
         cv::theRNG() = cv::RNG(options.seed);
-        if (!model.forest_->train(cv::ml::TrainData::create(samples, cv::ml::ROW_SAMPLE, responses))) {
+        if (!forest->train(cv::ml::TrainData::create(samples, cv::ml::ROW_SAMPLE, responses))) {
             error = "OpenCV RTrees training failed";
-            return std::nullopt;
+            return {};
         }
     } catch (const cv::Exception& e) {
         error = std::string("OpenCV RTrees training failed: ") + e.what();
-        return std::nullopt;
+        return {};
     }
+    return forest;
+}
+
+}  // namespace
+
+FlatForest flatten(const cv::ml::RTrees& forest)
+{
+    FlatForest flat;
+    const auto& nodes = forest.getNodes();
+    const auto& splits = forest.getSplits();
+    flat.nodes.reserve(nodes.size());
+    for (const auto& node : nodes) {
+        FlatForest::Node n{-1, 0.0f, -1, -1, static_cast<float>(node.value)};
+        if (node.split >= 0) {
+            const auto& split = splits[static_cast<std::size_t>(node.split)];
+            n.var = split.varIdx;
+            n.threshold = split.c;
+            // An inversed split sends values at or below c right.
+            n.left = split.inversed ? node.right : node.left;
+            n.right = split.inversed ? node.left : node.right;
+        }
+        flat.nodes.push_back(n);
+    }
+    flat.roots = forest.getRoots();
+    return flat;
+}
+
+std::optional<PlantClassifier> PlantClassifier::train(const cv::Mat& samples, const cv::Mat& labels,
+                                                      const ForestOptions& options, std::string& error)
+{
+    PlantClassifier model;
+    model.forest_ = train_forest(samples, labels, kPlantFeatureCount, options, false, error);
+    if (!model.forest_)
+        return std::nullopt;
     model.trees_ = static_cast<float>(std::max<std::size_t>(model.forest_->getRoots().size(), 1));
     model.info_.trees = static_cast<int>(model.trees_);
     model.info_.feature_names.assign(kFeatureNames.begin(), kFeatureNames.end());
     return model;
+}
+
+bool PlantClassifier::train_cells(const cv::Mat& samples, const cv::Mat& labels, const ForestOptions& options,
+                                  double cell_mm, std::string& error)
+{
+    auto forest = train_forest(samples, labels, kCellFeatureCount, options, true, error);
+    if (!forest)
+        return false;
+    cell_forest_ = forest;
+    cell_flat_ = flatten(*forest);
+    cell_importance_ = forest->getVarImportance();
+    info_.cell_mm = cell_mm;
+    info_.cell_trees = static_cast<int>(cell_flat_.roots.size());
+    return true;
 }
 
 float PlantClassifier::weed_probability(const FeatureRow& features) const
@@ -437,11 +525,24 @@ bool PlantClassifier::save(const std::filesystem::path& path, ModelInfo info, st
         write_list(fs, "recordings", info.recordings);
         fs << "trained_utc" << info.trained_utc;
         fs << "trees" << info.trees;
+        fs << "cell_mm" << info_.cell_mm;
+        fs << "cell_trees" << info_.cell_trees;
+        {
+            std::vector<std::string> names;
+            for (int f = 0; f < kCellFeatureCount; ++f)
+                names.emplace_back(cell_feature_name(f));
+            write_list(fs, "cell_feature_names", names);
+        }
         fs << "cross_validation" << info.cross_validation;
         fs << "}";
         fs << "forest" << "{";
         forest_->write(fs);
         fs << "}";
+        if (cell_forest_) {
+            fs << "cell_forest" << "{";
+            cell_forest_->write(fs);
+            fs << "}";
+        }
     } catch (const cv::Exception& e) {
         error = path.string() + ": cannot write: " + e.what();
         return false;
@@ -501,6 +602,32 @@ std::optional<PlantClassifier> PlantClassifier::load(const std::filesystem::path
         }
         model.trees_ = static_cast<float>(std::max<std::size_t>(model.forest_->getRoots().size(), 1));
         info.trees = static_cast<int>(model.trees_);
+        std::vector<std::string> cell_names, expected;
+        for (const auto& n : meta["cell_feature_names"])
+            cell_names.push_back(static_cast<std::string>(n));
+        for (int f = 0; f < kCellFeatureCount; ++f)
+            expected.emplace_back(cell_feature_name(f));
+        if (cell_names != expected) {
+            error = name + ": its cell feature names differ from this build's: train the model again";
+            return std::nullopt;
+        }
+        info.cell_mm = static_cast<double>(meta["cell_mm"]);
+        if (!fs["cell_forest"].empty()) {
+            model.cell_forest_ = cv::ml::RTrees::create();
+            model.cell_forest_->read(fs["cell_forest"]);
+            if (!model.cell_forest_->isTrained() || model.cell_forest_->getVarCount() != kCellFeatureCount ||
+                !(info.cell_mm > 0)) {
+                error = name + ": no trained cell forest of " + std::to_string(kCellFeatureCount) +
+                        " features with its cell_mm";
+                return std::nullopt;
+            }
+            model.cell_flat_ = flatten(*model.cell_forest_);
+            if (model.cell_flat_.roots.empty()) {
+                error = name + ": the cell forest has splits this build cannot walk";
+                return std::nullopt;
+            }
+        }
+        info.cell_trees = static_cast<int>(model.cell_flat_.roots.size());
         return model;
     } catch (const cv::Exception& e) {
         error = name + ": unreadable model: " + e.what();

@@ -13,7 +13,9 @@ tools=$1 src=$2
   >"$tmp/train.txt" 2>&1 || fail "stemd-train exited $?: $(cat "$tmp/train.txt")"
 grep -q '^3-fold cross-validation by frame' "$tmp/train.txt" || fail "no cross-validation figures"
 grep -q 'crop safety: [0-9]* of [0-9]* crop plants called weed' "$tmp/train.txt" || fail "no crop-safety figure"
-grep -q 'balanced accuracy' "$tmp/train.txt" || fail "no per-pixel figure"
+grep -q 'pixels of vegetation (class map from the cells).*balanced accuracy' "$tmp/train.txt" || fail "no per-pixel figure"
+grep -Eq '^ +cell_trees: [1-9]' "$tmp/model.yaml" || fail "model file says no cell trees"
+grep -q '^cell_forest:' "$tmp/model.yaml" || fail "model file has no cell_forest section"
 grep -q '^stemd_plant_classifier:' "$tmp/model.yaml" || fail "model file has no metadata section"
 grep -q 'channels: rgb$' "$tmp/model.yaml" || fail "model file does not say rgb"
 grep -Eq 'gsd_mm_per_px: (0?\.33$|3\.30*[0-9]*e-01)' "$tmp/model.yaml" || fail "model file does not hold the GSD"
@@ -22,6 +24,7 @@ grep -q "$tmp/rec" "$tmp/model.yaml" || fail "model file does not name its recor
 # Same data, same seed: the same forest.
 "$tools/stemd-train" --out "$tmp/again.yaml" --config "$src/config/stemd.yaml" --folds 3 --trees 20 "$tmp/rec" \
   >/dev/null 2>&1 || fail "second training"
+# (Both forests: the plant forest's section runs on into the cell forest's.)
 diff <(sed -n '/^forest:/,$p' "$tmp/model.yaml") <(sed -n '/^forest:/,$p' "$tmp/again.yaml") >/dev/null \
   || fail "training is not deterministic"
 
@@ -31,9 +34,11 @@ diff <(sed -n '/^forest:/,$p' "$tmp/model.yaml") <(sed -n '/^forest:/,$p' "$tmp/
 [ "$(head -1 "$tmp/pred.csv")" = "image,plant,x,y,method,leaves,area_px,estimator,confidence,class,weed_probability" ] \
   || fail "csv header: $(head -1 "$tmp/pred.csv")"
 [ "$(wc -l <"$tmp/pred.csv")" -gt 1 ] || fail "no plants"
-awk -F, 'NR > 1 && (($10 != "crop" && $10 != "weed" && $10 != "unknown") || $11 < 0 || $11 > 1 ||
-  ($10 == "weed" && $11 < 0.6) || ($10 == "crop" && $11 > 0.4) || ($10 == "unknown" && ($11 >= 0.6 || $11 <= 0.4))) \
-  { print "bad row " NR ": " $0; bad = 1 } END { exit bad }' "$tmp/pred.csv" || fail "class columns disagree with min_confidence 0.6"
+# weed_probability is empty only for a plant no classified cell holds: unknown.
+awk -F, 'NR > 1 && $11 == "" && $10 != "unknown" { print "bad row " NR ": " $0; bad = 1 }
+  NR > 1 && $11 != "" && (($10 != "crop" && $10 != "weed" && $10 != "unknown") || $11 < 0 || $11 > 1 ||
+  ($10 == "weed" && $11 < 0.85) || ($10 == "crop" && $11 > 0.4) || ($10 == "unknown" && ($11 >= 0.85 || $11 <= 0.4))) \
+  { print "bad row " NR ": " $0; bad = 1 } END { exit bad }' "$tmp/pred.csv" || fail "class columns disagree with min_confidence 0.6, weed_confidence 0.85"
 frames=$(($(wc -l <"$tmp/rec/frames.csv") - 1))
 [ "$(ls "$tmp/class" | wc -l)" -eq "$frames" ] || fail "class maps: $(ls "$tmp/class" | wc -l) for $frames frames"
 [ -s "$tmp/class/000000.png" ] || fail "class map not named like its input"
@@ -41,7 +46,7 @@ frames=$(($(wc -l <"$tmp/rec/frames.csv") - 1))
 # min_confidence 1: no plant is sure enough, every one is unknown.
 "$tools/stemd-detect" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" \
   --set classify.min_confidence=1 --csv "$tmp/sure.csv" "$tmp/rec" >/dev/null 2>&1 || fail "min_confidence 1 run"
-awk -F, 'NR > 1 && $10 != "unknown" && !($11 == 1 || $11 == 0) { bad = 1 } END { exit bad }' "$tmp/sure.csv" \
+awk -F, 'NR > 1 && $10 != "unknown" && ($11 == "" || !($11 == 1 || $11 == 0)) { bad = 1 } END { exit bad }' "$tmp/sure.csv" \
   || fail "a plant below certainty was classed"
 
 # Refusals, each naming the model file.

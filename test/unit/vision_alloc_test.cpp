@@ -11,6 +11,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "stemd/vision/cells.hpp"
 #include "stemd/vision/classify.hpp"
 #include "stemd/vision/detect.hpp"
 #include "vision_test_util.hpp"
@@ -116,4 +117,24 @@ TEST(RealTime, ClassifierAllocatesNothingOnceWarm)
     class_map(*ws, *cws, {classes.data(), cws->features().size()}, map);
     EXPECT_EQ(stemd::test::allocations() - before, 0) << "heap allocations in class_map";
     EXPECT_GE(sum, 0.0f);
+
+    // The cells: features, forest, class map and the plants' share.
+    cv::Mat cell_samples(60, kCellFeatureCount, CV_32FC1), cell_labels(60, 1, CV_32SC1);
+    rng.fill(cell_samples, cv::RNG::UNIFORM, 0, 1);
+    for (int i = 0; i < cell_labels.rows; ++i)
+        cell_labels.at<int>(i) = i % 2 ? 1 : 2;
+    auto cell_model = PlantClassifier::train(samples, labels, {.trees = 5}, error);
+    ASSERT_TRUE(cell_model) << error;
+    ASSERT_TRUE(cell_model->train_cells(cell_samples, cell_labels, {.trees = 30}, 3.0, error)) << error;
+    auto cells = std::make_unique<CellWorkspace>(size, 0.11, 3.0);
+    std::array<float, kMaxPlants> probabilities{};
+    for (int round = 0; round < 2; ++round) {   // the second frame reuses what the first left
+        before = stemd::test::allocations();
+        cell_features(frame, params, *ws, *out, *cws, *cells);
+        classify_cells(*cell_model, 0.6, 0.85, *cells);
+        cell_class_map(*ws, *cells, map);
+        classify_plants(*cell_model, *cws, *cells, out->plants.size(), 0.6, 0.85, probabilities, classes);
+        EXPECT_EQ(stemd::test::allocations() - before, 0) << "heap allocations in the cells, round " << round;
+    }
+    EXPECT_GT(cells->vegetated().size(), 100u);
 }

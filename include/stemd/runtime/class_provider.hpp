@@ -26,6 +26,7 @@
 #include "stemd/drivers/frame_source.hpp"
 #include "stemd/runtime/daemon_config.hpp"
 #include "stemd/runtime/detection_sink.hpp"
+#include "stemd/vision/cells.hpp"
 #include "stemd/vision/classify.hpp"
 #include "stemd/vision/detect.hpp"
 
@@ -70,15 +71,9 @@ protected:
     ClassCounters counters_;
 };
 
-// The class of each plant with a stem from a class map (0 soil, 1 crop,
-// 2 weed) of the frame's size or smaller (scaled on each axis): the
-// majority of crop and weed pixels in a 9x9 window of the frame around the
-// stem (the stem itself may lie on soil between leaves); unknown when there
-// are none, and for plants without a stem. Returns the number of plants
-// whose window holds values above 2, which are no class.
-std::uint64_t plant_classes_from_map(const cv::Mat& class_map, cv::Size frame_size,
-                                     const vision::Detections& detections,
-                                     std::array<PlantClass, vision::kMaxPlants>& out) noexcept;
+// The class of each plant from a class map around its stem: the vision
+// library's, shared with the in-box model's cells.
+using vision::plant_classes_from_map;
 
 // The in-box model.
 class ModelClassProvider final : public ClassProvider {
@@ -92,6 +87,8 @@ public:
 private:
     vision::PlantClassifier model_;
     vision::ClassifyWorkspace workspace_;
+    vision::CellWorkspace cells_;
+    std::array<float, vision::kMaxPlants> probabilities_{};
     double min_confidence_, weed_confidence_;
 };
 

@@ -1,12 +1,15 @@
 // Crop or weed, per plant: a fixed-length feature vector for each plant
 // detect() found (colour, texture, shape in millimetres, lateral position),
 // a random forest (OpenCV ml RTrees) that gives each plant a weed
-// probability, and the per-pixel class map that follows from it.
+// probability, and the per-pixel class map that follows from it. The
+// model file also holds the cell forest of vision/cells, which classes
+// each few millimetres of vegetation (and, through them, the plants) when
+// present.
 //
 // The features are computed from the same frame, parameters and Workspace
 // as detect(), so training (stemd-train) and use (stemd-detect, stemd) see
 // the same plants. A trained model is one file (OpenCV FileStorage, YAML or
-// JSON by extension) holding the forest and what it was trained on: feature
+// JSON by extension) holding the forests and what they were trained on: feature
 // names and version, camera GSD, channels, recordings, date and the
 // cross-validated figures. A model only holds for the camera, GSD and crop
 // it was trained on: loading checks the first two.
@@ -31,7 +34,8 @@ namespace stemd::vision {
 
 // Bumped whenever a feature is added, removed or computed differently: a
 // model trained on other features is refused.
-inline constexpr int kPlantFeaturesVersion = 2;
+// Version 3 added the cell forest (vision/cells) to the model file.
+inline constexpr int kPlantFeaturesVersion = 3;
 
 // The features, in vector order. Shape is in physical units (via
 // gsd_mm_per_px) so that a model carries over between resolutions of the
@@ -90,6 +94,9 @@ public:
     const cv::Mat& plant_index() const { return plant_index_; }
     // After plant_features(): one row per plant of the Detections.
     std::span<const FeatureRow> features() const { return {features_.data(), plants_}; }
+    // After plant_features(): the frame's mean R+G+B (sampled), which the
+    // cells share.
+    float frame_brightness() const { return frame_brightness_; }
 
 private:
     friend void plant_features(const FrameView&, const Params&, const Workspace&, const Detections&,
@@ -105,6 +112,7 @@ private:
     std::array<Sums, kMaxPlants> sums_{};
     std::array<FeatureRow, kMaxPlants> features_{};
     std::size_t plants_ = 0;
+    float frame_brightness_ = 0;
     std::array<float, 3 * 255 + 1> reciprocal_{};   // 1 / (R + G + B), also 1 / (NIR + R)
 };
 
@@ -129,6 +137,16 @@ PlantClass decide_class(float weed_probability, double min_confidence, double we
 void class_map(const Workspace& detect_workspace, const ClassifyWorkspace& workspace,
                std::span<const PlantClass> plant_classes, cv::Mat& out);
 
+// The class of each plant with a stem from a class map (0 soil, 1 crop,
+// 2 weed) of the frame's size or smaller (scaled on each axis): the
+// majority of crop and weed pixels in a 9x9 window of the frame around the
+// stem (the stem itself may lie on soil between leaves); unknown when there
+// are none, and for plants without a stem. Returns the number of plants
+// whose window holds values above 2, which are no class.
+std::uint64_t plant_classes_from_map(const cv::Mat& class_map, cv::Size frame_size,
+                                     const Detections& detections,
+                                     std::array<PlantClass, kMaxPlants>& out) noexcept;
+
 // What a model file says about itself.
 struct ModelInfo {
     int features_version = kPlantFeaturesVersion;
@@ -139,6 +157,8 @@ struct ModelInfo {
     std::vector<std::string> recordings{};
     std::string trained_utc{};
     int trees = 0;
+    double cell_mm = 0;                    // the cell forest's cell side (vision/cells)
+    int cell_trees = 0;
     std::string cross_validation{};        // the figures stemd-train printed, as text
 };
 
@@ -159,6 +179,35 @@ struct ForestOptions {
     std::uint64_t seed = 1;
 };
 
+// A trained forest as flat arrays, walked without OpenCV's per-call
+// bookkeeping: the cells call it hundreds of times a frame.
+struct FlatForest {
+    struct Node {
+        int var;          // -1: a leaf
+        float threshold;  // left when value <= threshold
+        int left, right;
+        float value;      // a leaf's vote: 1 weed, 0 crop
+    };
+    std::vector<Node> nodes{};
+    std::vector<int> roots{};
+    // The fraction of the trees voting weed for `features`.
+    float weed_fraction(const float* features) const
+    {
+        float votes = 0;
+        for (const int root : roots) {
+            const Node* node = &nodes[static_cast<std::size_t>(root)];
+            while (node->var >= 0)
+                node = &nodes[static_cast<std::size_t>(features[node->var] <= node->threshold ? node->left : node->right)];
+            votes += node->value;
+        }
+        return roots.empty() ? 0.0f : votes / static_cast<float>(roots.size());
+    }
+};
+
+// The same trees as `forest`, whose variables must all be ordered (as
+// CV_32F rows without a type list train them).
+FlatForest flatten(const cv::ml::RTrees& forest);
+
 class PlantClassifier {
 public:
     // Trains on one row per plant (samples CV_32F, kPlantFeatureCount
@@ -178,12 +227,26 @@ public:
 
     const ModelInfo& info() const { return info_; }
 
+    // The cell forest: rows of kCellFeatureCount (vision/cells), labels as
+    // for train(), cells of cell_mm. Deterministic for options.seed.
+    bool train_cells(const cv::Mat& samples, const cv::Mat& labels, const ForestOptions& options, double cell_mm,
+                     std::string& error);
+    bool has_cells() const { return !cell_flat_.roots.empty(); }
+    // The fraction of the cell forest's trees that vote weed for one row
+    // of kCellFeatureCount features; allocates nothing.
+    float cell_weed_probability(std::span<const float> row) const { return cell_flat_.weed_fraction(row.data()); }
+    // Variable importance of the cell forest (training only, empty after load).
+    const cv::Mat& cell_importance() const { return cell_importance_; }
+
     // Empty when the model fits a configuration of this GSD and channels;
     // else the reason, naming `model_name` (the file).
     std::optional<std::string> mismatch(double gsd_mm_per_px, bool nir, std::string_view model_name) const;
 
 private:
     cv::Ptr<cv::ml::RTrees> forest_;
+    cv::Ptr<cv::ml::RTrees> cell_forest_;
+    FlatForest cell_flat_;
+    cv::Mat cell_importance_;
     ModelInfo info_;
     float trees_ = 1;
 };

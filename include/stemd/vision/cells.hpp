@@ -1,0 +1,169 @@
+// Crop or weed per cell: the frame is cut into square cells of a size in
+// millimetres (through gsd_mm_per_px), and every cell holding vegetation
+// gets a fixed-length feature row from its own pixels, its neighbourhood,
+// the frame's rows of plants and the plant it belongs to. A forest (in the
+// same model file as the plant forest, vision/classify) gives each cell a
+// weed probability, and the class map paints each vegetation pixel with its
+// cell's class. Unlike one class per plant, two touching plants (a weed
+// grown into a crop row, merged by the segmentation) can then get
+// different classes.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+
+#include "stemd/base/plant_class.hpp"
+#include "stemd/vision/classify.hpp"
+#include "stemd/vision/detect.hpp"
+
+namespace stemd::vision {
+
+// The cell's own features, in vector order; the features of the plant the
+// cell belongs to (PlantFeature, zero without one) follow them.
+enum CellFeature : int {
+    c_fill,              // vegetation pixels / cell pixels
+    c_r_mean,            // chromatic r and g over the cell's vegetation pixels
+    c_g_mean,
+    c_r_std,
+    c_g_std,
+    c_brightness_rel,    // mean R+G+B of the vegetation / the frame's
+    c_texture,           // mean |gradient| of R+G+B / mean R+G+B
+    c_coherence,         // structure tensor: 1 for one edge direction, 0 for none
+    c_orientation,       // (gx² - gy²) / (gx² + gy²): edges across the travel (image x) or along it
+    c_ndvi_mean,         // (NIR - R) / (NIR + R), 0 without a NIR plane
+    c_ndvi_std,
+    c_width_mm,          // leaf thickness: 2 vegetation area / boundary length, in mm
+    c_fill_near,         // vegetation density in squares around the cell, kCellRingsMm
+    c_fill_mid,
+    c_fill_far,
+    c_g_near,            // chromatic g of the vegetation in the near square
+    c_r_near,
+    c_band_density,      // vegetation density of the cell's lateral band (kRowHalfWidthMm either side,
+                         // the whole frame along the travel) / the frame's density
+    c_row_offset_mm,     // lateral distance from the frame's dominant row: the centre of the densest band
+    c_lateral,           // the cell's centre x / frame width
+    c_in_plant,          // 1 when the cell's vegetation belongs to a plant detect() kept, else 0
+    // The cell against the frame's vegetation as a whole: light, exposure
+    // and growth stage change from frame to frame, the contrast between
+    // a crop and the weeds beside it much less.
+    c_r_rel,             // c_r_mean - the frame's vegetation r
+    c_g_rel,
+    c_brightness_veg,    // mean R+G+B / the frame's vegetation's
+    c_texture_rel,       // c_texture / the frame's vegetation's
+    c_width_rel,         // c_width_mm / the frame's vegetation's
+    kCellOwnFeatureCount
+};
+inline constexpr int kCellFeatureCount = static_cast<int>(kCellOwnFeatureCount) + static_cast<int>(kPlantFeatureCount);
+
+// classify_cells() averages each cell's probability over the cells this
+// many steps around it (weighed by their vegetation): neighbouring cells
+// mostly hold the same plant, and one cell's features are noisy
+// (cross-validated per-pixel balanced accuracy on cwfid-train 0.77 without,
+// 0.80 with radius 1 or 2).
+inline constexpr int kCellSmoothRadius = 1;
+
+// What stemd-train uses unless told otherwise: 3 mm cells, 30 trees of
+// depth 8 (shallow trees generalise across frames better: on cwfid-train
+// out of fold per-pixel balanced accuracy 0.78 at depth 5-8, 0.74 at 12).
+inline constexpr double kDefaultCellMm = 3.0;
+inline constexpr ForestOptions kDefaultCellForest{.trees = 30, .max_depth = 8, .min_sample_count = 8};
+
+// Half sides of the squares the c_fill_* features look at.
+inline constexpr std::array<double, 3> kCellRingsMm{6.0, 15.0, 40.0};
+
+std::string_view cell_feature_name(int feature);
+
+using CellRow = std::array<float, kCellFeatureCount>;
+
+// Everything the cells need per frame, allocated once for a frame size, GSD
+// and cell size; cell_features() and what follows allocate nothing.
+class CellWorkspace {
+public:
+    CellWorkspace(cv::Size frame_size, double gsd_mm_per_px, double cell_mm);
+    cv::Size frame_size() const { return frame_size_; }
+    int cell_px() const { return cell_px_; }
+    cv::Size grid() const { return grid_; }
+    std::size_t cells() const { return static_cast<std::size_t>(grid_.area()); }
+
+    // After cell_features(): the grid cell (row-major) of frame pixel (x, y).
+    std::size_t cell_of(int x, int y) const
+    {
+        return static_cast<std::size_t>(y / cell_px_) * static_cast<std::size_t>(grid_.width) +
+               static_cast<std::size_t>(x / cell_px_);
+    }
+    // Cells holding vegetation, in grid order, and their rows.
+    std::span<const std::uint32_t> vegetated() const { return {vegetated_.data(), vegetated_count_}; }
+    const CellRow& row(std::size_t cell) const { return rows_[cell]; }
+    // The plant (1 + index into the Detections, 0 none) most of the cell's
+    // vegetation belongs to.
+    std::uint16_t plant(std::size_t cell) const { return plant_[cell]; }
+
+    // After classify_cells(): each cell's weed probability and class
+    // (Unknown, also for cells without vegetation).
+    float weed_probability(std::size_t cell) const { return probability_[cell]; }
+    PlantClass cell_class(std::size_t cell) const { return class_[cell]; }
+
+private:
+    friend void cell_features(const FrameView&, const Params&, const Workspace&, const Detections&,
+                              const ClassifyWorkspace&, CellWorkspace&);
+    friend void classify_cells(const PlantClassifier&, double, double, CellWorkspace&);
+    struct Sums {
+        int vegetation_px, sampled_px, boundary;   // on the sampled rows
+        float r, g, rr, gg, brightness, gradient, sxx, syy, sxy, ndvi, ndvi2;
+        std::uint16_t plant_vote, plant_count;     // majority vote of the sampled pixels' plants
+    };
+    cv::Size frame_size_;
+    double gsd_ = 1;
+    double cell_mm_ = 1;
+    int cell_px_ = 1;
+    cv::Size grid_;
+    std::vector<std::uint16_t> cell_x_;        // grid column of each frame column
+    std::vector<std::uint64_t> transitions_;   // one row of bits
+    std::vector<Sums> sums_;
+    std::vector<double> integral_fill_, integral_px_, integral_g_, integral_r_, integral_n_;
+    std::vector<double> column_fill_, column_px_;
+    std::vector<CellRow> rows_;
+    std::vector<std::uint16_t> plant_;
+    std::vector<std::uint32_t> vegetated_;
+    std::size_t vegetated_count_ = 0;
+    std::vector<float> probability_, raw_;
+    std::vector<PlantClass> class_;
+    std::array<float, 3 * 255 + 1> reciprocal_{};
+};
+
+// The rows of every cell holding vegetation. `detect_workspace`,
+// `detections` and `plants` (plant_features()) must come from this frame
+// with these params; a frame without its bgr image, or of another size,
+// gives no cells.
+void cell_features(const FrameView& frame, const Params& params, const Workspace& detect_workspace,
+                   const Detections& detections, const ClassifyWorkspace& plants, CellWorkspace& workspace);
+
+// Each vegetated cell's weed probability from the model's cell forest and
+// its class by decide_class(); every cell Unknown when the model has none.
+void classify_cells(const PlantClassifier& model, double min_confidence, double weed_confidence,
+                    CellWorkspace& workspace);
+
+// The class map from the cells: each vegetation pixel gets its cell's class
+// (0 soil, 1 crop, 2 weed; unknown cells 0). `out` CV_8UC1 of the frame
+// size, (re)created only when its size differs.
+void cell_class_map(const Workspace& detect_workspace, const CellWorkspace& workspace, cv::Mat& out);
+
+// Each plant's weed probability from its cells: the mean of their
+// probabilities weighted by the plant's sampled vegetation in each; -1 for
+// a plant with no classified cell.
+void plant_probabilities_from_cells(const CellWorkspace& workspace, std::size_t plants,
+                                    std::span<float> out);
+
+// Each plant's weed probability and class: from the share of its cells
+// (plant_probabilities_from_cells, after classify_cells()) when the model
+// has a cell forest, else from the plant forest on plant_features(). A plant
+// without a probability (no classified cell) is Unknown and -1.
+void classify_plants(const PlantClassifier& model, const ClassifyWorkspace& plants, const CellWorkspace& cells,
+                     std::size_t count, double min_confidence, double weed_confidence,
+                     std::span<float> probabilities, std::span<PlantClass> classes);
+
+}  // namespace stemd::vision

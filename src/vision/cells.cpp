@@ -1,0 +1,447 @@
+#include "stemd/vision/cells.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+
+namespace stemd::vision {
+
+namespace {
+
+constexpr std::array<std::string_view, kCellOwnFeatureCount> kCellNames{
+    "cell_fill",      "cell_r_mean",     "cell_g_mean",     "cell_r_std",    "cell_g_std",      "cell_brightness_rel",
+    "cell_texture",   "cell_coherence",  "cell_orientation", "cell_ndvi_mean", "cell_ndvi_std",  "cell_width_mm",
+    "cell_fill_near", "cell_fill_mid",   "cell_fill_far",   "cell_g_near",   "cell_r_near",     "cell_band_density",
+    "cell_row_offset_mm", "cell_lateral", "cell_in_plant", "cell_r_rel", "cell_g_rel", "cell_brightness_veg",
+    "cell_texture_rel", "cell_width_rel",
+};
+
+// Set bits of row[] in [x0, x1).
+int range_popcount(const std::uint64_t* row, int x0, int x1)
+{
+    if (x1 <= x0)
+        return 0;
+    const int w0 = x0 >> 6, w1 = (x1 - 1) >> 6;
+    int n = 0;
+    for (int w = w0; w <= w1; ++w) {
+        std::uint64_t bits = row[w];
+        if (w == w0)
+            bits &= ~0ull << (x0 & 63);
+        if (w == w1 && (x1 & 63) != 0)
+            bits &= ~0ull >> (64 - (x1 & 63));
+        n += std::popcount(bits);
+    }
+    return n;
+}
+
+// Sum over the grid square [x0, x1] x [y0, y1] of an integral image with
+// one extra row and column of zeros.
+double box_sum(const std::vector<double>& integral, int stride, int x0, int y0, int x1, int y1)
+{
+    const auto at = [&](int x, int y) { return integral[static_cast<std::size_t>(y) * stride + x]; };
+    return at(x1 + 1, y1 + 1) - at(x0, y1 + 1) - at(x1 + 1, y0) + at(x0, y0);
+}
+
+}  // namespace
+
+std::string_view cell_feature_name(int feature)
+{
+    if (feature >= 0 && feature < kCellOwnFeatureCount)
+        return kCellNames[static_cast<std::size_t>(feature)];
+    if (feature >= kCellOwnFeatureCount && feature < kCellFeatureCount)
+        return feature_name(feature - kCellOwnFeatureCount);
+    return "?";
+}
+
+CellWorkspace::CellWorkspace(cv::Size frame_size, double gsd_mm_per_px, double cell_mm)
+    : frame_size_(frame_size), gsd_(std::max(gsd_mm_per_px, 1e-6)), cell_mm_(cell_mm)
+{
+    cell_px_ = std::max(2, static_cast<int>(std::lround(cell_mm / gsd_)));
+    const int width = std::max(frame_size.width, 0), height = std::max(frame_size.height, 0);
+    grid_ = cv::Size((width + cell_px_ - 1) / cell_px_, (height + cell_px_ - 1) / cell_px_);
+    const std::size_t n = cells();
+    cell_x_.resize(static_cast<std::size_t>(width));
+    for (int x = 0; x < width; ++x)
+        cell_x_[static_cast<std::size_t>(x)] = static_cast<std::uint16_t>(x / cell_px_);
+    transitions_.resize(static_cast<std::size_t>((width + 63) / 64) + 1);
+    sums_.resize(n);
+    const std::size_t integral = static_cast<std::size_t>(grid_.width + 1) * static_cast<std::size_t>(grid_.height + 1);
+    for (auto* v : {&integral_fill_, &integral_px_, &integral_g_, &integral_r_, &integral_n_})
+        v->resize(integral);
+    column_fill_.resize(static_cast<std::size_t>(grid_.width));
+    column_px_.resize(static_cast<std::size_t>(grid_.width));
+    rows_.resize(n);
+    plant_.resize(n);
+    vegetated_.resize(n);
+    probability_.resize(n);
+    raw_.resize(n);
+    class_.resize(n);
+    reciprocal_[0] = 0;
+    for (std::size_t i = 1; i < reciprocal_.size(); ++i)
+        reciprocal_[i] = 1.0f / static_cast<float>(i);
+}
+
+void cell_features(const FrameView& frame, const Params& /*params*/, const Workspace& dws, const Detections& det,
+                   const ClassifyWorkspace& plants, CellWorkspace& ws)
+{
+    ws.vegetated_count_ = 0;
+    std::fill(ws.class_.begin(), ws.class_.end(), PlantClass::Unknown);
+    std::fill(ws.probability_.begin(), ws.probability_.end(), 0.0f);
+    if (frame.bgr.empty() || frame.bgr.size() != ws.frame_size_ || frame.bgr.type() != CV_8UC3 ||
+        dws.frame_size() != ws.frame_size_ || plants.frame_size() != ws.frame_size_)
+        return;
+    const int width = ws.frame_size_.width, height = ws.frame_size_.height;
+    const cv::Size grid = ws.grid_;
+    const int cell_px = ws.cell_px_;
+    const BitMask& vegetation = dws.vegetation();
+    const int words = vegetation.words_per_row();
+    const bool has_nir = !frame.nir.empty() && frame.nir.size() == ws.frame_size_ && frame.nir.type() == CV_8UC1;
+    const auto features = plants.features();
+    std::fill(ws.sums_.begin(), ws.sums_.end(), CellWorkspace::Sums{});
+
+    // One pass over every other row (the features are means and ratios:
+    // half the rows estimate them well). Vegetation and boundary counts by
+    // popcount per cell; colour, gradients and the plant vote on every fourth
+    // vegetation pixel of the row.
+    constexpr std::uint64_t kEveryFourth = 0x1111111111111111ull;
+    auto total = [](const cv::Vec3b& v) { return v[0] + v[1] + v[2]; };
+    for (int y = 0; y + 1 < height; y += 2) {
+        const std::uint64_t* vrow = vegetation.row(y);
+        const std::uint64_t* below = vegetation.row(y + 1);
+        std::uint64_t any = 0;
+        for (int w = 0; w < words; ++w)
+            any |= vrow[w] | below[w];
+        if (any == 0)
+            continue;   // soil only: nothing to count
+        // Boundaries: a pixel differing from its right neighbour, or from
+        // the one below.
+        for (int w = 0; w < words; ++w) {
+            const std::uint64_t next = w + 1 < words ? vrow[w + 1] : 0;
+            const std::uint64_t right = (vrow[w] >> 1) | (next << 63);
+            std::uint64_t edge = vrow[w] ^ right;
+            if (w + 1 == words)
+                edge &= vegetation.last_word_mask() >> 1;   // the frame's right border is no boundary
+            ws.transitions_[static_cast<std::size_t>(w)] = edge;
+        }
+        const std::size_t grid_row = static_cast<std::size_t>(y / cell_px) * static_cast<std::size_t>(grid.width);
+        for (int cx = 0; cx < grid.width; ++cx) {
+            const int x0 = cx * cell_px, x1 = std::min(x0 + cell_px, width);
+            const int n = range_popcount(vrow, x0, x1);
+            CellWorkspace::Sums& s = ws.sums_[grid_row + static_cast<std::size_t>(cx)];
+            s.vegetation_px += n;
+            if (n == 0 && range_popcount(below, x0, x1) == 0)
+                continue;
+            s.boundary += range_popcount(ws.transitions_.data(), x0, x1);
+            // Vertical boundaries: pixels whose lower neighbour differs.
+            int vertical = 0;
+            {
+                const int w0 = x0 >> 6, w1 = (x1 - 1) >> 6;
+                for (int w = w0; w <= w1; ++w) {
+                    std::uint64_t bits = vrow[w] ^ below[w];
+                    if (w == w0)
+                        bits &= ~0ull << (x0 & 63);
+                    if (w == w1 && (x1 & 63) != 0)
+                        bits &= ~0ull >> (64 - (x1 & 63));
+                    vertical += std::popcount(bits);
+                }
+            }
+            s.boundary += vertical;
+        }
+        const auto* bgr = frame.bgr.ptr<cv::Vec3b>(y);
+        const auto* bgr_up = frame.bgr.ptr<cv::Vec3b>(std::max(y - 1, 0));
+        const auto* bgr_down = frame.bgr.ptr<cv::Vec3b>(y + 1);
+        const std::uint8_t* nir = has_nir ? frame.nir.ptr<std::uint8_t>(y) : nullptr;
+        const auto* index = plants.plant_index().ptr<std::uint16_t>(y);
+        for (int w = 0; w < words; ++w) {
+            std::uint64_t bits = vrow[w] & kEveryFourth;
+            while (bits) {
+                const int x = w * 64 + std::countr_zero(bits);
+                bits &= bits - 1;
+                CellWorkspace::Sums& s = ws.sums_[grid_row + ws.cell_x_[static_cast<std::size_t>(x)]];
+                ++s.sampled_px;
+                const cv::Vec3b& p = bgr[x];
+                const int sum = p[0] + p[1] + p[2];
+                s.brightness += static_cast<float>(sum);
+                const float inv = ws.reciprocal_[static_cast<std::size_t>(sum)];
+                const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
+                s.r += r;
+                s.g += g;
+                s.rr += r * r;
+                s.gg += g * g;
+                const auto gx = static_cast<float>(total(bgr[std::min(x + 1, width - 1)]) - total(bgr[std::max(x - 1, 0)]));
+                const auto gy = static_cast<float>(total(bgr_down[x]) - total(bgr_up[x]));
+                s.gradient += std::abs(gx) + std::abs(gy);
+                s.sxx += gx * gx;
+                s.syy += gy * gy;
+                s.sxy += gx * gy;
+                if (nir) {
+                    const int nv = nir[x], red = p[2];
+                    const float ndvi = static_cast<float>(nv - red) * ws.reciprocal_[static_cast<std::size_t>(nv + red)];
+                    s.ndvi += ndvi;
+                    s.ndvi2 += ndvi * ndvi;
+                }
+                // Boyer-Moore majority vote: the plant most of the cell's
+                // pixels belong to, in constant memory.
+                const std::uint16_t id = index[x];
+                if (s.plant_count == 0) {
+                    s.plant_vote = id;
+                    s.plant_count = 1;
+                } else {
+                    s.plant_count = static_cast<std::uint16_t>(s.plant_count + (s.plant_vote == id ? 1 : -1));
+                }
+            }
+        }
+    }
+
+    // The frame's mean R+G+B as plant_features() measured it; a frame with
+    // no plant has none, then from every 4th pixel of every 4th row here.
+    double frame_brightness = plants.frame_brightness();
+    if (frame_brightness <= 0) {
+        long sum = 0, samples = 0;
+        for (int y = 0; y < height; y += 4) {
+            const auto* row = frame.bgr.ptr<cv::Vec3b>(y);
+            for (int x = 0; x < width; x += 4, ++samples)
+                sum += total(row[x]);
+        }
+        frame_brightness = static_cast<double>(sum) / static_cast<double>(std::max(samples, 1L));
+    }
+    frame_brightness = std::max(frame_brightness, 1.0);
+
+    // Grid sums for the neighbourhoods: vegetation and pixels on the sampled
+    // rows, colour over the sampled vegetation pixels.
+    const std::size_t n = ws.cells();
+    const int stride = grid.width + 1;
+    auto integral_of = [&](std::vector<double>& integral, auto value) {
+        std::fill(integral.begin(), integral.begin() + stride, 0.0);
+        for (int gy = 0; gy < grid.height; ++gy) {
+            double row_sum = 0;
+            integral[static_cast<std::size_t>(gy + 1) * stride] = 0;
+            for (int gx = 0; gx < grid.width; ++gx) {
+                row_sum += value(static_cast<std::size_t>(gy) * grid.width + gx, gx, gy);
+                integral[static_cast<std::size_t>(gy + 1) * stride + gx + 1] =
+                    integral[static_cast<std::size_t>(gy) * stride + gx + 1] + row_sum;
+            }
+        }
+    };
+    // Pixels on the sampled rows of a cell.
+    auto cell_pixels = [&](int gx, int gy) {
+        const int w = std::min(cell_px, width - gx * cell_px);
+        // The even rows y in [y0, y1) with y + 1 < height, as the pass reads.
+        const int y0 = gy * cell_px, y1 = std::min(y0 + cell_px, height - 1);
+        const int rows = y1 > y0 ? (y1 + 1) / 2 - (y0 + 1) / 2 : 0;
+        return static_cast<double>(w) * rows;
+    };
+    integral_of(ws.integral_fill_, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].vegetation_px); });
+    integral_of(ws.integral_px_, [&](std::size_t, int gx, int gy) { return cell_pixels(gx, gy); });
+    integral_of(ws.integral_g_, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].g); });
+    integral_of(ws.integral_r_, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].r); });
+    integral_of(ws.integral_n_, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].sampled_px); });
+    double frame_fill = 0, frame_px = 0;
+    for (int gx = 0; gx < grid.width; ++gx) {
+        ws.column_fill_[static_cast<std::size_t>(gx)] = box_sum(ws.integral_fill_, stride, gx, 0, gx, grid.height - 1);
+        ws.column_px_[static_cast<std::size_t>(gx)] = box_sum(ws.integral_px_, stride, gx, 0, gx, grid.height - 1);
+        frame_fill += ws.column_fill_[static_cast<std::size_t>(gx)];
+        frame_px += ws.column_px_[static_cast<std::size_t>(gx)];
+    }
+    const double frame_density = std::max(frame_fill / std::max(frame_px, 1.0), 1e-6);
+    // Lateral bands (across the travel, image x) and the densest one.
+    const int band = std::max(0, static_cast<int>(std::lround(kRowHalfWidthMm / ws.cell_mm_)));
+    auto band_density = [&](int gx) {
+        const int a = std::max(gx - band, 0), b = std::min(gx + band, grid.width - 1);
+        double v = 0, p = 0;
+        for (int c = a; c <= b; ++c) {
+            v += ws.column_fill_[static_cast<std::size_t>(c)];
+            p += ws.column_px_[static_cast<std::size_t>(c)];
+        }
+        return v / std::max(p, 1.0) / frame_density;
+    };
+    int row_column = 0;
+    double best = -1;
+    for (int gx = 0; gx < grid.width; ++gx) {
+        const double d = band_density(gx);
+        if (d > best) {
+            best = d;
+            row_column = gx;
+        }
+    }
+    // The row's line: the vegetation-weighted centre of the densest band
+    // (the band's density is flat while the row lies anywhere inside it).
+    double row_x = row_column;
+    {
+        double sum = 0, weight = 0;
+        for (int c = std::max(row_column - band, 0); c <= std::min(row_column + band, grid.width - 1); ++c) {
+            sum += c * ws.column_fill_[static_cast<std::size_t>(c)];
+            weight += ws.column_fill_[static_cast<std::size_t>(c)];
+        }
+        if (weight > 0)
+            row_x = sum / weight;
+    }
+    // The frame's vegetation as a whole.
+    double veg_n = 0, veg_r = 0, veg_g = 0, veg_brightness = 0, veg_gradient = 0, veg_px = 0, veg_boundary = 0;
+    for (const CellWorkspace::Sums& s : ws.sums_) {
+        veg_n += s.sampled_px;
+        veg_r += s.r;
+        veg_g += s.g;
+        veg_brightness += s.brightness;
+        veg_gradient += s.gradient;
+        veg_px += s.vegetation_px;
+        veg_boundary += s.boundary;
+    }
+    veg_n = std::max(veg_n, 1.0);
+    const double frame_r = veg_r / veg_n, frame_g = veg_g / veg_n;
+    const double frame_veg_brightness = std::max(veg_brightness / veg_n, 1.0);
+    const double frame_texture = std::max(veg_gradient / veg_n / frame_veg_brightness, 1e-6);
+    const double frame_width_mm = std::max(2.0 * veg_px / std::max(veg_boundary, 1.0) * ws.gsd_, 1e-6);
+    std::array<int, 3> ring{};
+    for (std::size_t k = 0; k < ring.size(); ++k)
+        ring[k] = std::max(1, static_cast<int>(std::lround(kCellRingsMm[k] / ws.cell_mm_)));
+
+    for (std::size_t i = 0; i < n; ++i) {
+        const CellWorkspace::Sums& s = ws.sums_[i];
+        if (s.sampled_px == 0)
+            continue;
+        const int gx = static_cast<int>(i % static_cast<std::size_t>(grid.width));
+        const int gy = static_cast<int>(i / static_cast<std::size_t>(grid.width));
+        CellRow& f = ws.rows_[i];
+        const float count = static_cast<float>(s.sampled_px);
+        const float r = s.r / count, g = s.g / count;
+        const float brightness = s.brightness / count;
+        f[c_fill] = static_cast<float>(s.vegetation_px / std::max(cell_pixels(gx, gy), 1.0));
+        f[c_r_mean] = r;
+        f[c_g_mean] = g;
+        f[c_r_std] = std::sqrt(std::max(0.0f, s.rr / count - r * r));
+        f[c_g_std] = std::sqrt(std::max(0.0f, s.gg / count - g * g));
+        f[c_brightness_rel] = static_cast<float>(brightness / frame_brightness);
+        f[c_texture] = s.gradient / count / std::max(brightness, 1.0f);
+        const float trace = s.sxx + s.syy;
+        f[c_coherence] = trace > 0 ? std::sqrt((s.sxx - s.syy) * (s.sxx - s.syy) + 4 * s.sxy * s.sxy) / trace : 0.0f;
+        f[c_orientation] = trace > 0 ? (s.sxx - s.syy) / trace : 0.0f;
+        f[c_ndvi_mean] = has_nir ? s.ndvi / count : 0.0f;
+        f[c_ndvi_std] = has_nir ? std::sqrt(std::max(0.0f, s.ndvi2 / count - f[c_ndvi_mean] * f[c_ndvi_mean])) : 0.0f;
+        f[c_width_mm] = static_cast<float>(2.0 * s.vegetation_px / std::max(s.boundary, 1) * ws.gsd_);
+        for (std::size_t k = 0; k < ring.size(); ++k) {
+            const int x0 = std::max(gx - ring[k], 0), x1 = std::min(gx + ring[k], grid.width - 1);
+            const int y0 = std::max(gy - ring[k], 0), y1 = std::min(gy + ring[k], grid.height - 1);
+            const double v = box_sum(ws.integral_fill_, stride, x0, y0, x1, y1);
+            const double p = box_sum(ws.integral_px_, stride, x0, y0, x1, y1);
+            f[c_fill_near + static_cast<int>(k)] = static_cast<float>(v / std::max(p, 1.0));
+            if (k == 0) {
+                const double m = std::max(box_sum(ws.integral_n_, stride, x0, y0, x1, y1), 1.0);
+                f[c_g_near] = static_cast<float>(box_sum(ws.integral_g_, stride, x0, y0, x1, y1) / m);
+                f[c_r_near] = static_cast<float>(box_sum(ws.integral_r_, stride, x0, y0, x1, y1) / m);
+            }
+        }
+        f[c_band_density] = static_cast<float>(band_density(gx));
+        f[c_row_offset_mm] = static_cast<float>(std::abs(gx - row_x) * ws.cell_mm_);
+        f[c_lateral] = static_cast<float>((gx + 0.5) * cell_px / std::max(width, 1));
+        const std::uint16_t id = s.plant_vote;
+        const bool in_plant = id > 0 && id <= features.size() && id <= det.plants.size();
+        f[c_in_plant] = in_plant ? 1.0f : 0.0f;
+        ws.plant_[i] = in_plant ? id : 0;
+        if (in_plant)
+            std::copy(features[id - 1u].begin(), features[id - 1u].end(), f.begin() + kCellOwnFeatureCount);
+        else
+            std::fill(f.begin() + kCellOwnFeatureCount, f.end(), 0.0f);
+        f[c_r_rel] = static_cast<float>(r - frame_r);
+        f[c_g_rel] = static_cast<float>(g - frame_g);
+        f[c_brightness_veg] = static_cast<float>(brightness / frame_veg_brightness);
+        f[c_texture_rel] = static_cast<float>(f[c_texture] / frame_texture);
+        f[c_width_rel] = static_cast<float>(f[c_width_mm] / frame_width_mm);
+        ws.vegetated_[ws.vegetated_count_++] = static_cast<std::uint32_t>(i);
+    }
+}
+
+void classify_cells(const PlantClassifier& model, double min_confidence, double weed_confidence, CellWorkspace& ws)
+{
+    if (!model.has_cells())
+        return;   // every cell stays Unknown
+    // The forest's probability of each cell, then its mean over the 3x3
+    // cells around it weighed by their vegetation: neighbouring cells are
+    // mostly the same plant, and one cell's features are noisy.
+    for (const std::uint32_t i : ws.vegetated())
+        ws.raw_[i] = model.cell_weed_probability(ws.rows_[i]);
+    const int gw = ws.grid_.width, gh = ws.grid_.height;
+    const int radius = kCellSmoothRadius;
+    for (const std::uint32_t i : ws.vegetated()) {
+        const int gx = static_cast<int>(i % static_cast<std::uint32_t>(gw)), gy = static_cast<int>(i / static_cast<std::uint32_t>(gw));
+        float sum = 0, weight = 0;
+        for (int y = std::max(gy - radius, 0); y <= std::min(gy + radius, gh - 1); ++y)
+            for (int x = std::max(gx - radius, 0); x <= std::min(gx + radius, gw - 1); ++x) {
+                const std::size_t j = static_cast<std::size_t>(y) * static_cast<std::size_t>(gw) + static_cast<std::size_t>(x);
+                if (ws.sums_[j].sampled_px == 0)
+                    continue;
+                const float w = ws.rows_[j][c_fill];
+                sum += w * ws.raw_[j];
+                weight += w;
+            }
+        const float p = weight > 0 ? sum / weight : ws.raw_[i];
+        ws.probability_[i] = p;
+        ws.class_[i] = decide_class(p, min_confidence, weed_confidence);
+    }
+}
+
+void cell_class_map(const Workspace& dws, const CellWorkspace& ws, cv::Mat& out)
+{
+    const cv::Size size = ws.frame_size();
+    if (out.size() != size || out.type() != CV_8UC1)
+        out.create(size, CV_8UC1);
+    for (int y = 0; y < out.rows; ++y)
+        std::memset(out.ptr(y), 0, static_cast<std::size_t>(out.cols));
+    const BitMask& vegetation = dws.vegetation();
+    if (vegetation.width() != size.width || vegetation.height() != size.height)
+        return;
+    for (int y = 0; y < size.height; ++y) {
+        const std::uint64_t* vrow = vegetation.row(y);
+        auto* dst = out.ptr<std::uint8_t>(y);
+        for (int w = 0; w < vegetation.words_per_row(); ++w) {
+            std::uint64_t bits = vrow[w];
+            while (bits) {
+                const int x = w * 64 + std::countr_zero(bits);
+                bits &= bits - 1;
+                dst[x] = to_value(ws.cell_class(ws.cell_of(x, y)));
+            }
+        }
+    }
+}
+
+void plant_probabilities_from_cells(const CellWorkspace& ws, std::size_t plants, std::span<float> out)
+{
+    const std::size_t count = std::min(plants, out.size());
+    // Weighted sums in the output, the weights in the sign-free second pass:
+    // a plant's weight is at most the frame's pixels, exact in float.
+    std::array<float, kMaxPlants> weight{};
+    std::fill(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(count), 0.0f);
+    for (const std::uint32_t i : ws.vegetated()) {
+        const std::uint16_t id = ws.plant(i);
+        if (id == 0 || id > count)
+            continue;
+        const auto w = ws.row(i)[c_fill];
+        out[id - 1u] += w * ws.weed_probability(i);
+        weight[id - 1u] += w;
+    }
+    for (std::size_t p = 0; p < count; ++p)
+        out[p] = weight[p] > 0 ? out[p] / weight[p] : -1.0f;
+}
+
+}  // namespace stemd::vision
+
+namespace stemd::vision {
+
+void classify_plants(const PlantClassifier& model, const ClassifyWorkspace& plants, const CellWorkspace& cells,
+                     std::size_t count, double min_confidence, double weed_confidence,
+                     std::span<float> probabilities, std::span<PlantClass> classes)
+{
+    count = std::min({count, probabilities.size(), classes.size()});
+    const auto features = plants.features();
+    if (model.has_cells())
+        plant_probabilities_from_cells(cells, count, probabilities);
+    for (std::size_t i = 0; i < count; ++i) {
+        if (!model.has_cells())
+            probabilities[i] = i < features.size() ? model.weed_probability(features[i]) : -1.0f;
+        classes[i] = probabilities[i] < 0 ? PlantClass::Unknown
+                                          : decide_class(probabilities[i], min_confidence, weed_confidence);
+    }
+}
+
+}  // namespace stemd::vision

@@ -1,0 +1,309 @@
+// Crop or weed per cell: the cell features, the cell forest in the model
+// file, the class map from the cells, and each plant's class from the share
+// of its cells.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <random>
+
+#include <opencv2/imgproc.hpp>
+
+#include "stemd/vision/cells.hpp"
+#include "stemd/vision/classify.hpp"
+
+namespace fs = std::filesystem;
+using namespace stemd;
+using namespace stemd::vision;
+
+namespace {
+
+Params test_params()
+{
+    Params params;
+    params.gsd_mm_per_px = 0.3;
+    params.min_plant_area_mm2 = 2;
+    params.group_gap_mm = 3;
+    return params;
+}
+
+// Soil with two plants touching side by side, so that detect() merges
+// them into one: on the left a smooth, yellowish-green disc ("crop"), on
+// the right a bluish-green disc striped with darker leaf veins ("weed").
+// `truth` gets 1 under the crop and 2 under the weed.
+void touching_pair(cv::Size size, cv::Point centre, int radius, cv::Mat& bgr, cv::Mat& truth)
+{
+    bgr.create(size, CV_8UC3);
+    bgr.setTo(cv::Scalar(60, 80, 110));
+    truth = cv::Mat::zeros(size, CV_8UC1);
+    const cv::Point left = centre - cv::Point(radius, 0), right = centre + cv::Point(radius, 0);
+    cv::circle(bgr, left, radius, cv::Scalar(30, 180, 120), cv::FILLED);
+    cv::circle(truth, left, radius, cv::Scalar(1), cv::FILLED);
+    cv::Mat weed(size, CV_8UC1, cv::Scalar(0));
+    cv::circle(weed, right, radius, cv::Scalar(255), cv::FILLED);
+    for (int y = 0; y < size.height; ++y)
+        for (int x = 0; x < size.width; ++x) {
+            if (!weed.at<std::uint8_t>(y, x))
+                continue;
+            const bool vein = (x + y) % 6 < 2;
+            bgr.at<cv::Vec3b>(y, x) = vein ? cv::Vec3b(70, 120, 40) : cv::Vec3b(110, 190, 50);
+            truth.at<std::uint8_t>(y, x) = 2;
+        }
+}
+
+// Plant-forest rows that train at all (the cells are what is tested).
+void plant_rows(cv::Mat& samples, cv::Mat& labels)
+{
+    samples.create(40, kPlantFeatureCount, CV_32FC1);
+    labels.create(40, 1, CV_32SC1);
+    cv::RNG rng(3);
+    rng.fill(samples, cv::RNG::UNIFORM, 0, 1);
+    for (int i = 0; i < labels.rows; ++i)
+        labels.at<int>(i) = i % 2 ? to_value(PlantClass::Crop) : to_value(PlantClass::Weed);
+}
+
+struct Frame {
+    Frame(const cv::Mat& image, const Params& params, double cell_mm)
+        : bgr(image), ws(bgr.size(), params), cws(bgr.size(), params), cells(bgr.size(), params.gsd_mm_per_px, cell_mm)
+    {
+        detect({.bgr = bgr}, params, ws, det);
+        plant_features({.bgr = bgr}, params, ws, det, cws);
+        cell_features({.bgr = bgr}, params, ws, det, cws, cells);
+    }
+    cv::Mat bgr;
+    Workspace ws;
+    Detections det;
+    ClassifyWorkspace cws;
+    CellWorkspace cells;
+};
+
+// Cell rows of `frame` labelled by the majority of `truth` under each
+// cell's vegetation.
+void add_cells(const Frame& frame, const cv::Mat& truth, std::vector<CellRow>& rows, std::vector<int>& labels)
+{
+    std::vector<int> crop(frame.cells.cells(), 0), weed(frame.cells.cells(), 0);
+    for (int y = 0; y < truth.rows; ++y)
+        for (int x = 0; x < truth.cols; ++x) {
+            if (!frame.ws.vegetation().get(x, y))
+                continue;
+            crop[frame.cells.cell_of(x, y)] += truth.at<std::uint8_t>(y, x) == 1;
+            weed[frame.cells.cell_of(x, y)] += truth.at<std::uint8_t>(y, x) == 2;
+        }
+    for (const std::uint32_t c : frame.cells.vegetated())
+        if (crop[c] + weed[c] > 0) {
+            rows.push_back(frame.cells.row(c));
+            labels.push_back(to_value(crop[c] >= weed[c] ? PlantClass::Crop : PlantClass::Weed));
+        }
+}
+
+cv::Mat to_mat(const std::vector<CellRow>& rows)
+{
+    cv::Mat m(static_cast<int>(rows.size()), kCellFeatureCount, CV_32FC1);
+    for (std::size_t i = 0; i < rows.size(); ++i)
+        std::copy(rows[i].begin(), rows[i].end(), m.ptr<float>(static_cast<int>(i)));
+    return m;
+}
+
+// A model whose cell forest learnt the touching pairs of a few frames.
+PlantClassifier pair_model(const Params& params, double cell_mm, std::uint64_t seed)
+{
+    std::vector<CellRow> rows;
+    std::vector<int> labels;
+    std::mt19937 rng(11);
+    for (int k = 0; k < 6; ++k) {
+        cv::Mat bgr, truth;
+        const int radius = 30 + static_cast<int>(rng() % 15);
+        touching_pair({320, 240}, {160 + static_cast<int>(rng() % 40) - 20, 120 + static_cast<int>(rng() % 40) - 20},
+                      radius, bgr, truth);
+        const Frame frame(bgr, params, cell_mm);
+        add_cells(frame, truth, rows, labels);
+    }
+    cv::Mat samples, plant_labels;
+    plant_rows(samples, plant_labels);
+    std::string error;
+    auto model = PlantClassifier::train(samples, plant_labels, {.trees = 5}, error);
+    EXPECT_TRUE(model) << error;
+    const cv::Mat cell_labels = cv::Mat(labels, true).reshape(1, static_cast<int>(labels.size()));
+    EXPECT_TRUE(model->train_cells(to_mat(rows), cell_labels, {.trees = 20, .max_depth = 6, .seed = seed}, cell_mm,
+                                   error))
+        << error;
+    return std::move(*model);
+}
+
+fs::path temp_path(const std::string& name)
+{
+    return fs::temp_directory_path() / ("stemd-cells-" + std::to_string(::getpid()) + "-" + name);
+}
+
+}  // namespace
+
+TEST(Cells, TouchingPlantsOfDifferentColourAndTextureGetDifferentClassesInTheMap)
+{
+    const Params params = test_params();
+    const double cell_mm = 1.5;   // 5 px cells
+    const PlantClassifier model = pair_model(params, cell_mm, 1);
+    ASSERT_TRUE(model.has_cells());
+
+    // A pair the forest has not seen, elsewhere in the frame.
+    cv::Mat bgr, truth;
+    touching_pair({320, 240}, {150, 110}, 36, bgr, truth);
+    Frame frame(bgr, params, cell_mm);
+    ASSERT_EQ(frame.det.plants.size(), 1u) << "the two plants must touch and be one blob";
+    classify_cells(model, 0.5, 0.5, frame.cells);
+    cv::Mat map;
+    cell_class_map(frame.ws, frame.cells, map);
+    // Each half of the blob: the share of its vegetation pixels the map
+    // gives its own class. One class per blob would give at most one half.
+    long crop_right = 0, crop_all = 0, weed_right = 0, weed_all = 0;
+    for (int y = 0; y < map.rows; ++y)
+        for (int x = 0; x < map.cols; ++x) {
+            if (!frame.ws.vegetation().get(x, y))
+                continue;
+            const int t = truth.at<std::uint8_t>(y, x), said = map.at<std::uint8_t>(y, x);
+            crop_all += t == 1;
+            crop_right += t == 1 && said == 1;
+            weed_all += t == 2;
+            weed_right += t == 2 && said == 2;
+        }
+    ASSERT_GT(crop_all, 1000);
+    ASSERT_GT(weed_all, 1000);
+    EXPECT_GT(static_cast<double>(crop_right) / static_cast<double>(crop_all), 0.9);
+    EXPECT_GT(static_cast<double>(weed_right) / static_cast<double>(weed_all), 0.9);
+    // Soil stays soil.
+    EXPECT_EQ(map.at<std::uint8_t>(5, 5), 0);
+
+    // The one plant gets the class of the larger share of its cells, its
+    // probability between the two halves' (both halves are the same size).
+    std::array<float, kMaxPlants> p{};
+    std::array<PlantClass, kMaxPlants> classes{};
+    classify_plants(model, frame.cws, frame.cells, frame.det.plants.size(), 0.6, 0.85, p, classes);
+    EXPECT_GT(p[0], 0.2f);
+    EXPECT_LT(p[0], 0.8f);
+    EXPECT_EQ(classes[0], PlantClass::Unknown) << "half crop, half weed: unsure";
+}
+
+TEST(Cells, CellTrainingIsDeterministicAndTheModelFileKeepsTheCellForest)
+{
+    const Params params = test_params();
+    const PlantClassifier a = pair_model(params, 1.5, 7);
+    const PlantClassifier b = pair_model(params, 1.5, 7);
+    cv::Mat bgr, truth;
+    touching_pair({320, 240}, {170, 130}, 32, bgr, truth);
+    Frame frame(bgr, params, 1.5);
+    ASSERT_GT(frame.cells.vegetated().size(), 50u);
+    const fs::path path = temp_path("model.yaml");
+    std::string error;
+    ASSERT_TRUE(a.save(path, {.gsd_mm_per_px = 0.3}, error)) << error;
+    const auto loaded = PlantClassifier::load(path, error);
+    ASSERT_TRUE(loaded) << error;
+    EXPECT_TRUE(loaded->has_cells());
+    EXPECT_EQ(loaded->info().cell_mm, 1.5);
+    EXPECT_EQ(loaded->info().cell_trees, 20);
+    int split = 0;
+    for (const std::uint32_t c : frame.cells.vegetated()) {
+        const float p = a.cell_weed_probability(frame.cells.row(c));
+        EXPECT_EQ(p, b.cell_weed_probability(frame.cells.row(c))) << "same data, same seed, same forest";
+        EXPECT_EQ(p, loaded->cell_weed_probability(frame.cells.row(c))) << "the file holds the same trees";
+        split += p > 0 && p < 1;
+    }
+    fs::remove(path);
+    EXPECT_GT(split, 0) << "the check needs cells with split votes";
+}
+
+TEST(Cells, TheFlatForestVotesAsOpenCvDoes)
+{
+    // Overlapping clouds so that votes split.
+    cv::Mat samples(300, kPlantFeatureCount, CV_32FC1), labels(300, 1, CV_32SC1);
+    cv::RNG rng(5);
+    rng.fill(samples, cv::RNG::NORMAL, 0, 1);
+    for (int i = 0; i < samples.rows; ++i) {
+        const bool weed = i % 3 == 0;
+        samples.at<float>(i, 0) += weed ? 0.8f : 0.0f;
+        labels.at<int>(i) = to_value(weed ? PlantClass::Weed : PlantClass::Crop);
+    }
+    std::string error;
+    const auto model = PlantClassifier::train(samples, labels, {.trees = 25}, error);
+    ASSERT_TRUE(model) << error;
+    const fs::path path = temp_path("flat.yaml");
+    ASSERT_TRUE(model->save(path, {.gsd_mm_per_px = 0.3}, error)) << error;
+    cv::FileStorage file(path.string(), cv::FileStorage::READ);
+    auto forest = cv::ml::RTrees::create();
+    forest->read(file["forest"]);
+    const FlatForest flat = flatten(*forest);
+    ASSERT_EQ(flat.roots.size(), 25u);
+    int split = 0;
+    for (int i = 0; i < samples.rows; ++i) {
+        FeatureRow row;
+        std::copy(samples.ptr<float>(i), samples.ptr<float>(i) + kPlantFeatureCount, row.begin());
+        const float p = flat.weed_fraction(row.data());
+        EXPECT_EQ(p, model->weed_probability(row)) << "row " << i;
+        split += p > 0 && p < 1;
+    }
+    EXPECT_GT(split, 0) << "the check needs split votes";
+    fs::remove(path);
+}
+
+TEST(Cells, CellFeaturesMeasureColourWidthAndTheRow)
+{
+    // A column of discs (a crop row along the travel) and one thin line far
+    // to the side.
+    const Params params = test_params();
+    cv::Mat bgr(300, 400, CV_8UC3, cv::Scalar(60, 80, 110));
+    for (const int y : {50, 150, 250})
+        cv::circle(bgr, {100, y}, 30, cv::Scalar(40, 170, 60), cv::FILLED);
+    cv::line(bgr, {330, 100}, {330, 200}, cv::Scalar(40, 170, 60), 3);
+    Frame frame(bgr, params, 3.0);   // 10 px cells
+    ASSERT_EQ(frame.cells.cell_px(), 10);
+    const CellRow& disc = frame.cells.row(frame.cells.cell_of(100, 150));
+    const CellRow& line = frame.cells.row(frame.cells.cell_of(330, 150));
+    EXPECT_NEAR(disc[c_g_mean], 170.0 / 270.0, 0.01);
+    EXPECT_NEAR(disc[c_fill], 1.0, 0.01) << "a cell inside a disc is all vegetation";
+    EXPECT_LT(line[c_fill], 0.5f);
+    // Leaf thickness: the segmented line's width (the mixed-edge step
+    // widens the drawn 3 px), 2 area / boundary of a long strip.
+    int width_px = 0;
+    for (int x = 300; x < 360; ++x)
+        width_px += frame.ws.vegetation().get(x, 150);
+    ASSERT_GE(width_px, 3);
+    EXPECT_NEAR(line[c_width_mm], width_px * 0.3, 0.3);
+    EXPECT_GT(disc[c_width_mm], 3 * line[c_width_mm]) << "a disc's cell is solid leaf";
+    EXPECT_GT(disc[c_band_density], line[c_band_density]);
+    EXPECT_LE(disc[c_row_offset_mm], 3.0f);
+    EXPECT_NEAR(line[c_row_offset_mm], 230 * 0.3, 3.0 + 0.5);
+    EXPECT_EQ(disc[c_in_plant], 1.0f);
+    EXPECT_EQ(disc[c_ndvi_mean], 0.0f) << "no NIR plane";
+    // The plant's own features follow the cell's.
+    const std::size_t plant = frame.cells.plant(frame.cells.cell_of(100, 150));
+    ASSERT_GT(plant, 0u);
+    EXPECT_EQ(disc[static_cast<std::size_t>(kCellOwnFeatureCount) + f_log_area_mm2], frame.cws.features()[plant - 1][f_log_area_mm2]);
+}
+
+TEST(Cells, APlantWithoutClassifiedCellsIsUnknownAndAModelWithoutCellsUsesThePlantForest)
+{
+    const Params params = test_params();
+    cv::Mat bgr(200, 200, CV_8UC3, cv::Scalar(60, 80, 110));
+    cv::circle(bgr, {100, 100}, 20, cv::Scalar(40, 170, 60), cv::FILLED);
+    Frame frame(bgr, params, 3.0);
+    ASSERT_EQ(frame.det.plants.size(), 1u);
+    cv::Mat samples, labels;
+    plant_rows(samples, labels);
+    std::string error;
+    const auto plants_only = PlantClassifier::train(samples, labels, {.trees = 5}, error);
+    ASSERT_TRUE(plants_only) << error;
+    ASSERT_FALSE(plants_only->has_cells());
+    classify_cells(*plants_only, 0.6, 0.85, frame.cells);
+    for (const std::uint32_t c : frame.cells.vegetated())
+        EXPECT_EQ(frame.cells.cell_class(c), PlantClass::Unknown);
+    std::array<float, kMaxPlants> p{};
+    std::array<PlantClass, kMaxPlants> classes{};
+    classify_plants(*plants_only, frame.cws, frame.cells, 1, 0.6, 0.85, p, classes);
+    EXPECT_EQ(p[0], plants_only->weed_probability(frame.cws.features()[0]));
+
+    // With cells, but on a frame without its rgb image: no cell, unknown.
+    const PlantClassifier with_cells = pair_model(params, 3.0, 1);
+    cell_features({}, params, frame.ws, frame.det, frame.cws, frame.cells);
+    EXPECT_TRUE(frame.cells.vegetated().empty());
+    classify_cells(with_cells, 0.6, 0.85, frame.cells);
+    classify_plants(with_cells, frame.cws, frame.cells, 1, 0.6, 0.85, p, classes);
+    EXPECT_EQ(classes[0], PlantClass::Unknown);
+    EXPECT_LT(p[0], 0.0f);
+}
