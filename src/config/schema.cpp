@@ -162,7 +162,7 @@ constexpr std::array kSchema{
             "smooth the index with a 3x3 binomial kernel before the threshold"}),
     bind<STEMD_KEY(daemon.vision.sparse_index)>(
         {"segment.sparse_index", boolean, "", 0, 0, "true", "",
-            "exg, chromatic_exg (smoothed): compute the index in full only in 64 px tiles near vegetation found on every 8th row, the rest as soil (a piece under 8 rows tall that touches no sampled row, away from any plant, is missed); the threshold's histogram counts soil tiles from those rows. false: every pixel"}),
+            "exg, chromatic_exg (smoothed): compute the index in full only in 64 px tiles near vegetation found on every 8th row, the rest as soil (a piece at most about 5 rows tall between sampled rows, away from any plant, is missed); the threshold's histogram counts soil tiles from those rows. false: every pixel"}),
     bind_choice<STEMD_KEY(daemon.vision.threshold), std::array{ThresholdMethod::above_soil, ThresholdMethod::otsu, ThresholdMethod::triangle, ThresholdMethod::min_error}>(
         {"segment.threshold", choice, "", 0, 0, "above_soil", "above_soil|otsu|triangle|min_error",
             "automatic threshold on the vegetation index; above_soil: Otsu, but never within segment.soil_sigmas of the soil mode"}),

@@ -142,6 +142,8 @@ namespace {
 
 // Each band of 8 rows (from row 0) is sampled at its row 4, or at the
 // frame's last row when the last band is shorter.
+constexpr int kRawRunPx = 4;
+
 int sample_row(int band_start, int height)
 {
     return std::min(band_start + kSparseRowStep / 2, height - 1);
@@ -227,33 +229,58 @@ int sparse_smoothed_index(const cv::Mat& bgr, RgbIndex kind, const SparseLevel& 
         for (int t = 0; t < s.tiles(); ++t)
             tiles.queue(t);
     } else {
+        // The smoothed sampled row; and on the raw rows beside it (computed
+        // for its smoothing anyway) a run of kRawRunPx pixels above the level,
+        // which single noisy pixels do not make: a seedling whose core
+        // crosses those rows is found too, even between sampled rows.
         const auto t = static_cast<std::uint8_t>(s.level_);
         for (int band = 0; band < height; band += kSparseRowStep) {
             const int y = sample_row(band, height);
-            const std::uint8_t* p = index_u8.ptr<std::uint8_t>(y);
             const int row = y / kSparseTilePx;
+            const std::uint8_t* smoothed = index_u8.ptr<std::uint8_t>(y);
+            const std::uint8_t* beside[2] = {nullptr, nullptr};
+            int n = 0;
+            if (y - 1 >= band)
+                beside[n++] = raw_u8.ptr<std::uint8_t>(y - 1);
+            if (y + 1 < std::min(band + kSparseRowStep, height))
+                beside[n++] = raw_u8.ptr<std::uint8_t>(y + 1);
             for (int col = 0; col < s.cols_; ++col) {
                 const int x0 = col * kSparseTilePx, x1 = std::min(x0 + kSparseTilePx, width);
                 std::uint8_t any = 0;
                 for (int x = x0; x < x1; ++x)
-                    any |= static_cast<std::uint8_t>(p[x] > t);
+                    any |= static_cast<std::uint8_t>(smoothed[x] > t);
+                const int run_end = std::min(x1, width - kRawRunPx + 1);
+                for (int k = 0; k < n && !any; ++k) {
+                    const std::uint8_t* p = beside[k];
+                    for (int x = x0; x < run_end; ++x)
+                        any |= static_cast<std::uint8_t>((p[x] > t) & (p[x + 1] > t) & (p[x + 2] > t) & (p[x + 3] > t));
+                }
                 if (any)
                     tiles.queue(row * s.cols_ + col);
             }
         }
     }
+    // Vegetation in a third of the tiles or more: growing would reach most
+    // of the rest, and the whole frame in full rows costs less than tiles.
+    if (3 * static_cast<int>(s.queue_.size()) >= s.tiles())
+        for (int t = 0; t < s.tiles(); ++t)
+            tiles.queue(t);
     // In waves: the tiles found so far, then those they reach, and so on.
     const int reach = std::clamp(reach_px, 1, kSparseTilePx);
     for (std::size_t begin = 0; begin < s.queue_.size();) {
         const std::size_t end = s.queue_.size();
         tiles.compute_queued(begin);
-        for (std::size_t i = begin; i < end; ++i)
+        for (std::size_t i = begin; i < end && s.computed_ < s.tiles(); ++i)
             tiles.grow(s.queue_[i], s.level_, reach);
         begin = end;
     }
 
     // 3. Soil tiles: their sampled rows stand for their bands in the
     // histogram, then they take the soil level.
+    if (s.computed_ == s.tiles()) {
+        compute_histogram(index_u8, histogram);
+        return s.level_;
+    }
     std::memset(partial, 0, sizeof partial);
     const auto soil = static_cast<std::uint8_t>(s.soil_);
     for (int tile = 0; tile < s.tiles(); ++tile) {

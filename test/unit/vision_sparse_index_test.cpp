@@ -91,7 +91,7 @@ TEST(SmoothBinomial3Rect, TilesOfAnyShapeGiveTheWholeFrameSmoothing)
     EXPECT_EQ(cv::norm(whole, pieces, cv::NORM_INF), 0.0);
 }
 
-TEST(ChromaticExcessGreenSpan, GranuleAlignedSpansGiveTheWholeFrameIndex)
+TEST(ChromaticExcessGreenSpan, SpansOfAnyWidthGiveTheWholeFrameIndex)
 {
     cv::Mat bgr(9, 200, CV_8UC3);
     cv::RNG(5).fill(bgr, cv::RNG::UNIFORM, 0, 256);
@@ -101,8 +101,8 @@ TEST(ChromaticExcessGreenSpan, GranuleAlignedSpansGiveTheWholeFrameIndex)
     cv::Mat spans(bgr.size(), CV_8UC1, cv::Scalar(0));
     const int g = index_span_granule_px();
     for (int y = 0; y < bgr.rows; ++y)
-        for (int x = 0; x < bgr.cols; x += 3 * g)
-            chromatic_excess_green_span(bgr, y, x, std::min(x + 3 * g, bgr.cols), mean, spans);
+        for (int x = 0; x < bgr.cols; x += 3 * g + 5)
+            chromatic_excess_green_span(bgr, y, x, std::min(x + 3 * g + 5, bgr.cols), mean, spans);
     EXPECT_EQ(cv::norm(whole, spans, cv::NORM_INF), 0.0);
 }
 
@@ -200,7 +200,7 @@ void expect_same_detections(const cv::Mat& bgr, Params params)
 
 TEST(SparseIndex, ATinyPlantAtEveryOffsetBetweenSampledRowsIsFound)
 {
-    // A seedling 8 rows tall always touches a sampled row (every 8th), at
+    // A seedling 9 rows tall always touches a sampled row (every 8th), at
     // whatever height it lies; one with leaves 2 px wide as well.
     for (int offset = 0; offset < kSparseRowStep; ++offset) {
         cv::Mat bgr = soil_frame({400, 300}, 20 + static_cast<std::uint64_t>(offset));
@@ -237,18 +237,21 @@ TEST(SparseIndex, APlantAcrossManyTilesIsComputedWhole)
 TEST(SparseIndex, APieceShorterThanTheStepBetweenSampledRowsAndFarFromPlantsIsMissed)
 {
     // The bound, as documented: a piece 3 rows tall whose smoothed index
-    // (5 rows) lies between two sampled rows (196 and 204; 316 and 324),
-    // far from any plant, stays soil. The same piece over a sampled row is
-    // computed.
+    // (5 rows) lies between two sampled rows (196 and 204; 316 and 324) and
+    // whose raw index misses the rows beside them (197, 203; 317, 323), far
+    // from any plant, stays soil. The same piece over a sampled row is
+    // computed, and so is one whose raw core crosses a row beside one.
     cv::Mat bgr = soil_frame({640, 480}, 40);
     cv::rectangle(bgr, cv::Rect(300, 198, 30, 3), kLeaf, cv::FILLED);  // rows 198..200, smoothed 197..201
     cv::rectangle(bgr, cv::Rect(100, 318, 30, 3), kLeaf, cv::FILLED);  // rows 318..320, smoothed 317..321
     cv::rectangle(bgr, cv::Rect(500, 98, 30, 3), kLeaf, cv::FILLED);   // rows 98..100: row 100 is sampled
+    cv::rectangle(bgr, cv::Rect(100, 429, 30, 3), kLeaf, cv::FILLED);  // rows 429..431: crosses raw row 429 beside 428
     const Sparse sparse(bgr, RgbIndex::chromatic_exg);
     const WholeFrame whole(bgr, RgbIndex::chromatic_exg);
     EXPECT_FALSE(sparse.scratch.computed(300 / kSparseTilePx, 197 / kSparseTilePx));
     EXPECT_FALSE(sparse.scratch.computed(100 / kSparseTilePx, 318 / kSparseTilePx));
     EXPECT_TRUE(sparse.scratch.computed(500 / kSparseTilePx, 98 / kSparseTilePx));
+    EXPECT_TRUE(sparse.scratch.computed(100 / kSparseTilePx, 429 / kSparseTilePx));
     EXPECT_GT(whole.index.at<std::uint8_t>(199, 310), sparse.level);
     EXPECT_EQ(sparse.index.at<std::uint8_t>(199, 310), sparse.scratch.soil_level());
     EXPECT_EQ(sparse.index.at<std::uint8_t>(99, 510), whole.index.at<std::uint8_t>(99, 510));

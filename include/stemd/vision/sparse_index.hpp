@@ -6,20 +6,27 @@
 // 1. Every 8th row (rows 4, 12, 20, ...; the last row for a short last
 //    band) is smoothed, from the raw index on it and its two neighbours. Its histogram gives the soil mode and the
 //    "vegetation possible" level: soil_noise_threshold(sampled, sigmas).
-// 2. A tile is computed when a sampled row has a pixel above that level in
-//    it. A computed tile with such a pixel within `reach_px` of a side (or
-//    corner) also has the neighbour across it computed, and so on: every
-//    8-connected piece of pixels above the level that touches a sampled row
-//    is computed whole, with a margin of reach_px around it.
+// 2. A tile is computed when its part of a sampled row has a pixel above
+//    that level, or the raw index on a row beside it (computed for the
+//    smoothing anyway) has a run of 4 pixels above it (single noisy pixels
+//    do not make one). A computed tile with a pixel above the level within
+//    `reach_px` of a side (or corner) also has the neighbour across it
+//    computed, and so on: every 8-connected piece of pixels above the level
+//    that touches a sampled row is computed whole, with a margin of
+//    reach_px around it. When a third of the tiles or more are found at
+//    once, every tile is computed (the whole-frame result).
 // 3. The other tiles are set to the soil mode. The histogram is exact on
 //    computed tiles; a soil tile adds its sampled rows, each counted for
 //    the rows of its band (8), so the counts sum to the frame's pixels.
 //
 // The bound: a piece above the level is missed only when it touches no
-// sampled row (it lies within 7 rows between two of them) and no computed
-// tile. With a final threshold at or above the level, every pixel above
-// it lies in a computed tile but for such pieces; a threshold below the
-// level needs complete_sparse_index, which gives the whole-frame result.
+// sampled row (it lies within the 7 rows between two of them), its raw
+// core crosses neither row beside them (so in practice it is at most 5
+// rows tall) and it lies in no computed tile (farther than reach_px from
+// any other piece found). With a final threshold at or above the level,
+// every pixel above the threshold lies in a computed tile but for such
+// pieces; a threshold below the level needs complete_sparse_index, which
+// gives the whole-frame result.
 #pragma once
 
 #include <cstdint>
