@@ -1,7 +1,8 @@
 // stemd-bench: per-stage and whole-pipeline timings on synthetic
 // 1296x966 frames, one thread, with one cv::cvtColor BGR->GRAY pass over the
 // same frames as a yardstick of this machine's speed.
-//   stemd-bench [--json] [--preset early|late|dense|seedling] [--frames N] [--radius M] [--edge-radius R] [benchmark flags]
+//   stemd-bench [--json] [--preset early|late|dense|seedling] [--frames N] [--radius M] [--edge-radius R]
+//               [--sparse-index 0|1] [benchmark flags]
 // (defaults: late, 8 frames, the pipeline's default closing radius)
 // Each repetition is one frame; medians and p90 are over repetitions.
 // "actuation" is the actuator thread's work per frame (field positions,
@@ -255,7 +256,8 @@ public:
             }
         }
     }
-    void Print(int frames, const std::string& preset, int radius, std::size_t workspace_bytes) const
+    void Print(int frames, const std::string& preset, int radius, std::size_t workspace_bytes,
+               double tiles_computed_pct) const
     {
         // A MiB to 0.01, a time to 0.1 us; dividing by the exact power of ten
         // gives the double nearest the decimal, which dumps as that decimal.
@@ -266,7 +268,8 @@ public:
             {"preset", preset},
             {"closing_radius_px", radius},
             {"frames", frames},
-            {"workspace_mib", rounded(static_cast<double>(workspace_bytes) / (1024.0 * 1024.0), 100)}};
+            {"workspace_mib", rounded(static_cast<double>(workspace_bytes) / (1024.0 * 1024.0), 100)},
+            {"index_tiles_computed_pct", rounded(tiles_computed_pct, 10)}};
         for (const auto& [key, value] : values_)
             json[key] = rounded(value, 1e4);
         std::printf("%s\n", json.dump().c_str());
@@ -284,6 +287,7 @@ int main(int argc, char** argv)
     std::string preset_name = "late";
     int frame_count = 8, radius = vision::Params{}.closing_radius_px, repetitions = 200;
     int edge_radius = vision::Params{}.edge_radius_px;
+    bool sparse_index = vision::Params{}.sparse_index;
     std::string model_path;
     CLI::App app{"stemd-bench: per-stage and whole-pipeline timings on synthetic 1296x966 frames; other arguments "
                  "go to Google Benchmark (--benchmark_filter=REGEX, ...)"};
@@ -302,6 +306,8 @@ int main(int argc, char** argv)
                                         [](int r) { return r >= 0 && r <= vision::kMaxClosingRadiusPx; }));
     app.add_option("--edge-radius", edge_radius, "mixed-edge radius, px (0: off)")
         ->check(tools::value_check<int>("an integer", [](int) { return true; }));
+    app.add_option("--sparse-index", sparse_index, "the index in full only in tiles near vegetation (1, the "
+                                                   "default) or on every pixel (0)");
     app.add_option("--model", model_path, "crop/weed model for the classify stage (default: a forest trained on the "
                                           "bench frames)");
     if (const auto exit_code = tools::parse(app, argc, argv, {.tool = "stemd-bench", .pass_unknown = true}))
@@ -321,8 +327,17 @@ int main(int argc, char** argv)
         setup.frames.push_back(synth::generate_frame(options, i));
     setup.params.closing_radius_px = radius;
     setup.params.edge_radius_px = std::max(edge_radius, 0);
+    setup.params.sparse_index = sparse_index;
     setup.workspace = std::make_unique<vision::Workspace>(setup.frames.front().bgr.size(), setup.params);
     g_setup = &setup;
+    // The share of the index's tiles computed in full, over the bench frames.
+    double tiles = 0, computed = 0;
+    for (const synth::Frame& f : setup.frames) {
+        vision::detect({.bgr = f.bgr, .nir = f.nir, .mask = f.mask}, setup.params, *setup.workspace, setup.detections);
+        tiles += setup.detections.stats.index_tiles;
+        computed += setup.detections.stats.index_tiles_computed;
+    }
+    const double tiles_computed_pct = tiles > 0 ? 100.0 * computed / tiles : 100.0;
 
     ClassifySetup classify_setup;
     {
@@ -405,11 +420,13 @@ int main(int argc, char** argv)
     if (json) {
         JsonLineReporter reporter;
         benchmark::RunSpecifiedBenchmarks(&reporter);
-        reporter.Print(frame_count, preset_name, radius, setup.workspace->reserved_bytes());
+        reporter.Print(frame_count, preset_name, radius, setup.workspace->reserved_bytes(), tiles_computed_pct);
     } else {
         benchmark::RunSpecifiedBenchmarks();
         std::printf("workspace: %.2f MiB reserved for 1296x966 frames (allocated once; detect() allocates nothing)\n",
                     static_cast<double>(setup.workspace->reserved_bytes()) / (1024.0 * 1024.0));
+        std::printf("index: %.1f %% of the 64 px tiles computed in full (%s)\n", tiles_computed_pct,
+                    sparse_index ? "sparse index" : "every pixel");
     }
     benchmark::Shutdown();
     return 0;

@@ -189,6 +189,8 @@ constexpr std::array kSchema{
         "exg, chromatic_exg: a plant needs a core of pixels more green than red (by 2 % of their brightness), as chlorophyll makes a leaf; yellowish clods and colour fringes are not. Off only for a camera without white balance"),
     bool_key<STEMD_KEY(daemon.vision.smooth_index)>("segment.smooth", "true",
         "smooth the index with a 3x3 binomial kernel before the threshold"),
+    bool_key<STEMD_KEY(daemon.vision.sparse_index)>("segment.sparse_index", "true",
+        "exg, chromatic_exg (smoothed): compute the index in full only in 64 px tiles near vegetation found on every 8th row, the rest as soil (a piece at most about 5 rows tall between sampled rows, away from any plant, is missed); the threshold's histogram counts soil tiles from those rows. false: every pixel"),
     enum_key<STEMD_KEY(daemon.vision.threshold), std::array{ThresholdMethod::above_soil, ThresholdMethod::otsu, ThresholdMethod::triangle, ThresholdMethod::min_error}>(
         "segment.threshold", "above_soil", "above_soil|otsu|triangle|min_error",
         "automatic threshold on the vegetation index; above_soil: Otsu, but never within segment.soil_sigmas of the soil mode"),

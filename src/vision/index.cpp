@@ -9,93 +9,167 @@
 
 namespace stemd::vision {
 
+int index_span_granule_px()
+{
+#if CV_SIMD
+    return cv::v_uint8::nlanes;
+#else
+    return 1;
+#endif
+}
+
+void excess_green_span(const cv::Mat& bgr, int y, int x_begin, int x_end, cv::Mat& index_u8)
+{
+    const std::uint8_t* src = bgr.ptr<std::uint8_t>(y);
+    std::uint8_t* dst = index_u8.ptr<std::uint8_t>(y);
+    int x = x_begin;
+#if CV_SIMD
+    // OpenCV's portable intrinsics (SSE/AVX/NEON): deinterleave, widen
+    // to 16 bits, where (2G + 512) - (R + B) is in [2, 1022], shift, narrow.
+    const int lanes = cv::v_uint8::nlanes;
+    const cv::v_uint16 offset = cv::vx_setall_u16(512);
+    for (; x + lanes <= x_end; x += lanes) {
+        cv::v_uint8 b, g, r;
+        cv::v_load_deinterleave(src + 3 * x, b, g, r);
+        cv::v_uint16 b0, b1, g0, g1, r0, r1;
+        cv::v_expand(b, b0, b1);
+        cv::v_expand(g, g0, g1);
+        cv::v_expand(r, r0, r1);
+        const cv::v_uint16 lo = cv::v_shr<2>((g0 + g0 + offset) - (r0 + b0));
+        const cv::v_uint16 hi = cv::v_shr<2>((g1 + g1 + offset) - (r1 + b1));
+        cv::v_store(dst + x, cv::v_pack(lo, hi));
+    }
+#endif
+    for (; x < x_end; ++x) {
+        const int b = src[3 * x], g = src[3 * x + 1], r = src[3 * x + 2];
+        dst[x] = static_cast<std::uint8_t>((2 * g - r - b + 512) >> 2);
+    }
+}
+
 void excess_green(const cv::Mat& bgr, cv::Mat& index_u8)
 {
     CV_Assert(bgr.type() == CV_8UC3);
     index_u8.create(bgr.size(), CV_8UC1);
-    const int width = bgr.cols;
-    for (int y = 0; y < bgr.rows; ++y) {
-        const std::uint8_t* src = bgr.ptr<std::uint8_t>(y);
-        std::uint8_t* dst = index_u8.ptr<std::uint8_t>(y);
-        int x = 0;
-#if CV_SIMD
-        // OpenCV's portable intrinsics (SSE/AVX/NEON): deinterleave, widen
-        // to 16 bits, where (2G + 512) - (R + B) is in [2, 1022], shift, narrow.
-        const int lanes = cv::v_uint8::nlanes;
-        const cv::v_uint16 offset = cv::vx_setall_u16(512);
-        for (; x + lanes <= width; x += lanes) {
-            cv::v_uint8 b, g, r;
-            cv::v_load_deinterleave(src + 3 * x, b, g, r);
-            cv::v_uint16 b0, b1, g0, g1, r0, r1;
-            cv::v_expand(b, b0, b1);
-            cv::v_expand(g, g0, g1);
-            cv::v_expand(r, r0, r1);
-            const cv::v_uint16 lo = cv::v_shr<2>((g0 + g0 + offset) - (r0 + b0));
-            const cv::v_uint16 hi = cv::v_shr<2>((g1 + g1 + offset) - (r1 + b1));
-            cv::v_store(dst + x, cv::v_pack(lo, hi));
-        }
-#endif
-        for (; x < width; ++x) {
-            const int b = src[3 * x], g = src[3 * x + 1], r = src[3 * x + 2];
-            dst[x] = static_cast<std::uint8_t>((2 * g - r - b + 512) >> 2);
-        }
-    }
+    for (int y = 0; y < bgr.rows; ++y)
+        excess_green_span(bgr, y, 0, bgr.cols, index_u8);
 }
 
-void chromatic_excess_green(const cv::Mat& bgr, cv::Mat& index_u8)
+float chromatic_mean_brightness(const cv::Mat& bgr)
 {
     CV_Assert(bgr.type() == CV_8UC3);
-    index_u8.create(bgr.size(), CV_8UC1);
-    const int width = bgr.cols;
     // The frame's mean brightness from every 4th pixel of every 4th row:
     // a normalising constant needs no more, and it costs 1/16 of a pass.
     std::uint64_t sum = 0, samples = 0;
     for (int y = 0; y < bgr.rows; y += 4) {
         const std::uint8_t* src = bgr.ptr<std::uint8_t>(y);
-        for (int x = 0; x < width; x += 4, ++samples)
+        for (int x = 0; x < bgr.cols; x += 4, ++samples)
             sum += static_cast<std::uint64_t>(src[3 * x]) + src[3 * x + 1] + src[3 * x + 2];
     }
     // The floor keeps an all-black frame from dividing by zero; it is far
     // below any exposed frame's mean.
-    const float mean_brightness = static_cast<float>(
+    return static_cast<float>(
         std::max(static_cast<double>(sum) / static_cast<double>(std::max<std::uint64_t>(samples, 1)), 1.0));
-    for (int y = 0; y < bgr.rows; ++y) {
-        const std::uint8_t* src = bgr.ptr<std::uint8_t>(y);
-        std::uint8_t* dst = index_u8.ptr<std::uint8_t>(y);
-        int x = 0;
+}
+
+void chromatic_excess_green_span(const cv::Mat& bgr, int y, int x_begin, int x_end, float mean_brightness,
+                                 cv::Mat& index_u8)
+{
+    const std::uint8_t* src = bgr.ptr<std::uint8_t>(y);
+    std::uint8_t* dst = index_u8.ptr<std::uint8_t>(y);
+    int x = x_begin;
 #if CV_SIMD
-        // 2G - R - B and R + G + B in 16 bits, the quotient in float32,
-        // rounded, and packed back with saturation (the clamp to [0, 255]).
-        const int lanes = cv::v_uint8::nlanes;
-        const cv::v_float32 mean = cv::vx_setall_f32(mean_brightness);
-        const cv::v_float32 scale = cv::vx_setall_f32(160.0f);
-        const cv::v_float32 neutral = cv::vx_setall_f32(128.0f);
-        auto quarter = [&](const cv::v_int32& e, const cv::v_int32& s) {
-            return cv::v_round(cv::v_cvt_f32(e) * scale / (cv::v_cvt_f32(s) + mean) + neutral);
-        };
-        auto half = [&](const cv::v_uint16& b, const cv::v_uint16& g, const cv::v_uint16& r) {
-            const cv::v_int16 e = cv::v_reinterpret_as_s16(g + g) - cv::v_reinterpret_as_s16(r + b);
-            const cv::v_int16 s = cv::v_reinterpret_as_s16(r + g + b);
-            cv::v_int32 e0, e1, s0, s1;
-            cv::v_expand(e, e0, e1);
-            cv::v_expand(s, s0, s1);
-            return cv::v_pack(quarter(e0, s0), quarter(e1, s1));
-        };
-        for (; x + lanes <= width; x += lanes) {
-            cv::v_uint8 b, g, r;
-            cv::v_load_deinterleave(src + 3 * x, b, g, r);
-            cv::v_uint16 b0, b1, g0, g1, r0, r1;
-            cv::v_expand(b, b0, b1);
-            cv::v_expand(g, g0, g1);
-            cv::v_expand(r, r0, r1);
-            cv::v_store(dst + x, cv::v_pack_u(half(b0, g0, r0), half(b1, g1, r1)));
+    // 2G - R - B and R + G + B in 16 bits, the quotient in float32,
+    // rounded, and packed back with saturation (the clamp to [0, 255]).
+    const int lanes = cv::v_uint8::nlanes;
+    const cv::v_float32 mean = cv::vx_setall_f32(mean_brightness);
+    const cv::v_float32 scale = cv::vx_setall_f32(160.0f);
+    const cv::v_float32 neutral = cv::vx_setall_f32(128.0f);
+    auto quarter = [&](const cv::v_int32& e, const cv::v_int32& s) {
+        return cv::v_round(cv::v_cvt_f32(e) * scale / (cv::v_cvt_f32(s) + mean) + neutral);
+    };
+    auto half = [&](const cv::v_uint16& b, const cv::v_uint16& g, const cv::v_uint16& r) {
+        const cv::v_int16 e = cv::v_reinterpret_as_s16(g + g) - cv::v_reinterpret_as_s16(r + b);
+        const cv::v_int16 s = cv::v_reinterpret_as_s16(r + g + b);
+        cv::v_int32 e0, e1, s0, s1;
+        cv::v_expand(e, e0, e1);
+        cv::v_expand(s, s0, s1);
+        return cv::v_pack(quarter(e0, s0), quarter(e1, s1));
+    };
+    for (; x + lanes <= x_end; x += lanes) {
+        cv::v_uint8 b, g, r;
+        cv::v_load_deinterleave(src + 3 * x, b, g, r);
+        cv::v_uint16 b0, b1, g0, g1, r0, r1;
+        cv::v_expand(b, b0, b1);
+        cv::v_expand(g, g0, g1);
+        cv::v_expand(r, r0, r1);
+        cv::v_store(dst + x, cv::v_pack_u(half(b0, g0, r0), half(b1, g1, r1)));
+    }
+#endif
+    for (; x < x_end; ++x) {
+        const float b = src[3 * x], g = src[3 * x + 1], r = src[3 * x + 2];
+        const float value = 128.0f + 160.0f * (2.0f * g - r - b) / (r + g + b + mean_brightness);
+        dst[x] = cv::saturate_cast<std::uint8_t>(cvRound(value));
+    }
+}
+
+void chromatic_excess_green(const cv::Mat& bgr, cv::Mat& index_u8)
+{
+    const float mean_brightness = chromatic_mean_brightness(bgr);
+    index_u8.create(bgr.size(), CV_8UC1);
+    for (int y = 0; y < bgr.rows; ++y)
+        chromatic_excess_green_span(bgr, y, 0, bgr.cols, mean_brightness, index_u8);
+}
+
+void smooth_binomial3_rect(const cv::Mat& src_u8, cv::Rect rect, std::uint16_t* row_sums, cv::Mat& dst_u8)
+{
+    const int width = src_u8.cols, height = src_u8.rows;
+    rect &= cv::Rect(0, 0, width, height);
+    if (rect.empty())
+        return;
+    // Vertical sums for the rect's columns and one more on each side
+    // (edges replicated), so row_sums[x] is column x's sum.
+    const int xa = std::max(rect.x - 1, 0), xb = std::min(rect.x + rect.width + 1, width);
+    const int x_end = rect.x + rect.width;
+    for (int y = rect.y; y < rect.y + rect.height; ++y) {
+        const std::uint8_t* above = src_u8.ptr<std::uint8_t>(std::max(y - 1, 0));
+        const std::uint8_t* centre = src_u8.ptr<std::uint8_t>(y);
+        const std::uint8_t* below = src_u8.ptr<std::uint8_t>(std::min(y + 1, height - 1));
+        int x = xa;
+#if CV_SIMD
+        const int lanes16 = cv::v_uint16::nlanes;
+        for (; x + lanes16 <= xb; x += lanes16) {
+            const cv::v_uint16 c = cv::vx_load_expand(centre + x);
+            cv::v_store(row_sums + x, cv::vx_load_expand(above + x) + c + c + cv::vx_load_expand(below + x));
         }
 #endif
-        for (; x < width; ++x) {
-            const float b = src[3 * x], g = src[3 * x + 1], r = src[3 * x + 2];
-            const float value = 128.0f + 160.0f * (2.0f * g - r - b) / (r + g + b + mean_brightness);
-            dst[x] = cv::saturate_cast<std::uint8_t>(cvRound(value));
+        for (; x < xb; ++x)
+            row_sums[x] = static_cast<std::uint16_t>(above[x] + 2 * centre[x] + below[x]);
+        std::uint8_t* dst = dst_u8.ptr<std::uint8_t>(y);
+        if (width == 1) {
+            dst[0] = static_cast<std::uint8_t>((4 * row_sums[0] + 8) >> 4);
+            continue;
         }
+        x = rect.x;
+        if (x == 0) {
+            dst[0] = static_cast<std::uint8_t>((3 * row_sums[0] + row_sums[1] + 8) >> 4);
+            x = 1;
+        }
+        // Interior pixels: both neighbours exist. Integer arithmetic, so the
+        // vector and scalar paths agree wherever a span starts.
+        const int interior_end = std::min(x_end, width - 1);
+#if CV_SIMD
+        // At most 16 * 255 + 8: the sums fit in 16 bits.
+        const cv::v_uint16 half = cv::vx_setall_u16(8);
+        for (; x + lanes16 <= interior_end; x += lanes16) {
+            const cv::v_uint16 c = cv::vx_load(row_sums + x);
+            const cv::v_uint16 sum = cv::vx_load(row_sums + x - 1) + c + c + cv::vx_load(row_sums + x + 1) + half;
+            cv::v_pack_store(dst + x, cv::v_shr<4>(sum));
+        }
+#endif
+        for (; x < interior_end; ++x)
+            dst[x] = static_cast<std::uint8_t>((row_sums[x - 1] + 2 * row_sums[x] + row_sums[x + 1] + 8) >> 4);
+        if (x_end == width)
+            dst[width - 1] = static_cast<std::uint8_t>((row_sums[width - 2] + 3 * row_sums[width - 1] + 8) >> 4);
     }
 }
 
@@ -103,43 +177,7 @@ void smooth_binomial3(const cv::Mat& src_u8, std::uint16_t* row_sums, cv::Mat& d
 {
     CV_Assert(src_u8.type() == CV_8UC1 && src_u8.data != dst_u8.data);
     dst_u8.create(src_u8.size(), CV_8UC1);
-    const int width = src_u8.cols, height = src_u8.rows;
-    if (width == 0 || height == 0)
-        return;
-    for (int y = 0; y < height; ++y) {
-        const std::uint8_t* above = src_u8.ptr<std::uint8_t>(std::max(y - 1, 0));
-        const std::uint8_t* centre = src_u8.ptr<std::uint8_t>(y);
-        const std::uint8_t* below = src_u8.ptr<std::uint8_t>(std::min(y + 1, height - 1));
-        int x = 0;
-#if CV_SIMD
-        const int lanes16 = cv::v_uint16::nlanes;
-        for (; x + lanes16 <= width; x += lanes16) {
-            const cv::v_uint16 c = cv::vx_load_expand(centre + x);
-            cv::v_store(row_sums + x, cv::vx_load_expand(above + x) + c + c + cv::vx_load_expand(below + x));
-        }
-#endif
-        for (; x < width; ++x)
-            row_sums[x] = static_cast<std::uint16_t>(above[x] + 2 * centre[x] + below[x]);
-        std::uint8_t* dst = dst_u8.ptr<std::uint8_t>(y);
-        if (width == 1) {
-            dst[0] = static_cast<std::uint8_t>((4 * row_sums[0] + 8) >> 4);
-            continue;
-        }
-        dst[0] = static_cast<std::uint8_t>((3 * row_sums[0] + row_sums[1] + 8) >> 4);
-        x = 1;
-#if CV_SIMD
-        // At most 16 * 255 + 8: the sums fit in 16 bits.
-        const cv::v_uint16 half = cv::vx_setall_u16(8);
-        for (; x + lanes16 + 1 <= width; x += lanes16) {
-            const cv::v_uint16 c = cv::vx_load(row_sums + x);
-            const cv::v_uint16 sum = cv::vx_load(row_sums + x - 1) + c + c + cv::vx_load(row_sums + x + 1) + half;
-            cv::v_pack_store(dst + x, cv::v_shr<4>(sum));
-        }
-#endif
-        for (; x + 1 < width; ++x)
-            dst[x] = static_cast<std::uint8_t>((row_sums[x - 1] + 2 * row_sums[x] + row_sums[x + 1] + 8) >> 4);
-        dst[width - 1] = static_cast<std::uint8_t>((row_sums[width - 2] + 3 * row_sums[width - 1] + 8) >> 4);
-    }
+    smooth_binomial3_rect(src_u8, cv::Rect(0, 0, src_u8.cols, src_u8.rows), row_sums, dst_u8);
 }
 
 NdviTable::NdviTable()

@@ -14,6 +14,7 @@
 #include "stemd/vision/index.hpp"
 #include "stemd/vision/leaves.hpp"
 #include "stemd/vision/plants.hpp"
+#include "stemd/vision/sparse_index.hpp"
 #include "stemd/vision/threshold.hpp"
 #include "stemd/vision/types.hpp"
 
@@ -50,7 +51,7 @@ public:
 
 private:
     friend void detect(const FrameView&, const Params&, Workspace&, Detections&, StageTimes*);
-    friend void compute_index(const FrameView&, Segmentation, const Params&, Workspace&);
+    friend void compute_index(const FrameView&, Segmentation, const Params&, Workspace&, bool);
     friend void threshold_index(const FrameView&, Segmentation, const Params&, Workspace&, DetectStats&, BitMask&,
                                 std::int64_t&);
     cv::Size frame_size_;
@@ -59,6 +60,8 @@ private:
     cv::Mat raw_index_;                     // before smoothing
     cv::Mat index_;                         // what the threshold sees
     std::vector<std::uint16_t> smooth_row_;
+    SparseIndexScratch sparse_;
+    bool sparse_pending_ = false;           // the index left soil tiles uncomputed
     Histogram histogram_{};
     BitMask vegetation_;                    // thresholded components the opening left a seed in
     BitMask thresholded_;

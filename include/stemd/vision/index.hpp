@@ -6,6 +6,7 @@
 #include <cstdint>
 
 #include <opencv2/core/mat.hpp>
+#include <opencv2/core/types.hpp>
 
 #include "stemd/vision/bitmask.hpp"
 
@@ -15,6 +16,15 @@ namespace stemd::vision {
 // index = (2G - R - B + 512) / 4, rounded down. `bgr` is CV_8UC3.
 void excess_green(const cv::Mat& bgr, cv::Mat& index_u8);
 
+// The spans below compute pixels [x_begin, x_end) of row y into an
+// allocated `index_u8` of the frame's size, and give the whole-frame
+// functions' bytes for any span: the vector path (granules of
+// index_span_granule_px() pixels from x_begin) and the scalar path do the
+// same arithmetic in the same order (integers; for the chromatic index
+// float32 with round-to-nearest-even).
+int index_span_granule_px();
+void excess_green_span(const cv::Mat& bgr, int y, int x_begin, int x_end, cv::Mat& index_u8);
+
 // Chromatic Excess Green e / (s + mean_s), where e = 2G - R - B, s = R + G + B
 // and mean_s is the frame's mean of s (sampled at every 4th pixel of every
 // 4th row, from (0, 0)): exposure and gain scale e, s and
@@ -22,10 +32,19 @@ void excess_green(const cv::Mat& bgr, cv::Mat& index_u8);
 // (s << mean_s) the noisy chromaticity is damped. Mapped to
 // round(128 + 160 * value), clamped to [0, 255]: neutral soil sits near 128.
 void chromatic_excess_green(const cv::Mat& bgr, cv::Mat& index_u8);
+// Its two parts: the frame's mean_s, and the index on a span given it.
+float chromatic_mean_brightness(const cv::Mat& bgr);
+void chromatic_excess_green_span(const cv::Mat& bgr, int y, int x_begin, int x_end, float mean_brightness,
+                                 cv::Mat& index_u8);
 
 // 3x3 binomial ([1 2 1] x [1 2 1] / 16, rounded; edges replicated).
 // `row_sums` is scratch of at least src.cols entries; `dst` must not be `src`.
 void smooth_binomial3(const cv::Mat& src_u8, std::uint16_t* row_sums, cv::Mat& dst_u8);
+// The same smoothing for the pixels of `rect` only (clipped to the frame):
+// reads src rows rect.y - 1 .. rect.y + rect.height and columns one beyond
+// the rect on each side (edges replicated as above), writes dst's rect.
+// `dst` must be allocated at src's size.
+void smooth_binomial3_rect(const cv::Mat& src_u8, cv::Rect rect, std::uint16_t* row_sums, cv::Mat& dst_u8);
 
 // NDVI (NIR - R) / (NIR + R) in [-1, 1], mapped to round((ndvi + 1) * 127.5);
 // NIR + R = 0 gives 128 (ndvi 0). One 256x256 table replaces the division.

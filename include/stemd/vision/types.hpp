@@ -110,6 +110,10 @@ struct Params {
     // 3x3 binomial smoothing of the index before the threshold: single-pixel
     // sensor noise then no longer crosses it.
     bool smooth_index = true;
+    // The smoothed RGB index (exg, chromatic_exg) computed in full only in
+    // 64 px tiles near vegetation found on every 8th row (vision/
+    // sparse_index); the rest of the frame is soil. False: every pixel.
+    bool sparse_index = true;
     // RGB (exg, chromatic_exg): a plant's seed pixels must be more green than
     // red, as chlorophyll makes a leaf; yellowish clods and colour fringes,
     // as green in ExG, are not.
@@ -197,6 +201,8 @@ struct DetectStats {
     int outside_box_fallbacks = 0;  // leaf estimates replaced by the centre of mass
     int contour_overflows = 0;      // contours longer than the workspace holds
     int stemless = 0;               // plants reported without a stem (grass, low confidence)
+    int index_tiles = 0;            // sparse index: the frame's 64 px tiles (0: index on every pixel)
+    int index_tiles_computed = 0;   // ... of which computed in full
 };
 
 enum class DetectStatus : std::uint8_t {

@@ -1,0 +1,317 @@
+#include "stemd/vision/sparse_index.hpp"
+
+#include <algorithm>
+#include <cstring>
+
+#include <opencv2/core.hpp>
+
+#include "stemd/vision/index.hpp"
+
+namespace stemd::vision {
+
+void SparseIndexScratch::reserve(int width_px, int height_px)
+{
+    width_ = std::max(width_px, 0);
+    height_ = std::max(height_px, 0);
+    cols_ = (width_ + kSparseTilePx - 1) / kSparseTilePx;
+    rows_ = (height_ + kSparseTilePx - 1) / kSparseTilePx;
+    const auto tiles = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
+    state_.assign(tiles, 0);
+    queue_.reserve(tiles);
+    raw_row_.assign(static_cast<std::size_t>(height_), 0);
+    row_sums_.assign(static_cast<std::size_t>(width_), 0);
+    column_above_.assign(kSparseTilePx, 0);
+    computed_ = 0;
+}
+
+std::size_t SparseIndexScratch::reserved_bytes() const
+{
+    return state_.capacity() + queue_.capacity() * sizeof(int) + raw_row_.capacity() +
+           row_sums_.capacity() * sizeof(std::uint16_t) + column_above_.capacity();
+}
+
+// The tile work of one frame, on the scratch's buffers.
+struct SparseTiles {
+    const cv::Mat& bgr;
+    SparseIndexScratch& s;
+    cv::Mat& raw;
+    cv::Mat& index;
+
+    void raw_span(int y, int x_begin, int x_end) const
+    {
+        if (s.kind_ == RgbIndex::exg)
+            excess_green_span(bgr, y, x_begin, x_end, raw);
+        else
+            chromatic_excess_green_span(bgr, y, x_begin, x_end, s.mean_brightness_, raw);
+    }
+
+    cv::Rect tile_rect(int tile) const
+    {
+        const int x0 = (tile % s.cols_) * kSparseTilePx, y0 = (tile / s.cols_) * kSparseTilePx;
+        return {x0, y0, std::min(kSparseTilePx, s.width_ - x0), std::min(kSparseTilePx, s.height_ - y0)};
+    }
+
+    // The raw index the smoothing of tiles [col_begin, col_end) of one tile
+    // row reads (their rect and one pixel around it), then the smoothed
+    // rect. Runs of neighbouring tiles share one pass: a tile is too narrow
+    // for the work per row to pay alone.
+    void compute_run(int row, int col_begin, int col_end) const
+    {
+        const int x0 = col_begin * kSparseTilePx, x1 = std::min(col_end * kSparseTilePx, s.width_);
+        const int y0 = row * kSparseTilePx, y1 = std::min(y0 + kSparseTilePx, s.height_);
+        const int xa = std::max(x0 - 1, 0), xb = std::min(x1 + 1, s.width_);
+        for (int y = std::max(y0 - 1, 0); y <= std::min(y1, s.height_ - 1); ++y)
+            if (!s.raw_row_[static_cast<std::size_t>(y)])
+                raw_span(y, xa, xb);
+        smooth_binomial3_rect(raw, cv::Rect(x0, y0, x1 - x0, y1 - y0), s.row_sums_.data(), index);
+    }
+
+    // Computes the queued tiles from `begin` on, run by run in raster order.
+    void compute_queued(std::size_t begin) const
+    {
+        std::sort(s.queue_.begin() + static_cast<std::ptrdiff_t>(begin), s.queue_.end());
+        for (std::size_t i = begin; i < s.queue_.size();) {
+            const int first = s.queue_[i];
+            std::size_t j = i + 1;
+            while (j < s.queue_.size() && s.queue_[j] == s.queue_[j - 1] + 1 && s.queue_[j] / s.cols_ == first / s.cols_)
+                ++j;
+            compute_run(first / s.cols_, first % s.cols_, first % s.cols_ + static_cast<int>(j - i));
+            i = j;
+        }
+    }
+
+    // Queues the neighbours that a pixel above the level within reach_px of
+    // the tile's sides can reach (a bounding box: possibly more, never less).
+    void grow(int tile, int level, int reach_px) const
+    {
+        const cv::Rect r = tile_rect(tile);
+        std::uint8_t* above = s.column_above_.data();
+        std::fill(above, above + r.width, std::uint8_t{0});
+        int y_min = -1, y_max = -1;
+        const auto t = static_cast<std::uint8_t>(level);
+        for (int y = r.y; y < r.y + r.height; ++y) {
+            const std::uint8_t* p = index.ptr<std::uint8_t>(y) + r.x;
+            std::uint8_t any = 0;
+            for (int i = 0; i < r.width; ++i) {
+                const auto hit = static_cast<std::uint8_t>(p[i] > t);
+                above[i] |= hit;
+                any |= hit;
+            }
+            if (any) {
+                if (y_min < 0)
+                    y_min = y;
+                y_max = y;
+            }
+        }
+        if (y_min < 0)
+            return;
+        int x_min = 0;
+        while (!above[x_min])
+            ++x_min;
+        int x_max = r.width - 1;
+        while (!above[x_max])
+            --x_max;
+        x_min += r.x;
+        x_max += r.x;
+        const int col = tile % s.cols_, row = tile / s.cols_;
+        const bool left = x_min < r.x + reach_px, right = x_max >= r.x + r.width - reach_px;
+        const bool up = y_min < r.y + reach_px, down = y_max >= r.y + r.height - reach_px;
+        for (int dy = -1; dy <= 1; ++dy) {
+            if ((dy < 0 && !up) || (dy > 0 && !down) || row + dy < 0 || row + dy >= s.rows_)
+                continue;
+            for (int dx = -1; dx <= 1; ++dx) {
+                if ((dx < 0 && !left) || (dx > 0 && !right) || col + dx < 0 || col + dx >= s.cols_)
+                    continue;
+                queue((row + dy) * s.cols_ + col + dx);
+            }
+        }
+    }
+
+    void queue(int tile) const
+    {
+        std::uint8_t& state = s.state_[static_cast<std::size_t>(tile)];
+        if (state)
+            return;
+        state = 1;
+        ++s.computed_;
+        s.queue_.push_back(tile);  // reserved for every tile: no allocation
+    }
+};
+
+namespace {
+
+// Each band of 8 rows (from row 0) is sampled at its row 4, or at the
+// frame's last row when the last band is shorter.
+constexpr int kRawRunPx = 4;
+
+int sample_row(int band_start, int height)
+{
+    return std::min(band_start + kSparseRowStep / 2, height - 1);
+}
+
+// Four partial histograms, as compute_histogram.
+void add_to_histogram(const std::uint8_t* p, int n, std::uint32_t (&partial)[4][256])
+{
+    int x = 0;
+    for (; x + 4 <= n; x += 4) {
+        ++partial[0][p[x]];
+        ++partial[1][p[x + 1]];
+        ++partial[2][p[x + 2]];
+        ++partial[3][p[x + 3]];
+    }
+    for (; x < n; ++x)
+        ++partial[0][p[x]];
+}
+
+// ... each pixel counted `weight` times.
+void add_to_histogram(const std::uint8_t* p, int n, std::uint32_t weight, std::uint32_t (&partial)[4][256])
+{
+    int x = 0;
+    for (; x + 4 <= n; x += 4) {
+        partial[0][p[x]] += weight;
+        partial[1][p[x + 1]] += weight;
+        partial[2][p[x + 2]] += weight;
+        partial[3][p[x + 3]] += weight;
+    }
+    for (; x < n; ++x)
+        partial[0][p[x]] += weight;
+}
+
+void sum_partials(const std::uint32_t (&partial)[4][256], Histogram& out)
+{
+    for (int v = 0; v < 256; ++v)
+        out[static_cast<std::size_t>(v)] = partial[0][v] + partial[1][v] + partial[2][v] + partial[3][v];
+}
+
+}  // namespace
+
+int sparse_smoothed_index(const cv::Mat& bgr, RgbIndex kind, const SparseLevel& level, int reach_px,
+                          SparseIndexScratch& scratch, cv::Mat& raw_u8, cv::Mat& index_u8, Histogram& histogram)
+{
+    CV_Assert(bgr.type() == CV_8UC3 && bgr.cols == scratch.width_ && bgr.rows == scratch.height_);
+    CV_Assert(raw_u8.type() == CV_8UC1 && raw_u8.size() == bgr.size());
+    CV_Assert(index_u8.type() == CV_8UC1 && index_u8.size() == bgr.size());
+    SparseIndexScratch& s = scratch;
+    const int width = s.width_, height = s.height_;
+    s.kind_ = kind;
+    s.mean_brightness_ = kind == RgbIndex::chromatic_exg ? chromatic_mean_brightness(bgr) : 0.0f;
+    std::fill(s.state_.begin(), s.state_.end(), std::uint8_t{0});
+    std::fill(s.raw_row_.begin(), s.raw_row_.end(), std::uint8_t{0});
+    s.queue_.clear();
+    s.computed_ = 0;
+    const SparseTiles tiles{bgr, s, raw_u8, index_u8};
+
+    // 1. The sampled rows, smoothed, and their histogram.
+    std::uint32_t partial[4][256] = {};
+    for (int band = 0; band < height; band += kSparseRowStep) {
+        const int y = sample_row(band, height);
+        for (int r = std::max(y - 1, 0); r <= std::min(y + 1, height - 1); ++r) {
+            tiles.raw_span(r, 0, width);
+            s.raw_row_[static_cast<std::size_t>(r)] = 1;
+        }
+        smooth_binomial3_rect(raw_u8, cv::Rect(0, y, width, 1), s.row_sums_.data(), index_u8);
+        add_to_histogram(index_u8.ptr<std::uint8_t>(y), width, partial);
+    }
+    Histogram sampled{};
+    sum_partials(partial, sampled);
+    const bool any_sample = height > 0 && width > 0;
+    if (any_sample) {
+        // One soil sigma (at least one level) below the sampled threshold.
+        const int sigma = std::max(soil_noise_threshold(sampled, 1.0) - histogram_mode(sampled), 1);
+        s.level_ = std::max(auto_threshold(sampled, level.method, level.soil_sigmas) - sigma, 0);
+    } else {
+        s.level_ = -1;
+    }
+    s.soil_ = histogram_mode(sampled);
+
+    // 2. Tiles where a sampled row rises above the level, and what they reach.
+    if (!any_sample) {
+        for (int t = 0; t < s.tiles(); ++t)
+            tiles.queue(t);
+    } else {
+        // The smoothed sampled row; and on the raw rows beside it (computed
+        // for its smoothing anyway) a run of kRawRunPx pixels above the level,
+        // which single noisy pixels do not make: a seedling whose core
+        // crosses those rows is found too, even between sampled rows.
+        const auto t = static_cast<std::uint8_t>(s.level_);
+        for (int band = 0; band < height; band += kSparseRowStep) {
+            const int y = sample_row(band, height);
+            const int row = y / kSparseTilePx;
+            const std::uint8_t* smoothed = index_u8.ptr<std::uint8_t>(y);
+            const std::uint8_t* beside[2] = {nullptr, nullptr};
+            int n = 0;
+            if (y - 1 >= band)
+                beside[n++] = raw_u8.ptr<std::uint8_t>(y - 1);
+            if (y + 1 < std::min(band + kSparseRowStep, height))
+                beside[n++] = raw_u8.ptr<std::uint8_t>(y + 1);
+            for (int col = 0; col < s.cols_; ++col) {
+                const int x0 = col * kSparseTilePx, x1 = std::min(x0 + kSparseTilePx, width);
+                std::uint8_t any = 0;
+                for (int x = x0; x < x1; ++x)
+                    any |= static_cast<std::uint8_t>(smoothed[x] > t);
+                const int run_end = std::min(x1, width - kRawRunPx + 1);
+                for (int k = 0; k < n && !any; ++k) {
+                    const std::uint8_t* p = beside[k];
+                    for (int x = x0; x < run_end; ++x)
+                        any |= static_cast<std::uint8_t>((p[x] > t) & (p[x + 1] > t) & (p[x + 2] > t) & (p[x + 3] > t));
+                }
+                if (any)
+                    tiles.queue(row * s.cols_ + col);
+            }
+        }
+    }
+    // Vegetation in a third of the tiles or more: growing would reach most
+    // of the rest, and the whole frame in full rows costs less than tiles.
+    if (3 * static_cast<int>(s.queue_.size()) >= s.tiles())
+        for (int t = 0; t < s.tiles(); ++t)
+            tiles.queue(t);
+    // In waves: the tiles found so far, then those they reach, and so on.
+    const int reach = std::clamp(reach_px, 1, kSparseTilePx);
+    for (std::size_t begin = 0; begin < s.queue_.size();) {
+        const std::size_t end = s.queue_.size();
+        tiles.compute_queued(begin);
+        for (std::size_t i = begin; i < end && s.computed_ < s.tiles(); ++i)
+            tiles.grow(s.queue_[i], s.level_, reach);
+        begin = end;
+    }
+
+    // 3. Soil tiles: their sampled rows stand for their bands in the
+    // histogram, then they take the soil level.
+    if (s.computed_ == s.tiles()) {
+        compute_histogram(index_u8, histogram);
+        return s.level_;
+    }
+    std::memset(partial, 0, sizeof partial);
+    const auto soil = static_cast<std::uint8_t>(s.soil_);
+    for (int tile = 0; tile < s.tiles(); ++tile) {
+        const cv::Rect r = tiles.tile_rect(tile);
+        if (s.state_[static_cast<std::size_t>(tile)]) {
+            for (int y = r.y; y < r.y + r.height; ++y)
+                add_to_histogram(index_u8.ptr<std::uint8_t>(y) + r.x, r.width, partial);
+            continue;
+        }
+        for (int band = r.y; band < r.y + r.height; band += kSparseRowStep) {
+            const int y = sample_row(band, height);
+            const auto band_rows = static_cast<std::uint32_t>(std::min(kSparseRowStep, height - band));
+            add_to_histogram(index_u8.ptr<std::uint8_t>(y) + r.x, r.width, band_rows, partial);
+        }
+        for (int y = r.y; y < r.y + r.height; ++y)
+            std::memset(index_u8.ptr<std::uint8_t>(y) + r.x, soil, static_cast<std::size_t>(r.width));
+    }
+    sum_partials(partial, histogram);
+    return s.level_;
+}
+
+void complete_sparse_index(const cv::Mat& bgr, SparseIndexScratch& scratch, cv::Mat& raw_u8, cv::Mat& index_u8,
+                           Histogram& histogram)
+{
+    CV_Assert(bgr.type() == CV_8UC3 && bgr.cols == scratch.width_ && bgr.rows == scratch.height_);
+    const SparseTiles tiles{bgr, scratch, raw_u8, index_u8};
+    const std::size_t begin = scratch.queue_.size();
+    for (int tile = 0; tile < scratch.tiles(); ++tile)
+        tiles.queue(tile);
+    tiles.compute_queued(begin);
+    compute_histogram(index_u8, histogram);
+}
+
+}  // namespace stemd::vision

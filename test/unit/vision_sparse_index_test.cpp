@@ -1,0 +1,277 @@
+// The smoothed index on fewer pixels against the whole-frame index.
+#include <gtest/gtest.h>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "stemd/vision/detect.hpp"
+#include "stemd/vision/index.hpp"
+#include "stemd/vision/sparse_index.hpp"
+#include "stemd/vision/threshold.hpp"
+
+namespace stemd::vision {
+namespace {
+
+const cv::Scalar kSoil(70, 90, 110);    // BGR: brown
+const cv::Scalar kLeaf(50, 150, 70);    // BGR: green
+
+// Brown soil with sensor-like noise (sigma 4 per channel), deterministic.
+cv::Mat soil_frame(cv::Size size, std::uint64_t seed)
+{
+    cv::Mat noise(size, CV_16SC3);
+    cv::RNG rng(seed);
+    rng.fill(noise, cv::RNG::NORMAL, 0, 4);
+    cv::Mat frame(size, CV_16SC3, kSoil);
+    frame += noise;
+    cv::Mat out;
+    frame.convertTo(out, CV_8UC3);
+    return out;
+}
+
+// The whole-frame smoothed index and its histogram.
+struct WholeFrame {
+    cv::Mat raw, index;
+    Histogram histogram{};
+    WholeFrame(const cv::Mat& bgr, RgbIndex kind)
+    {
+        if (kind == RgbIndex::exg)
+            excess_green(bgr, raw);
+        else
+            chromatic_excess_green(bgr, raw);
+        std::vector<std::uint16_t> sums(static_cast<std::size_t>(bgr.cols));
+        smooth_binomial3(raw, sums.data(), index);
+        compute_histogram(index, histogram);
+    }
+};
+
+struct Sparse {
+    SparseIndexScratch scratch;
+    cv::Mat raw, index;
+    Histogram histogram{};
+    int level = 0;
+    Sparse(const cv::Mat& bgr, RgbIndex kind, int reach_px = 5)
+    {
+        scratch.reserve(bgr.cols, bgr.rows);
+        raw.create(bgr.size(), CV_8UC1);
+        index.create(bgr.size(), CV_8UC1);
+        level = sparse_smoothed_index(bgr, kind, SparseLevel{}, reach_px, scratch, raw, index, histogram);
+    }
+};
+
+long histogram_total(const Histogram& h)
+{
+    long n = 0;
+    for (const auto c : h)
+        n += c;
+    return n;
+}
+
+bool same_bits(const BitMask& a, const BitMask& b)
+{
+    if (a.width() != b.width() || a.height() != b.height())
+        return false;
+    for (int y = 0; y < a.height(); ++y)
+        for (int w = 0; w < a.words_per_row(); ++w)
+            if (a.row(y)[w] != b.row(y)[w])
+                return false;
+    return true;
+}
+
+TEST(SmoothBinomial3Rect, TilesOfAnyShapeGiveTheWholeFrameSmoothing)
+{
+    cv::Mat src(37, 71, CV_8UC1);
+    cv::RNG(3).fill(src, cv::RNG::UNIFORM, 0, 256);
+    cv::Mat whole;
+    std::vector<std::uint16_t> sums(71);
+    smooth_binomial3(src, sums.data(), whole);
+    cv::Mat pieces(src.size(), CV_8UC1, cv::Scalar(0));
+    for (int y = 0; y < src.rows; y += 5)
+        for (int x = 0; x < src.cols; x += 13)
+            smooth_binomial3_rect(src, cv::Rect(x, y, 13, 5), sums.data(), pieces);
+    EXPECT_EQ(cv::norm(whole, pieces, cv::NORM_INF), 0.0);
+}
+
+TEST(ChromaticExcessGreenSpan, SpansOfAnyWidthGiveTheWholeFrameIndex)
+{
+    cv::Mat bgr(9, 200, CV_8UC3);
+    cv::RNG(5).fill(bgr, cv::RNG::UNIFORM, 0, 256);
+    cv::Mat whole;
+    chromatic_excess_green(bgr, whole);
+    const float mean = chromatic_mean_brightness(bgr);
+    cv::Mat spans(bgr.size(), CV_8UC1, cv::Scalar(0));
+    const int g = index_span_granule_px();
+    for (int y = 0; y < bgr.rows; ++y)
+        for (int x = 0; x < bgr.cols; x += 3 * g + 5)
+            chromatic_excess_green_span(bgr, y, x, std::min(x + 3 * g + 5, bgr.cols), mean, spans);
+    EXPECT_EQ(cv::norm(whole, spans, cv::NORM_INF), 0.0);
+}
+
+TEST(ChromaticExcessGreenSpan, TheScalarPathGivesTheVectorPathsValueForEveryColour)
+{
+    // All 2^24 colours, 4096 to a row: the whole rows take the vector path,
+    // spans of one pixel the scalar one.
+    cv::Mat bgr(4096, 4096, CV_8UC3);
+    for (int y = 0; y < bgr.rows; ++y)
+        for (int x = 0; x < bgr.cols; ++x) {
+            const int colour = y * 4096 + x;
+            bgr.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<std::uint8_t>(colour & 255),
+                                                static_cast<std::uint8_t>((colour >> 8) & 255),
+                                                static_cast<std::uint8_t>(colour >> 16));
+        }
+    const float mean = chromatic_mean_brightness(bgr);
+    cv::Mat whole(bgr.size(), CV_8UC1), single(bgr.size(), CV_8UC1);
+    for (int y = 0; y < bgr.rows; ++y) {
+        chromatic_excess_green_span(bgr, y, 0, bgr.cols, mean, whole);
+        for (int x = 0; x < bgr.cols; ++x)
+            chromatic_excess_green_span(bgr, y, x, x + 1, mean, single);
+    }
+    EXPECT_EQ(cv::norm(whole, single, cv::NORM_INF), 0.0);
+    for (int y = 0; y < 64; ++y) {
+        excess_green_span(bgr, y, 0, bgr.cols, whole);
+        for (int x = 0; x < bgr.cols; ++x)
+            excess_green_span(bgr, y, x, x + 1, single);
+    }
+    EXPECT_EQ(cv::norm(whole.rowRange(0, 64), single.rowRange(0, 64), cv::NORM_INF), 0.0);
+}
+
+TEST(SparseIndex, VegetationInEveryTileGivesExactlyTheWholeFrameResult)
+{
+    // Grass-like green stripes across every tile, crossing every sampled row.
+    cv::Mat bgr = soil_frame({300, 200}, 11);
+    for (int x = 10; x < bgr.cols; x += 30)
+        cv::line(bgr, {x, 0}, {x + 20, bgr.rows - 1}, kLeaf, 3);
+    for (const RgbIndex kind : {RgbIndex::chromatic_exg, RgbIndex::exg}) {
+        const WholeFrame whole(bgr, kind);
+        const Sparse sparse(bgr, kind);
+        EXPECT_EQ(sparse.scratch.computed_tiles(), sparse.scratch.tiles());
+        EXPECT_EQ(cv::norm(whole.index, sparse.index, cv::NORM_INF), 0.0);
+        EXPECT_EQ(whole.histogram, sparse.histogram);
+    }
+}
+
+TEST(SparseIndex, BareSoilComputesLittleAndCountsEveryPixel)
+{
+    const cv::Mat bgr = soil_frame({640, 480}, 12);
+    const Sparse sparse(bgr, RgbIndex::chromatic_exg);
+    const WholeFrame whole(bgr, RgbIndex::chromatic_exg);
+    EXPECT_LE(sparse.scratch.computed_tiles(), sparse.scratch.tiles() / 4);
+    EXPECT_EQ(histogram_total(sparse.histogram), 640L * 480);
+    // The soil tiles hold the soil level; the estimated histogram has the
+    // whole frame's soil mode.
+    EXPECT_EQ(histogram_mode(sparse.histogram), histogram_mode(whole.histogram));
+    EXPECT_EQ(sparse.index.at<std::uint8_t>(100, 100) == sparse.scratch.soil_level() ||
+                  sparse.scratch.computed(100 / kSparseTilePx, 100 / kSparseTilePx),
+              true);
+}
+
+TEST(SparseIndex, BareSoilStaysBareSoil)
+{
+    const cv::Mat bgr = soil_frame({640, 480}, 13);
+    Params params;
+    params.gsd_mm_per_px = 0.4;
+    Workspace ws(bgr.size(), params);
+    Detections out;
+    detect(FrameView{bgr, {}, {}}, params, ws, out);
+    ASSERT_EQ(out.status, DetectStatus::ok);
+    EXPECT_TRUE(out.plants.empty());
+    EXPECT_EQ(ws.vegetation().count(), 0);
+    EXPECT_GT(out.stats.index_tiles, 0);
+}
+
+// detect() with the sparse index and without it on the same frame.
+void expect_same_detections(const cv::Mat& bgr, Params params)
+{
+    params.sparse_index = true;
+    Workspace sparse_ws(bgr.size(), params);
+    Detections sparse;
+    detect(FrameView{bgr, {}, {}}, params, sparse_ws, sparse);
+    params.sparse_index = false;
+    Workspace whole_ws(bgr.size(), params);
+    Detections whole;
+    detect(FrameView{bgr, {}, {}}, params, whole_ws, whole);
+    EXPECT_EQ(sparse.stats.threshold, whole.stats.threshold);
+    EXPECT_TRUE(same_bits(sparse_ws.vegetation(), whole_ws.vegetation()));
+    ASSERT_EQ(sparse.plants.size(), whole.plants.size());
+    for (std::size_t i = 0; i < whole.plants.size(); ++i) {
+        EXPECT_EQ(sparse.plants[i].area_px, whole.plants[i].area_px);
+        EXPECT_EQ(sparse.plants[i].stem, whole.plants[i].stem);
+    }
+}
+
+TEST(SparseIndex, ATinyPlantAtEveryOffsetBetweenSampledRowsIsFound)
+{
+    // A seedling 9 rows tall always touches a sampled row (every 8th), at
+    // whatever height it lies; one with leaves 2 px wide as well.
+    for (int offset = 0; offset < kSparseRowStep; ++offset) {
+        cv::Mat bgr = soil_frame({400, 300}, 20 + static_cast<std::uint64_t>(offset));
+        cv::ellipse(bgr, {150, 130 + offset}, {9, 4}, 0, 0, 360, kLeaf, cv::FILLED);  // rows -4..+4
+        cv::line(bgr, {300, 60 + offset}, {330, 68 + offset}, kLeaf, 2);  // rows -1..+9
+        Params params;
+        params.gsd_mm_per_px = 0.4;
+        params.min_plant_area_mm2 = 4.0;
+        SCOPED_TRACE(offset);
+        expect_same_detections(bgr, params);
+        Workspace ws(bgr.size(), params);
+        Detections out;
+        detect(FrameView{bgr, {}, {}}, params, ws, out);
+        EXPECT_EQ(out.plants.size(), 2u);
+        EXPECT_LT(out.stats.index_tiles_computed, out.stats.index_tiles);
+    }
+}
+
+TEST(SparseIndex, APlantAcrossManyTilesIsComputedWhole)
+{
+    // A thin blade lying almost along the rows reaches a sampled row (204)
+    // only near its right end; the tiles to its left are reached by growing
+    // from tile to tile along it.
+    cv::Mat bgr = soil_frame({640, 480}, 30);
+    cv::line(bgr, {20, 199}, {620, 206}, kLeaf, 2);
+    const Sparse sparse(bgr, RgbIndex::chromatic_exg);
+    for (int col = 0; col < 10; ++col)
+        EXPECT_TRUE(sparse.scratch.computed(col, 198 / kSparseTilePx)) << col;
+    Params params;
+    params.gsd_mm_per_px = 0.4;
+    expect_same_detections(bgr, params);
+}
+
+TEST(SparseIndex, APieceShorterThanTheStepBetweenSampledRowsAndFarFromPlantsIsMissed)
+{
+    // The bound, as documented: a piece 3 rows tall whose smoothed index
+    // (5 rows) lies between two sampled rows (196 and 204; 316 and 324) and
+    // whose raw index misses the rows beside them (197, 203; 317, 323), far
+    // from any plant, stays soil. The same piece over a sampled row is
+    // computed, and so is one whose raw core crosses a row beside one.
+    cv::Mat bgr = soil_frame({640, 480}, 40);
+    cv::rectangle(bgr, cv::Rect(300, 198, 30, 3), kLeaf, cv::FILLED);  // rows 198..200, smoothed 197..201
+    cv::rectangle(bgr, cv::Rect(100, 318, 30, 3), kLeaf, cv::FILLED);  // rows 318..320, smoothed 317..321
+    cv::rectangle(bgr, cv::Rect(500, 98, 30, 3), kLeaf, cv::FILLED);   // rows 98..100: row 100 is sampled
+    cv::rectangle(bgr, cv::Rect(100, 429, 30, 3), kLeaf, cv::FILLED);  // rows 429..431: crosses raw row 429 beside 428
+    const Sparse sparse(bgr, RgbIndex::chromatic_exg);
+    const WholeFrame whole(bgr, RgbIndex::chromatic_exg);
+    EXPECT_FALSE(sparse.scratch.computed(300 / kSparseTilePx, 197 / kSparseTilePx));
+    EXPECT_FALSE(sparse.scratch.computed(100 / kSparseTilePx, 318 / kSparseTilePx));
+    EXPECT_TRUE(sparse.scratch.computed(500 / kSparseTilePx, 98 / kSparseTilePx));
+    EXPECT_TRUE(sparse.scratch.computed(100 / kSparseTilePx, 429 / kSparseTilePx));
+    EXPECT_GT(whole.index.at<std::uint8_t>(199, 310), sparse.level);
+    EXPECT_EQ(sparse.index.at<std::uint8_t>(199, 310), sparse.scratch.soil_level());
+    EXPECT_EQ(sparse.index.at<std::uint8_t>(99, 510), whole.index.at<std::uint8_t>(99, 510));
+}
+
+TEST(SparseIndex, AThresholdBelowTheLevelFallsBackOnTheWholeFrame)
+{
+    // Otsu on bare soil splits the soil's own noise, far below the sparse
+    // level: the whole frame is then computed and decides.
+    const cv::Mat bgr = soil_frame({640, 480}, 50);
+    Params params;
+    params.gsd_mm_per_px = 0.4;
+    params.threshold = ThresholdMethod::otsu;
+    params.min_class_separation = 0;
+    expect_same_detections(bgr, params);
+    Workspace ws(bgr.size(), params);
+    Detections out;
+    detect(FrameView{bgr, {}, {}}, params, ws, out);
+    EXPECT_EQ(out.stats.index_tiles_computed, out.stats.index_tiles);
+}
+
+}  // namespace
+}  // namespace stemd::vision
