@@ -21,7 +21,8 @@ synth_strip "$tmp/strip" 2000
 # Exactly one command per weed, within 5 mm; none for crops (extra).
 "$tools/stemd-eval" --targets "$tmp/strip/plants.csv" "$tmp/can.log" --config "$src/config/stemd.yaml" \
   --treat weeds --min-radius-mm 5 --tol-mm 5 --require-exact >"$tmp/score" 2>&1 ||
-  fail "not exactly one TARGET per weed: $(cat "$tmp/score")"
+  fail "not exactly one TARGET per weed: $(cat "$tmp/score")
+stemd's totals (late frames and deadline misses say whether this host kept the recorded pace): $(grep 'total:' "$tmp/err")"
 cat "$tmp/score"
 
 # The run's totals: no deadline misses, nothing dropped, every frame processed.
