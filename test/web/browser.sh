@@ -26,13 +26,26 @@ if grep -Eo '(https?:)?//[A-Za-z0-9.-]+' "$tmp/page.html" | grep -v '^//$' >"$tm
   fail "the page names other hosts: $(sort -u "$tmp/urls" | head)"
 fi
 
+chrome_once() {  # PROFILE OUTPUT-FLAG...
+  local profile=$1; shift
+  timeout -k 5 90 chromium --headless --no-sandbox --disable-gpu --disable-dev-shm-usage --no-first-run \
+    --user-data-dir="$profile" --host-resolver-rules="MAP * ~NOTFOUND , EXCLUDE 127.0.0.1" \
+    --window-size=1280,1100 --virtual-time-budget=8000 "$@" "$base/" 2>>"$tmp/chromium.log"
+}
 chrome() {  # OUTPUT-FLAG...
   # --virtual-time-budget lets the page's timers run (frame and counter
-  # polls) before the DOM is dumped or the screenshot taken; the timeout
-  # bounds a browser that hangs on a loaded machine.
-  timeout 180 chromium --headless --no-sandbox --disable-gpu --disable-dev-shm-usage --no-first-run \
-    --user-data-dir="$tmp/profile" --host-resolver-rules="MAP * ~NOTFOUND , EXCLUDE 127.0.0.1" \
-    --window-size=1280,1100 --virtual-time-budget=8000 "$@" "$base/" 2>>"$tmp/chromium.log"
+  # polls) before the DOM is dumped or the screenshot taken. Headless
+  # Chromium with it now and then never finishes, page or no page (about 1
+  # run in 10 in reports elsewhere; here twice in a day of test runs on a
+  # loaded host, for the whole timeout with nothing logged): such a hang is the
+  # browser's, so it gets one more try in a fresh profile. Any other
+  # failure, and a second hang, fails the test.
+  local rc=0
+  chrome_once "$tmp/profile" "$@" || rc=$?
+  [ $rc = 124 ] || [ $rc = 137 ] || return $rc
+  echo "note: chromium $1 hung for 90 s (exit $rc); once more" >&2
+  rm -rf "$tmp/profile2"
+  chrome_once "$tmp/profile2" "$@"
 }
 counter() {  # DOM-FILE ID
   sed -n "s/.*id=\"$2\">\([0-9][0-9]*\)<.*/\1/p" "$1" | head -1
