@@ -15,7 +15,7 @@ stemd=$1 tools=$2 src=$3
 . "$(dirname "$0")/../support/script.sh"
 
 synth_strip "$tmp/strip" 2000
-"$stemd" --config "$src/config/stemd.yaml" --replay "$tmp/strip" --once \
+"$stemd" --config "$src/config/stemd.yaml" "${realtime_sets[@]}" --replay "$tmp/strip" --once \
   --can-log "$tmp/can.log" --map "$tmp/map.jsonl" 2>"$tmp/err" || fail "stemd exited $?: $(tail -5 "$tmp/err")"
 
 # Exactly one command per weed, within 5 mm; none for crops (extra).

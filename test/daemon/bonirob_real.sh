@@ -24,7 +24,7 @@ awk -F, 'NR == 1 || $1 == 1 || $1 == 2' "$data/plants.csv" >"$tmp/seen-twice.csv
 [ "$(wc -l <"$tmp/seen-twice.csv")" -eq 3 ] || fail "plants 1 and 2 not in $data/plants.csv"
 
 run() {  # method log map
-  "$stemd" --config "$src/config/stemd.yaml" --set camera.gsd_mm_per_px=0.395 --set segment.method=$1 \
+  "$stemd" --config "$src/config/stemd.yaml" "${realtime_sets[@]}" --set camera.gsd_mm_per_px=0.395 --set segment.method=$1 \
     --set scheduler.policy=all --replay "$data" --once --can-log "$2" --map "$3" 2>"$2.err" ||
     fail "$1: stemd exited $?: $(tail -5 "$2.err")"
 }
