@@ -42,13 +42,24 @@ boots=(
   "gpiod_lost gpiod_lost 300"
   "watchdog watchdog 900"
 )
+# A guest kernel that died (an oops, not a check's verdict) in a boot that
+# unplugs a chip under a requested line is that known kernel fault, not
+# stemd's: the boot runs once more, its first console kept as
+# console-NAME-oops.log. A second oops, or any failure without one, stands.
+oops='general protection fault|Oops: |BUG: |kernel BUG at'
 failed=0
 for b in "${boots[@]}"; do
   read -r name checks timeout_s <<< "$b"
-  rc=0
-  STEMD_VM_TIMEOUT=${STEMD_VM_TIMEOUT:-$timeout_s} STEMD_VM_QUIET=1 \
-    "$tools/run.sh" --cache "$cache" "$here/guest.sh" "$out" all "out=$out" "checks=$checks" "$@" || rc=$?
-  mv "$out/console.log" "$out/console-$name.log" 2>/dev/null || true
+  for attempt in 1 2; do
+    rc=0
+    STEMD_VM_TIMEOUT=${STEMD_VM_TIMEOUT:-$timeout_s} STEMD_VM_QUIET=1 \
+      "$tools/run.sh" --cache "$cache" "$here/guest.sh" "$out" all "out=$out" "checks=$checks" "$@" || rc=$?
+    mv "$out/console.log" "$out/console-$name.log" 2>/dev/null || true
+    case $name in faults | gpiod_lost) ;; *) break ;; esac
+    [ "$attempt" = 1 ] && grep -qE "$oops" "$out/console-$name.log" 2>/dev/null || break
+    echo "VM boot '$name': the guest kernel died ($(grep -m1 -oE "($oops).{0,60}" "$out/console-$name.log")); booting it once more"
+    mv "$out/console-$name.log" "$out/console-$name-oops.log"
+  done
   if [ "$rc" -ne 0 ]; then
     echo "VM boot '$name' failed (run.sh exit $rc; 125 = the VM gave no result). Console:"
     tail -n 40 "$out/console-$name.log" 2>/dev/null || true
