@@ -9,6 +9,51 @@
 
 namespace stemd::vision {
 
+namespace {
+
+using CountBits = long (*)(const std::uint64_t*, std::size_t);
+
+long count_bits_portable(const std::uint64_t* words, std::size_t n)
+{
+    long total = 0;
+    for (std::size_t i = 0; i < n; ++i)
+        total += std::popcount(words[i]);
+    return total;
+}
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+__attribute__((target("popcnt"))) long count_bits_popcnt(const std::uint64_t* words, std::size_t n)
+{
+    long total = 0;
+    for (std::size_t i = 0; i < n; ++i)
+        total += __builtin_popcountll(words[i]);
+    return total;
+}
+#endif
+
+CountBits pick_count_bits()
+{
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+    __builtin_cpu_init();
+    if (__builtin_cpu_supports("popcnt"))
+        return count_bits_popcnt;
+#endif
+    return count_bits_portable;
+}
+
+// Constant-initialised to the portable loop, so a caller that runs before
+// this file's dynamic initialisation still counts correctly; replaced once
+// at start, never on the frame path.
+CountBits count_bits_impl = count_bits_portable;
+[[maybe_unused]] const bool count_bits_picked = (count_bits_impl = pick_count_bits(), true);
+
+}  // namespace
+
+long count_bits(const std::uint64_t* words, std::size_t n)
+{
+    return count_bits_impl(words, n);
+}
+
 void BitMask::reset(int width_px, int height_px)
 {
     width_px_ = std::max(width_px, 0);
@@ -26,10 +71,7 @@ void BitMask::clear()
 
 long BitMask::count() const
 {
-    long n = 0;
-    for (const std::uint64_t w : words_)
-        n += std::popcount(w);
-    return n;
+    return count_bits(words_.data(), words_.size());
 }
 
 void pack_mask(const cv::Mat& mask_u8, MaskVegetation vegetation, BitMask& out)

@@ -70,11 +70,7 @@ void update_columns(const cv::Mat& index_u8, const BitMask& plant, int y, bool a
 
 long row_count(const BitMask& plant, int y)
 {
-    long n = 0;
-    const std::uint64_t* words = plant.row(y);
-    for (int w = 0; w < plant.words_per_row(); ++w)
-        n += std::popcount(words[w]);
-    return n;
+    return count_bits(plant.row(y), static_cast<std::size_t>(plant.words_per_row()));
 }
 
 }  // namespace

@@ -9,6 +9,29 @@
 
 namespace stemd::vision {
 
+#if CV_SIMD
+namespace {
+
+// One vector of BGR pixels, deinterleaved and widened to 16 bits (low and
+// high halves), so sums of a few channels cannot overflow.
+struct WideBgr {
+    cv::v_uint16 b0, b1, g0, g1, r0, r1;
+};
+
+inline WideBgr load_wide_bgr(const std::uint8_t* src)
+{
+    cv::v_uint8 b, g, r;
+    cv::v_load_deinterleave(src, b, g, r);
+    WideBgr p;
+    cv::v_expand(b, p.b0, p.b1);
+    cv::v_expand(g, p.g0, p.g1);
+    cv::v_expand(r, p.r0, p.r1);
+    return p;
+}
+
+}  // namespace
+#endif
+
 int index_span_granule_px()
 {
 #if CV_SIMD
@@ -29,14 +52,9 @@ void excess_green_span(const cv::Mat& bgr, int y, int x_begin, int x_end, cv::Ma
     const int lanes = cv::v_uint8::nlanes;
     const cv::v_uint16 offset = cv::vx_setall_u16(512);
     for (; x + lanes <= x_end; x += lanes) {
-        cv::v_uint8 b, g, r;
-        cv::v_load_deinterleave(src + 3 * x, b, g, r);
-        cv::v_uint16 b0, b1, g0, g1, r0, r1;
-        cv::v_expand(b, b0, b1);
-        cv::v_expand(g, g0, g1);
-        cv::v_expand(r, r0, r1);
-        const cv::v_uint16 lo = cv::v_shr<2>((g0 + g0 + offset) - (r0 + b0));
-        const cv::v_uint16 hi = cv::v_shr<2>((g1 + g1 + offset) - (r1 + b1));
+        const WideBgr p = load_wide_bgr(src + 3 * x);
+        const cv::v_uint16 lo = cv::v_shr<2>((p.g0 + p.g0 + offset) - (p.r0 + p.b0));
+        const cv::v_uint16 hi = cv::v_shr<2>((p.g1 + p.g1 + offset) - (p.r1 + p.b1));
         cv::v_store(dst + x, cv::v_pack(lo, hi));
     }
 #endif
@@ -57,13 +75,20 @@ void excess_green(const cv::Mat& bgr, cv::Mat& index_u8)
 float chromatic_mean_brightness(const cv::Mat& bgr)
 {
     CV_Assert(bgr.type() == CV_8UC3);
-    // The frame's mean brightness from every 4th pixel of every 4th row:
-    // a normalising constant needs no more, and it costs 1/16 of a pass.
+    // Every pixel of one row in 16 (row 4 of each 16-row band, as many
+    // samples as every 4th pixel of every 4th row): a normalising constant
+    // needs no more, and whole rows are 1/16 of the frame's bytes read in
+    // order, where every 4th pixel of a row touches all its cache lines.
+    // Row 4 is also a row the sparse index samples next, so it is read once.
     std::uint64_t sum = 0, samples = 0;
-    for (int y = 0; y < bgr.rows; y += 4) {
-        const std::uint8_t* src = bgr.ptr<std::uint8_t>(y);
-        for (int x = 0; x < bgr.cols; x += 4, ++samples)
-            sum += static_cast<std::uint64_t>(src[3 * x]) + src[3 * x + 1] + src[3 * x + 2];
+    const int row_bytes = 3 * bgr.cols;
+    for (int band = 0; band < bgr.rows; band += kBrightnessRowStep) {
+        const std::uint8_t* src = bgr.ptr<std::uint8_t>(std::min(band + 4, bgr.rows - 1));
+        std::uint32_t row_sum = 0;  // at most 3 * 255 per pixel: fits for rows below 5.6 million pixels
+        for (int i = 0; i < row_bytes; ++i)
+            row_sum += src[i];
+        sum += row_sum;
+        samples += static_cast<std::uint64_t>(bgr.cols);
     }
     // The floor keeps an all-black frame from dividing by zero; it is far
     // below any exposed frame's mean.
@@ -96,13 +121,8 @@ void chromatic_excess_green_span(const cv::Mat& bgr, int y, int x_begin, int x_e
         return cv::v_pack(quarter(e0, s0), quarter(e1, s1));
     };
     for (; x + lanes <= x_end; x += lanes) {
-        cv::v_uint8 b, g, r;
-        cv::v_load_deinterleave(src + 3 * x, b, g, r);
-        cv::v_uint16 b0, b1, g0, g1, r0, r1;
-        cv::v_expand(b, b0, b1);
-        cv::v_expand(g, g0, g1);
-        cv::v_expand(r, r0, r1);
-        cv::v_store(dst + x, cv::v_pack_u(half(b0, g0, r0), half(b1, g1, r1)));
+        const WideBgr p = load_wide_bgr(src + 3 * x);
+        cv::v_store(dst + x, cv::v_pack_u(half(p.b0, p.g0, p.r0), half(p.b1, p.g1, p.r1)));
     }
 #endif
     for (; x < x_end; ++x) {

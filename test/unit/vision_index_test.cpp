@@ -85,7 +85,7 @@ int chromatic_index_at_leaf(cv::Vec3b soil, cv::Vec3b leaf)
 TEST(ChromaticExcessGreen, GreyIsNeutralAndGreenIsHigh)
 {
     // Grey everywhere but at x = 1 (green) and x = 2 (black): the mean
-    // brightness, taken at every 4th pixel (x = 0 and 4), is 300.
+    // brightness, over every pixel of the one row, is (6 * 300 + 170) / 8.
     cv::Mat bgr(1, 8, CV_8UC3, cv::Scalar(100, 100, 100));
     bgr.at<cv::Vec3b>(0, 1) = {30, 90, 50};
     bgr.at<cv::Vec3b>(0, 2) = {0, 0, 0};
@@ -94,8 +94,27 @@ TEST(ChromaticExcessGreen, GreyIsNeutralAndGreenIsHigh)
     ASSERT_EQ(index.type(), CV_8UC1);
     // 128 + 160 e / (s + mean)
     EXPECT_EQ(index.at<std::uint8_t>(0, 0), 128);
-    EXPECT_EQ(index.at<std::uint8_t>(0, 1), std::lround(128 + 160 * 100 / (170 + 300.0)));
+    EXPECT_EQ(index.at<std::uint8_t>(0, 1), std::lround(128 + 160 * 100 / (170 + (6 * 300 + 170) / 8.0)));
     EXPECT_EQ(index.at<std::uint8_t>(0, 2), 128);  // black is neutral, not a division by zero
+}
+
+TEST(ChromaticExcessGreen, MeanBrightnessIsTheMeanOfRowFourOfEveryBand)
+{
+    // Rows 4, 20 and 36 of a 40-row frame (bands of 16 rows) are the
+    // samples; every other row is far brighter and must not count.
+    static_assert(kBrightnessRowStep == 16);
+    cv::Mat bgr(40, 24, CV_8UC3, cv::Scalar(250, 250, 250));
+    bgr.row(4).setTo(cv::Scalar(10, 20, 30));   // s = 60
+    bgr.row(20).setTo(cv::Scalar(40, 40, 40));  // s = 120
+    bgr.row(36).setTo(cv::Scalar(0, 0, 0));     // s = 0
+    bgr.at<cv::Vec3b>(36, 5) = {90, 90, 90};    // one pixel of s = 270 in 24
+    EXPECT_FLOAT_EQ(chromatic_mean_brightness(bgr), (24 * 60 + 24 * 120 + 270) / 72.0f);
+    // A band shorter than 5 rows is sampled at the frame's last row.
+    cv::Mat short_frame(3, 4, CV_8UC3, cv::Scalar(250, 250, 250));
+    short_frame.row(2).setTo(cv::Scalar(10, 10, 10));
+    EXPECT_FLOAT_EQ(chromatic_mean_brightness(short_frame), 30.0f);
+    // An all-black frame gets the floor, not a division by zero.
+    EXPECT_FLOAT_EQ(chromatic_mean_brightness(cv::Mat(20, 8, CV_8UC3, cv::Scalar::all(0))), 1.0f);
 }
 
 TEST(ChromaticExcessGreen, DoesNotChangeWithExposure)

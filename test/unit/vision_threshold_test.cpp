@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <vector>
 
 #include <opencv2/imgproc.hpp>
 
@@ -113,6 +114,26 @@ TEST(BitMask, PackUnpackRoundTripAndZeroVegetation)
     pack_mask(mask, MaskVegetation::zero, bits);
     EXPECT_EQ(bits.count(), static_cast<long>(mask.total()) - cv::countNonZero(mask));
     EXPECT_EQ(bits.row(3)[bits.words_per_row() - 1] & ~bits.last_word_mask(), 0u);
+}
+
+TEST(BitMask, CountBitsCountsEverySetBitOfEveryWord)
+{
+    // Against a bit-by-bit count: all-zero, all-one, single bits at both
+    // ends and random words, for lengths 0 to 70 words.
+    cv::RNG rng(11);
+    std::vector<std::uint64_t> words(70);
+    for (std::size_t i = 0; i < words.size(); ++i) {
+        const std::uint64_t random = (static_cast<std::uint64_t>(rng.next()) << 32) | rng.next();
+        const std::uint64_t kinds[] = {0, ~std::uint64_t{0}, std::uint64_t{1}, std::uint64_t{1} << 63, random};
+        words[i] = kinds[i % 5];
+    }
+    for (std::size_t n = 0; n <= words.size(); ++n) {
+        long expected = 0;
+        for (std::size_t i = 0; i < n; ++i)
+            for (int bit = 0; bit < 64; ++bit)
+                expected += static_cast<long>((words[i] >> bit) & 1);
+        ASSERT_EQ(count_bits(words.data(), n), expected) << n << " words";
+    }
 }
 
 namespace {

@@ -47,6 +47,12 @@ private:
     std::vector<std::uint64_t> words_;
 };
 
+// The set bits of `n` words. With the CPU's popcnt instruction where it has
+// one: the robot's CPU is not known at build time, so the build targets the
+// plain x86-64 baseline (a software popcount per word) and the instruction is
+// picked once at program start when the CPU reports it.
+long count_bits(const std::uint64_t* words, std::size_t n);
+
 // An 8-bit mask to bits: a pixel is set when it is nonzero (or zero, for
 // masks that mark vegetation with 0). `out` is resized if needed.
 void pack_mask(const cv::Mat& mask_u8, MaskVegetation vegetation, BitMask& out);

@@ -26,11 +26,13 @@ int index_span_granule_px();
 void excess_green_span(const cv::Mat& bgr, int y, int x_begin, int x_end, cv::Mat& index_u8);
 
 // Chromatic Excess Green e / (s + mean_s), where e = 2G - R - B, s = R + G + B
-// and mean_s is the frame's mean of s (sampled at every 4th pixel of every
-// 4th row, from (0, 0)): exposure and gain scale e, s and
+// and mean_s is the frame's mean of s (every pixel of row 4 of each band of
+// kBrightnessRowStep rows from row 0, or of the last row when a band is
+// shorter): exposure and gain scale e, s and
 // mean_s alike and cancel, shadows keep their leaves, and in dark pixels
 // (s << mean_s) the noisy chromaticity is damped. Mapped to
 // round(128 + 160 * value), clamped to [0, 255]: neutral soil sits near 128.
+inline constexpr int kBrightnessRowStep = 16;
 void chromatic_excess_green(const cv::Mat& bgr, cv::Mat& index_u8);
 // Its two parts: the frame's mean_s, and the index on a span given it.
 float chromatic_mean_brightness(const cv::Mat& bgr);
