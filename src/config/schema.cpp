@@ -35,6 +35,14 @@ constexpr base::EnumName<bool> kReplayPacingNames[]{{false, "recorded"}, {true, 
 constexpr base::EnumName<bool> kLogClockNames[]{{false, "realtime"}, {true, "monotonic"}};
 constexpr base::EnumName<bool> kActiveLowNames[]{{false, "high"}, {true, "low"}};
 
+// The row of `rows` whose name (`name_of` the row) is `name`, or nullptr.
+template <class Row, class NameOf>
+const Row* find_named(std::span<const Row> rows, std::string_view name, NameOf name_of)
+{
+    const auto it = std::ranges::find(rows, name, name_of);
+    return it == rows.end() ? nullptr : &*it;
+}
+
 // A text key whose default is "none" keeps "none" (not set) as "".
 bool means_unset(const KeySpec& spec, std::string_view value)
 {
@@ -502,10 +510,7 @@ std::span<const KeySpec> schema()
 
 const KeySpec* find_key(std::string_view key)
 {
-    for (const KeySpec& spec : kSchema)
-        if (spec.key == key)
-            return &spec;
-    return nullptr;
+    return find_named(std::span<const KeySpec>(kSchema), key, &KeySpec::key);
 }
 
 std::span<const ListSpec> list_schema()
@@ -515,10 +520,7 @@ std::span<const ListSpec> list_schema()
 
 const ListSpec* find_list(std::string_view section)
 {
-    for (const ListSpec& list : kLists)
-        if (list.section == section)
-            return &list;
-    return nullptr;
+    return find_named(std::span<const ListSpec>(kLists), section, &ListSpec::section);
 }
 
 std::span<const KeySpec> list_item_schema()
@@ -552,10 +554,7 @@ std::span<const KeySpec> item_keys(std::string_view section)
 
 const KeySpec* find_item_key(std::string_view section, std::string_view item_key)
 {
-    for (const KeySpec& spec : item_keys(section))
-        if (item_leaf_of(spec) == item_key)
-            return &spec;
-    return nullptr;
+    return find_named(item_keys(section), item_key, item_leaf_of);
 }
 
 bool is_choice(const KeySpec& spec, std::string_view value)
