@@ -20,17 +20,6 @@ namespace {
 using base::cat;
 
 using enum ValueType;
-using geometry::Forward;
-using geometry::ModelKind;
-using runtime::GnssSourceKind;
-using runtime::GnssTime;
-using runtime::OdometrySource;
-using runtime::OverflowPolicy;
-using runtime::PolicyChoice;
-using vision::MaskVegetation;
-using vision::Segmentation;
-using vision::StemEstimator;
-using vision::ThresholdMethod;
 
 // --- binding a row to its Settings member ------------------------------------
 // STEMD_KEY(daemon.fps) names a member of Settings, STEMD_ITEM(actuation.tools,
@@ -40,6 +29,19 @@ using vision::ThresholdMethod;
 #define STEMD_ITEM(list, member) [](auto& s, std::size_t item) -> auto& { return s.list[item].member; }
 
 constexpr std::int64_t kNsPerMs = 1'000'000;
+
+// Choices kept as a bool: false is the first word.
+constexpr base::EnumName<bool> kReplayPacingNames[]{{false, "recorded"}, {true, "fast"}};
+constexpr base::EnumName<bool> kLogClockNames[]{{false, "realtime"}, {true, "monotonic"}};
+constexpr base::EnumName<bool> kActiveLowNames[]{{false, "high"}, {true, "low"}};
+
+// The row of `rows` whose name (`name_of` the row) is `name`, or nullptr.
+template <class Row, class NameOf>
+const Row* find_named(std::span<const Row> rows, std::string_view name, NameOf name_of)
+{
+    const auto it = std::ranges::find(rows, name, name_of);
+    return it == rows.end() ? nullptr : &*it;
+}
 
 // A text key whose default is "none" keeps "none" (not set) as "".
 bool means_unset(const KeySpec& spec, std::string_view value)
@@ -57,14 +59,6 @@ std::vector<std::string_view> choices_of(const KeySpec& spec)
         rest.remove_prefix(std::min(bar + 1, rest.size()));
     }
     return out;
-}
-
-// The position of `text` among the choices (the loader has checked that it
-// is one; else the last).
-std::size_t choice_index(const KeySpec& spec, std::string_view text)
-{
-    const std::vector<std::string_view> choices = choices_of(spec);
-    return static_cast<std::size_t>(std::find(choices.begin(), choices.end() - 1, text) - choices.begin());
 }
 
 // A row bound to a bool, text, integer or real member. A real key bound to
@@ -100,21 +94,43 @@ constexpr KeySpec bind(KeySpec spec)
     return spec;
 }
 
-// A choice row bound to a member of any type: Values holds the member's
-// value for each of spec.choices, in order.
-template <auto Field, auto Values>
+// A choice row bound to a member of any type: Table holds the member's
+// values and their words (the enum's own word table).
+template <auto Field, auto& Table>
 constexpr KeySpec bind_choice(KeySpec spec)
 {
-    spec.store = [](const KeySpec& k, Settings& s, std::size_t item, const detail::ConfigValue& v) {
-        Field(s, item) = Values[choice_index(k, v.text)];
+    spec.store = [](const KeySpec&, Settings& s, std::size_t item, const detail::ConfigValue& v) {
+        if (const auto value = base::value_of(Table, v.text))  // the loader has checked it is a choice
+            Field(s, item) = *value;
     };
-    spec.load = [](const KeySpec& k, const Settings& s, std::size_t item, detail::ConfigValue& v) {
-        for (std::size_t i = 0; i < Values.size(); ++i)
-            if (Values[i] == Field(s, item))
-                v.text = choices_of(k).at(i);
+    spec.load = [](const KeySpec&, const Settings& s, std::size_t item, detail::ConfigValue& v) {
+        v.text = base::name_of(Table, Field(s, item));
     };
     return spec;
 }
+
+// A word table's words as one "a|b|c" text, joined at compile time.
+template <auto& Table>
+struct JoinedWords {
+    static constexpr std::size_t size = [] {
+        std::size_t n = 0;
+        for (const auto& entry : Table)
+            n += entry.name.size() + 1;
+        return n - 1;
+    }();
+    static constexpr std::array<char, size> chars = [] {
+        std::array<char, size> out{};
+        std::size_t at = 0;
+        for (const auto& entry : Table) {
+            if (at != 0)
+                out[at++] = '|';
+            for (const char c : entry.name)
+                out[at++] = c;
+        }
+        return out;
+    }();
+    static constexpr std::string_view text{chars.data(), size};
+};
 
 // The rows' makers, one per kind of key: a row names only what its kind has.
 template <auto Field, std::int64_t Scale = 1>
@@ -146,12 +162,11 @@ constexpr KeySpec choice_key(std::string_view key, std::string_view default_valu
 {
     return bind<Field>({key, choice, "", 0, 0, default_value, choices, help});
 }
-// A choice stored as Values[i] for the i-th of `choices`.
-template <auto Field, auto Values>
-constexpr KeySpec enum_key(std::string_view key, std::string_view default_value, std::string_view choices,
-                           std::string_view help)
+// A choice kept as a value of Table (an enum's word table): the choices are its words.
+template <auto Field, auto& Table>
+constexpr KeySpec enum_key(std::string_view key, std::string_view default_value, std::string_view help)
 {
-    return bind_choice<Field, Values>({key, choice, "", 0, 0, default_value, choices, help});
+    return bind_choice<Field, Table>({key, choice, "", 0, 0, default_value, JoinedWords<Table>::text, help});
 }
 
 // One row per key; keep each section's rows together (the README table and
@@ -160,11 +175,9 @@ constexpr std::array kSchema{
     real_key<STEMD_KEY(daemon.vision.gsd_mm_per_px)>("camera.gsd_mm_per_px", "mm/px", 0.01, 10, "0.33",
         "ground sampling distance: millimetres of ground per image pixel"),
     // Camera geometry: machine frame x forward, y left, mm.
-    enum_key<STEMD_KEY(camera.model), std::array{ModelKind::nadir, ModelKind::calibrated}>(
-        "camera.model", "nadir", "nadir|calibrated",
+    enum_key<STEMD_KEY(camera.model), geometry::kModelKindNames>("camera.model", "nadir",
         "nadir: straight down at camera.gsd_mm_per_px; calibrated: OpenCV calibration file plus the pose below"),
-    enum_key<STEMD_KEY(camera.mount.forward), std::array{Forward::up, Forward::down, Forward::left, Forward::right}>(
-        "camera.forward", "up", "up|down|left|right",
+    enum_key<STEMD_KEY(camera.mount.forward), geometry::kForwardNames>("camera.forward", "up",
         "which image direction points in the direction of travel (up: plants move down the image)"),
     text_key<STEMD_KEY(camera.calibration_file)>("camera.calibration_file", "none",
         "calibrated: OpenCV calibration YAML (camera_matrix, distortion_coefficients, image_width, image_height; stemd-calibrate writes one) or ROS camera_info YAML; none: not set"),
@@ -181,9 +194,7 @@ constexpr std::array kSchema{
     real_key<STEMD_KEY(camera.mount.y_mm)>("camera.y_mm", "mm", -5000, 5000, "0",
         "machine-frame y (left) of the principal point's ground position"),
 
-    enum_key<STEMD_KEY(daemon.vision.segmentation), std::array{Segmentation::chromatic_exg, Segmentation::exg, Segmentation::ndvi, Segmentation::mask,
-                                                             Segmentation::exg_and_ndvi}>(
-        "segment.method", "chromatic_exg", "chromatic_exg|exg|ndvi|mask|exg_and_ndvi",
+    enum_key<STEMD_KEY(daemon.vision.segmentation), vision::kSegmentationNames>("segment.method", "chromatic_exg",
         "vegetation index: chromatic Excess Green (RGB, exposure-invariant), Excess Green, NDVI (RGB+NIR), an external mask, or exg_and_ndvi (RGB+NIR: both chromatic Excess Green and NDVI above the soil; the choice with a NIR camera)"),
     bool_key<STEMD_KEY(daemon.vision.leaf_colour)>("segment.leaf_colour", "true",
         "exg, chromatic_exg: a plant needs a core of pixels more green than red (by 2 % of their brightness), as chlorophyll makes a leaf; yellowish clods and colour fringes are not. Off only for a camera without white balance"),
@@ -191,8 +202,7 @@ constexpr std::array kSchema{
         "smooth the index with a 3x3 binomial kernel before the threshold"),
     bool_key<STEMD_KEY(daemon.vision.sparse_index)>("segment.sparse_index", "true",
         "exg, chromatic_exg (smoothed): compute the index in full only in 64 px tiles near vegetation found on every 8th row, the rest as soil (a piece at most about 5 rows tall between sampled rows, away from any plant, is missed); the threshold's histogram counts soil tiles from those rows. false: every pixel"),
-    enum_key<STEMD_KEY(daemon.vision.threshold), std::array{ThresholdMethod::above_soil, ThresholdMethod::otsu, ThresholdMethod::triangle, ThresholdMethod::min_error}>(
-        "segment.threshold", "above_soil", "above_soil|otsu|triangle|min_error",
+    enum_key<STEMD_KEY(daemon.vision.threshold), vision::kThresholdMethodNames>("segment.threshold", "above_soil",
         "automatic threshold on the vegetation index; above_soil: Otsu, but never within segment.soil_sigmas of the soil mode"),
     real_key<STEMD_KEY(daemon.vision.soil_sigmas)>("segment.soil_sigmas", "sigma", 1, 20, "5",
         "above_soil: the threshold lies at least this many soil standard deviations above the soil mode"),
@@ -202,8 +212,8 @@ constexpr std::array kSchema{
         "exg, chromatic_exg: mixed pixels at a plant's edge: within this radius of the thresholded plant, a pixel is vegetation when its index lies above the halfway point between the soil mode and the mean of the plant pixels around it (at least half leaf) and beyond the soil's noise; 0 disables"),
     real_key<STEMD_KEY(daemon.vision.min_class_separation)>("segment.min_class_separation", "index", 0, 255, "12",
         "automatic thresholds: if the two classes' mean 8-bit index differs by less (ExG: 1 = 4 of 2G-R-B), the frame has no vegetation; 0 disables"),
-    enum_key<STEMD_KEY(daemon.vision.mask_vegetation), std::array{MaskVegetation::nonzero, MaskVegetation::zero}>(
-        "segment.mask_vegetation", "nonzero", "nonzero|zero",
+    enum_key<STEMD_KEY(daemon.vision.mask_vegetation), vision::kMaskVegetationNames>(
+        "segment.mask_vegetation", "nonzero",
         "which pixel value of an external mask is vegetation"),
 
     int_key<STEMD_KEY(daemon.vision.closing_radius_px)>("closing.radius_px", "px", 0, 50, "5",
@@ -219,8 +229,7 @@ constexpr std::array kSchema{
     real_key<STEMD_KEY(daemon.vision.defect_depth_rel)>("leaves.defect_depth_rel", "fraction", 0, 1, "0.15",
         "defects must also be deeper than this fraction of the plant's equivalent radius sqrt(area/pi)"),
 
-    enum_key<STEMD_KEY(daemon.vision.stem_estimator), std::array{StemEstimator::robust, StemEstimator::paper, StemEstimator::com}>(
-        "stem.method", "robust", "robust|paper|com",
+    enum_key<STEMD_KEY(daemon.vision.stem_estimator), vision::kStemEstimatorNames>("stem.method", "robust",
         "stem estimator: robust (least-squares point of the leaf lines), paper (mean of their intersections) or com (centre of mass)"),
     int_key<STEMD_KEY(daemon.vision.min_leaves)>("stem.min_leaves", "count", 2, 16, "3",
         "paper estimator: the paper's N, plants with fewer leaves use the centre of mass"),
@@ -234,10 +243,7 @@ constexpr std::array kSchema{
         "robust estimator: mean width (2 area / perimeter) below which a large plant is grass; 0 disables"),
     real_key<STEMD_KEY(daemon.vision.grass_max_hull_fill)>("stem.grass_max_hull_fill", "fraction", 0, 2, "0.4",
         "robust estimator: grass also covers less than this fraction of its convex hull; 1 or more: width alone"),
-    enum_key<STEMD_KEY(daemon.classify.provider),
-                std::array{runtime::ClassProviderChoice::automatic, runtime::ClassProviderChoice::model,
-                           runtime::ClassProviderChoice::recording, runtime::ClassProviderChoice::socket}>(
-        "classify.provider", "auto", "auto|model|recording|socket",
+    enum_key<STEMD_KEY(daemon.classify.provider), runtime::kClassProviderNames>("classify.provider", "auto",
         "where plants' classes come from: model (classify.model), recording (a replayed recording's class column), socket (another process over classify.socket), or auto (model when classify.model is set, else recording)"),
     text_key<STEMD_KEY(daemon.classify.socket)>("classify.socket", "none",
         "provider socket: the Unix socket stemd listens on for a class provider's class maps; none: not set"),
@@ -255,8 +261,7 @@ constexpr std::array kSchema{
         "where frames come from: a recording, a V4L2 camera, or a libcamera camera; --replay DIR picks replay"),
     text_key<STEMD_KEY(daemon.replay_dir)>("source.replay_dir", "none",
         "recording directory (frames.csv) to replay; none: not set (--replay DIR sets it)"),
-    enum_key<STEMD_KEY(daemon.replay_fast), std::array{false, true}>(
-        "source.replay_pacing", "recorded", "recorded|fast",
+    enum_key<STEMD_KEY(daemon.replay_fast), kReplayPacingNames>("source.replay_pacing", "recorded",
         "recorded: deliver frames at their t_ns; fast: as fast as the pipeline takes them, dropping none"),
     bool_key<STEMD_KEY(daemon.replay_loop)>("source.replay_loop", "true",
         "start the recording over at its end (--once: play it once, then exit)"),
@@ -288,8 +293,7 @@ constexpr std::array kSchema{
 
     int_key<STEMD_KEY(daemon.ring_capacity)>("ring.capacity", "frames", 1, 64, "4",
         "captured frames waiting for the processing thread (slots: capacity + 2)"),
-    enum_key<STEMD_KEY(daemon.overflow), std::array{OverflowPolicy::drop_newest, OverflowPolicy::overwrite_oldest}>(
-        "ring.overflow", "drop_newest", "drop_newest|overwrite_oldest",
+    enum_key<STEMD_KEY(daemon.overflow), runtime::kOverflowPolicyNames>("ring.overflow", "drop_newest",
         "when the frame ring is full: drop the new frame, or replace the oldest waiting one (both counted)"),
     int_key<STEMD_KEY(daemon.results_capacity)>("ring.results_capacity", "frames", 1, 64, "4",
         "detection results waiting for the actuator thread; a full ring drops the result (counted)"),
@@ -342,8 +346,7 @@ constexpr std::array kSchema{
     int_key<STEMD_KEY(actuation.tracker.capacity)>("tracker.capacity", "tracks", 1, 4096, "256",
         "plants tracked at once; beyond this new detections are dropped (counted)"),
 
-    enum_key<STEMD_KEY(actuation.policy), std::array{PolicyChoice::automatic, PolicyChoice::weeds_only, PolicyChoice::all}>(
-        "scheduler.policy", "auto", "auto|weeds_only|all",
+    enum_key<STEMD_KEY(actuation.policy), runtime::kPolicyChoiceNames>("scheduler.policy", "auto",
         "which plants are treated: weeds_only, all, or auto (weeds_only when a class provider gives the frame classes: classify.model, a socket provider, or the recording's class map; all without); unknown plants are never treated under weeds_only"),
     real_key<STEMD_KEY(actuation.scheduler.lead_ms)>("scheduler.lead_ms", "ms", 0, 1000, "20",
         "a command must reach the tool controller at least this long before the plant is under the tool"),
@@ -353,8 +356,7 @@ constexpr std::array kSchema{
         "scheduler.standing_speed_mm_per_s", "mm/s", 0, 1000, "1",
         "at or below this speed the machine is standing: commands have no deadline pressure"),
 
-    enum_key<STEMD_KEY(actuation.odometry), std::array{OdometrySource::automatic, OdometrySource::recording, OdometrySource::constant, OdometrySource::can, OdometrySource::encoder}>(
-        "odometry.source", "auto", "auto|recording|constant|can|encoder",
+    enum_key<STEMD_KEY(actuation.odometry), runtime::kOdometrySourceNames>("odometry.source", "auto",
         "distance travelled from: the recording's odom_mm, a constant speed, CAN ODOMETRY frames, a wheel encoder; auto: recording if the frames carry it, else constant"),
     real_key<STEMD_KEY(actuation.speed_mm_per_s)>("odometry.speed_mm_per_s", "mm/s", 0, 10000, "1388.9",
         "constant: the machine's speed (1388.9 mm/s = 5 km/h)"),
@@ -372,8 +374,7 @@ constexpr std::array kSchema{
         "first of the five 11-bit CAN ids (base .. base+4) of the stemd messages; 768 = 0x300"),
     text_key<STEMD_KEY(actuation.can_log_file)>("can.log_file", "-",
         "candump -L log of the commands when can.interface is none (and for --can-log FILE); -: standard output"),
-    enum_key<STEMD_KEY(actuation.can_log_monotonic), std::array{false, true}>(
-        "can.log_clock", "realtime", "realtime|monotonic",
+    enum_key<STEMD_KEY(actuation.can_log_monotonic), kLogClockNames>("can.log_clock", "realtime",
         "timestamps of the log lines: wall clock (realtime, as candump) or CLOCK_MONOTONIC"),
     real_key<STEMD_KEY(actuation.heartbeat_interval_ns), kNsPerMs>("can.heartbeat_ms", "ms", 10, 10000, "100",
         "period of the HEARTBEAT message the tool controllers watch"),
@@ -382,14 +383,13 @@ constexpr std::array kSchema{
         "GPIO chip of the lines below (e.g. gpiochip0 or /dev/gpiochip0); none: no GPIO, the enable input counts as active (warned)"),
     int_key<STEMD_KEY(actuation.enable_line)>("gpio.enable_line", "line", -1, 1023, "-1",
         "line offset of the enable input (operator switch: treat only while active); -1: none, always enabled"),
-    enum_key<STEMD_KEY(actuation.enable_active_low), std::array{false, true}>("gpio.enable_active", "high", "high|low",
+    enum_key<STEMD_KEY(actuation.enable_active_low), kActiveLowNames>("gpio.enable_active", "high",
         "level at which the enable input is active"),
     real_key<STEMD_KEY(actuation.enable_debounce_ns), kNsPerMs>("gpio.enable_debounce_ms", "ms", 0, 1000, "20",
         "the enable input must hold a new level this long before it counts"),
     int_key<STEMD_KEY(actuation.trigger_line)>("gpio.trigger_line", "line", -1, 1023, "-1",
         "line offset of the camera trigger output, pulsed once per frame; -1: none"),
-    enum_key<STEMD_KEY(actuation.trigger_active_low), std::array{false, true}>(
-        "gpio.trigger_active", "high", "high|low",
+    enum_key<STEMD_KEY(actuation.trigger_active_low), kActiveLowNames>("gpio.trigger_active", "high",
         "level of the trigger pulse"),
     int_key<STEMD_KEY(actuation.trigger_pulse_us)>("gpio.trigger_pulse_us", "us", 1, 100000, "100",
         "length of the trigger pulse"),
@@ -403,8 +403,7 @@ constexpr std::array kSchema{
     text_key<STEMD_KEY(actuation.map_file)>("map.file", "none",
         "plant map written as JSON lines, one per target; none: no map (--map FILE sets it)"),
 
-    enum_key<STEMD_KEY(actuation.gnss.source), std::array{GnssSourceKind::none, GnssSourceKind::gpsd}>(
-        "gnss.source", "none", "none|gpsd",
+    enum_key<STEMD_KEY(actuation.gnss.source), runtime::kGnssSourceNames>("gnss.source", "none",
         "GNSS receiver for the plant map's latitude and longitude: gpsd (libgps), or none"),
     text_key<STEMD_KEY(actuation.gnss.host)>("gnss.host", "localhost",
         "host gpsd listens on"),
@@ -416,8 +415,7 @@ constexpr std::array kSchema{
         "the antenna's position in the machine frame, left"),
     real_key<STEMD_KEY(actuation.gnss.max_age_ns), kNsPerMs>("gnss.max_age_ms", "ms", 10, 600000, "1000",
         "a fix older than this is not used to extrapolate; a plant past the newest fix is then stale"),
-    enum_key<STEMD_KEY(actuation.gnss.time), std::array{GnssTime::receive, GnssTime::gnss}>(
-        "gnss.time", "receive", "receive|gnss",
+    enum_key<STEMD_KEY(actuation.gnss.time), runtime::kGnssTimeNames>("gnss.time", "receive",
         "the time that finds a fix's odometer reading: when stemd received it, or the fix's own UTC time through the system clock (needs the clock synchronised to GNSS)"),
     real_key<STEMD_KEY(actuation.gnss.heading_baseline_mm)>("gnss.heading_baseline_mm", "mm", 100, 100000, "2000",
         "the heading is the direction of the track over this much travel (longer: less GNSS noise, slower to follow curves)"),
@@ -512,10 +510,7 @@ std::span<const KeySpec> schema()
 
 const KeySpec* find_key(std::string_view key)
 {
-    for (const KeySpec& spec : kSchema)
-        if (spec.key == key)
-            return &spec;
-    return nullptr;
+    return find_named(std::span<const KeySpec>(kSchema), key, &KeySpec::key);
 }
 
 std::span<const ListSpec> list_schema()
@@ -525,10 +520,7 @@ std::span<const ListSpec> list_schema()
 
 const ListSpec* find_list(std::string_view section)
 {
-    for (const ListSpec& list : kLists)
-        if (list.section == section)
-            return &list;
-    return nullptr;
+    return find_named(std::span<const ListSpec>(kLists), section, &ListSpec::section);
 }
 
 std::span<const KeySpec> list_item_schema()
@@ -562,10 +554,7 @@ std::span<const KeySpec> item_keys(std::string_view section)
 
 const KeySpec* find_item_key(std::string_view section, std::string_view item_key)
 {
-    for (const KeySpec& spec : item_keys(section))
-        if (item_leaf_of(spec) == item_key)
-            return &spec;
-    return nullptr;
+    return find_named(item_keys(section), item_key, item_leaf_of);
 }
 
 bool is_choice(const KeySpec& spec, std::string_view value)

@@ -64,16 +64,12 @@ bool finite(double v) { return std::isfinite(v); }
 
 using detail::one_line;
 
-constexpr base::EnumName<Forward> kForwards[]{
-    {Forward::up, "up"}, {Forward::down, "down"}, {Forward::left, "left"}, {Forward::right, "right"}};
-constexpr base::EnumName<ModelKind> kModelKinds[]{{ModelKind::nadir, "nadir"}, {ModelKind::calibrated, "calibrated"}};
-
 }  // namespace
 
-std::string_view to_string(Forward v) { return base::name_of(kForwards, v); }
-std::string_view to_string(ModelKind v) { return base::name_of(kModelKinds, v); }
-std::optional<Forward> parse_forward(std::string_view s) { return base::value_of(kForwards, s); }
-std::optional<ModelKind> parse_model_kind(std::string_view s) { return base::value_of(kModelKinds, s); }
+std::string_view to_string(Forward v) { return base::name_of(kForwardNames, v); }
+std::string_view to_string(ModelKind v) { return base::name_of(kModelKindNames, v); }
+std::optional<Forward> parse_forward(std::string_view s) { return base::value_of(kForwardNames, s); }
+std::optional<ModelKind> parse_model_kind(std::string_view s) { return base::value_of(kModelKindNames, s); }
 
 cv::Point2d image_centre(cv::Size image_size)
 {

@@ -114,7 +114,7 @@ bool Daemon::start()
     log_->info("{} frame slots of {}x{} ({:.1f} MiB), frame ring {} ({}), result ring {}, workspace {:.1f} MiB",
                pool_.size(), config_.frame_size.width, config_.frame_size.height, pool_.bytes() / 1048576.0,
                frames_.capacity(),
-               config_.overflow == OverflowPolicy::drop_newest ? "drop_newest" : "overwrite_oldest",
+               base::name_of(kOverflowPolicyNames, config_.overflow),
                results_.capacity(), workspace_->reserved_bytes() / 1048576.0);
 
     if (!classes_->start()) {

@@ -460,6 +460,10 @@ TEST_F(ConfigFileTest, EmptyValues)
     expect_error("closing:\n  radius_px:   # nothing\nstem:\n  min_leaves: 3\n", 2, "closing.radius_px",
                  "empty value");
     expect_error("segment:\n  method: \"\"\n", 2, "segment.method", "'' is not one of chromatic_exg, exg, ndvi, mask, exg_and_ndvi");
+    // YAML's explicit nulls are no value either, with a word on quoting them.
+    const std::string null_message = "empty value ('~' and 'null' are YAML for no value; quote them for the text)";
+    expect_error("can:\n  log_file: ~\n", 2, "can.log_file", null_message);
+    expect_error("can:\n  log_file: null\n", 2, "can.log_file", null_message);
 }
 
 TEST_F(ConfigFileTest, MalformedLines)
@@ -639,6 +643,11 @@ TEST(ConfigSet, BadValuesGiveOneLineAndChangeNothing)
         {"closing.radius_px", "--set closing.radius_px: expected KEY=VALUE, e.g. --set closing.radius_px=6"},
         {"=6", "--set =6: expected KEY=VALUE, e.g. --set closing.radius_px=6"},
         {"camera.gsd_mm_per_px=inf", "--set camera.gsd_mm_per_px=inf: key 'camera.gsd_mm_per_px': expected a real number, got 'inf'"},
+        // --set values are not YAML: a double-quoted string takes only its four escapes, and YAML syntax is refused.
+        {"can.log_file=\"a\\qb\"", "--set can.log_file=\"a\\qb\": key 'can.log_file': unsupported escape '\\q' in a double-quoted string (use \\\", \\\\, \\n or \\t)"},
+        {"can.log_file=\"a\" b", "--set can.log_file=\"a\" b: key 'can.log_file': unexpected text after the closing quote: 'b'"},
+        {"can.log_file=\"ab", "--set can.log_file=\"ab: key 'can.log_file': unterminated double-quoted string"},
+        {"can.log_file=[a]", "--set can.log_file=[a]: key 'can.log_file': unsupported YAML syntax '[a]'; write a plain value or a double-quoted string"},
     };
     for (const Case& c : cases) {
         Config config;

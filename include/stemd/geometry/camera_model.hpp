@@ -39,11 +39,17 @@
 #include <opencv2/core/matx.hpp>
 #include <opencv2/core/types.hpp>
 
+#include "stemd/base/enum_names.hpp"
+
 namespace stemd::geometry {
 
 // Which image direction points in the direction of travel.
 enum class Forward : std::uint8_t { up, down, left, right };
 enum class ModelKind : std::uint8_t { nadir, calibrated };
+inline constexpr base::EnumName<Forward> kForwardNames[]{
+    {Forward::up, "up"}, {Forward::down, "down"}, {Forward::left, "left"}, {Forward::right, "right"}};
+inline constexpr base::EnumName<ModelKind> kModelKindNames[]{{ModelKind::nadir, "nadir"},
+                                                             {ModelKind::calibrated, "calibrated"}};
 
 std::string_view to_string(Forward v);
 std::string_view to_string(ModelKind v);

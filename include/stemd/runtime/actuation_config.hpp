@@ -10,6 +10,7 @@
 
 #include "stemd/actuation/scheduler.hpp"
 #include "stemd/actuation/tracker.hpp"
+#include "stemd/base/enum_names.hpp"
 #include "stemd/runtime/config_problem.hpp"
 
 namespace stemd::runtime {
@@ -21,18 +22,26 @@ enum class OdometrySource : std::uint8_t {
     can,        // ODOMETRY frames received on the CAN bus
     encoder,    // a wheel encoder on GPIO lines (gpio.encoder_*)
 };
+inline constexpr base::EnumName<OdometrySource> kOdometrySourceNames[]{
+    {OdometrySource::automatic, "auto"}, {OdometrySource::recording, "recording"},
+    {OdometrySource::constant, "constant"}, {OdometrySource::can, "can"}, {OdometrySource::encoder, "encoder"}};
 
 // scheduler.policy: auto = weeds_only when the frames carry a class map or
 // classify.model is set (the daemon then gives every result one), all without.
 enum class PolicyChoice : std::uint8_t { automatic, weeds_only, all };
+inline constexpr base::EnumName<PolicyChoice> kPolicyChoiceNames[]{
+    {PolicyChoice::automatic, "auto"}, {PolicyChoice::weeds_only, "weeds_only"}, {PolicyChoice::all, "all"}};
 
 // gnss.*: a GNSS receiver through gpsd, for the plant map's WGS84 positions.
 enum class GnssSourceKind : std::uint8_t { none, gpsd };
+inline constexpr base::EnumName<GnssSourceKind> kGnssSourceNames[]{{GnssSourceKind::none, "none"},
+                                                                   {GnssSourceKind::gpsd, "gpsd"}};
 // gnss.time: which time of a fix finds its odometer reading.
 enum class GnssTime : std::uint8_t {
     receive,   // CLOCK_MONOTONIC when stemd received it (includes the receiver's and gpsd's latency)
     gnss,      // the fix's own UTC time, through the system clock (needs it synchronised: chrony + gpsd)
 };
+inline constexpr base::EnumName<GnssTime> kGnssTimeNames[]{{GnssTime::receive, "receive"}, {GnssTime::gnss, "gnss"}};
 
 struct GnssConfig {
     GnssSourceKind source = GnssSourceKind::none;

@@ -8,6 +8,7 @@
 
 #include <opencv2/core/types.hpp>
 
+#include "stemd/base/enum_names.hpp"
 #include "stemd/runtime/web_config.hpp"
 #include "stemd/vision/types.hpp"
 
@@ -17,6 +18,8 @@ enum class OverflowPolicy : std::uint8_t {
     drop_newest,       // a full frame ring drops the frame just captured
     overwrite_oldest,  // a full frame ring gives up its oldest frame for the new one
 };
+inline constexpr base::EnumName<OverflowPolicy> kOverflowPolicyNames[]{
+    {OverflowPolicy::drop_newest, "drop_newest"}, {OverflowPolicy::overwrite_oldest, "overwrite_oldest"}};
 
 // Real-time settings of one thread; priority 0 and cpu -1 leave it alone.
 struct ThreadSettings {
@@ -31,6 +34,9 @@ enum class ClassProviderChoice : std::uint8_t {
     recording,   // a replayed recording's class column
     socket,      // another process, over classify.socket
 };
+inline constexpr base::EnumName<ClassProviderChoice> kClassProviderNames[]{
+    {ClassProviderChoice::automatic, "auto"}, {ClassProviderChoice::model, "model"},
+    {ClassProviderChoice::recording, "recording"}, {ClassProviderChoice::socket, "socket"}};
 
 // classify.*: the crop/weed model of vision/classify, or another provider.
 struct ClassifyConfig {

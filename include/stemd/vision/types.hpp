@@ -11,6 +11,8 @@
 
 #include <opencv2/core/types.hpp>
 
+#include "stemd/base/enum_names.hpp"
+
 namespace stemd::vision {
 
 // A vector with its storage inline; push_back reports overflow instead of
@@ -80,6 +82,19 @@ enum class ComReason : std::uint8_t {
     contour_overflow, // the outer contour was longer than the workspace holds
     ill_conditioned,  // the leaf lines do not pin a point down (robust estimator)
 };
+
+// The words of the configurable enums, in the order config files list them
+// (the schema takes its choices from these tables).
+inline constexpr base::EnumName<Segmentation> kSegmentationNames[]{
+    {Segmentation::chromatic_exg, "chromatic_exg"}, {Segmentation::exg, "exg"}, {Segmentation::ndvi, "ndvi"},
+    {Segmentation::mask, "mask"}, {Segmentation::exg_and_ndvi, "exg_and_ndvi"}};
+inline constexpr base::EnumName<ThresholdMethod> kThresholdMethodNames[]{
+    {ThresholdMethod::above_soil, "above_soil"}, {ThresholdMethod::otsu, "otsu"},
+    {ThresholdMethod::triangle, "triangle"}, {ThresholdMethod::min_error, "min_error"}};
+inline constexpr base::EnumName<MaskVegetation> kMaskVegetationNames[]{{MaskVegetation::nonzero, "nonzero"},
+                                                                       {MaskVegetation::zero, "zero"}};
+inline constexpr base::EnumName<StemEstimator> kStemEstimatorNames[]{
+    {StemEstimator::robust, "robust"}, {StemEstimator::paper, "paper"}, {StemEstimator::com, "com"}};
 
 std::string_view to_string(Segmentation v);
 std::string_view to_string(ThresholdMethod v);
