@@ -153,11 +153,9 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
         const auto* bgr_down = frame.bgr.ptr<cv::Vec3b>(y + 1);
         const std::uint8_t* nir = has_nir ? frame.nir.ptr<std::uint8_t>(y) : nullptr;
         const auto* index = plants.plant_index().ptr<std::uint16_t>(y);
-        for (int w = 0; w < words; ++w) {
-            std::uint64_t bits = vrow[w] & kEveryFourth;
-            while (bits) {
-                const int x = w * 64 + std::countr_zero(bits);
-                bits &= bits - 1;
+        visit_row_bits(
+            0, words, [&](int w) { return vrow[w] & kEveryFourth; },
+            [&](int x) {
                 CellWorkspace::Sums& s = ws.sums_[grid_row + ws.cell_x_[static_cast<std::size_t>(x)]];
                 ++s.sampled_px;
                 const cv::Vec3b& p = bgr[x];
@@ -190,8 +188,7 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
                 } else {
                     s.plant_count = static_cast<std::uint16_t>(s.plant_count + (s.plant_vote == id ? 1 : -1));
                 }
-            }
-        }
+            });
     }
 
     // The frame's mean R+G+B as plant_features() measured it; a frame with
@@ -392,16 +389,8 @@ void cell_class_map(const Workspace& dws, const CellWorkspace& ws, cv::Mat& out)
     if (vegetation.width() != size.width || vegetation.height() != size.height)
         return;
     for (int y = 0; y < size.height; ++y) {
-        const std::uint64_t* vrow = vegetation.row(y);
         auto* dst = out.ptr<std::uint8_t>(y);
-        for (int w = 0; w < vegetation.words_per_row(); ++w) {
-            std::uint64_t bits = vrow[w];
-            while (bits) {
-                const int x = w * 64 + std::countr_zero(bits);
-                bits &= bits - 1;
-                dst[x] = to_value(ws.cell_class(ws.cell_of(x, y)));
-            }
-        }
+        vegetation.visit_row(y, [&](int x) { dst[x] = to_value(ws.cell_class(ws.cell_of(x, y))); });
     }
 }
 

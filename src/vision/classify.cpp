@@ -200,9 +200,7 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
                     vegetation_px += std::popcount(bits);
                     if (!sample_row)
                         continue;
-                    while (bits) {
-                        const int x = w * 64 + std::countr_zero(bits);
-                        bits &= bits - 1;
+                    visit_bits(bits, w * 64, [&](int x) {
                         ++sampled_px;
                         const cv::Vec3b& p = bgr[x];
                         const int sum = p[0] + p[1] + p[2];
@@ -226,7 +224,7 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
                             ndvi_sum += ndvi;
                             ndvi2 += ndvi * ndvi;
                         }
-                    }
+                    });
                 }
                 s.vegetation_px += vegetation_px;
                 s.sampled_px += sampled_px;
@@ -371,19 +369,13 @@ void class_map(const Workspace& dws, const ClassifyWorkspace& ws, std::span<cons
     if (vegetation.width() != size.width || vegetation.height() != size.height)
         return;
     for (int y = 0; y < size.height; ++y) {
-        const std::uint64_t* vrow = vegetation.row(y);
         const auto* index = ws.plant_index().ptr<std::uint16_t>(y);
         auto* dst = out.ptr<std::uint8_t>(y);
-        for (int w = 0; w < vegetation.words_per_row(); ++w) {
-            std::uint64_t bits = vrow[w];
-            while (bits) {
-                const int x = w * 64 + std::countr_zero(bits);
-                bits &= bits - 1;
-                const std::size_t id = index[x];
-                if (id > 0 && id <= plant_classes.size())
-                    dst[x] = to_value(plant_classes[id - 1]);
-            }
-        }
+        vegetation.visit_row(y, [&](int x) {
+            const std::size_t id = index[x];
+            if (id > 0 && id <= plant_classes.size())
+                dst[x] = to_value(plant_classes[id - 1]);
+        });
     }
 }
 
