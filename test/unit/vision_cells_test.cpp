@@ -10,6 +10,7 @@
 
 #include "stemd/vision/cells.hpp"
 #include "stemd/vision/classify.hpp"
+#include "vision_classify_test_util.hpp"
 
 namespace fs = std::filesystem;
 using namespace stemd;
@@ -17,14 +18,7 @@ using namespace stemd::vision;
 
 namespace {
 
-Params test_params()
-{
-    Params params;
-    params.gsd_mm_per_px = 0.3;
-    params.min_plant_area_mm2 = 2;
-    params.group_gap_mm = 3;
-    return params;
-}
+Params test_params() { return test::classify_test_params(); }
 
 // Soil with two plants touching side by side, so that detect() merges
 // them into one: on the left a smooth, yellowish-green disc ("crop"), on
@@ -129,10 +123,7 @@ PlantClassifier pair_model(const Params& params, double cell_mm, std::uint64_t s
     return std::move(*model);
 }
 
-fs::path temp_path(const std::string& name)
-{
-    return fs::temp_directory_path() / ("stemd-cells-" + std::to_string(::getpid()) + "-" + name);
-}
+fs::path temp_path(const std::string& name) { return test::classify_temp_path("stemd-cells", name); }
 
 }  // namespace
 
@@ -220,26 +211,19 @@ TEST(Cells, TheFlatForestVotesAsOpenCvDoes)
         samples.at<float>(i, 0) += weed ? 0.8f : 0.0f;
         labels.at<int>(i) = to_value(weed ? PlantClass::Weed : PlantClass::Crop);
     }
-    std::string error;
-    const auto model = PlantClassifier::train(samples, labels, {.trees = 25}, error);
-    ASSERT_TRUE(model) << error;
-    const fs::path path = temp_path("flat.yaml");
-    ASSERT_TRUE(model->save(path, {.gsd_mm_per_px = 0.3}, error)) << error;
-    cv::FileStorage file(path.string(), cv::FileStorage::READ);
-    auto forest = cv::ml::RTrees::create();
-    forest->read(file["forest"]);
-    const FlatForest flat = flatten(*forest);
+    const test::SavedPlantForest saved(samples, labels, 25, temp_path("flat.yaml"));
+    ASSERT_TRUE(saved.model) << saved.error;
+    const FlatForest flat = flatten(*saved.opencv);
     ASSERT_EQ(flat.roots.size(), 25u);
     int split = 0;
     for (int i = 0; i < samples.rows; ++i) {
         FeatureRow row;
         std::copy(samples.ptr<float>(i), samples.ptr<float>(i) + kPlantFeatureCount, row.begin());
         const float p = flat.weed_fraction(row.data());
-        EXPECT_EQ(p, model->weed_probability(row)) << "row " << i;
+        EXPECT_EQ(p, saved.model->weed_probability(row)) << "row " << i;
         split += p > 0 && p < 1;
     }
     EXPECT_GT(split, 0) << "the check needs split votes";
-    fs::remove(path);
 }
 
 TEST(Cells, CellFeaturesMeasureColourWidthAndTheRow)
