@@ -349,7 +349,7 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
     }
 }
 
-void classify_cells(const PlantClassifier& model, double min_confidence, double weed_confidence, CellWorkspace& ws)
+void classify_cells(const PlantClassifier& model, CellWorkspace& ws)
 {
     if (!model.has_cells())
         return;   // every cell stays Unknown
@@ -360,6 +360,7 @@ void classify_cells(const PlantClassifier& model, double min_confidence, double 
         ws.raw_[i] = model.cell_weed_probability(ws.rows_[i]);
     const int gw = ws.grid_.width, gh = ws.grid_.height;
     const int radius = kCellSmoothRadius;
+    const auto bar = static_cast<float>(model.info().map_weed_bar);
     for (const std::uint32_t i : ws.vegetated()) {
         const int gx = static_cast<int>(i % static_cast<std::uint32_t>(gw)), gy = static_cast<int>(i / static_cast<std::uint32_t>(gw));
         float sum = 0, weight = 0;
@@ -374,7 +375,7 @@ void classify_cells(const PlantClassifier& model, double min_confidence, double 
             }
         const float p = weight > 0 ? sum / weight : ws.raw_[i];
         ws.probability_[i] = p;
-        ws.class_[i] = decide_class(p, min_confidence, weed_confidence);
+        ws.class_[i] = p >= bar ? PlantClass::Weed : PlantClass::Crop;
     }
 }
 

@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <random>
 
 #include <opencv2/imgproc.hpp>
@@ -139,7 +141,7 @@ TEST(Cells, TouchingPlantsOfDifferentColourAndTextureGetDifferentClassesInTheMap
     touching_pair({320, 240}, {150, 110}, 36, bgr, truth);
     Frame frame(bgr, params, cell_mm);
     ASSERT_EQ(frame.det.plants.size(), 1u) << "the two plants must touch and be one blob";
-    classify_cells(model, 0.5, 0.5, frame.cells);
+    classify_cells(model, frame.cells);
     cv::Mat map;
     cell_class_map(frame.ws, frame.cells, map);
     // Each half of the blob: the share of its vegetation pixels the map
@@ -274,7 +276,7 @@ TEST(Cells, APlantWithoutClassifiedCellsIsUnknownAndAModelWithoutCellsUsesThePla
     const auto plants_only = PlantClassifier::train(samples, labels, {.trees = 5}, error);
     ASSERT_TRUE(plants_only) << error;
     ASSERT_FALSE(plants_only->has_cells());
-    classify_cells(*plants_only, 0.6, 0.85, frame.cells);
+    classify_cells(*plants_only, frame.cells);
     for (const std::uint32_t c : frame.cells.vegetated())
         EXPECT_EQ(frame.cells.cell_class(c), PlantClass::Unknown);
     std::array<float, kMaxPlants> p{};
@@ -286,8 +288,96 @@ TEST(Cells, APlantWithoutClassifiedCellsIsUnknownAndAModelWithoutCellsUsesThePla
     const PlantClassifier with_cells = pair_model(params, 3.0, 1);
     cell_features({}, params, frame.ws, frame.det, frame.cws, frame.cells);
     EXPECT_TRUE(frame.cells.vegetated().empty());
-    classify_cells(with_cells, 0.6, 0.85, frame.cells);
+    classify_cells(with_cells, frame.cells);
     classify_plants(with_cells, frame.cws, frame.cells, 1, 0.6, 0.85, p, classes);
     EXPECT_EQ(classes[0], PlantClass::Unknown);
     EXPECT_LT(p[0], 0.0f);
+}
+
+TEST(Cells, TheClassMapTakesEachCellsMostLikelyClassAtTheModelsBar)
+{
+    const Params params = test_params();
+    PlantClassifier model = pair_model(params, 1.5, 3);
+    EXPECT_EQ(model.info().map_weed_bar, 0.5) << "a trained model starts at the most likely class";
+    cv::Mat bgr, truth;
+    touching_pair({320, 240}, {160, 120}, 34, bgr, truth);
+    Frame frame(bgr, params, 1.5);
+    ASSERT_GT(frame.cells.vegetated().size(), 50u);
+    // Unlike the treat decision, the map leaves no vegetated cell unknown:
+    // weed from the bar up, crop below it.
+    for (const double bar : {0.5, 0.3, 0.7}) {
+        model.set_map_weed_bar(bar);
+        classify_cells(model, frame.cells);
+        int weed = 0, crop = 0;
+        for (const std::uint32_t c : frame.cells.vegetated()) {
+            const float p = frame.cells.weed_probability(c);
+            EXPECT_EQ(frame.cells.cell_class(c), p >= static_cast<float>(bar) ? PlantClass::Weed : PlantClass::Crop)
+                << "bar " << bar << ", p " << p;
+            weed += frame.cells.cell_class(c) == PlantClass::Weed;
+            crop += frame.cells.cell_class(c) == PlantClass::Crop;
+        }
+        EXPECT_GT(weed, 0);
+        EXPECT_GT(crop, 0);
+    }
+    // The bar travels in the model file; a file without one reads 0.5.
+    const fs::path path = temp_path("bar.yaml");
+    std::string error;
+    ASSERT_TRUE(model.save(path, {.gsd_mm_per_px = 0.3}, error)) << error;
+    const auto loaded = PlantClassifier::load(path, error);
+    ASSERT_TRUE(loaded) << error;
+    EXPECT_EQ(loaded->info().map_weed_bar, 0.7);
+    {
+        // The same file without map_weed_bar, as models written before it.
+        std::ostringstream all;
+        all << std::ifstream(path).rdbuf();
+        std::string text = all.str();
+        const auto at = text.find("map_weed_bar");
+        ASSERT_NE(at, std::string::npos);
+        const auto line = text.rfind('\n', at) + 1;
+        text.erase(line, text.find('\n', at) - line + 1);
+        std::ofstream(path.string() + ".old.yaml") << text;
+    }
+    const auto old = PlantClassifier::load(path.string() + ".old.yaml", error);
+    ASSERT_TRUE(old) << error << "\n" << std::ifstream(path.string() + ".old.yaml").rdbuf();
+    EXPECT_EQ(old->info().map_weed_bar, 0.5);
+    fs::remove(path);
+    fs::remove(path.string() + ".old.yaml");
+}
+
+TEST(Cells, TrainingCellsCanBeWeighedAndTheClassesStayBalancedByWeight)
+{
+    // Where feature 0 is negative, the crop and weed rows are as many but
+    // the weeds weigh 9 times more; where positive, the crops do. Both
+    // classes weigh 500 in all, so the balance changes nothing, and only
+    // the weights tell the two halves apart.
+    const int n = 200;
+    cv::Mat samples(n, kCellFeatureCount, CV_32FC1, cv::Scalar(0)), labels(n, 1, CV_32SC1), weights(n, 1, CV_32FC1);
+    cv::RNG rng(9);
+    for (int i = 0; i < n; ++i) {
+        const bool left = i < n / 2, weed = i % 2 == 0;
+        samples.at<float>(i, 0) = static_cast<float>(left ? rng.uniform(-2.0, -0.5) : rng.uniform(0.5, 2.0));
+        // Every feature tells the halves apart, so that every split does.
+        for (int f = 1; f < kCellFeatureCount; ++f)
+            samples.at<float>(i, f) = samples.at<float>(i, 0);
+        labels.at<int>(i) = to_value(weed ? PlantClass::Weed : PlantClass::Crop);
+        weights.at<float>(i) = (left == weed) ? 9.0f : 1.0f;
+    }
+    cv::Mat plant_samples, plant_labels;
+    plant_rows(plant_samples, plant_labels);
+    std::string error;
+    auto model = PlantClassifier::train(plant_samples, plant_labels, {.trees = 5}, error);
+    ASSERT_TRUE(model) << error;
+    ASSERT_TRUE(model->train_cells(samples, labels, {.trees = 30, .max_depth = 4}, 3.0, error, weights)) << error;
+    CellRow row{};
+    row.fill(-1.2f);
+    const float left = model->cell_weed_probability(row);
+    row.fill(1.2f);
+    const float right = model->cell_weed_probability(row);
+    // Unweighed, each half is a coin toss; weighed, its heavy class wins
+    // the majority of the trees.
+    EXPECT_GT(left, 0.5f) << "the heavy weeds";
+    EXPECT_LT(right, 0.5f) << "the heavy crops";
+    // Weights that do not fit the rows are refused.
+    EXPECT_FALSE(model->train_cells(samples, labels, {.trees = 3}, 3.0, error, weights.rowRange(0, 10)));
+    EXPECT_NE(error.find("weights"), std::string::npos) << error;
 }
