@@ -82,7 +82,7 @@ void bench_classify(benchmark::State& state)
         const auto t0 = std::chrono::steady_clock::now();
         vision::plant_features(view, s.params, *s.workspace, s.detections, *c.workspace);
         vision::cell_features(view, s.params, *s.workspace, s.detections, *c.workspace, *c.cells);
-        vision::classify_cells(*c.model, decision.min_confidence, decision.weed_confidence, *c.cells);
+        vision::classify_cells(*c.model, *c.cells);
         vision::classify_plants(*c.model, *c.workspace, *c.cells, s.detections.plants.size(), decision.min_confidence,
                                 decision.weed_confidence, c.probabilities, c.classes);
         const auto t1 = std::chrono::steady_clock::now();

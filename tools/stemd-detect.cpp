@@ -219,7 +219,7 @@ int main(int argc, char** argv)
             const vision::FrameView view{.bgr = bgr, .nir = frame.nir, .mask = mask};
             vision::plant_features(view, params, *workspace, d, *classify_workspace);
             vision::cell_features(view, params, *workspace, d, *classify_workspace, *cell_workspace);
-            vision::classify_cells(*model, classify.min_confidence, classify.weed_confidence, *cell_workspace);
+            vision::classify_cells(*model, *cell_workspace);
             vision::classify_plants(*model, *classify_workspace, *cell_workspace, d.plants.size(),
                                     classify.min_confidence, classify.weed_confidence, weed_probability, plant_class);
             classify_ms.push_back(static_cast<double>(base::monotonic_ns() - t0) / 1e6);

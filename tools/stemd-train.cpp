@@ -54,6 +54,7 @@ struct Sample {
 struct CellSample {
     vision::CellRow row;
     int label = 0;
+    float vegetation_px = 0;   // its labelled segmented vegetation pixels
 };
 
 struct FrameSamples {
@@ -202,8 +203,9 @@ bool collect(const std::vector<tools::FrameJob>& jobs, Pipeline& pipeline, std::
         for (const std::uint32_t c : cells.vegetated()) {
             if (cell_crop[c] + cell_weed[c] == 0)
                 continue;
-            fs_out.cells.push_back(
-                {cells.row(c), to_value(cell_crop[c] >= cell_weed[c] ? PlantClass::Crop : PlantClass::Weed)});
+            fs_out.cells.push_back({cells.row(c),
+                                    to_value(cell_crop[c] >= cell_weed[c] ? PlantClass::Crop : PlantClass::Weed),
+                                    static_cast<float>(cell_crop[c] + cell_weed[c])});
         }
         out.push_back(std::move(fs_out));
     }
@@ -228,9 +230,10 @@ void plant_matrices(const std::vector<FrameSamples>& frames, const std::vector<s
 }
 
 // The cell rows of the frames `which`; at most `limit` of them, taken at an
-// even stride so that every frame keeps its share (deterministic).
+// even stride so that every frame keeps its share (deterministic). With
+// `weights`, each row's weight: its labelled vegetation pixels.
 void cell_matrices(const std::vector<FrameSamples>& frames, const std::vector<std::size_t>& which, int limit,
-                   cv::Mat& samples, cv::Mat& labels)
+                   cv::Mat& samples, cv::Mat& labels, cv::Mat* weights)
 {
     long total = 0;
     for (const std::size_t f : which)
@@ -239,6 +242,8 @@ void cell_matrices(const std::vector<FrameSamples>& frames, const std::vector<st
     const int rows = static_cast<int>(static_cast<double>(total) / stride);
     samples.create(rows, vision::kCellFeatureCount, CV_32FC1);
     labels.create(rows, 1, CV_32SC1);
+    if (weights)
+        weights->create(rows, 1, CV_32FC1);
     long k = 0;
     int r = 0;
     double next = 0;
@@ -247,6 +252,8 @@ void cell_matrices(const std::vector<FrameSamples>& frames, const std::vector<st
             if (static_cast<double>(k++) >= next && r < rows) {
                 std::copy(s.row.begin(), s.row.end(), samples.ptr<float>(r));
                 labels.at<int>(r) = s.label;
+                if (weights)
+                    weights->at<float>(r) = s.vegetation_px;
                 ++r;
                 next += stride;
             }
@@ -254,6 +261,8 @@ void cell_matrices(const std::vector<FrameSamples>& frames, const std::vector<st
     if (r < rows) {
         samples = samples.rowRange(0, r).clone();
         labels = labels.rowRange(0, r).clone();
+        if (weights)
+            *weights = weights->rowRange(0, r).clone();
     }
 }
 
@@ -268,6 +277,10 @@ enum class PlantSource { forest, cells, stem };
 constexpr const char* kSourceNames[] = {"the plant forest", "the share of its cells",
                                         "the class map around its stem (9x9 window)"};
 
+// The class map's weed bars stemd-train tries, out of fold.
+constexpr double kMapBars[] = {0.30, 0.35, 0.40, 0.45, 0.50, 0.55, 0.60, 0.65, 0.70};
+constexpr int kMapBarCount = static_cast<int>(std::size(kMapBars));
+
 // Figures over held-out frames, for one decision.
 struct Figures {
     long plants[3][3][3] = {};   // [source][truth crop/weed][said unknown/crop/weed]
@@ -275,7 +288,19 @@ struct Figures {
     long px_crop_right = 0, px_weed_right = 0;
     long px_crop_as_weed = 0;
     long px_crop_ceiling = 0, px_weed_ceiling = 0;   // every segmented pixel right
+    // Every segmented pixel its cell's true majority class: what cells of
+    // this size could reach with a perfect cell classifier.
+    long px_crop_cell_ceiling = 0, px_weed_cell_ceiling = 0;
+    // The class map at each of kMapBars: weed at p >= bar, crop below.
+    long bar_crop_right[kMapBarCount] = {}, bar_weed_right[kMapBarCount] = {};
     int frames = 0, unlabelled = 0;
+    std::vector<int> cell_crop, cell_weed;
+
+    double map_balanced_accuracy(int bar) const
+    {
+        return 0.5 * (static_cast<double>(bar_crop_right[bar]) / static_cast<double>(std::max(px_crop_total, 1L)) +
+                      static_cast<double>(bar_weed_right[bar]) / static_cast<double>(std::max(px_weed_total, 1L)));
+    }
 
     // Scores the frame `p` ran last: its class map from the cells, and its
     // plants by each source. `probabilities` (per plant, from the cells) out.
@@ -283,23 +308,65 @@ struct Figures {
              std::vector<std::pair<int, float>>* out_of_fold)
     {
         ++frames;
-        vision::classify_cells(model, decision.min_confidence, decision.weed_confidence, *p.cells);
-        vision::cell_class_map(*p.ws, *p.cells, map);
+        vision::classify_cells(model, *p.cells);
         const vision::BitMask& vegetation = p.ws->vegetation();
+        const vision::CellWorkspace& cells = *p.cells;
+        // The stem-window source reads a class map as a replayed class
+        // column or a socket provider would give it for treating: here the
+        // cells at this decision (unknown cells 0), not the class map's most
+        // likely class (--class-out), which is no treat decision.
+        map.create(p.class_image.size(), CV_8UC1);
+        map.setTo(0);
+        for (int y = 0; y < map.rows; ++y) {
+            auto* row = map.ptr<std::uint8_t>(y);
+            for (int x = 0; x < map.cols; ++x) {
+                if (!vegetation.get(x, y))
+                    continue;
+                const std::size_t c = cells.cell_of(x, y);
+                if (cells.cell_class(c) != PlantClass::Unknown)
+                    row[x] = to_value(vision::decide_class(cells.weed_probability(c), decision.min_confidence,
+                                                           decision.weed_confidence));
+            }
+        }
+        // Each cell's true crop and weed pixels among its segmented vegetation.
+        cell_crop.assign(cells.cells(), 0);
+        cell_weed.assign(cells.cells(), 0);
         for (int y = 0; y < map.rows; ++y) {
             const auto* cls = p.class_image.ptr<std::uint8_t>(y);
-            const auto* said = map.ptr<std::uint8_t>(y);
+            for (int x = 0; x < map.cols; ++x)
+                if (vegetation.get(x, y)) {
+                    cell_crop[cells.cell_of(x, y)] += plant_class_from_value(cls[x]) == PlantClass::Crop;
+                    cell_weed[cells.cell_of(x, y)] += plant_class_from_value(cls[x]) == PlantClass::Weed;
+                }
+        }
+        // Each human crop or weed pixel, segmented or not: its cell's class
+        // at this decision (the asymmetric one leaves cells unknown), the
+        // class map at each bar, and the cell-size ceiling.
+        for (int y = 0; y < map.rows; ++y) {
+            const auto* cls = p.class_image.ptr<std::uint8_t>(y);
             for (int x = 0; x < map.cols; ++x) {
                 const PlantClass truth = plant_class_from_value(cls[x]);
                 if (truth != PlantClass::Crop && truth != PlantClass::Weed)
                     continue;
                 const bool crop = truth == PlantClass::Crop;
                 (crop ? px_crop_total : px_weed_total) += 1;
-                (crop ? px_crop_ceiling : px_weed_ceiling) += vegetation.get(x, y);
-                const PlantClass s = plant_class_from_value(said[x]);
+                if (!vegetation.get(x, y))
+                    continue;
+                (crop ? px_crop_ceiling : px_weed_ceiling) += 1;
+                const std::size_t c = cells.cell_of(x, y);
+                const bool cell_says_crop = cell_crop[c] >= cell_weed[c];
+                (crop ? px_crop_cell_ceiling : px_weed_cell_ceiling) += cell_says_crop == crop;
+                if (cells.cell_class(c) == PlantClass::Unknown)
+                    continue;   // a cell without sampled vegetation has no probability
+                const float weed_p = cells.weed_probability(c);
+                const PlantClass s = vision::decide_class(weed_p, decision.min_confidence, decision.weed_confidence);
                 px_crop_right += crop && s == PlantClass::Crop;
                 px_weed_right += !crop && s == PlantClass::Weed;
                 px_crop_as_weed += crop && s == PlantClass::Weed;
+                for (int b = 0; b < kMapBarCount; ++b) {
+                    const bool weed = weed_p >= static_cast<float>(kMapBars[b]);
+                    (crop ? bar_crop_right[b] : bar_weed_right[b]) += weed != crop;
+                }
             }
         }
         std::vector<long> crop, weed;
@@ -338,13 +405,15 @@ struct Figures {
         char buf[1024];
         std::snprintf(buf, sizeof buf,
                       "%s (%d frames, min_confidence %.2f, weed_confidence %.2f)\n"
-                      "  pixels of vegetation (class map from the cells): crop recall %.3f, weed recall %.3f, "
-                      "balanced accuracy %.3f; crop pixels called weed %.1f %%\n"
-                      "  (segmentation ceiling, every segmented pixel right: balanced accuracy %.3f)\n",
+                      "  pixels of vegetation (each cell's class at this decision): crop recall %.3f, weed recall "
+                      "%.3f, balanced accuracy %.3f; crop pixels called weed %.1f %%\n"
+                      "  (segmentation ceiling, every segmented pixel right: balanced accuracy %.3f; cell ceiling, "
+                      "every segmented pixel its cell's majority class: %.3f)\n",
                       title.c_str(), frames, decision.min_confidence, decision.weed_confidence, px_crop_recall,
                       px_weed_recall, 0.5 * (px_crop_recall + px_weed_recall),
                       100 * ratio(px_crop_as_weed, px_crop_total),
-                      0.5 * (ratio(px_crop_ceiling, px_crop_total) + ratio(px_weed_ceiling, px_weed_total)));
+                      0.5 * (ratio(px_crop_ceiling, px_crop_total) + ratio(px_weed_ceiling, px_weed_total)),
+                      0.5 * (ratio(px_crop_cell_ceiling, px_crop_total) + ratio(px_weed_cell_ceiling, px_weed_total)));
         out += buf;
         for (int s = 0; s < 3; ++s) {
             const auto& m = plants[s];
@@ -391,6 +460,7 @@ int main(int argc, char** argv)
     vision::ForestOptions cell_forest = vision::kDefaultCellForest;
     double cell_mm = vision::kDefaultCellMm;
     int cell_samples = 40000;
+    std::string cell_weights = "cells";
     app.add_option("--out", out_path, "model file to write (.yaml or .json)")->required();
     tools::add_config_options(app, config_args);
     app.add_option("--folds", folds, "cross-validation folds; frame i is in fold i mod N")
@@ -403,6 +473,10 @@ int main(int argc, char** argv)
         ->check(CLI::Range(1, 50));
     app.add_option("--cell-samples", cell_samples, "at most this many cells train a cell forest (an even stride)")
         ->check(CLI::Range(100, 10000000));
+    app.add_option("--cell-weights", cell_weights,
+                   "what weighs a training cell: cells (each 1) or pixels (its labelled vegetation pixels); the "
+                   "classes are balanced either way")
+        ->check(CLI::IsMember({"cells", "pixels"}));
     app.add_option("--seed", forest.seed, "seed of the forests' random draws");
     app.add_option("--test-on", test_recordings,
                    "also score the final model on this recording (another camera or field)")
@@ -441,8 +515,9 @@ int main(int argc, char** argv)
         auto model = vision::PlantClassifier::train(samples, labels, forest, why);
         if (!model)
             return std::nullopt;
-        cell_matrices(frames, which, cell_samples, samples, labels);
-        if (!model->train_cells(samples, labels, cell_forest, cell_mm, why)) {
+        cv::Mat weights;
+        cell_matrices(frames, which, cell_samples, samples, labels, cell_weights == "pixels" ? &weights : nullptr);
+        if (!model->train_cells(samples, labels, cell_forest, cell_mm, why, weights)) {
             why = "cells: " + why;
             return std::nullopt;
         }
@@ -493,10 +568,34 @@ int main(int argc, char** argv)
         }
         sweep << "\n";
     }
+    // The class map's bar: the most likely class, fitted on the out-of-fold
+    // per-pixel balanced accuracy (ties to the bar nearest 0.5).
+    int map_bar = 0;
+    for (int b = 0; b < kMapBarCount; ++b) {
+        const double a = cv_figures_half.map_balanced_accuracy(b), best = cv_figures_half.map_balanced_accuracy(map_bar);
+        if (a > best || (a == best && std::abs(kMapBars[b] - 0.5) < std::abs(kMapBars[map_bar] - 0.5)))
+            map_bar = b;
+    }
+    {
+        sweep << "  class map bar (out of fold, per pixel of vegetation: weed at p >= bar): balanced accuracy";
+        for (int b = 0; b < kMapBarCount; ++b) {
+            char text[48];
+            std::snprintf(text, sizeof text, "%s %.2f: %.3f", b ? ";" : "", kMapBars[b],
+                          cv_figures_half.map_balanced_accuracy(b));
+            sweep << text;
+        }
+        char text[160];
+        std::snprintf(text, sizeof text, "\n  class map bar fitted: %.2f (balanced accuracy %.3f out of fold, tuned on "
+                                         "these frames)\n",
+                      kMapBars[map_bar], cv_figures_half.map_balanced_accuracy(map_bar));
+        sweep << text;
+    }
     std::ostringstream report;
     char cells_line[160];
-    std::snprintf(cells_line, sizeof cells_line, "cells of %.2f mm (%d px), cell forest %d trees of depth %d\n",
-                  cell_mm, pipeline.cells ? pipeline.cells->cell_px() : 0, cell_forest.trees, cell_forest.max_depth);
+    std::snprintf(cells_line, sizeof cells_line,
+                  "cells of %.2f mm (%d px), cell forest %d trees of depth %d, training cells weighed by %s\n", cell_mm,
+                  pipeline.cells ? pipeline.cells->cell_px() : 0, cell_forest.trees, cell_forest.max_depth,
+                  cell_weights == "pixels" ? "their vegetation pixels" : "one each");
     report << cells_line
            << cv_figures_half.text(std::to_string(folds) + "-fold cross-validation by frame", symmetric)
            << cv_figures.text(std::to_string(folds) + "-fold cross-validation by frame", decision) << sweep.str();
@@ -504,11 +603,12 @@ int main(int argc, char** argv)
     std::vector<std::size_t> all(frames.size());
     for (std::size_t f = 0; f < frames.size(); ++f)
         all[f] = f;
-    const auto model = train(all, error);
+    auto model = train(all, error);
     if (!model) {
         std::cerr << "stemd-train: " << error << "\n";
         return 1;
     }
+    model->set_map_weed_bar(kMapBars[map_bar]);
     std::cout << report.str();
     {
         // Which cell features carry the forest (OpenCV's permutation importance).

@@ -27,7 +27,7 @@ void ModelClassProvider::classify(const drivers::Frame& frame, const vision::Par
     // and it treats more weeds (README, Crop or weed).
     vision::plant_features(view, params, workspace, result.detections, workspace_);
     vision::cell_features(view, params, workspace, result.detections, workspace_, cells_);
-    vision::classify_cells(model_, min_confidence_, weed_confidence_, cells_);
+    vision::classify_cells(model_, cells_);
     const std::size_t plants = result.detections.plants.size();
     std::fill(result.plant_class.begin(), result.plant_class.begin() + static_cast<std::ptrdiff_t>(plants),
               PlantClass::Unknown);

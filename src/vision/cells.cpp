@@ -153,11 +153,9 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
         const auto* bgr_down = frame.bgr.ptr<cv::Vec3b>(y + 1);
         const std::uint8_t* nir = has_nir ? frame.nir.ptr<std::uint8_t>(y) : nullptr;
         const auto* index = plants.plant_index().ptr<std::uint16_t>(y);
-        for (int w = 0; w < words; ++w) {
-            std::uint64_t bits = vrow[w] & kEveryFourth;
-            while (bits) {
-                const int x = w * 64 + std::countr_zero(bits);
-                bits &= bits - 1;
+        visit_row_bits(
+            0, words, [&](int w) { return vrow[w] & kEveryFourth; },
+            [&](int x) {
                 CellWorkspace::Sums& s = ws.sums_[grid_row + ws.cell_x_[static_cast<std::size_t>(x)]];
                 ++s.sampled_px;
                 const cv::Vec3b& p = bgr[x];
@@ -190,8 +188,7 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
                 } else {
                     s.plant_count = static_cast<std::uint16_t>(s.plant_count + (s.plant_vote == id ? 1 : -1));
                 }
-            }
-        }
+            });
     }
 
     // The frame's mean R+G+B as plant_features() measured it; a frame with
@@ -352,7 +349,7 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
     }
 }
 
-void classify_cells(const PlantClassifier& model, double min_confidence, double weed_confidence, CellWorkspace& ws)
+void classify_cells(const PlantClassifier& model, CellWorkspace& ws)
 {
     if (!model.has_cells())
         return;   // every cell stays Unknown
@@ -363,6 +360,7 @@ void classify_cells(const PlantClassifier& model, double min_confidence, double 
         ws.raw_[i] = model.cell_weed_probability(ws.rows_[i]);
     const int gw = ws.grid_.width, gh = ws.grid_.height;
     const int radius = kCellSmoothRadius;
+    const auto bar = static_cast<float>(model.info().map_weed_bar);
     for (const std::uint32_t i : ws.vegetated()) {
         const int gx = static_cast<int>(i % static_cast<std::uint32_t>(gw)), gy = static_cast<int>(i / static_cast<std::uint32_t>(gw));
         float sum = 0, weight = 0;
@@ -377,7 +375,7 @@ void classify_cells(const PlantClassifier& model, double min_confidence, double 
             }
         const float p = weight > 0 ? sum / weight : ws.raw_[i];
         ws.probability_[i] = p;
-        ws.class_[i] = decide_class(p, min_confidence, weed_confidence);
+        ws.class_[i] = p >= bar ? PlantClass::Weed : PlantClass::Crop;
     }
 }
 
@@ -392,16 +390,8 @@ void cell_class_map(const Workspace& dws, const CellWorkspace& ws, cv::Mat& out)
     if (vegetation.width() != size.width || vegetation.height() != size.height)
         return;
     for (int y = 0; y < size.height; ++y) {
-        const std::uint64_t* vrow = vegetation.row(y);
         auto* dst = out.ptr<std::uint8_t>(y);
-        for (int w = 0; w < vegetation.words_per_row(); ++w) {
-            std::uint64_t bits = vrow[w];
-            while (bits) {
-                const int x = w * 64 + std::countr_zero(bits);
-                bits &= bits - 1;
-                dst[x] = to_value(ws.cell_class(ws.cell_of(x, y)));
-            }
-        }
+        vegetation.visit_row(y, [&](int x) { dst[x] = to_value(ws.cell_class(ws.cell_of(x, y))); });
     }
 }
 

@@ -200,9 +200,7 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
                     vegetation_px += std::popcount(bits);
                     if (!sample_row)
                         continue;
-                    while (bits) {
-                        const int x = w * 64 + std::countr_zero(bits);
-                        bits &= bits - 1;
+                    visit_bits(bits, w * 64, [&](int x) {
                         ++sampled_px;
                         const cv::Vec3b& p = bgr[x];
                         const int sum = p[0] + p[1] + p[2];
@@ -226,7 +224,7 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
                             ndvi_sum += ndvi;
                             ndvi2 += ndvi * ndvi;
                         }
-                    }
+                    });
                 }
                 s.vegetation_px += vegetation_px;
                 s.sampled_px += sampled_px;
@@ -371,19 +369,13 @@ void class_map(const Workspace& dws, const ClassifyWorkspace& ws, std::span<cons
     if (vegetation.width() != size.width || vegetation.height() != size.height)
         return;
     for (int y = 0; y < size.height; ++y) {
-        const std::uint64_t* vrow = vegetation.row(y);
         const auto* index = ws.plant_index().ptr<std::uint16_t>(y);
         auto* dst = out.ptr<std::uint8_t>(y);
-        for (int w = 0; w < vegetation.words_per_row(); ++w) {
-            std::uint64_t bits = vrow[w];
-            while (bits) {
-                const int x = w * 64 + std::countr_zero(bits);
-                bits &= bits - 1;
-                const std::size_t id = index[x];
-                if (id > 0 && id <= plant_classes.size())
-                    dst[x] = to_value(plant_classes[id - 1]);
-            }
-        }
+        vegetation.visit_row(y, [&](int x) {
+            const std::size_t id = index[x];
+            if (id > 0 && id <= plant_classes.size())
+                dst[x] = to_value(plant_classes[id - 1]);
+        });
     }
 }
 
@@ -395,8 +387,13 @@ namespace {
 // (internally 0 crop, 1 weed: PREDICT_SUM over the trees then counts the
 // weed votes); null with `error` set if it cannot be trained.
 cv::Ptr<cv::ml::RTrees> train_forest(const cv::Mat& samples, const cv::Mat& labels, int columns,
-                                     const ForestOptions& options, bool importance, std::string& error)
+                                     const ForestOptions& options, bool importance, std::string& error,
+                                     const cv::Mat& weights = {})
 {
+    if (!weights.empty() && (weights.type() != CV_32FC1 || weights.total() != static_cast<std::size_t>(samples.rows))) {
+        error = "sample weights must be one CV_32F value per row";
+        return {};
+    }
     if (samples.type() != CV_32FC1 || samples.cols != columns || labels.type() != CV_32SC1 ||
         labels.rows != samples.rows || labels.cols != 1) {
         error = "training data must be CV_32F rows of " + std::to_string(columns) +
@@ -405,6 +402,7 @@ cv::Ptr<cv::ml::RTrees> train_forest(const cv::Mat& samples, const cv::Mat& labe
     }
     cv::Mat responses(labels.rows, 1, CV_32SC1);
     int counts[2] = {0, 0};
+    double weighed[2] = {0, 0};   // the classes' summed weights, which the priors balance
     for (int i = 0; i < labels.rows; ++i) {
         const int label = labels.at<int>(i);
         if (label != to_value(PlantClass::Crop) && label != to_value(PlantClass::Weed)) {
@@ -413,6 +411,7 @@ cv::Ptr<cv::ml::RTrees> train_forest(const cv::Mat& samples, const cv::Mat& labe
         }
         responses.at<int>(i) = label == to_value(PlantClass::Weed) ? 1 : 0;
         ++counts[responses.at<int>(i)];
+        weighed[responses.at<int>(i)] += weights.empty() ? 1.0 : static_cast<double>(weights.at<float>(i));
     }
     if (counts[0] == 0 || counts[1] == 0) {
         error = "training needs crop and weed plants (" + std::to_string(counts[0]) + " crop, " +
@@ -426,16 +425,20 @@ cv::Ptr<cv::ml::RTrees> train_forest(const cv::Mat& samples, const cv::Mat& labe
     forest->setCalculateVarImportance(importance);
     forest->setTermCriteria(cv::TermCriteria(cv::TermCriteria::MAX_ITER, options.trees, 0));
     if (options.balance_classes) {
-        const double total = counts[0] + counts[1];
-        cv::Mat priors = (cv::Mat_<float>(1, 2) << static_cast<float>(total / (2.0 * counts[0])),
-                          static_cast<float>(total / (2.0 * counts[1])));
+        const double total = weighed[0] + weighed[1];
+        cv::Mat priors = (cv::Mat_<float>(1, 2) << static_cast<float>(total / (2.0 * weighed[0])),
+                          static_cast<float>(total / (2.0 * weighed[1])));
         forest->setPriors(priors);
     }
     try {
         // The forest draws its bootstrap samples and split variables from
         // the thread's cv::theRNG(): seeded, the same data gives the same forest.
         cv::theRNG() = cv::RNG(options.seed);
-        if (!forest->train(cv::ml::TrainData::create(samples, cv::ml::ROW_SAMPLE, responses))) {
+        const auto data = weights.empty()
+                              ? cv::ml::TrainData::create(samples, cv::ml::ROW_SAMPLE, responses)
+                              : cv::ml::TrainData::create(samples, cv::ml::ROW_SAMPLE, responses, cv::noArray(),
+                                                          cv::noArray(), weights.reshape(1, 1));
+        if (!forest->train(data)) {
             error = "OpenCV RTrees training failed";
             return {};
         }
@@ -484,9 +487,9 @@ std::optional<PlantClassifier> PlantClassifier::train(const cv::Mat& samples, co
 }
 
 bool PlantClassifier::train_cells(const cv::Mat& samples, const cv::Mat& labels, const ForestOptions& options,
-                                  double cell_mm, std::string& error)
+                                  double cell_mm, std::string& error, const cv::Mat& weights)
 {
-    auto forest = train_forest(samples, labels, kCellFeatureCount, options, true, error);
+    auto forest = train_forest(samples, labels, kCellFeatureCount, options, true, error, weights);
     if (!forest)
         return false;
     cell_forest_ = forest;
@@ -527,6 +530,7 @@ bool PlantClassifier::save(const std::filesystem::path& path, ModelInfo info, st
         fs << "trees" << info.trees;
         fs << "cell_mm" << info_.cell_mm;
         fs << "cell_trees" << info_.cell_trees;
+        fs << "map_weed_bar" << info_.map_weed_bar;
         {
             std::vector<std::string> names;
             for (int f = 0; f < kCellFeatureCount; ++f)
@@ -612,6 +616,12 @@ std::optional<PlantClassifier> PlantClassifier::load(const std::filesystem::path
             return std::nullopt;
         }
         info.cell_mm = static_cast<double>(meta["cell_mm"]);
+        // A model written before the map had its own bar: the most likely class.
+        info.map_weed_bar = meta["map_weed_bar"].empty() ? 0.5 : static_cast<double>(meta["map_weed_bar"]);
+        if (!(info.map_weed_bar > 0 && info.map_weed_bar < 1)) {
+            error = name + ": map_weed_bar must lie between 0 and 1";
+            return std::nullopt;
+        }
         if (!fs["cell_forest"].empty()) {
             model.cell_forest_ = cv::ml::RTrees::create();
             model.cell_forest_->read(fs["cell_forest"]);

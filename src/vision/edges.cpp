@@ -119,9 +119,9 @@ void extend_to_mixed_edges(const cv::Mat& index_u8, const BitMask& plant, int so
         const std::uint64_t* inside = plant.row(y);
         std::uint64_t* cand = candidates.row(y);
         std::uint64_t* row = out.row(y);
-        for (int w = 0; w < candidates.words_per_row(); ++w) {
-            for (std::uint64_t bits = cand[w] & ~inside[w]; bits != 0; bits &= bits - 1) {
-                const int x = w * 64 + std::countr_zero(bits);
+        visit_row_bits(
+            0, candidates.words_per_row(), [&](int w) { return cand[w] & ~inside[w]; },
+            [&](int x) {
                 long n = 0, s = 0;
                 for (int c = std::max(x - r, 0); c <= std::min(x + r, width - 1); ++c) {
                     n += count[c];
@@ -129,9 +129,8 @@ void extend_to_mixed_edges(const cv::Mat& index_u8, const BitMask& plant, int so
                 }
                 // index > soil + (s / n - soil) / 2, in integers.
                 if (n >= min_plant_px && 2 * n * index[x] > n * soil + s)
-                    row[w] |= std::uint64_t{1} << (x & 63);
-            }
-        }
+                    row[x >> 6] |= std::uint64_t{1} << (x & 63);
+            });
     }
 }
 

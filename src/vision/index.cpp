@@ -230,15 +230,12 @@ void keep_greener_than_red(const cv::Mat& bgr, int parts, BitMask& mask)
     for (int y = 0; y < mask.height(); ++y) {
         const cv::Vec3b* px = bgr.ptr<cv::Vec3b>(y);
         std::uint64_t* words = mask.row(y);
-        for (int w = 0; w < mask.words_per_row(); ++w) {
-            for (std::uint64_t bits = words[w]; bits != 0; bits &= bits - 1) {
-                const int bit = std::countr_zero(bits);
-                const cv::Vec3b& p = px[w * 64 + bit];
-                const int b = p[0], g = p[1], r = p[2];
-                if (parts * (g - r) <= b + g + r)
-                    words[w] &= ~(std::uint64_t{1} << bit);
-            }
-        }
+        visit_row_bits(0, mask.words_per_row(), [words](int w) { return words[w]; }, [&](int x) {
+            const cv::Vec3b& p = px[x];
+            const int b = p[0], g = p[1], r = p[2];
+            if (parts * (g - r) <= b + g + r)
+                words[x >> 6] &= ~(std::uint64_t{1} << (x & 63));
+        });
     }
 }
 

@@ -131,7 +131,7 @@ TEST(RealTime, ClassifierAllocatesNothingOnceWarm)
     for (int round = 0; round < 2; ++round) {   // the second frame reuses what the first left
         before = stemd::test::allocations();
         cell_features(frame, params, *ws, *out, *cws, *cells);
-        classify_cells(*cell_model, 0.6, 0.85, *cells);
+        classify_cells(*cell_model, *cells);
         cell_class_map(*ws, *cells, map);
         classify_plants(*cell_model, *cws, *cells, out->plants.size(), 0.6, 0.85, probabilities, classes);
         EXPECT_EQ(stemd::test::allocations() - before, 0) << "heap allocations in the cells, round " << round;

@@ -4,12 +4,15 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <random>
 
 #include <opencv2/imgproc.hpp>
 
 #include "stemd/vision/cells.hpp"
 #include "stemd/vision/classify.hpp"
+#include "vision_classify_test_util.hpp"
 
 namespace fs = std::filesystem;
 using namespace stemd;
@@ -17,14 +20,7 @@ using namespace stemd::vision;
 
 namespace {
 
-Params test_params()
-{
-    Params params;
-    params.gsd_mm_per_px = 0.3;
-    params.min_plant_area_mm2 = 2;
-    params.group_gap_mm = 3;
-    return params;
-}
+Params test_params() { return test::classify_test_params(); }
 
 // Soil with two plants touching side by side, so that detect() merges
 // them into one: on the left a smooth, yellowish-green disc ("crop"), on
@@ -129,10 +125,7 @@ PlantClassifier pair_model(const Params& params, double cell_mm, std::uint64_t s
     return std::move(*model);
 }
 
-fs::path temp_path(const std::string& name)
-{
-    return fs::temp_directory_path() / ("stemd-cells-" + std::to_string(::getpid()) + "-" + name);
-}
+fs::path temp_path(const std::string& name) { return test::classify_temp_path("stemd-cells", name); }
 
 }  // namespace
 
@@ -148,7 +141,7 @@ TEST(Cells, TouchingPlantsOfDifferentColourAndTextureGetDifferentClassesInTheMap
     touching_pair({320, 240}, {150, 110}, 36, bgr, truth);
     Frame frame(bgr, params, cell_mm);
     ASSERT_EQ(frame.det.plants.size(), 1u) << "the two plants must touch and be one blob";
-    classify_cells(model, 0.5, 0.5, frame.cells);
+    classify_cells(model, frame.cells);
     cv::Mat map;
     cell_class_map(frame.ws, frame.cells, map);
     // Each half of the blob: the share of its vegetation pixels the map
@@ -220,26 +213,19 @@ TEST(Cells, TheFlatForestVotesAsOpenCvDoes)
         samples.at<float>(i, 0) += weed ? 0.8f : 0.0f;
         labels.at<int>(i) = to_value(weed ? PlantClass::Weed : PlantClass::Crop);
     }
-    std::string error;
-    const auto model = PlantClassifier::train(samples, labels, {.trees = 25}, error);
-    ASSERT_TRUE(model) << error;
-    const fs::path path = temp_path("flat.yaml");
-    ASSERT_TRUE(model->save(path, {.gsd_mm_per_px = 0.3}, error)) << error;
-    cv::FileStorage file(path.string(), cv::FileStorage::READ);
-    auto forest = cv::ml::RTrees::create();
-    forest->read(file["forest"]);
-    const FlatForest flat = flatten(*forest);
+    const test::SavedPlantForest saved(samples, labels, 25, temp_path("flat.yaml"));
+    ASSERT_TRUE(saved.model) << saved.error;
+    const FlatForest flat = flatten(*saved.opencv);
     ASSERT_EQ(flat.roots.size(), 25u);
     int split = 0;
     for (int i = 0; i < samples.rows; ++i) {
         FeatureRow row;
         std::copy(samples.ptr<float>(i), samples.ptr<float>(i) + kPlantFeatureCount, row.begin());
         const float p = flat.weed_fraction(row.data());
-        EXPECT_EQ(p, model->weed_probability(row)) << "row " << i;
+        EXPECT_EQ(p, saved.model->weed_probability(row)) << "row " << i;
         split += p > 0 && p < 1;
     }
     EXPECT_GT(split, 0) << "the check needs split votes";
-    fs::remove(path);
 }
 
 TEST(Cells, CellFeaturesMeasureColourWidthAndTheRow)
@@ -290,7 +276,7 @@ TEST(Cells, APlantWithoutClassifiedCellsIsUnknownAndAModelWithoutCellsUsesThePla
     const auto plants_only = PlantClassifier::train(samples, labels, {.trees = 5}, error);
     ASSERT_TRUE(plants_only) << error;
     ASSERT_FALSE(plants_only->has_cells());
-    classify_cells(*plants_only, 0.6, 0.85, frame.cells);
+    classify_cells(*plants_only, frame.cells);
     for (const std::uint32_t c : frame.cells.vegetated())
         EXPECT_EQ(frame.cells.cell_class(c), PlantClass::Unknown);
     std::array<float, kMaxPlants> p{};
@@ -302,8 +288,96 @@ TEST(Cells, APlantWithoutClassifiedCellsIsUnknownAndAModelWithoutCellsUsesThePla
     const PlantClassifier with_cells = pair_model(params, 3.0, 1);
     cell_features({}, params, frame.ws, frame.det, frame.cws, frame.cells);
     EXPECT_TRUE(frame.cells.vegetated().empty());
-    classify_cells(with_cells, 0.6, 0.85, frame.cells);
+    classify_cells(with_cells, frame.cells);
     classify_plants(with_cells, frame.cws, frame.cells, 1, 0.6, 0.85, p, classes);
     EXPECT_EQ(classes[0], PlantClass::Unknown);
     EXPECT_LT(p[0], 0.0f);
+}
+
+TEST(Cells, TheClassMapTakesEachCellsMostLikelyClassAtTheModelsBar)
+{
+    const Params params = test_params();
+    PlantClassifier model = pair_model(params, 1.5, 3);
+    EXPECT_EQ(model.info().map_weed_bar, 0.5) << "a trained model starts at the most likely class";
+    cv::Mat bgr, truth;
+    touching_pair({320, 240}, {160, 120}, 34, bgr, truth);
+    Frame frame(bgr, params, 1.5);
+    ASSERT_GT(frame.cells.vegetated().size(), 50u);
+    // Unlike the treat decision, the map leaves no vegetated cell unknown:
+    // weed from the bar up, crop below it.
+    for (const double bar : {0.5, 0.3, 0.7}) {
+        model.set_map_weed_bar(bar);
+        classify_cells(model, frame.cells);
+        int weed = 0, crop = 0;
+        for (const std::uint32_t c : frame.cells.vegetated()) {
+            const float p = frame.cells.weed_probability(c);
+            EXPECT_EQ(frame.cells.cell_class(c), p >= static_cast<float>(bar) ? PlantClass::Weed : PlantClass::Crop)
+                << "bar " << bar << ", p " << p;
+            weed += frame.cells.cell_class(c) == PlantClass::Weed;
+            crop += frame.cells.cell_class(c) == PlantClass::Crop;
+        }
+        EXPECT_GT(weed, 0);
+        EXPECT_GT(crop, 0);
+    }
+    // The bar travels in the model file; a file without one reads 0.5.
+    const fs::path path = temp_path("bar.yaml");
+    std::string error;
+    ASSERT_TRUE(model.save(path, {.gsd_mm_per_px = 0.3}, error)) << error;
+    const auto loaded = PlantClassifier::load(path, error);
+    ASSERT_TRUE(loaded) << error;
+    EXPECT_EQ(loaded->info().map_weed_bar, 0.7);
+    {
+        // The same file without map_weed_bar, as models written before it.
+        std::ostringstream all;
+        all << std::ifstream(path).rdbuf();
+        std::string text = all.str();
+        const auto at = text.find("map_weed_bar");
+        ASSERT_NE(at, std::string::npos);
+        const auto line = text.rfind('\n', at) + 1;
+        text.erase(line, text.find('\n', at) - line + 1);
+        std::ofstream(path.string() + ".old.yaml") << text;
+    }
+    const auto old = PlantClassifier::load(path.string() + ".old.yaml", error);
+    ASSERT_TRUE(old) << error << "\n" << std::ifstream(path.string() + ".old.yaml").rdbuf();
+    EXPECT_EQ(old->info().map_weed_bar, 0.5);
+    fs::remove(path);
+    fs::remove(path.string() + ".old.yaml");
+}
+
+TEST(Cells, TrainingCellsCanBeWeighedAndTheClassesStayBalancedByWeight)
+{
+    // Where feature 0 is negative, the crop and weed rows are as many but
+    // the weeds weigh 9 times more; where positive, the crops do. Both
+    // classes weigh 500 in all, so the balance changes nothing, and only
+    // the weights tell the two halves apart.
+    const int n = 200;
+    cv::Mat samples(n, kCellFeatureCount, CV_32FC1, cv::Scalar(0)), labels(n, 1, CV_32SC1), weights(n, 1, CV_32FC1);
+    cv::RNG rng(9);
+    for (int i = 0; i < n; ++i) {
+        const bool left = i < n / 2, weed = i % 2 == 0;
+        samples.at<float>(i, 0) = static_cast<float>(left ? rng.uniform(-2.0, -0.5) : rng.uniform(0.5, 2.0));
+        // Every feature tells the halves apart, so that every split does.
+        for (int f = 1; f < kCellFeatureCount; ++f)
+            samples.at<float>(i, f) = samples.at<float>(i, 0);
+        labels.at<int>(i) = to_value(weed ? PlantClass::Weed : PlantClass::Crop);
+        weights.at<float>(i) = (left == weed) ? 9.0f : 1.0f;
+    }
+    cv::Mat plant_samples, plant_labels;
+    plant_rows(plant_samples, plant_labels);
+    std::string error;
+    auto model = PlantClassifier::train(plant_samples, plant_labels, {.trees = 5}, error);
+    ASSERT_TRUE(model) << error;
+    ASSERT_TRUE(model->train_cells(samples, labels, {.trees = 30, .max_depth = 4}, 3.0, error, weights)) << error;
+    CellRow row{};
+    row.fill(-1.2f);
+    const float left = model->cell_weed_probability(row);
+    row.fill(1.2f);
+    const float right = model->cell_weed_probability(row);
+    // Unweighed, each half is a coin toss; weighed, its heavy class wins
+    // the majority of the trees.
+    EXPECT_GT(left, 0.5f) << "the heavy weeds";
+    EXPECT_LT(right, 0.5f) << "the heavy crops";
+    // Weights that do not fit the rows are refused.
+    EXPECT_FALSE(model->train_cells(samples, labels, {.trees = 3}, 3.0, error, weights.rowRange(0, 10)));
+    EXPECT_NE(error.find("weights"), std::string::npos) << error;
 }

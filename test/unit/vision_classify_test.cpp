@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "stemd/vision/classify.hpp"
+#include "vision_classify_test_util.hpp"
 #include "vision_test_util.hpp"
 
 namespace fs = std::filesystem;
@@ -39,14 +40,7 @@ cv::Mat plants_frame(cv::Size size, std::uint64_t seed)
     return bgr;
 }
 
-Params test_params()
-{
-    Params params;
-    params.gsd_mm_per_px = 0.3;
-    params.min_plant_area_mm2 = 2;
-    params.group_gap_mm = 3;
-    return params;
-}
+Params test_params() { return test::classify_test_params(); }
 
 // detect() then plant_features() on one frame; the workspaces stay for the checks.
 struct Classified {
@@ -78,10 +72,7 @@ void toy_data(int rows, std::uint32_t seed, cv::Mat& samples, cv::Mat& labels)
     }
 }
 
-fs::path temp_path(const std::string& name)
-{
-    return fs::temp_directory_path() / ("stemd-classify-" + std::to_string(::getpid()) + "-" + name);
-}
+fs::path temp_path(const std::string& name) { return test::classify_temp_path("stemd-classify", name); }
 
 }  // namespace
 
@@ -258,17 +249,11 @@ TEST(Classify, WeedProbabilityIsTheFractionOfTreesVotingWeed)
     toy_data(200, 3, samples, labels);
     // Overlapping clouds, so that some votes are split.
     samples.col(f_log_area_mm2) *= 0.05;
-    std::string error;
-    const auto model = PlantClassifier::train(samples, labels, {.trees = 25}, error);
-    ASSERT_TRUE(model) << error;
-    const fs::path path = temp_path("votes.yaml");
-    ASSERT_TRUE(model->save(path, {.gsd_mm_per_px = 0.3}, error)) << error;
+    const test::SavedPlantForest saved(samples, labels, 25, temp_path("votes.yaml"));
+    ASSERT_TRUE(saved.model) << saved.error;
     // The same forest through OpenCV's own vote count.
-    cv::FileStorage fs(path.string(), cv::FileStorage::READ);
-    auto forest = cv::ml::RTrees::create();
-    forest->read(fs["forest"]);
     cv::Mat votes;
-    forest->getVotes(samples, votes, 0);
+    saved.opencv->getVotes(samples, votes, 0);
     // getVotes: a header row of class labels (0 crop, 1 weed), then counts.
     ASSERT_EQ(votes.cols, 2);
     ASSERT_EQ(votes.at<int>(0, 1), 1);
@@ -279,10 +264,9 @@ TEST(Classify, WeedProbabilityIsTheFractionOfTreesVotingWeed)
             row[static_cast<std::size_t>(f)] = samples.at<float>(i, f);
         const int weed_votes = votes.at<int>(i + 1, 1);
         split += weed_votes > 0 && weed_votes < 25;
-        EXPECT_FLOAT_EQ(model->weed_probability(row), weed_votes / 25.0f);
+        EXPECT_FLOAT_EQ(saved.model->weed_probability(row), weed_votes / 25.0f);
     }
     EXPECT_GT(split, 0) << "the check needs some split votes";
-    fs::remove(path);
 }
 
 TEST(Classify, ModelFileRoundTripsWithItsMetadata)

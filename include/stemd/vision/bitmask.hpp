@@ -2,6 +2,7 @@
 // stages work on whole words, which is what makes them cheap.
 #pragma once
 
+#include <bit>
 #include <cstdint>
 #include <vector>
 
@@ -10,6 +11,26 @@
 #include "stemd/vision/types.hpp"
 
 namespace stemd::vision {
+
+// visit(x) for each set bit of `bits`, lowest first, bit 0 being pixel x0.
+// Inline templates: the walk compiles to the same loop written by hand.
+template <class Visit>
+inline void visit_bits(std::uint64_t bits, int x0, Visit&& visit)
+{
+    for (; bits != 0; bits &= bits - 1)
+        visit(x0 + std::countr_zero(bits));
+}
+
+// The row visitor: visit(x) for each set pixel of words [w0, w1) of a row,
+// word w taken as word_of(w) (a mask row's word, or that word filtered or
+// combined with others). word_of(w) is read once, before its bits are
+// visited, so a visit may change the row it came from.
+template <class WordOf, class Visit>
+inline void visit_row_bits(int w0, int w1, WordOf&& word_of, Visit&& visit)
+{
+    for (int w = w0; w < w1; ++w)
+        visit_bits(word_of(w), w * 64, visit);
+}
 
 class BitMask {
 public:
@@ -33,6 +54,13 @@ public:
         return x >= 0 && y >= 0 && x < width_px_ && y < height_px_ && get(x, y);
     }
     void set(int x, int y) { row(y)[x >> 6] |= std::uint64_t{1} << (x & 63); }
+    // visit(x) for each set pixel of row y, left to right.
+    template <class Visit>
+    void visit_row(int y, Visit&& visit) const
+    {
+        const std::uint64_t* words = row(y);
+        visit_row_bits(0, words_per_row_, [words](int w) { return words[w]; }, visit);
+    }
     long count() const;
     std::size_t reserved_bytes() const { return words_.capacity() * sizeof(std::uint64_t); }
 

@@ -110,7 +110,7 @@ public:
 private:
     friend void cell_features(const FrameView&, const Params&, const Workspace&, const Detections&,
                               const ClassifyWorkspace&, CellWorkspace&);
-    friend void classify_cells(const PlantClassifier&, double, double, CellWorkspace&);
+    friend void classify_cells(const PlantClassifier&, CellWorkspace&);
     struct Sums {
         int vegetation_px, sampled_px, boundary;   // on the sampled rows
         float r, g, rr, gg, brightness, gradient, sxx, syy, sxy, ndvi, ndvi2;
@@ -143,13 +143,16 @@ void cell_features(const FrameView& frame, const Params& params, const Workspace
                    const Detections& detections, const ClassifyWorkspace& plants, CellWorkspace& workspace);
 
 // Each vegetated cell's weed probability from the model's cell forest and
-// its class by decide_class(); every cell Unknown when the model has none.
-void classify_cells(const PlantClassifier& model, double min_confidence, double weed_confidence,
-                    CellWorkspace& workspace);
+// its most likely class for the class map: weed at the model's
+// map_weed_bar or above, crop below. The map describes the scene; whether
+// a plant is treated is decided per plant (classify_plants(), with the
+// asymmetric decide_class()). Every cell Unknown when the model has no
+// cell forest.
+void classify_cells(const PlantClassifier& model, CellWorkspace& workspace);
 
 // The class map from the cells: each vegetation pixel gets its cell's class
-// (0 soil, 1 crop, 2 weed; unknown cells 0). `out` CV_8UC1 of the frame
-// size, (re)created only when its size differs.
+// (0 soil, 1 crop, 2 weed; cells without a class 0). `out` CV_8UC1 of the
+// frame size, (re)created only when its size differs.
 void cell_class_map(const Workspace& detect_workspace, const CellWorkspace& workspace, cv::Mat& out);
 
 // Each plant's weed probability from its cells: the mean of their

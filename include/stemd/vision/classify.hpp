@@ -159,6 +159,10 @@ struct ModelInfo {
     int trees = 0;
     double cell_mm = 0;                    // the cell forest's cell side (vision/cells)
     int cell_trees = 0;
+    // The class map's decision per cell: weed at a probability of at least
+    // this, crop below (the most likely class, not the treat decision).
+    // stemd-train fits it on the out-of-fold per-pixel balanced accuracy.
+    double map_weed_bar = 0.5;
     std::string cross_validation{};        // the figures stemd-train printed, as text
 };
 
@@ -226,11 +230,15 @@ public:
     float weed_probability(const FeatureRow& features) const;
 
     const ModelInfo& info() const { return info_; }
+    // The class map's weed bar (ModelInfo::map_weed_bar), kept by save().
+    void set_map_weed_bar(double bar) { info_.map_weed_bar = bar; }
 
     // The cell forest: rows of kCellFeatureCount (vision/cells), labels as
     // for train(), cells of cell_mm. Deterministic for options.seed.
+    // `weights` (CV_32F, one per row, or empty for 1 each) weigh the rows,
+    // and the classes are then balanced by their summed weights.
     bool train_cells(const cv::Mat& samples, const cv::Mat& labels, const ForestOptions& options, double cell_mm,
-                     std::string& error);
+                     std::string& error, const cv::Mat& weights = {});
     bool has_cells() const { return !cell_flat_.roots.empty(); }
     // The fraction of the cell forest's trees that vote weed for one row
     // of kCellFeatureCount features; allocates nothing.
