@@ -246,8 +246,8 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
                                   : cv::Rect();
 
     // 3. Features from the sums and the plant's own measures.
-    // The frame's mean R+G+B from every 4th pixel of every 4th row, as the
-    // chromatic index samples it: a mean needs no more.
+    // The frame's mean R+G+B from every 4th pixel of every 4th row: a mean
+    // needs no more (models store features computed this way).
     long frame_sum = 0, frame_samples = 0;
     for (int y = 0; y < height; y += 4) {
         const auto* row = frame.bgr.ptr<cv::Vec3b>(y);
