@@ -3,7 +3,10 @@
 # stand-in for systemd (NOTIFY_SOCKET, WATCHDOG_USEC) keeps sending WATCHDOG=1
 # while its threads progress, and stops once debug.stall_processing_after_frames
 # has stuck the processing thread, so that systemd (WatchdogSec=, Restart=)
-# would kill and restart it. Both runs replay the same looping recording.
+# would kill and restart it. Both runs replay the same looping recording,
+# with the robot's real-time settings: a starved normal-priority capture
+# thread makes no progress for a second and rightly withholds the watchdog
+# in the control run too.
 #   watchdog_stall.sh STEMD TOOLS_DIR SOURCE_DIR
 set -euo pipefail
 stemd=$1 tools=$2 src=$3
@@ -25,7 +28,7 @@ run() {
   local socket="$tmp/$name.sock"
   start_notify_listener "$socket" "$tmp/$name.messages" 120 stamp
   NOTIFY_SOCKET="$socket" WATCHDOG_USEC=$watchdog_usec "$stemd" --config "$src/config/stemd.yaml" \
-    --set source.replay_loop=true "$@" --replay "$tmp/rec" >/dev/null 2>"$tmp/$name.err" &
+    "${realtime_sets[@]}" --set source.replay_loop=true "$@" --replay "$tmp/rec" >/dev/null 2>"$tmp/$name.err" &
   daemon=$!
   pid="$listener $daemon"
   # Condition first (generous deadline: a loaded machine), then a fixed
