@@ -5,7 +5,7 @@
 #   listen.sh STEMD TOOLS_DIR SOURCE_DIR
 . "$(dirname "$0")/common.sh" "$@"
 holder=""
-trap '[ -n "$holder" ] && kill "$holder" 2>/dev/null; rm -rf "$tmp"' EXIT
+trap '[ -z "$holder" ] || kill "$holder" 2>/dev/null || true; rm -rf "$tmp"' EXIT
 
 printf 'web:\n  listen: localhost:8080\n' >"$tmp/bad.yaml"
 set +e
@@ -34,7 +34,8 @@ s.bind(("127.0.0.1", 0))
 s.listen(1)
 open(sys.argv[1] + ".tmp", "w").write(str(s.getsockname()[1]))
 import os; os.rename(sys.argv[1] + ".tmp", sys.argv[1])
-time.sleep(120)
+while True:  # until the EXIT trap kills it: it must outlive stemd's run
+    time.sleep(3600)
 PY
 holder=$!
 for _ in $(seq 300); do [ -s "$tmp/port" ] && break; sleep 0.1; done
