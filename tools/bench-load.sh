@@ -32,7 +32,7 @@ if [ ! -f "$strip/frames.csv" ]; then
 fi
 out=$(mktemp -d)
 hog_pid=
-trap '[ -n "$hog_pid" ] && kill "$hog_pid" 2>/dev/null; rm -rf "$out"' EXIT
+trap '[ -z "$hog_pid" ] || kill "$hog_pid" 2>/dev/null || true; rm -rf "$out"' EXIT
 
 echo "machine: $(nproc) CPUs, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'), $(uname -r), $(date -u +%F)"
 echo "strip: $(($(wc -l < "$strip/frames.csv") - 1)) frames of 1296x966 at 30 fps; load: $([ "$stress" = 1 ] && echo "stress-ng --cpu $hogs" || echo none)"

@@ -26,7 +26,7 @@ if [ ! -f "$rec/frames.csv" ]; then
 fi
 out=$(mktemp -d)
 client_pid=
-trap '[ -n "$client_pid" ] && kill "$client_pid" 2>/dev/null; rm -rf "$out"' EXIT
+trap '[ -z "$client_pid" ] || kill "$client_pid" 2>/dev/null || true; rm -rf "$out"' EXIT
 
 echo "machine: $(nproc) CPUs, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'), $(uname -r), load $(cut -d' ' -f1-3 /proc/loadavg), $(date -u +%F)"
 echo "recording: $frames frames of 1296x966 at 30 fps, preloaded, paced; web.fps 5 (default), web.max_width_px 640"

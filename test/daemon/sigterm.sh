@@ -14,7 +14,7 @@ src=$3
 tmp=$(mktemp -d)
 pid=
 hole=
-trap '[ -n "$pid" ] && kill -KILL "$pid" 2>/dev/null; [ -n "$hole" ] && kill "$hole" 2>/dev/null; rm -rf "$tmp"' EXIT
+trap '[ -z "$pid" ] || kill -KILL "$pid" 2>/dev/null || true; [ -z "$hole" ] || kill "$hole" 2>/dev/null || true; rm -rf "$tmp"' EXIT
 fail() { echo "FAIL: $*" >&2; exit 1; }
 kBoundMs=5000
 

@@ -7,7 +7,7 @@ tools=$2
 src=$3
 tmp=$(mktemp -d)
 stemd_pid=""
-trap '[ -n "$stemd_pid" ] && kill "$stemd_pid" 2>/dev/null; rm -rf "$tmp"' EXIT
+trap '[ -z "$stemd_pid" ] || kill "$stemd_pid" 2>/dev/null || true; rm -rf "$tmp"' EXIT
 fail() { echo "FAIL: $*" >&2; exit 1; }
 
 # Start stemd with the view on a free port (web.listen port 0: the kernel
