@@ -14,12 +14,12 @@ spatial: where the human drew the outline, not what colour the pixels have.
 Needs python3-opencv and python3-numpy (Debian).
 """
 import argparse
-import csv
 import os
 import sys
 
 import cv2
 import numpy as np
+from masked_frames import masked_rows
 
 
 def best_threshold_iou(index, truth):
@@ -60,17 +60,9 @@ def main():
     parser.add_argument("--gt-vegetation", choices=["nonzero", "zero"], default="nonzero")
     parser.add_argument("--frames", type=int, default=0, help="at most this many frames (0: all)")
     args = parser.parse_args()
-    listing = os.path.join(args.recording, "frames.csv")
-    try:
-        with open(listing, newline="") as f:
-            rows = list(csv.DictReader(f))
-    except OSError as e:
-        sys.exit(f"iou-ceiling: {listing}: {e.strerror}")
-    rows = [row for row in rows if row.get("mask")]
+    rows = masked_rows(args.recording, "iou-ceiling")
     if args.frames:
         rows = rows[: args.frames]
-    if not rows:
-        sys.exit(f"iou-ceiling: {listing}: no frame with a mask")
     totals = {}
     for row in rows:
         bgr = cv2.imread(os.path.join(args.recording, row["rgb"]), cv2.IMREAD_COLOR)

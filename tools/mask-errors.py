@@ -17,12 +17,12 @@ means.
 Needs python3-opencv and python3-numpy (Debian).
 """
 import argparse
-import csv
 import os
 import sys
 
 import cv2
 import numpy as np
+from masked_frames import masked_rows
 
 
 def frame_errors(bgr, truth, predicted):
@@ -69,14 +69,7 @@ def main():
     parser.add_argument("masks", help="stemd-detect --mask-out's folder (255 = vegetation)")
     parser.add_argument("--gt-vegetation", choices=["nonzero", "zero"], default="nonzero")
     args = parser.parse_args()
-    listing = os.path.join(args.recording, "frames.csv")
-    try:
-        with open(listing, newline="") as f:
-            rows = [row for row in csv.DictReader(f) if row.get("mask")]
-    except OSError as e:
-        sys.exit(f"mask-errors: {listing}: {e.strerror}")
-    if not rows:
-        sys.exit(f"mask-errors: {listing}: no frame with a mask")
+    rows = masked_rows(args.recording, "mask-errors")
     results = []
     for i, row in enumerate(rows):
         bgr = cv2.imread(os.path.join(args.recording, row["rgb"]), cv2.IMREAD_COLOR)

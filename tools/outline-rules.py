@@ -27,12 +27,12 @@ Needs python3-opencv and python3-numpy (Debian). A measurement, not part of
 stemd: figures in the README's real-frame section come from it.
 """
 import argparse
-import csv
 import os
 import sys
 
 import cv2
 import numpy as np
+from masked_frames import masked_rows
 
 WINDOW_RADIUS_PX = 5  # segment.edge_radius_px's default
 
@@ -143,14 +143,7 @@ def main():
     parser.add_argument("seed_masks", help="stemd-detect --mask-out DIR with segment.edge_radius_px=0")
     parser.add_argument("--gt-vegetation", choices=["nonzero", "zero"], default="nonzero")
     args = parser.parse_args()
-    listing = os.path.join(args.recording, "frames.csv")
-    try:
-        with open(listing, newline="") as f:
-            rows = [row for row in csv.DictReader(f) if row.get("mask")]
-    except OSError as e:
-        sys.exit(f"outline-rules: {listing}: {e.strerror}")
-    if not rows:
-        sys.exit(f"outline-rules: {listing}: no frame with a mask")
+    rows = masked_rows(args.recording, "outline-rules")
     scores = {name: [] for name in RULES}
     shifts = {(dx, dy): [] for dy in (-1, 0, 1) for dx in (-1, 0, 1)}
     errors = dict(truth=0, fp_near=0, fn_near=0, fp_far=0, fn_far=0)
