@@ -93,27 +93,28 @@ std::optional<ConfigError> Config::load_file(const std::filesystem::path& path)
     return load_text(text, origin);
 }
 
-std::optional<ConfigError> Config::set_override(std::string_view key_equals_value)
+std::optional<ConfigError> Config::set_override(std::string_view key_equals_value, std::string_view source)
 {
-    const std::string origin = cat("--set ", key_equals_value);
+    const std::string origin = cat(source, " ", key_equals_value);
     const std::size_t eq = key_equals_value.find('=');
     const std::string key(trim(key_equals_value.substr(0, eq)));
     if (eq == std::string_view::npos || key.empty())
         return ConfigError{origin, 0, "", "expected KEY=VALUE, e.g. --set closing.radius_px=6"};
     if (const ListSpec* list = list_of_key(key))
-        return set_item_override(*list, key, key_equals_value.substr(eq + 1), origin);
+        return set_item_override(*list, key, key_equals_value.substr(eq + 1), origin, source);
     const KeySpec* spec = find_key(key);
     if (spec == nullptr)
         return ConfigError{origin, 0, key, unknown_key_message(key)};
     ConfigValue value = values_[index_of(*spec)];
-    if (auto message = set_value(*spec, key_equals_value.substr(eq + 1), value))
+    if (auto message = set_value(*spec, key_equals_value.substr(eq + 1), source, value))
         return ConfigError{origin, 0, key, *message};
     values_[index_of(*spec)] = std::move(value);
     return std::nullopt;
 }
 
 std::optional<ConfigError> Config::set_item_override(const ListSpec& list, std::string_view key,
-                                                     std::string_view raw_value, const std::string& origin)
+                                                     std::string_view raw_value, const std::string& origin,
+                                                     std::string_view source)
 {
     const std::string_view section = list.section;
     std::size_t index = 0;
@@ -153,7 +154,7 @@ std::optional<ConfigError> Config::set_item_override(const ListSpec& list, std::
         }
         staged.items.push_back(std::move(item));
     }
-    if (auto message = set_value(*spec, raw_value, staged.items[index][item_key_index(list, *spec)]))
+    if (auto message = set_value(*spec, raw_value, source, staged.items[index][item_key_index(list, *spec)]))
         return ConfigError{origin, 0, full, *message};
     if (const auto problem = check_item(list, staged, index, false))
         return ConfigError{origin, 0, full, problem->message};

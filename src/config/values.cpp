@@ -342,14 +342,15 @@ std::vector<ConfigValue> default_item(const ListSpec& list)
     return item;
 }
 
-std::optional<std::string> set_value(const KeySpec& spec, std::string_view raw, ConfigValue& value)
+std::optional<std::string> set_value(const KeySpec& spec, std::string_view raw, std::string_view source,
+                                     ConfigValue& value)
 {
     Scalar scalar;
     if (auto message = parse_scalar(raw, scalar))
         return message;
     if (auto message = parse_value(spec, scalar, value))
         return message;
-    value.origin = "--set";
+    value.origin = std::string(source);
     return std::nullopt;
 }
 

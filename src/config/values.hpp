@@ -64,8 +64,9 @@ struct Scalar {
 // Checks a scalar against the key's type, range and choices; stores it in
 // `out` (origin untouched). Returns the message of the first problem.
 std::optional<std::string> parse_value(const KeySpec& spec, const Scalar& scalar, ConfigValue& out);
-// The text after "=" of --set KEY=VALUE into `value` (origin "--set").
-std::optional<std::string> set_value(const KeySpec& spec, std::string_view raw, ConfigValue& value);
+// The text after "=" of --set KEY=VALUE into `value`, its origin `source`.
+std::optional<std::string> set_value(const KeySpec& spec, std::string_view raw, std::string_view source,
+                                     ConfigValue& value);
 
 ConfigValue default_value(const KeySpec& spec);
 std::vector<ConfigValue> default_item(const ListSpec& list);  // every key at its default

@@ -96,7 +96,7 @@ ParamChange change_param(config::Config& config, std::string_view key, std::stri
         return change;
     }
     change.old_value = config.value_of(key);
-    if (const auto error = config.set_override(cat(key, "=", value))) {
+    if (const auto error = config.set_override(cat(key, "=", value), "web")) {
         change.error = cat("key '", key, "': ", error->message);
         return change;
     }

@@ -113,6 +113,12 @@ TEST(WebParams, ChangesGoThroughTheSchemasChecks)
     EXPECT_EQ(ok.old_value, config::format_number(before));
     EXPECT_EQ(ok.new_value, "7.5");
     EXPECT_EQ(config.settings().daemon.vision.soil_sigmas, 7.5);
+    // /api/config tells a change made through the view from one on stemd's
+    // command line.
+    EXPECT_EQ(config.origin_of("segment.soil_sigmas"), "web");
+    EXPECT_NE(config.to_yaml().find("soil_sigmas: 7.5  # "), std::string::npos);
+    EXPECT_NE(config.to_yaml().find("; web\n"), std::string::npos) << config.to_yaml();
+    EXPECT_EQ(config.origin_of("segment.min_class_separation"), "default") << "only the changed key";
 
     const config::KeySpec& spec = *config::find_key("segment.soil_sigmas");
     const std::string range = "[" + config::format_number(spec.min) + ", " + config::format_number(spec.max) + "]";

@@ -65,11 +65,14 @@ reply=$(post /api/param '{"key": "segment.soil_sigmas", "value": 70}' "$token")
 [ "${reply%% *}" = 400 ] || fail "out of range accepted: $reply"
 grep -q '\[1, 20\] sigma' <<<"$reply" || fail "400 without the range: $reply"
 
-# A change: in the running configuration and in the log, old -> new.
+# A change: in the running configuration (origin web) and in the log, old -> new.
 reply=$(post /api/param '{"key": "stem.min_confidence", "value": 0.2}' "$token")
 [ "${reply%% *}" = 200 ] || fail "change refused: $reply"
 fetch /api/config "$tmp/config.json"
 grep -q 'min_confidence: 0.2 ' "$tmp/config.json" || fail "/api/config: $(grep -o 'stem:.\{0,400\}' "$tmp/config.json")"
+# Its origin: the view, not a --set on stemd's command line.
+grep -q 'min_confidence: 0.2  # [^;]*; web' "$tmp/config.json" ||
+  fail "/api/config: origin not web: $(grep -o 'min_confidence.\{0,120\}' "$tmp/config.json")"
 grep -q 'changed stem.min_confidence: 0.05 -> 0.2' "$tmp/err" || fail "no log line: $(grep 'web' "$tmp/err")"
 
 # The disable: TARGETs flow, then stop while disabled (the targets are

@@ -68,7 +68,9 @@ public:
     // List items: "tools.0.offset_mm=650" (or "tools[0].offset_mm=650") sets
     // item 0's key; index == list_size() appends an item at the item
     // defaults, its unique key (id) the lowest value no other item has.
-    std::optional<ConfigError> set_override(std::string_view key_equals_value);
+    // `source` becomes the value's origin: "--set", or "web" for a change
+    // the live view's control makes at run time.
+    std::optional<ConfigError> set_override(std::string_view key_equals_value, std::string_view source = "--set");
 
     // The values, typed: every key stored into the Settings member its
     // schema row is bound to.
@@ -101,7 +103,8 @@ private:
     // The value `key` names (as origin_of() takes it) and its row; nullptr if none.
     const detail::ConfigValue* find_value(std::string_view key, const KeySpec*& spec) const;
     std::optional<ConfigError> set_item_override(const ListSpec& list, std::string_view key,
-                                                 std::string_view raw_value, const std::string& origin);
+                                                 std::string_view raw_value, const std::string& origin,
+                                                 std::string_view source);
 
     std::vector<detail::ConfigValue> values_;  // parallel to schema()
     std::vector<detail::ListValue> lists_;     // parallel to list_schema()
