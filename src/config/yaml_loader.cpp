@@ -227,6 +227,17 @@ private:
         if (message == YAML::ErrorMsg::BLOCK_ENTRY && !key.empty())
             return error(line, key, "invalid YAML: a bare '-' starts a list item, not a value; write \"-\" "
                                     "(double-quoted) for a dash");
+        // "listen: [::1]:8080": '[' or '{' opens a YAML list or map, so
+        // yaml-cpp's message ("end of map not found") says nothing of the cause.
+        const std::string_view text = line_text(line);
+        if (const std::size_t colon = text.find(": "); !key.empty() && colon != std::string_view::npos) {
+            const std::string_view rest = text.substr(colon + 2);
+            const std::string_view value = trim(rest.substr(0, rest.find(" #")));
+            if (value.starts_with('[') || value.starts_with('{'))
+                return error(line, key, cat("invalid YAML: ", message, "; a value that starts with '", value.substr(0, 1),
+                                            "' is a YAML list or map: double-quote it to mean text, e.g. \"",
+                                            value, "\""));
+        }
         return error(line, key, cat("invalid YAML: ", message, indentation_hint(line)));
     }
 

@@ -473,6 +473,11 @@ TEST_F(ConfigFileTest, MalformedLines)
     expect_error("segment:\n  method: \"exg\n", 2, "segment.method", "unterminated double-quoted string");
     expect_error("segment:\n  method: 'exg\n", 2, "segment.method", "unterminated single-quoted string");
     expect_error("segment:\n  method: \"exg\" ndvi\n", 2, "segment.method", "invalid YAML: end of map not found");
+    // An IPv6 address unquoted: '[' opens a YAML list.
+    expect_error("web:\n  listen: [::1]:8080\n", 2, "web.listen",
+                 "invalid YAML: end of map not found; a value that starts with '[' is a YAML list or map: "
+                 "double-quote it to mean text, e.g. \"[::1]:8080\"");
+    expect_error("web:\n  listen: [::1]:8080  # the view\n", 2, "web.listen", "e.g. \"[::1]:8080\"");
     expect_error("segment:\n  method: [exg, ndvi]\n", 2, "segment.method",
                  "expected a value, got a list; a section holds only 'key: value' lines");
     expect_error("segment:\n  method: {a: 1}\n", 2, "segment.method.a", "nesting deeper than one level");
