@@ -14,6 +14,10 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
+#include <memory>
+#include <system_error>
+#include <thread>
 
 #include "stemd/base/clock.hpp"
 #include "stemd/base/unique_fd.hpp"
@@ -46,24 +50,91 @@ double eph_from_gst(const gst_t& gst)
     return 2.4477 * std::sqrt((lat * lat + lon * lon) / 2);
 }
 
+// A host name's addresses, looked up on a thread of its own: getaddrinfo
+// cannot be cut short, and a DNS server that does not answer holds it for
+// the resolver's timeouts (seconds per try), which stop() must not wait
+// for. The lookup thread and its waiter share the result; a waiter that
+// gives up leaves it to the thread, and the next attempt waits for the same
+// lookup instead of starting another.
+class HostLookup {
+public:
+    struct Freer {
+        void operator()(addrinfo* a) const noexcept { ::freeaddrinfo(a); }
+    };
+    using Addresses = std::unique_ptr<addrinfo, Freer>;
+
+    // The addresses of host:port, or nullptr with the reason: EHOSTUNREACH
+    // (the name does not resolve), ETIMEDOUT (not yet by `deadline_ns`),
+    // ECANCELED (stop_fd readable), or why the thread did not start.
+    Addresses resolve(const std::string& host, std::uint16_t port, int stop_fd, std::int64_t deadline_ns, int& err)
+    {
+        if (!in_flight_) {
+            auto shared = std::make_shared<Shared>();
+            shared->done.reset(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
+            if (!shared->done.valid()) {
+                err = errno;
+                return nullptr;
+            }
+            try {
+                std::thread([shared, host, port] {
+                    addrinfo hints{};
+                    hints.ai_family = AF_UNSPEC;
+                    hints.ai_socktype = SOCK_STREAM;
+                    addrinfo* found = nullptr;
+                    if (::getaddrinfo(host.c_str(), std::to_string(port).c_str(), &hints, &found) == 0)
+                        shared->found.reset(found);
+                    shared->ready.store(true, std::memory_order_release);
+                    const std::uint64_t one = 1;
+                    [[maybe_unused]] const ssize_t n = ::write(shared->done.get(), &one, sizeof one);
+                }).detach();
+            } catch (const std::system_error& e) {
+                err = e.code().value();
+                return nullptr;
+            }
+            in_flight_ = std::move(shared);
+        }
+        pollfd fds[2] = {{in_flight_->done.get(), POLLIN, 0}, {stop_fd, POLLIN, 0}};
+        const std::int64_t left_ns = std::max<std::int64_t>(deadline_ns - base::monotonic_ns(), 0);
+        const timespec ts{static_cast<time_t>(left_ns / 1'000'000'000), static_cast<long>(left_ns % 1'000'000'000)};
+        int r = 0;
+        do
+            r = ::ppoll(fds, 2, &ts, nullptr);
+        while (r < 0 && errno == EINTR);
+        if (r < 0) {
+            err = errno;
+            return nullptr;
+        }
+        if (!in_flight_->ready.load(std::memory_order_acquire)) {
+            err = (fds[1].revents & POLLIN) != 0 ? ECANCELED : ETIMEDOUT;
+            return nullptr;
+        }
+        Addresses found = std::move(in_flight_->found);
+        in_flight_.reset();
+        err = found ? 0 : EHOSTUNREACH;
+        return found;
+    }
+
+private:
+    struct Shared {
+        base::UniqueFd done;   // eventfd: wakes the waiter once `ready`
+        Addresses found;
+        std::atomic<bool> ready{false};   // `found` is final
+    };
+    std::shared_ptr<Shared> in_flight_;
+};
+
 // gps_open() connects with a blocking connect(): to a host that drops the
 // SYN (a full backlog, a firewall) it blocks for minutes, and stop() with it.
 // So each attempt first connects here, non-blocking and polled together
-// with the stop eventfd, for at most kConnectTimeoutNs; libgps is only asked
-// once the port answers. It also finds the system's errno (ECONNREFUSED,
-// EHOSTUNREACH...) that libgps's own codes hide. 0 when it connects,
-// ECANCELED when stopped.
-int try_connect(const std::string& host, std::uint16_t port, int stop_fd, std::int64_t timeout_ns)
+// with the stop eventfd, until `deadline_ns`; libgps is only asked once the
+// port answers, and then with the numeric address that answered
+// (`numeric_host`), so that it does not look the name up again. It also
+// finds the system's errno (ECONNREFUSED, EHOSTUNREACH...) that libgps's own
+// codes hide. 0 when it connects, ECANCELED when stopped.
+int try_connect(const addrinfo* found, int stop_fd, std::int64_t deadline_ns, std::string& numeric_host)
 {
-    addrinfo hints{};
-    hints.ai_family = AF_UNSPEC;
-    hints.ai_socktype = SOCK_STREAM;
-    addrinfo* found = nullptr;
-    if (::getaddrinfo(host.c_str(), std::to_string(port).c_str(), &hints, &found) != 0 || found == nullptr)
-        return EHOSTUNREACH;
-    const std::int64_t deadline = base::monotonic_ns() + timeout_ns;
     int err = ETIMEDOUT;
-    for (addrinfo* a = found; a != nullptr; a = a->ai_next) {
+    for (const addrinfo* a = found; a != nullptr; a = a->ai_next) {
         const base::UniqueFd fd(::socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC | SOCK_NONBLOCK, a->ai_protocol));
         if (!fd.valid()) {
             err = errno;
@@ -71,33 +142,33 @@ int try_connect(const std::string& host, std::uint16_t port, int stop_fd, std::i
         }
         if (::connect(fd.get(), a->ai_addr, a->ai_addrlen) == 0) {
             err = 0;
-            break;
-        }
-        err = errno;
-        if (err != EINPROGRESS)
-            continue;
-        pollfd fds[2] = {{fd.get(), POLLOUT, 0}, {stop_fd, POLLIN, 0}};
-        const std::int64_t left_ns = std::max<std::int64_t>(deadline - base::monotonic_ns(), 0);
-        const timespec ts{static_cast<time_t>(left_ns / 1'000'000'000), static_cast<long>(left_ns % 1'000'000'000)};
-        int r = 0;
-        do
-            r = ::ppoll(fds, 2, &ts, nullptr);
-        while (r < 0 && errno == EINTR);
-        if (r > 0 && (fds[1].revents & POLLIN) != 0) {
-            err = ECANCELED;
-            break;
-        }
-        if (r == 0) {
-            err = ETIMEDOUT;
-            break;
-        }
-        socklen_t len = sizeof err;
-        if (r < 0 || ::getsockopt(fd.get(), SOL_SOCKET, SO_ERROR, &err, &len) != 0)
+        } else {
             err = errno;
-        if (err == 0)
-            break;
+            if (err != EINPROGRESS)
+                continue;
+            pollfd fds[2] = {{fd.get(), POLLOUT, 0}, {stop_fd, POLLIN, 0}};
+            const std::int64_t left_ns = std::max<std::int64_t>(deadline_ns - base::monotonic_ns(), 0);
+            const timespec ts{static_cast<time_t>(left_ns / 1'000'000'000), static_cast<long>(left_ns % 1'000'000'000)};
+            int r = 0;
+            do
+                r = ::ppoll(fds, 2, &ts, nullptr);
+            while (r < 0 && errno == EINTR);
+            if (r > 0 && (fds[1].revents & POLLIN) != 0)
+                return ECANCELED;
+            if (r == 0)
+                return ETIMEDOUT;
+            socklen_t len = sizeof err;
+            if (r < 0 || ::getsockopt(fd.get(), SOL_SOCKET, SO_ERROR, &err, &len) != 0)
+                err = errno;
+        }
+        if (err == 0) {
+            char text[NI_MAXHOST];
+            if (::getnameinfo(a->ai_addr, a->ai_addrlen, text, sizeof text, nullptr, 0, NI_NUMERICHOST) != 0)
+                return EADDRNOTAVAIL;
+            numeric_host = text;
+            return 0;
+        }
     }
-    ::freeaddrinfo(found);
     return err;
 }
 
@@ -107,11 +178,14 @@ struct GpsdClient::Session {
     gps_data_t data{};
 };
 
+struct GpsdClient::Lookup : HostLookup {};
+
 GpsdClient::GpsdClient(GnssSpec spec, std::shared_ptr<spdlog::logger> log, std::size_t ring_capacity)
     : spec_(std::move(spec)),
       name_("gpsd " + spec_.host + ":" + std::to_string(spec_.port)),
       log_(std::move(log)),
-      ring_(ring_capacity)
+      ring_(ring_capacity),
+      lookup_(std::make_unique<Lookup>())
 {
 }
 
@@ -189,19 +263,30 @@ void GpsdClient::run()
 
 bool GpsdClient::connect()
 {
-    auto session = std::make_unique<Session>();
-    const std::string port = std::to_string(spec_.port);
-    const int reach = try_connect(spec_.host, spec_.port, stop_fd_.get(), kConnectTimeoutNs);
+    const std::int64_t deadline_ns = base::monotonic_ns() + kConnectTimeoutNs;
+    int reach = 0;
+    const HostLookup::Addresses addresses = lookup_->resolve(spec_.host, spec_.port, stop_fd_.get(), deadline_ns, reach);
+    const char* failed = reach == ETIMEDOUT ? "no answer to the name lookup" : "the name does not resolve";
+    std::string numeric_host;
+    if (addresses) {
+        reach = try_connect(addresses.get(), stop_fd_.get(), deadline_ns, numeric_host);
+        failed = "no connection";
+    }
     if (reach == ECANCELED)
         return false;
+    auto session = std::make_unique<Session>();
+    const std::string port = std::to_string(spec_.port);
     errno = 0;
-    if (reach != 0 || gps_open(spec_.host.c_str(), port.c_str(), &session->data) != 0) {
+    if (reach != 0 || gps_open(numeric_host.c_str(), port.c_str(), &session->data) != 0) {
         const int code = errno;
         failures_.fetch_add(1, std::memory_order_relaxed);
         if (!failure_logged_) {
-            const int err = reach != 0 ? reach : try_connect(spec_.host, spec_.port, stop_fd_.get(), kConnectTimeoutNs);
+            std::string unused;
+            const int err = reach != 0 ? reach
+                                       : try_connect(addresses.get(), stop_fd_.get(),
+                                                     base::monotonic_ns() + kConnectTimeoutNs, unused);
             log_->warn("gpsd {}:{}: cannot connect: {} ({}, errno {}); retrying every {:.1f} s at most", spec_.host,
-                       spec_.port, reach != 0 ? "no connection" : gps_errstr(code), std::strerror(err), err,
+                       spec_.port, reach != 0 ? failed : gps_errstr(code), std::strerror(err), err,
                        static_cast<double>(backoff_.max_ns()) / 1e9);
         }
         failure_logged_ = true;

@@ -21,9 +21,10 @@
 // connection while gpsd is down is logged on the first failure only, then
 // once when it comes back). The thread waits at most 100 ms at a time
 // (gps_waiting) and a connect attempt ends at once on stop() (an eventfd),
-// so stop() returns within about 100 ms. A host name is resolved with
-// getaddrinfo, which a stop does not cut short (use an address where DNS
-// may be slow).
+// so stop() returns within about 100 ms. A host name is looked up on a
+// thread of its own (getaddrinfo cannot be cut short, and a DNS server that
+// does not answer holds it for seconds): a stop stops waiting for it, and
+// libgps is given the numeric address that answered.
 #pragma once
 
 #include <atomic>
@@ -71,6 +72,8 @@ private:
     bool failure_logged_ = false;
     struct Session;              // gps_data_t, kept out of this header
     std::unique_ptr<Session> session_;
+    struct Lookup;               // the host name's lookup, off this thread
+    std::unique_ptr<Lookup> lookup_;
     std::int64_t last_fix_time_ns_ = -1;
     // With a receiver that sends GST (error statistics) after each
     // position: the newest position, until its GST gives its eph.
