@@ -14,12 +14,13 @@ if [ "${STEMD_TEST_IN_NAMESPACE:-}" != 1 ]; then
   [ "$(id -u)" -eq 0 ] && unshare --mount --net true 2>/dev/null ||
     { echo "SKIP: needs root for a private mount and network namespace (unshare --mount --net)"; exit 77; }
   command -v python3 >/dev/null || { echo "SKIP: python3 (the silent DNS server) is not installed"; exit 77; }
+  PATH=$PATH:/usr/sbin:/sbin command -v ip >/dev/null || { echo "SKIP: ip (iproute2) is not installed"; exit 77; }
   exec env STEMD_TEST_IN_NAMESPACE=1 unshare --mount --net bash "$0" "$@"
 fi
 source "$src/test/support/script.sh"
 kBoundMs=5000
 
-ip link set lo up
+PATH=$PATH:/usr/sbin:/sbin ip link set lo up
 # The resolver's files, seen only in this namespace: names from /etc/hosts
 # and DNS (no mDNS or systemd-resolved module that could answer otherwise).
 # Without a resolv.conf glibc asks 127.0.0.1 anyway; RES_OPTIONS applies
