@@ -13,6 +13,7 @@ packages=(
   can-utils python3-canmatrix  # third-party readers of our candump logs and DBC (cross-check tests)
   clang libclang-rt-14-dev  # the libFuzzer build of the parsers (test/fuzz)
   systemd python3  # systemd-analyze verify of the unit; a stand-in notify socket in a daemon test
+  iproute2  # lo in the private network namespace of the unanswered-DNS test (test/daemon/gpsd_dns.sh)
   libgps-dev nlohmann-json3-dev  # the gpsd client (drivers/gpsd); JSON: the GeoJSON plant map, the live view
   gpsd gpsd-clients gdal-bin  # gpsfake and ogrinfo for the georeferenced map's test (test/daemon/gnss_gpsfake.py)
   libcpp-httplib-dev  # the live view's HTTP server (src/web)
