@@ -7,6 +7,7 @@
 #ifdef STEMD_HAVE_LIBGPS
 
 #include <arpa/inet.h>
+#include <netdb.h>
 #include <netinet/in.h>
 #include <poll.h>
 #include <sys/socket.h>
@@ -234,6 +235,48 @@ TEST(DriversGpsd, RetriesWhileNothingListens)
     EXPECT_GE(client.counters().failures, 2u) << "it retries on the backoff schedule";
     EXPECT_EQ(client.counters().connects, 0u);
     client.stop();   // returns although nothing ever answered
+}
+
+// A host name: looked up off the client's thread, the addresses tried in
+// turn ("localhost" may give ::1 first, where nothing listens), and libgps
+// given the numeric address that answered.
+TEST(DriversGpsd, AHostNameIsLookedUpAndConnected)
+{
+    addrinfo hints{};
+    hints.ai_family = AF_INET;
+    hints.ai_socktype = SOCK_STREAM;
+    addrinfo* found = nullptr;
+    if (::getaddrinfo("localhost", nullptr, &hints, &found) != 0)
+        GTEST_SKIP() << "this machine does not resolve 'localhost'";
+    ::freeaddrinfo(found);
+    FakeGpsd gpsd;
+    drivers::GpsdClient client({.host = "localhost", .port = gpsd.port()},
+                               std::make_shared<spdlog::logger>("gpsd", std::make_shared<spdlog::sinks::null_sink_mt>()));
+    ASSERT_TRUE(client.start());
+    ASSERT_TRUE(gpsd.accept_client());
+    gpsd.send(kVersion);
+    gpsd.send(R"({"class":"TPV","status":1,"mode":2,"time":"2026-05-10T09:19:06.000Z","lat":50.6,"lon":7.0})");
+    drivers::GnssFix fix;
+    ASSERT_TRUE(pop_within(client, fix));
+    EXPECT_DOUBLE_EQ(fix.lat_deg, 50.6);
+    EXPECT_EQ(client.counters().connects, 1u);
+    client.stop();
+}
+
+// A name that does not resolve (or whose lookup does not end within an
+// attempt) is a failed attempt like a refused connection: counted and
+// retried, and stop() does not wait for a lookup still running.
+TEST(DriversGpsd, ANameThatDoesNotResolveIsRetried)
+{
+    drivers::GpsdClient client({.host = "gpsd.stemd-test.invalid", .port = 2947},
+                               std::make_shared<spdlog::logger>("gpsd", std::make_shared<spdlog::sinks::null_sink_mt>()));
+    ASSERT_TRUE(client.start());
+    const std::int64_t deadline = base::monotonic_ns() + 20'000'000'000;
+    while (client.counters().failures < 1 && base::monotonic_ns() < deadline)
+        base::sleep_for_ns(5'000'000);
+    EXPECT_GE(client.counters().failures, 1u);
+    EXPECT_EQ(client.counters().connects, 0u);
+    client.stop();
 }
 
 #endif  // STEMD_HAVE_LIBGPS
