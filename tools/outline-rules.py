@@ -13,7 +13,8 @@ Starts from stemd's thresholded plants (masks written by `stemd-detect
     again with a local soil level (the mean of the non-plant pixels in the
     window, optionally only those farther than a gap from the plant),
     deciding every pixel with a window or only adding; the luminance's mixing fraction averaged
-    with the index's; the edge step on the unsmoothed index;
+    with the index's; the edge step on the unsmoothed index, or on the index
+    sharpened by a guided filter with the luminance as guide;
   - hysteresis instead: seeds grown through connected pixels above a given
     fraction of the way from the soil mode to the threshold.
 Then it prints each rule's mean (min) IoU against the human masks, where
@@ -68,10 +69,25 @@ def square(radius):
     return np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
 
 
-def edge_rule(bgr, seeds, fraction=0.5, local_soil=False, soil_gap_px=0, luma_weight=0.0, smooth=True):
+def guided_by_luma(bgr, index, radius, eps):
+    """He et al.'s guided filter of the index with the full-resolution
+    luminance as the guide: a 4:2:0 JPEG keeps colour at half resolution,
+    so a leaf edge is sharp only in the luminance."""
+    y = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY).astype(np.float32)
+    p = index.astype(np.float32)
+    k = (2 * radius + 1, 2 * radius + 1)
+    mean_y, mean_p = cv2.blur(y, k), cv2.blur(p, k)
+    a = (cv2.blur(y * p, k) - mean_y * mean_p) / (cv2.blur(y * y, k) - mean_y * mean_y + eps)
+    b = mean_p - a * mean_y
+    return cv2.blur(a, k) * y + cv2.blur(b, k)
+
+
+def edge_rule(bgr, seeds, fraction=0.5, local_soil=False, soil_gap_px=0, luma_weight=0.0, smooth=True, guide=None):
     index = chromatic_exg(bgr)
     soil, floor = soil_levels(index)
     decide = index if smooth else chromatic_exg(bgr, smooth=False)
+    if guide is not None:
+        decide = guided_by_luma(bgr, index, *guide)
     r = WINDOW_RADIUS_PX
     plant = seeds.astype(np.float32)
     n_plant = box_sum(plant, r)
@@ -127,6 +143,9 @@ RULES = {
         lambda bgr, s: edge_rule(bgr, edge_rule(bgr, s), local_soil=True, soil_gap_px=2),
     "edge step, luminance averaged in": lambda bgr, s: edge_rule(bgr, s, luma_weight=0.5, soil_gap_px=2),
     "edge step on the unsmoothed index": lambda bgr, s: edge_rule(bgr, s, smooth=False),
+    "edge step on the index guided by the luminance (1 px, eps 4)": lambda bgr, s: edge_rule(bgr, s, guide=(1, 4.0)),
+    "edge step on the index guided by the luminance (1 px, eps 100)": lambda bgr, s: edge_rule(bgr, s, guide=(1, 100.0)),
+    "edge step on the index guided by the luminance (2 px, eps 25)": lambda bgr, s: edge_rule(bgr, s, guide=(2, 25.0)),
     "hysteresis at 3/4 of soil mode to threshold": lambda bgr, s: hysteresis(bgr, s, 0.75),
     "hysteresis at 1/2": lambda bgr, s: hysteresis(bgr, s, 0.5),
 }
