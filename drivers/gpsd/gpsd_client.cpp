@@ -50,6 +50,19 @@ double eph_from_gst(const gst_t& gst)
     return 2.4477 * std::sqrt((lat * lat + lon * lon) / 2);
 }
 
+// ppoll until `deadline_ns` on the monotonic clock, resumed after a signal
+// with the time then left; ppoll's result.
+int poll_until(pollfd* fds, nfds_t count, std::int64_t deadline_ns)
+{
+    int r = 0;
+    do {
+        const std::int64_t left_ns = std::max<std::int64_t>(deadline_ns - base::monotonic_ns(), 0);
+        const timespec ts{static_cast<time_t>(left_ns / 1'000'000'000), static_cast<long>(left_ns % 1'000'000'000)};
+        r = ::ppoll(fds, count, &ts, nullptr);
+    } while (r < 0 && errno == EINTR);
+    return r;
+}
+
 // A host name's addresses, looked up on a thread of its own: getaddrinfo
 // cannot be cut short, and a DNS server that does not answer holds it for
 // the resolver's timeouts (seconds per try), which stop() must not wait
@@ -94,13 +107,7 @@ public:
             in_flight_ = std::move(shared);
         }
         pollfd fds[2] = {{in_flight_->done.get(), POLLIN, 0}, {stop_fd, POLLIN, 0}};
-        const std::int64_t left_ns = std::max<std::int64_t>(deadline_ns - base::monotonic_ns(), 0);
-        const timespec ts{static_cast<time_t>(left_ns / 1'000'000'000), static_cast<long>(left_ns % 1'000'000'000)};
-        int r = 0;
-        do
-            r = ::ppoll(fds, 2, &ts, nullptr);
-        while (r < 0 && errno == EINTR);
-        if (r < 0) {
+        if (poll_until(fds, 2, deadline_ns) < 0) {
             err = errno;
             return nullptr;
         }
@@ -147,12 +154,7 @@ int try_connect(const addrinfo* found, int stop_fd, std::int64_t deadline_ns, st
             if (err != EINPROGRESS)
                 continue;
             pollfd fds[2] = {{fd.get(), POLLOUT, 0}, {stop_fd, POLLIN, 0}};
-            const std::int64_t left_ns = std::max<std::int64_t>(deadline_ns - base::monotonic_ns(), 0);
-            const timespec ts{static_cast<time_t>(left_ns / 1'000'000'000), static_cast<long>(left_ns % 1'000'000'000)};
-            int r = 0;
-            do
-                r = ::ppoll(fds, 2, &ts, nullptr);
-            while (r < 0 && errno == EINTR);
+            const int r = poll_until(fds, 2, deadline_ns);
             if (r > 0 && (fds[1].revents & POLLIN) != 0)
                 return ECANCELED;
             if (r == 0)
