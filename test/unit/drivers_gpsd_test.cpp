@@ -113,6 +113,12 @@ std::int64_t utc_ns(int year, int mon, int day, int h, int m, int s, int ms)
     return static_cast<std::int64_t>(timegm(&t)) * 1'000'000'000 + ms * 1'000'000LL;
 }
 
+// The client's log goes nowhere: the tests read its counters.
+std::shared_ptr<spdlog::logger> null_logger()
+{
+    return std::make_shared<spdlog::logger>("gpsd", std::make_shared<spdlog::sinks::null_sink_mt>());
+}
+
 const char* const kVersion =
     R"({"class":"VERSION","release":"3.22","rev":"3.22","proto_major":3,"proto_minor":14})";
 
@@ -121,8 +127,7 @@ const char* const kVersion =
 TEST(DriversGpsd, ParsesFixesAndReconnectsAfterALostConnection)
 {
     FakeGpsd gpsd;
-    drivers::GpsdClient client({.host = "127.0.0.1", .port = gpsd.port()},
-                               std::make_shared<spdlog::logger>("gpsd", std::make_shared<spdlog::sinks::null_sink_mt>()));
+    drivers::GpsdClient client({.host = "127.0.0.1", .port = gpsd.port()}, null_logger());
     EXPECT_EQ(client.name(), "gpsd 127.0.0.1:" + std::to_string(gpsd.port()));
     ASSERT_TRUE(client.start());
     ASSERT_TRUE(gpsd.accept_client());
@@ -176,8 +181,7 @@ TEST(DriversGpsd, ParsesFixesAndReconnectsAfterALostConnection)
 TEST(DriversGpsd, AnEpochsGstGivesTheFixItsErrorEstimate)
 {
     FakeGpsd gpsd;
-    drivers::GpsdClient client({.host = "127.0.0.1", .port = gpsd.port()},
-                               std::make_shared<spdlog::logger>("gpsd", std::make_shared<spdlog::sinks::null_sink_mt>()));
+    drivers::GpsdClient client({.host = "127.0.0.1", .port = gpsd.port()}, null_logger());
     ASSERT_TRUE(client.start());
     ASSERT_TRUE(gpsd.accept_client());
     gpsd.send(kVersion);
@@ -226,8 +230,7 @@ TEST(DriversGpsd, RetriesWhileNothingListens)
         FakeGpsd probe;   // a port that was free, closed again
         port = probe.port();
     }
-    drivers::GpsdClient client({.host = "127.0.0.1", .port = port},
-                               std::make_shared<spdlog::logger>("gpsd", std::make_shared<spdlog::sinks::null_sink_mt>()));
+    drivers::GpsdClient client({.host = "127.0.0.1", .port = port}, null_logger());
     ASSERT_TRUE(client.start());
     const std::int64_t deadline = base::monotonic_ns() + 20'000'000'000;
     while (client.counters().failures < 2 && base::monotonic_ns() < deadline)
@@ -250,8 +253,7 @@ TEST(DriversGpsd, AHostNameIsLookedUpAndConnected)
         GTEST_SKIP() << "this machine does not resolve 'localhost'";
     ::freeaddrinfo(found);
     FakeGpsd gpsd;
-    drivers::GpsdClient client({.host = "localhost", .port = gpsd.port()},
-                               std::make_shared<spdlog::logger>("gpsd", std::make_shared<spdlog::sinks::null_sink_mt>()));
+    drivers::GpsdClient client({.host = "localhost", .port = gpsd.port()}, null_logger());
     ASSERT_TRUE(client.start());
     ASSERT_TRUE(gpsd.accept_client());
     gpsd.send(kVersion);
@@ -268,8 +270,7 @@ TEST(DriversGpsd, AHostNameIsLookedUpAndConnected)
 // retried, and stop() does not wait for a lookup still running.
 TEST(DriversGpsd, ANameThatDoesNotResolveIsRetried)
 {
-    drivers::GpsdClient client({.host = "gpsd.stemd-test.invalid", .port = 2947},
-                               std::make_shared<spdlog::logger>("gpsd", std::make_shared<spdlog::sinks::null_sink_mt>()));
+    drivers::GpsdClient client({.host = "gpsd.stemd-test.invalid", .port = 2947}, null_logger());
     ASSERT_TRUE(client.start());
     const std::int64_t deadline = base::monotonic_ns() + 20'000'000'000;
     while (client.counters().failures < 1 && base::monotonic_ns() < deadline)
