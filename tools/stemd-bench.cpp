@@ -144,6 +144,17 @@ std::optional<vision::PlantClassifier> bench_forest(Setup& s, vision::ClassifyWo
     }
     if (!model->train_cells(cell_samples, cell_labels, vision::kDefaultCellForest, vision::kDefaultCellMm, error))
         return std::nullopt;
+    // The context forest (what stemd-train adds) on the same labels, its
+    // context every entry the cell forest's probability: as deep, as costly.
+    cv::Mat context_samples(cell_samples.rows, vision::kContextFeatureCount, CV_32FC1);
+    for (int i = 0; i < cell_samples.rows; ++i) {
+        float* row = context_samples.ptr<float>(i);
+        std::copy(cell_samples.ptr<float>(i), cell_samples.ptr<float>(i) + vision::kCellFeatureCount, row);
+        const float first = model->cell_weed_probability({row, static_cast<std::size_t>(vision::kCellFeatureCount)});
+        std::fill(row + vision::kCellFeatureCount, row + vision::kContextFeatureCount, first);
+    }
+    if (!model->train_context(context_samples, cell_labels, vision::kDefaultCellForest, error))
+        return std::nullopt;
     return model;
 }
 

@@ -17,6 +17,10 @@ constexpr std::array<std::string_view, kCellOwnFeatureCount> kCellNames{
     "cell_texture_rel", "cell_width_rel",
 };
 
+constexpr std::array<std::string_view, kCellContextCount> kContextNames{
+    "context_near", "context_mid", "context_wide", "context_far", "context_band", "context_plant", "context_frame",
+};
+
 // Set bits of row[] in [x0, x1).
 int range_popcount(const std::uint64_t* row, int x0, int x1)
 {
@@ -54,6 +58,98 @@ std::string_view cell_feature_name(int feature)
     return "?";
 }
 
+std::string_view context_feature_name(int feature)
+{
+    if (feature >= kCellFeatureCount && feature < kContextFeatureCount)
+        return kContextNames[static_cast<std::size_t>(feature - kCellFeatureCount)];
+    return cell_feature_name(feature);
+}
+
+CellContextScratch::CellContextScratch(cv::Size grid) : grid_(grid)
+{
+    const std::size_t integral = static_cast<std::size_t>(grid.width + 1) * static_cast<std::size_t>(grid.height + 1);
+    integral_p_.resize(integral);
+    integral_w_.resize(integral);
+    column_p_.resize(static_cast<std::size_t>(grid.width));
+    column_w_.resize(static_cast<std::size_t>(grid.width));
+}
+
+void cell_context(const CellContextInput& in, CellContextScratch& scratch, std::span<CellContext> out)
+{
+    const std::size_t count = std::min({in.cells.size(), in.weight.size(), in.plant.size(), in.probability.size(), out.size()});
+    const cv::Size grid = in.grid;
+    if (grid != scratch.grid_ || grid.area() <= 0)
+        return;
+    const int stride = grid.width + 1;
+    // Integral images of p·w and w over the grid, built from the listed
+    // cells (the others hold no vegetation: zero).
+    std::fill(scratch.integral_p_.begin(), scratch.integral_p_.end(), 0.0);
+    std::fill(scratch.integral_w_.begin(), scratch.integral_w_.end(), 0.0);
+    std::fill(scratch.column_p_.begin(), scratch.column_p_.end(), 0.0);
+    std::fill(scratch.column_w_.begin(), scratch.column_w_.end(), 0.0);
+    scratch.plant_p_.fill(0.0);
+    scratch.plant_w_.fill(0.0);
+    double frame_p = 0, frame_w = 0;
+    const auto cell_index = [&](int gx, int gy) { return static_cast<std::size_t>(gy + 1) * stride + static_cast<std::size_t>(gx + 1); };
+    for (std::size_t k = 0; k < count; ++k) {
+        const std::uint32_t c = in.cells[k];
+        if (c >= static_cast<std::uint32_t>(grid.area()))
+            continue;
+        const int gx = static_cast<int>(c % static_cast<std::uint32_t>(grid.width));
+        const int gy = static_cast<int>(c / static_cast<std::uint32_t>(grid.width));
+        const double w = in.weight[k], pw = w * static_cast<double>(in.probability[k]);
+        scratch.integral_p_[cell_index(gx, gy)] = pw;
+        scratch.integral_w_[cell_index(gx, gy)] = w;
+        scratch.column_p_[static_cast<std::size_t>(gx)] += pw;
+        scratch.column_w_[static_cast<std::size_t>(gx)] += w;
+        const std::uint16_t id = in.plant[k] <= kMaxPlants ? in.plant[k] : 0;
+        scratch.plant_p_[id] += pw;
+        scratch.plant_w_[id] += w;
+        frame_p += pw;
+        frame_w += w;
+    }
+    for (auto* integral : {&scratch.integral_p_, &scratch.integral_w_})
+        for (int gy = 1; gy <= grid.height; ++gy) {
+            double row_sum = 0;
+            for (int gx = 1; gx <= grid.width; ++gx) {
+                const std::size_t i = static_cast<std::size_t>(gy) * stride + static_cast<std::size_t>(gx);
+                row_sum += (*integral)[i];
+                (*integral)[i] = (*integral)[i - static_cast<std::size_t>(stride)] + row_sum;
+            }
+        }
+    std::array<int, kContextRingsMm.size()> ring{};
+    for (std::size_t r = 0; r < ring.size(); ++r)
+        ring[r] = std::max(1, static_cast<int>(std::lround(kContextRingsMm[r] / std::max(in.cell_mm, 1e-6))));
+    const int band = std::max(0, static_cast<int>(std::lround(kRowHalfWidthMm / std::max(in.cell_mm, 1e-6))));
+    const auto mean = [](double p, double w, float own) { return w > 0 ? static_cast<float>(p / w) : own; };
+    for (std::size_t k = 0; k < count; ++k) {
+        const std::uint32_t c = in.cells[k];
+        const float own = in.probability[k];
+        CellContext& x = out[k];
+        if (c >= static_cast<std::uint32_t>(grid.area())) {
+            x.fill(own);
+            continue;
+        }
+        const int gx = static_cast<int>(c % static_cast<std::uint32_t>(grid.width));
+        const int gy = static_cast<int>(c / static_cast<std::uint32_t>(grid.width));
+        for (std::size_t r = 0; r < ring.size(); ++r) {
+            const int x0 = std::max(gx - ring[r], 0), x1 = std::min(gx + ring[r], grid.width - 1);
+            const int y0 = std::max(gy - ring[r], 0), y1 = std::min(gy + ring[r], grid.height - 1);
+            x[x_near + r] = mean(box_sum(scratch.integral_p_, stride, x0, y0, x1, y1),
+                                 box_sum(scratch.integral_w_, stride, x0, y0, x1, y1), own);
+        }
+        double band_p = 0, band_w = 0;
+        for (int b = std::max(gx - band, 0); b <= std::min(gx + band, grid.width - 1); ++b) {
+            band_p += scratch.column_p_[static_cast<std::size_t>(b)];
+            band_w += scratch.column_w_[static_cast<std::size_t>(b)];
+        }
+        x[x_band] = mean(band_p, band_w, own);
+        const std::uint16_t id = in.plant[k] <= kMaxPlants ? in.plant[k] : 0;
+        x[x_plant] = id > 0 ? mean(scratch.plant_p_[id], scratch.plant_w_[id], own) : own;
+        x[x_frame] = mean(frame_p, frame_w, own);
+    }
+}
+
 CellWorkspace::CellWorkspace(cv::Size frame_size, double gsd_mm_per_px, double cell_mm)
     : frame_size_(frame_size), gsd_(std::max(gsd_mm_per_px, 1e-6)), cell_mm_(cell_mm)
 {
@@ -77,6 +173,11 @@ CellWorkspace::CellWorkspace(cv::Size frame_size, double gsd_mm_per_px, double c
     probability_.resize(n);
     raw_.resize(n);
     class_.resize(n);
+    listed_weight_.resize(n);
+    listed_probability_.resize(n);
+    listed_plant_.resize(n);
+    context_.resize(n);
+    context_scratch_ = CellContextScratch(grid_);
     reciprocal_[0] = 0;
     for (std::size_t i = 1; i < reciprocal_.size(); ++i)
         reciprocal_[i] = 1.0f / static_cast<float>(i);
@@ -358,6 +459,30 @@ void classify_cells(const PlantClassifier& model, CellWorkspace& ws)
     // mostly the same plant, and one cell's features are noisy.
     for (const std::uint32_t i : ws.vegetated())
         ws.raw_[i] = model.cell_weed_probability(ws.rows_[i]);
+    if (model.has_context()) {
+        // The second stage: each cell's row and what the first stage said
+        // around it.
+        const auto cells = ws.vegetated();
+        for (std::size_t k = 0; k < cells.size(); ++k) {
+            ws.listed_weight_[k] = ws.rows_[cells[k]][c_fill];
+            ws.listed_plant_[k] = ws.plant_[cells[k]];
+            ws.listed_probability_[k] = ws.raw_[cells[k]];
+        }
+        const CellContextInput input{.grid = ws.grid_,
+                                     .cell_mm = ws.cell_mm_,
+                                     .cells = cells,
+                                     .weight = {ws.listed_weight_.data(), cells.size()},
+                                     .plant = {ws.listed_plant_.data(), cells.size()},
+                                     .probability = {ws.listed_probability_.data(), cells.size()}};
+        cell_context(input, ws.context_scratch_, {ws.context_.data(), cells.size()});
+        ContextRow row;
+        for (std::size_t k = 0; k < cells.size(); ++k) {
+            const CellRow& own = ws.rows_[cells[k]];
+            std::copy(own.begin(), own.end(), row.begin());
+            std::copy(ws.context_[k].begin(), ws.context_[k].end(), row.begin() + kCellFeatureCount);
+            ws.raw_[cells[k]] = model.context_weed_probability(row);
+        }
+    }
     const int gw = ws.grid_.width, gh = ws.grid_.height;
     const int radius = kCellSmoothRadius;
     const auto bar = static_cast<float>(model.info().map_weed_bar);

@@ -500,6 +500,23 @@ bool PlantClassifier::train_cells(const cv::Mat& samples, const cv::Mat& labels,
     return true;
 }
 
+bool PlantClassifier::train_context(const cv::Mat& samples, const cv::Mat& labels, const ForestOptions& options,
+                                    std::string& error, const cv::Mat& weights)
+{
+    if (!has_cells()) {
+        error = "the context forest needs a cell forest first";
+        return false;
+    }
+    auto forest = train_forest(samples, labels, kContextFeatureCount, options, true, error, weights);
+    if (!forest)
+        return false;
+    context_forest_ = forest;
+    context_flat_ = flatten(*forest);
+    context_importance_ = forest->getVarImportance();
+    info_.context_trees = static_cast<int>(context_flat_.roots.size());
+    return true;
+}
+
 float PlantClassifier::weed_probability(const FeatureRow& features) const
 {
     // A header over the caller's array: no copy, no allocation.
@@ -537,6 +554,13 @@ bool PlantClassifier::save(const std::filesystem::path& path, ModelInfo info, st
                 names.emplace_back(cell_feature_name(f));
             write_list(fs, "cell_feature_names", names);
         }
+        fs << "context_trees" << info_.context_trees;
+        if (context_forest_) {
+            std::vector<std::string> names;
+            for (int f = 0; f < kContextFeatureCount; ++f)
+                names.emplace_back(context_feature_name(f));
+            write_list(fs, "context_feature_names", names);
+        }
         fs << "cross_validation" << info.cross_validation;
         fs << "}";
         fs << "forest" << "{";
@@ -547,12 +571,55 @@ bool PlantClassifier::save(const std::filesystem::path& path, ModelInfo info, st
             cell_forest_->write(fs);
             fs << "}";
         }
+        if (context_forest_) {
+            fs << "cell_context_forest" << "{";
+            context_forest_->write(fs);
+            fs << "}";
+        }
     } catch (const cv::Exception& e) {
         error = path.string() + ": cannot write: " + e.what();
         return false;
     }
     return true;
 }
+
+namespace {
+
+// Whether the list `node` is exactly name(0), ..., name(count - 1).
+bool same_names(const cv::FileNode& node, int count, std::string_view (*name)(int))
+{
+    std::vector<std::string> read;
+    for (const auto& n : node)
+        read.push_back(static_cast<std::string>(n));
+    if (read.size() != static_cast<std::size_t>(count))
+        return false;
+    for (int f = 0; f < count; ++f)
+        if (read[static_cast<std::size_t>(f)] != name(f))
+            return false;
+    return true;
+}
+
+// The forest stored at `node` and its flat copy; false with `error`
+// (starting with `what`) unless it is trained on `columns` features and
+// every split is one flatten() can walk.
+bool read_walkable_forest(const cv::FileNode& node, int columns, const std::string& what,
+                          cv::Ptr<cv::ml::RTrees>& forest, FlatForest& flat, std::string& error)
+{
+    forest = cv::ml::RTrees::create();
+    forest->read(node);
+    if (!forest->isTrained() || forest->getVarCount() != columns) {
+        error = what + " is no trained forest of " + std::to_string(columns) + " features";
+        return false;
+    }
+    flat = flatten(*forest);
+    if (flat.roots.empty()) {
+        error = what + " has splits this build cannot walk";
+        return false;
+    }
+    return true;
+}
+
+}  // namespace
 
 std::optional<PlantClassifier> PlantClassifier::load(const std::filesystem::path& path, std::string& error)
 {
@@ -606,12 +673,7 @@ std::optional<PlantClassifier> PlantClassifier::load(const std::filesystem::path
         }
         model.trees_ = static_cast<float>(std::max<std::size_t>(model.forest_->getRoots().size(), 1));
         info.trees = static_cast<int>(model.trees_);
-        std::vector<std::string> cell_names, expected;
-        for (const auto& n : meta["cell_feature_names"])
-            cell_names.push_back(static_cast<std::string>(n));
-        for (int f = 0; f < kCellFeatureCount; ++f)
-            expected.emplace_back(cell_feature_name(f));
-        if (cell_names != expected) {
+        if (!same_names(meta["cell_feature_names"], kCellFeatureCount, cell_feature_name)) {
             error = name + ": its cell feature names differ from this build's: train the model again";
             return std::nullopt;
         }
@@ -623,21 +685,30 @@ std::optional<PlantClassifier> PlantClassifier::load(const std::filesystem::path
             return std::nullopt;
         }
         if (!fs["cell_forest"].empty()) {
-            model.cell_forest_ = cv::ml::RTrees::create();
-            model.cell_forest_->read(fs["cell_forest"]);
-            if (!model.cell_forest_->isTrained() || model.cell_forest_->getVarCount() != kCellFeatureCount ||
-                !(info.cell_mm > 0)) {
-                error = name + ": no trained cell forest of " + std::to_string(kCellFeatureCount) +
-                        " features with its cell_mm";
+            if (!(info.cell_mm > 0)) {
+                error = name + ": a cell forest without its cell_mm";
                 return std::nullopt;
             }
-            model.cell_flat_ = flatten(*model.cell_forest_);
-            if (model.cell_flat_.roots.empty()) {
-                error = name + ": the cell forest has splits this build cannot walk";
+            if (!read_walkable_forest(fs["cell_forest"], kCellFeatureCount, name + ": the cell forest",
+                                      model.cell_forest_, model.cell_flat_, error))
                 return std::nullopt;
-            }
         }
         info.cell_trees = static_cast<int>(model.cell_flat_.roots.size());
+        // A model from before the context stage has none: its cell forest decides.
+        if (!fs["cell_context_forest"].empty()) {
+            if (!same_names(meta["context_feature_names"], kContextFeatureCount, context_feature_name)) {
+                error = name + ": its context feature names differ from this build's: train the model again";
+                return std::nullopt;
+            }
+            if (!model.cell_forest_) {
+                error = name + ": a cell context forest without a cell forest";
+                return std::nullopt;
+            }
+            if (!read_walkable_forest(fs["cell_context_forest"], kContextFeatureCount, name + ": the cell context forest",
+                                      model.context_forest_, model.context_flat_, error))
+                return std::nullopt;
+        }
+        info.context_trees = static_cast<int>(model.context_flat_.roots.size());
         return model;
     } catch (const cv::Exception& e) {
         error = name + ": unreadable model: " + e.what();

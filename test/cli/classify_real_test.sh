@@ -1,18 +1,18 @@
 #!/usr/bin/env bash
 # The crop/weed classifier on the real shared sets (../shared/data, or
 # $STEMD_REAL_DATA): stemd-train's cross-validation by frame on carrot-dev
-# and cwfid-train. Per pixel of vegetation, each cell's class at p 0.5 must
-# reach a balanced accuracy of 0.77 (measured 0.820 on both on 2026-11-24:
-# 0.05 below; one class per plant gave 0.56-0.67), the class map at its
-# fitted bar 0.78 (0.826 carrot-dev at 0.45, 0.833 cwfid-train at 0.60:
-# 0.05 below the lower), and the cell-size ceiling (every segmented pixel
-# its 3 mm cell's majority class) 0.90 (0.942, 0.937). Per plant (by the
-# share of its cells) at the default decision, at most 10 % of crop plants
-# may be called weed (0 of 38 and 0 of 30 measured) with a weed recall of
-# at least 0.7 on carrot-dev (0.874) and 0.4 on cwfid-train (0.477): the
-# plant forest this replaced had 0.76 there but called 2 of 30 crops weed;
-# the cells leave more weeds unknown instead. A higher min_confidence never
-# calls more crops weed.
+# and cwfid-train, with the context stage (a second cell forest on the
+# first one's probabilities around each cell). Per pixel of vegetation,
+# each cell's class at p 0.5 must reach a balanced accuracy of 0.80
+# (measured 2026-11-25: 0.860 carrot-dev, 0.834 cwfid-train; the first
+# stage alone gave 0.826 and 0.819, one class per plant 0.56-0.67), the
+# class map at its fitted bar 0.80 (0.860 at 0.50, 0.845 at 0.60), and the
+# cell-size ceiling (every segmented pixel its 3 mm cell's majority class)
+# 0.90 (0.942, 0.937). Per plant (by the share of its cells) at the default
+# decision, at most 5 % of crop plants may be called weed (1 of 38 and 0 of
+# 30 measured) with a weed recall of at least 0.8 on carrot-dev (0.937) and
+# 0.49 on cwfid-train (0.615; 0.49 is what the class-blind detector treats
+# of CWFID's weeds). A higher min_confidence never calls more crops weed.
 # Skipped (exit 77) when the data is absent, as on a user's machine.
 #   classify_real_test.sh TOOLS_DIR SOURCE_DIR
 set -euo pipefail
@@ -29,16 +29,17 @@ head -1 "$tmp/cwfid/frames.csv" | grep -q ',class$' || fail "cwfid-recording.sh 
 
 check() {   # name, output of stemd-train, lowest weed recall per plant at the default decision
   local name=$1 out=$2 min_weed_recall=$3
+  grep -q ' 30 cell trees, 30 context trees,' "$out" || fail "$name: the model has no context forest: $(tail -1 "$out")"
   # Per pixel: p 0.5, then the default decision.
   local pixel
   pixel=$(sed -n "s/^  pixels of vegetation (each cell's class at this decision): .* balanced accuracy \([0-9.]*\);.*/\1/p" "$out")
   [ "$(wc -l <<<"$pixel")" -eq 2 ] || fail "$name: no per-pixel figures: $(cat "$out")"
-  awk -v a="$(head -1 <<<"$pixel")" 'BEGIN { exit !(a >= 0.77) }' ||
-    fail "$name: per-pixel balanced accuracy $(head -1 <<<"$pixel") at p 0.5, under 0.77"
+  awk -v a="$(head -1 <<<"$pixel")" 'BEGIN { exit !(a >= 0.80) }' ||
+    fail "$name: per-pixel balanced accuracy $(head -1 <<<"$pixel") at p 0.5, under 0.80"
   local map ceiling
   map=$(sed -n 's/^  class map bar fitted: [0-9.]* (balanced accuracy \([0-9.]*\) .*/\1/p' "$out")
   [ -n "$map" ] || fail "$name: no fitted class map bar: $(cat "$out")"
-  awk -v a="$map" 'BEGIN { exit !(a >= 0.78) }' || fail "$name: class map balanced accuracy $map, under 0.78"
+  awk -v a="$map" 'BEGIN { exit !(a >= 0.80) }' || fail "$name: class map balanced accuracy $map, under 0.80"
   ceiling=$(sed -n "s/.*cell ceiling, every segmented pixel its cell's majority class: \([0-9.]*\)).*/\1/p" "$out" | head -1)
   awk -v a="$ceiling" 'BEGIN { exit !(a >= 0.90) }' || fail "$name: cell-size ceiling '$ceiling', under 0.90"
   # Per plant by the share of its cells: the recalls line and the crop
@@ -52,8 +53,8 @@ check() {   # name, output of stemd-train, lowest weed recall per plant at the d
   [ "$(wc -l <<<"$safety")" -eq 2 ] && [ -n "$weed_recall" ] || fail "$name: no per-plant figures: $(cat "$out")"
   [ "$(sed -n 2p <<<"$safety")" -le "$(sed -n 1p <<<"$safety")" ] ||
     fail "$name: more crop plants called weed at the default decision than at p 0.5: $safety"
-  awk -v n="$(sed -n 2p <<<"$safety")" -v c="$crops" 'BEGIN { exit !(c > 0 && n / c <= 0.10) }' ||
-    fail "$name: $(sed -n 2p <<<"$safety") of $crops crop plants called weed at the default decision, over 10 %"
+  awk -v n="$(sed -n 2p <<<"$safety")" -v c="$crops" 'BEGIN { exit !(c > 0 && n / c <= 0.05) }' ||
+    fail "$name: $(sed -n 2p <<<"$safety") of $crops crop plants called weed at the default decision, over 5 %"
   awk -v r="$weed_recall" -v m="$min_weed_recall" 'BEGIN { exit !(r >= m) }' ||
     fail "$name: weed recall $weed_recall per plant at the default decision, under $min_weed_recall"
   echo "$name: pixel balanced accuracy $(tr '\n' ' ' <<<"$pixel")(class map $map, cell ceiling $ceiling); crop plants called weed $(tr '\n' ' ' <<<"$safety")of $crops; weed recall $weed_recall"
@@ -61,7 +62,7 @@ check() {   # name, output of stemd-train, lowest weed recall per plant at the d
 
 "$tools/stemd-train" --out "$tmp/carrot.yaml" --set camera.gsd_mm_per_px=0.25 "$data/carrot-dev" \
   >"$tmp/carrot.txt" 2>&1 || fail "stemd-train carrot-dev exited $?: $(cat "$tmp/carrot.txt")"
-check carrot-dev "$tmp/carrot.txt" 0.7
+check carrot-dev "$tmp/carrot.txt" 0.8
 "$tools/stemd-train" --out "$tmp/cwfid.yaml" --set camera.gsd_mm_per_px=0.11 "$tmp/cwfid" \
   >"$tmp/cwfid.txt" 2>&1 || fail "stemd-train cwfid-train exited $?: $(cat "$tmp/cwfid.txt")"
-check cwfid-train "$tmp/cwfid.txt" 0.4
+check cwfid-train "$tmp/cwfid.txt" 0.49

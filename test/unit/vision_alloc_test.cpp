@@ -118,7 +118,8 @@ TEST(RealTime, ClassifierAllocatesNothingOnceWarm)
     EXPECT_EQ(stemd::test::allocations() - before, 0) << "heap allocations in class_map";
     EXPECT_GE(sum, 0.0f);
 
-    // The cells: features, forest, class map and the plants' share.
+    // The cells: features, both forests and the context between them, class
+    // map and the plants' share.
     cv::Mat cell_samples(60, kCellFeatureCount, CV_32FC1), cell_labels(60, 1, CV_32SC1);
     rng.fill(cell_samples, cv::RNG::UNIFORM, 0, 1);
     for (int i = 0; i < cell_labels.rows; ++i)
@@ -126,6 +127,9 @@ TEST(RealTime, ClassifierAllocatesNothingOnceWarm)
     auto cell_model = PlantClassifier::train(samples, labels, {.trees = 5}, error);
     ASSERT_TRUE(cell_model) << error;
     ASSERT_TRUE(cell_model->train_cells(cell_samples, cell_labels, {.trees = 30}, 3.0, error)) << error;
+    cv::Mat context_samples(60, kContextFeatureCount, CV_32FC1);
+    rng.fill(context_samples, cv::RNG::UNIFORM, 0, 1);
+    ASSERT_TRUE(cell_model->train_context(context_samples, cell_labels, {.trees = 30}, error)) << error;
     auto cells = std::make_unique<CellWorkspace>(size, 0.11, 3.0);
     std::array<float, kMaxPlants> probabilities{};
     for (int round = 0; round < 2; ++round) {   // the second frame reuses what the first left

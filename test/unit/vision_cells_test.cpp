@@ -125,6 +125,55 @@ PlantClassifier pair_model(const Params& params, double cell_mm, std::uint64_t s
     return std::move(*model);
 }
 
+// `model` with a context forest learnt on the touching pairs of a few
+// frames: each labelled cell's row and its context from the cell forest's
+// probabilities on its own frame.
+void add_context(const Params& params, double cell_mm, std::uint64_t seed, PlantClassifier& model)
+{
+    cv::Mat samples(0, kContextFeatureCount, CV_32FC1);
+    std::vector<int> labels;
+    std::mt19937 rng(12);
+    for (int k = 0; k < 6; ++k) {
+        cv::Mat bgr, truth;
+        touching_pair({320, 240}, {160 + static_cast<int>(rng() % 40) - 20, 120}, 30 + static_cast<int>(rng() % 15),
+                      bgr, truth);
+        const Frame frame(bgr, params, cell_mm);
+        std::vector<CellRow> rows;
+        std::vector<int> frame_labels;
+        add_cells(frame, truth, rows, frame_labels);
+        // Context over every vegetated cell, rows for the labelled ones.
+        const auto cells = frame.cells.vegetated();
+        std::vector<float> weight, first;
+        std::vector<std::uint16_t> plant;
+        for (const std::uint32_t c : cells) {
+            weight.push_back(frame.cells.row(c)[c_fill]);
+            plant.push_back(frame.cells.plant(c));
+            first.push_back(model.cell_weed_probability(frame.cells.row(c)));
+        }
+        std::vector<CellContext> context(cells.size());
+        CellContextScratch scratch(frame.cells.grid());
+        cell_context({.grid = frame.cells.grid(), .cell_mm = cell_mm, .cells = cells, .weight = weight,
+                      .plant = plant, .probability = first},
+                     scratch, context);
+        std::size_t r = 0;
+        for (std::size_t k2 = 0; k2 < cells.size() && r < rows.size(); ++k2) {
+            if (frame.cells.row(cells[k2]) != rows[r])
+                continue;   // unlabelled
+            cv::Mat row(1, kContextFeatureCount, CV_32FC1);
+            std::copy(rows[r].begin(), rows[r].end(), row.ptr<float>());
+            std::copy(context[k2].begin(), context[k2].end(), row.ptr<float>() + kCellFeatureCount);
+            samples.push_back(row);
+            labels.push_back(frame_labels[r]);
+            ++r;
+        }
+        ASSERT_EQ(r, rows.size());
+    }
+    std::string error;
+    const cv::Mat context_labels = cv::Mat(labels, true).reshape(1, static_cast<int>(labels.size()));
+    ASSERT_TRUE(model.train_context(samples, context_labels, {.trees = 20, .max_depth = 6, .seed = seed}, error))
+        << error;
+}
+
 fs::path temp_path(const std::string& name) { return test::classify_temp_path("stemd-cells", name); }
 
 }  // namespace
@@ -380,4 +429,125 @@ TEST(Cells, TrainingCellsCanBeWeighedAndTheClassesStayBalancedByWeight)
     // Weights that do not fit the rows are refused.
     EXPECT_FALSE(model->train_cells(samples, labels, {.trees = 3}, 3.0, error, weights.rowRange(0, 10)));
     EXPECT_NE(error.find("weights"), std::string::npos) << error;
+}
+
+TEST(CellContext, EachFeatureIsTheVegetationWeighedMeanOfTheFirstStageOverItsReach)
+{
+    // 3 mm cells: squares of 1, 2, 5 and 13 cells either side, the band 7
+    // columns either side (20 mm).
+    const cv::Size grid(20, 6);
+    const std::vector<std::uint32_t> cells{21, 22, 88, 109, 115};   // (1,1) (2,1) (8,4) (9,5) (15,5)
+    const std::vector<float> weight{1.0f, 0.5f, 1.0f, 1.0f, 0.0f};
+    const std::vector<std::uint16_t> plant{1, 1, 2, 0, 3};
+    const std::vector<float> first{1.0f, 0.0f, 0.5f, 0.25f, 0.8f};
+    std::vector<CellContext> out(cells.size());
+    CellContextScratch scratch(grid);
+    cell_context({.grid = grid, .cell_mm = 3.0, .cells = cells, .weight = weight, .plant = plant, .probability = first},
+                 scratch, out);
+    // (1,1): its 3x3, 5x5 and 11x11 squares hold it and (2,1): (1 + 0) /
+    // 1.5; the 27x27 square the whole frame: (1 + 0 + 0.5 + 0.25) / 3.5.
+    EXPECT_FLOAT_EQ(out[0][x_near], 2.0f / 3.0f);
+    EXPECT_FLOAT_EQ(out[0][x_mid], 2.0f / 3.0f);
+    EXPECT_FLOAT_EQ(out[0][x_wide], 2.0f / 3.0f);
+    EXPECT_FLOAT_EQ(out[0][x_far], 0.5f);
+    // Columns 0-8: (1,1), (2,1), (8,4).
+    EXPECT_FLOAT_EQ(out[0][x_band], 1.5f / 2.5f);
+    EXPECT_FLOAT_EQ(out[0][x_plant], 2.0f / 3.0f);
+    EXPECT_FLOAT_EQ(out[0][x_frame], 0.5f);
+    // (9,5): its 3x3 holds (8,4); no plant, so its own probability; its
+    // band, columns 2-16, holds (2,1), (8,4), itself and the weightless (15,5).
+    EXPECT_FLOAT_EQ(out[3][x_near], 0.75f / 2.0f);
+    EXPECT_FLOAT_EQ(out[3][x_plant], 0.25f);
+    EXPECT_FLOAT_EQ(out[3][x_band], 0.75f / 2.5f);
+    EXPECT_FLOAT_EQ(out[2][x_plant], 0.5f);
+    // (15,5) weighs nothing: alone in its squares up to 11x11 (columns
+    // 10-19) and in its plant it keeps its own probability; the 27x27
+    // square (columns 2-19) sees (2,1), (8,4) and (9,5).
+    EXPECT_FLOAT_EQ(out[4][x_near], 0.8f);
+    EXPECT_FLOAT_EQ(out[4][x_wide], 0.8f);
+    EXPECT_FLOAT_EQ(out[4][x_plant], 0.8f);
+    EXPECT_FLOAT_EQ(out[4][x_far], 0.75f / 2.5f);
+    EXPECT_FLOAT_EQ(out[4][x_frame], 0.5f);
+
+    // A scratch of another grid size computes nothing rather than read out
+    // of its buffers.
+    std::vector<CellContext> untouched(cells.size(), CellContext{});
+    CellContextScratch small({4, 4});
+    cell_context({.grid = grid, .cell_mm = 3.0, .cells = cells, .weight = weight, .plant = plant, .probability = first},
+                 small, untouched);
+    EXPECT_EQ(untouched[0][x_near], 0.0f);
+}
+
+TEST(CellContext, AModelWithAContextForestUsesItAndTheFileKeepsIt)
+{
+    const Params params = test_params();
+    const double cell_mm = 1.5;
+    PlantClassifier model = pair_model(params, cell_mm, 1);
+    std::string error;
+    {
+        // No context forest before a cell forest.
+        cv::Mat samples, labels;
+        plant_rows(samples, labels);
+        auto plants_only = PlantClassifier::train(samples, labels, {.trees = 5}, error);
+        ASSERT_TRUE(plants_only) << error;
+        cv::Mat rows(4, kContextFeatureCount, CV_32FC1, cv::Scalar(0)), four(4, 1, CV_32SC1, cv::Scalar(1));
+        EXPECT_FALSE(plants_only->train_context(rows, four, {.trees = 3}, error));
+        EXPECT_NE(error.find("cell forest first"), std::string::npos) << error;
+    }
+    const PlantClassifier first_stage_only = model;
+    add_context(params, cell_mm, 1, model);
+    ASSERT_TRUE(model.has_context());
+    EXPECT_EQ(model.info().context_trees, 20);
+    EXPECT_FALSE(first_stage_only.has_context());
+
+    // A pair it has not seen: the halves keep their classes in the map.
+    cv::Mat bgr, truth;
+    touching_pair({320, 240}, {150, 110}, 36, bgr, truth);
+    Frame frame(bgr, params, cell_mm);
+    ASSERT_EQ(frame.det.plants.size(), 1u);
+    classify_cells(model, frame.cells);
+    cv::Mat map;
+    cell_class_map(frame.ws, frame.cells, map);
+    long right = 0, all = 0;
+    for (int y = 0; y < map.rows; ++y)
+        for (int x = 0; x < map.cols; ++x)
+            if (frame.ws.vegetation().get(x, y) && truth.at<std::uint8_t>(y, x) != 0) {
+                ++all;
+                right += map.at<std::uint8_t>(y, x) == truth.at<std::uint8_t>(y, x);
+            }
+    ASSERT_GT(all, 2000);
+    EXPECT_GT(static_cast<double>(right) / static_cast<double>(all), 0.9);
+
+    // The file holds the context forest: the same probabilities after load.
+    std::vector<float> before;
+    for (const std::uint32_t c : frame.cells.vegetated())
+        before.push_back(frame.cells.weed_probability(c));
+    const fs::path path = temp_path("context.yaml");
+    ASSERT_TRUE(model.save(path, {.gsd_mm_per_px = 0.3}, error)) << error;
+    const auto loaded = PlantClassifier::load(path, error);
+    ASSERT_TRUE(loaded) << error;
+    EXPECT_TRUE(loaded->has_context());
+    EXPECT_EQ(loaded->info().context_trees, 20);
+    classify_cells(*loaded, frame.cells);
+    std::size_t k = 0, differ_from_first_stage = 0;
+    Frame again(bgr, params, cell_mm);
+    classify_cells(first_stage_only, again.cells);
+    for (const std::uint32_t c : frame.cells.vegetated()) {
+        EXPECT_EQ(frame.cells.weed_probability(c), before[k++]);
+        differ_from_first_stage += again.cells.weed_probability(c) != frame.cells.weed_probability(c);
+    }
+    EXPECT_GT(differ_from_first_stage, 0u) << "the context forest decides, not the cell forest alone";
+
+    // A file whose context features are not this build's is refused.
+    std::ostringstream text;
+    text << std::ifstream(path).rdbuf();
+    std::string renamed = text.str();
+    const auto at = renamed.find("context_plant");
+    ASSERT_NE(at, std::string::npos);
+    renamed.replace(at, 13, "context_xxxxx");
+    std::ofstream(path.string() + ".renamed.yaml") << renamed;
+    EXPECT_FALSE(PlantClassifier::load(path.string() + ".renamed.yaml", error));
+    EXPECT_NE(error.find("context feature names"), std::string::npos) << error;
+    fs::remove(path);
+    fs::remove(path.string() + ".renamed.yaml");
 }

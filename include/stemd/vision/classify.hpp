@@ -159,6 +159,7 @@ struct ModelInfo {
     int trees = 0;
     double cell_mm = 0;                    // the cell forest's cell side (vision/cells)
     int cell_trees = 0;
+    int context_trees = 0;                 // the cell context forest's (0: none, the cell forest decides)
     // The class map's decision per cell: weed at a probability of at least
     // this, crop below (the most likely class, not the treat decision).
     // stemd-train fits it on the out-of-fold per-pixel balanced accuracy.
@@ -246,6 +247,18 @@ public:
     // Variable importance of the cell forest (training only, empty after load).
     const cv::Mat& cell_importance() const { return cell_importance_; }
 
+    // The context forest (vision/cells, the second stage): rows of
+    // kContextFeatureCount, a cell's row and its context from the cell
+    // forest's probabilities; labels and weights as for train_cells().
+    // Needs the cell forest first.
+    bool train_context(const cv::Mat& samples, const cv::Mat& labels, const ForestOptions& options,
+                       std::string& error, const cv::Mat& weights = {});
+    bool has_context() const { return !context_flat_.roots.empty(); }
+    // The fraction of the context forest's trees that vote weed for one
+    // row of kContextFeatureCount features; allocates nothing.
+    float context_weed_probability(std::span<const float> row) const { return context_flat_.weed_fraction(row.data()); }
+    const cv::Mat& context_importance() const { return context_importance_; }
+
     // Empty when the model fits a configuration of this GSD and channels;
     // else the reason, naming `model_name` (the file).
     std::optional<std::string> mismatch(double gsd_mm_per_px, bool nir, std::string_view model_name) const;
@@ -255,6 +268,9 @@ private:
     cv::Ptr<cv::ml::RTrees> cell_forest_;
     FlatForest cell_flat_;
     cv::Mat cell_importance_;
+    cv::Ptr<cv::ml::RTrees> context_forest_;
+    FlatForest context_flat_;
+    cv::Mat context_importance_;
     ModelInfo info_;
     float trees_ = 1;
 };
