@@ -18,7 +18,7 @@ packages=(
   gpsd gpsd-clients gdal-bin  # gpsfake and ogrinfo for the georeferenced map's test (test/daemon/gnss_gpsfake.py)
   libcpp-httplib-dev  # the live view's HTTP server (src/web)
   chromium python3-prometheus-client python3-pil  # the live view's tests: headless browser, /metrics parser, screenshot
-  python3-opencv python3-numpy  # measurement scripts on real frames (tools/iou-ceiling.py, tools/outline-rules.py)
+  python3-opencv python3-numpy python3-yaml  # measurement scripts on real frames (tools/iou-ceiling.py, outline-rules.py, eval-classes.py)
 )
 
 missing=()

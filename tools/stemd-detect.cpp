@@ -47,7 +47,8 @@ const char* const kUsage =
     "              default), exg, ndvi, exg_and_ndvi (both: recordings with nir), mask\n"
     "  --csv       write image,plant,x,y,method,leaves,area_px,estimator,confidence\n"
     "              ('-' = stdout); plants without a stem (grass) are not written;\n"
-    "              with classify.model, then class (crop|weed|unknown),weed_probability\n"
+    "              with classify.model, then class (crop|weed|unknown),weed_probability,\n"
+    "              and the weed parts of other plants (classify.weed_parts) after them\n"
     "  --mask-out  write each frame's vegetation mask (255 = vegetation) as PNG\n"
     "  --class-out write each frame's class map (0 soil, 1 crop, 2 weed) as PNG;\n"
     "              needs classify.model (a model from stemd-train)\n"
@@ -222,6 +223,9 @@ int main(int argc, char** argv)
             vision::classify_cells(*model, *cell_workspace);
             vision::classify_plants(*model, *classify_workspace, *cell_workspace, d.plants.size(),
                                     classify.min_confidence, classify.weed_confidence, weed_probability, plant_class);
+            if (classify.weed_parts)
+                vision::add_weed_parts(*cell_workspace, classify.min_confidence, classify.weed_confidence,
+                                       classify.weed_part_clearance_mm, *detections, plant_class, weed_probability);
             classify_ms.push_back(static_cast<double>(base::monotonic_ns() - t0) / 1e6);
             classify_cpu_ms.push_back(static_cast<double>(thread_cpu_ns() - cpu0) / 1e6);
         }

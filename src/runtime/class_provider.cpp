@@ -8,10 +8,9 @@
 namespace stemd::runtime {
 
 ModelClassProvider::ModelClassProvider(vision::PlantClassifier model, cv::Size frame_size,
-                                       const vision::Params& params, double min_confidence, double weed_confidence)
+                                       const vision::Params& params, const ClassifyConfig& config)
     : model_(std::move(model)), workspace_(frame_size, params),
-      cells_(frame_size, params.gsd_mm_per_px, model_.info().cell_mm), min_confidence_(min_confidence),
-      weed_confidence_(weed_confidence)
+      cells_(frame_size, params.gsd_mm_per_px, model_.info().cell_mm), config_(config)
 {
 }
 
@@ -31,9 +30,15 @@ void ModelClassProvider::classify(const drivers::Frame& frame, const vision::Par
     const std::size_t plants = result.detections.plants.size();
     std::fill(result.plant_class.begin(), result.plant_class.begin() + static_cast<std::ptrdiff_t>(plants),
               PlantClass::Unknown);
-    if (workspace_.features().size() == plants)
-        vision::classify_plants(model_, workspace_, cells_, plants, min_confidence_, weed_confidence_,
+    if (workspace_.features().size() == plants) {
+        vision::classify_plants(model_, workspace_, cells_, plants, config_.min_confidence, config_.weed_confidence,
                                 probabilities_, result.plant_class);
+        // Weeds grown into a crop get targets of their own.
+        if (config_.weed_parts)
+            vision::add_weed_parts(cells_, config_.min_confidence, config_.weed_confidence,
+                                   config_.weed_part_clearance_mm, result.detections, result.plant_class,
+                                   probabilities_);
+    }
     result.has_class_map = true;
 }
 

@@ -1,5 +1,7 @@
 #include "stemd/vision/cells.hpp"
 
+#include "stemd/vision/stem.hpp"
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -178,6 +180,8 @@ CellWorkspace::CellWorkspace(cv::Size frame_size, double gsd_mm_per_px, double c
     listed_plant_.resize(n);
     context_.resize(n);
     context_scratch_ = CellContextScratch(grid_);
+    in_part_.resize(n);
+    part_stack_.resize(n);
     reciprocal_[0] = 0;
     for (std::size_t i = 1; i < reciprocal_.size(); ++i)
         reciprocal_[i] = 1.0f / static_cast<float>(i);
@@ -557,6 +561,104 @@ void classify_plants(const PlantClassifier& model, const ClassifyWorkspace& plan
         classes[i] = probabilities[i] < 0 ? PlantClass::Unknown
                                           : decide_class(probabilities[i], min_confidence, weed_confidence);
     }
+}
+
+}  // namespace stemd::vision
+
+namespace stemd::vision {
+
+std::size_t add_weed_parts(CellWorkspace& ws, double min_confidence, double weed_confidence, double clearance_mm,
+                           Detections& det, std::span<PlantClass> classes, std::span<float> probabilities)
+{
+    const std::size_t plants = std::min({det.plants.size(), classes.size(), probabilities.size()});
+    const int gw = ws.grid_.width, gh = ws.grid_.height, cell_px = ws.cell_px_;
+    const auto classified = [&](std::size_t c) { return ws.class_[c] != PlantClass::Unknown; };
+    const auto weed_cell = [&](std::size_t c) {
+        return classified(c) && decide_class(ws.probability_[c], min_confidence, weed_confidence) == PlantClass::Weed;
+    };
+    const double clearance_px = std::max(clearance_mm, 0.0) / ws.gsd_;
+    for (const std::uint32_t c : ws.vegetated())
+        ws.in_part_[c] = 0;
+    std::size_t added = 0;
+    for (const std::uint32_t seed : ws.vegetated()) {
+        const std::uint16_t id = ws.plant_[seed];
+        if (ws.in_part_[seed] || !weed_cell(seed) || id == 0 || id > plants || classes[id - 1u] == PlantClass::Weed)
+            continue;
+        // The group: the plant's weed cells 8-connected to the seed.
+        std::size_t top = 0;
+        ws.part_stack_[top++] = seed;
+        ws.in_part_[seed] = 1;
+        double sum_x = 0, sum_y = 0, sum_w = 0, sum_p = 0, width_mm = 0, area_px = 0;
+        int x0 = gw, y0 = gh, x1 = -1, y1 = -1;
+        while (top > 0) {
+            const std::uint32_t c = ws.part_stack_[--top];
+            const int gx = static_cast<int>(c % static_cast<std::uint32_t>(gw)), gy = static_cast<int>(c / static_cast<std::uint32_t>(gw));
+            const double w = ws.rows_[c][c_fill];
+            // Cell centres in image coordinates (pixel centres at integers).
+            sum_x += w * ((gx + 0.5) * cell_px - 0.5);
+            sum_y += w * ((gy + 0.5) * cell_px - 0.5);
+            sum_w += w;
+            sum_p += w * ws.probability_[c];
+            width_mm += w * ws.rows_[c][c_width_mm];
+            area_px += w * cell_px * cell_px;
+            x0 = std::min(x0, gx), y0 = std::min(y0, gy), x1 = std::max(x1, gx), y1 = std::max(y1, gy);
+            for (int ny = std::max(gy - 1, 0); ny <= std::min(gy + 1, gh - 1); ++ny)
+                for (int nx = std::max(gx - 1, 0); nx <= std::min(gx + 1, gw - 1); ++nx) {
+                    const std::size_t n = static_cast<std::size_t>(ny) * static_cast<std::size_t>(gw) + static_cast<std::size_t>(nx);
+                    if (ws.in_part_[n] || ws.plant_[n] != id || !weed_cell(n))
+                        continue;
+                    ws.in_part_[n] = 1;
+                    ws.part_stack_[top++] = static_cast<std::uint32_t>(n);
+                }
+        }
+        if (sum_w <= 0)
+            continue;
+        const cv::Point2f centre(static_cast<float>(sum_x / sum_w), static_cast<float>(sum_y / sum_w));
+        // Clearance: every classified cell whose square comes within
+        // clearance_px of the centre must be weed.
+        bool clear = true;
+        const int reach = static_cast<int>(std::ceil(clearance_px / cell_px)) + 1;
+        const int cx = static_cast<int>(centre.x + 0.5f) / cell_px, cy = static_cast<int>(centre.y + 0.5f) / cell_px;
+        for (int ny = std::max(cy - reach, 0); ny <= std::min(cy + reach, gh - 1) && clear; ++ny)
+            for (int nx = std::max(cx - reach, 0); nx <= std::min(cx + reach, gw - 1); ++nx) {
+                const std::size_t n = static_cast<std::size_t>(ny) * static_cast<std::size_t>(gw) + static_cast<std::size_t>(nx);
+                if (!classified(n) || weed_cell(n))
+                    continue;
+                // Distance from the centre to the cell's square (pixel edges at -0.5).
+                const double left = nx * cell_px - 0.5, top_edge = ny * cell_px - 0.5;
+                const double dx = std::max({left - centre.x, 0.0, centre.x - (left + cell_px)});
+                const double dy = std::max({top_edge - centre.y, 0.0, centre.y - (top_edge + cell_px)});
+                if (dx * dx + dy * dy <= clearance_px * clearance_px) {
+                    clear = false;
+                    break;
+                }
+            }
+        if (!clear)
+            continue;
+        if (det.plants.full() || det.plants.size() >= std::min(classes.size(), probabilities.size())) {
+            ++det.stats.plants_over_capacity;
+            continue;
+        }
+        Plant part;
+        part.stem = centre;
+        part.has_stem = true;
+        part.method = StemMethod::com;
+        part.estimator = StemEstimator::com;
+        part.confidence = kCentreOfMassConfidence;
+        part.com_reason = ComReason::weed_part;
+        part.area_px = static_cast<int>(std::lround(area_px));
+        part.bbox = cv::Rect(x0 * cell_px, y0 * cell_px, (x1 - x0 + 1) * cell_px, (y1 - y0 + 1) * cell_px) &
+                    cv::Rect(0, 0, ws.frame_size_.width, ws.frame_size_.height);
+        part.centre_of_mass = centre;
+        part.first_pixel = part.bbox.tl();
+        part.mean_width_mm = static_cast<float>(width_mm / sum_w);
+        const std::size_t index = det.plants.size();
+        det.plants.push_back(part);
+        classes[index] = PlantClass::Weed;
+        probabilities[index] = static_cast<float>(sum_p / sum_w);
+        ++added;
+    }
+    return added;
 }
 
 }  // namespace stemd::vision

@@ -11,7 +11,6 @@ namespace {
 // Confidence of a fallback, fixed and low: the point does not come from
 // converging leaves.
 constexpr float kCutMeanConfidence = 0.3f;
-constexpr float kCentreOfMassConfidence = 0.2f;
 // The robust fit needs lines that cross at a real angle: for two equal
 // leaves, conditioning = tan^2(angle / 2), so 0.05 is about 25 degrees.
 constexpr double kMinConditioning = 0.05;

@@ -119,7 +119,7 @@ TEST(RealTime, ClassifierAllocatesNothingOnceWarm)
     EXPECT_GE(sum, 0.0f);
 
     // The cells: features, both forests and the context between them, class
-    // map and the plants' share.
+    // map, the plants' share and the weed parts.
     cv::Mat cell_samples(60, kCellFeatureCount, CV_32FC1), cell_labels(60, 1, CV_32SC1);
     rng.fill(cell_samples, cv::RNG::UNIFORM, 0, 1);
     for (int i = 0; i < cell_labels.rows; ++i)
@@ -132,12 +132,15 @@ TEST(RealTime, ClassifierAllocatesNothingOnceWarm)
     ASSERT_TRUE(cell_model->train_context(context_samples, cell_labels, {.trees = 30}, error)) << error;
     auto cells = std::make_unique<CellWorkspace>(size, 0.11, 3.0);
     std::array<float, kMaxPlants> probabilities{};
+    auto with_parts = std::make_unique<Detections>();
     for (int round = 0; round < 2; ++round) {   // the second frame reuses what the first left
         before = stemd::test::allocations();
         cell_features(frame, params, *ws, *out, *cws, *cells);
         classify_cells(*cell_model, *cells);
         cell_class_map(*ws, *cells, map);
         classify_plants(*cell_model, *cws, *cells, out->plants.size(), 0.6, 0.85, probabilities, classes);
+        *with_parts = *out;
+        add_weed_parts(*cells, 0.5, 0.5, 1.0, *with_parts, classes, probabilities);
         EXPECT_EQ(stemd::test::allocations() - before, 0) << "heap allocations in the cells, round " << round;
     }
     EXPECT_GT(cells->vegetated().size(), 100u);

@@ -551,3 +551,64 @@ TEST(CellContext, AModelWithAContextForestUsesItAndTheFileKeepsIt)
     fs::remove(path);
     fs::remove(path.string() + ".renamed.yaml");
 }
+
+TEST(WeedParts, AWeedGrownIntoAnUnsurePlantBecomesATargetOfItsOwnClearOfTheCrop)
+{
+    const Params params = test_params();   // 0.3 mm/px: 5 px cells of 1.5 mm
+    const PlantClassifier model = pair_model(params, 1.5, 1);
+    cv::Mat bgr, truth;
+    const cv::Point crop_centre(114, 110), weed_centre(186, 110);
+    const int radius = 36;
+    touching_pair({320, 240}, {150, 110}, radius, bgr, truth);
+    Frame frame(bgr, params, 1.5);
+    ASSERT_EQ(frame.det.plants.size(), 1u);
+    classify_cells(model, frame.cells);
+    std::array<float, kMaxPlants> p{};
+    std::array<PlantClass, kMaxPlants> classes{};
+    classify_plants(model, frame.cws, frame.cells, 1, 0.6, 0.85, p, classes);
+    ASSERT_EQ(classes[0], PlantClass::Unknown) << "half crop, half weed: the blob is not treated";
+
+    const double clearance_mm = 1.5;
+    Detections det = frame.det;
+    const std::size_t added = add_weed_parts(frame.cells, 0.6, 0.85, clearance_mm, det, classes, p);
+    ASSERT_GE(added, 1u);
+    ASSERT_EQ(det.plants.size(), 1 + added);
+    const double clearance_px = clearance_mm / params.gsd_mm_per_px;
+    for (std::size_t i = 1; i < det.plants.size(); ++i) {
+        const Plant& part = det.plants[i];
+        EXPECT_EQ(classes[i], PlantClass::Weed);
+        EXPECT_GE(p[i], 0.85f);
+        EXPECT_TRUE(part.has_stem);
+        EXPECT_EQ(part.com_reason, ComReason::weed_part);
+        EXPECT_LT(cv::norm(part.stem - cv::Point2f(weed_centre)), radius) << "the target lies on the weed";
+        EXPECT_GT(cv::norm(part.stem - cv::Point2f(crop_centre)), radius + clearance_px) << "and clear of the crop";
+        // Every classified cell the clearance reaches is weed.
+        for (const std::uint32_t c : frame.cells.vegetated()) {
+            const int cx = static_cast<int>(c % static_cast<std::uint32_t>(frame.cells.grid().width)) * 5;
+            const int cy = static_cast<int>(c / static_cast<std::uint32_t>(frame.cells.grid().width)) * 5;
+            const double dx = std::max({cx - 0.5 - part.stem.x, 0.0, part.stem.x - (cx + 4.5)});
+            const double dy = std::max({cy - 0.5 - part.stem.y, 0.0, part.stem.y - (cy + 4.5)});
+            if (dx * dx + dy * dy <= clearance_px * clearance_px) {
+                EXPECT_GE(frame.cells.weed_probability(c), 0.85f) << "cell " << c << " within the clearance";
+            }
+        }
+    }
+
+    // A clearance wider than the weed reaches the crop: no part.
+    Detections wide = frame.det;
+    EXPECT_EQ(add_weed_parts(frame.cells, 0.6, 0.85, 30.0, wide, classes, p), 0u);
+    EXPECT_EQ(wide.plants.size(), 1u);
+    // A plant classed weed keeps its one stem.
+    Detections weed = frame.det;
+    std::array<PlantClass, kMaxPlants> weed_class{};
+    weed_class[0] = PlantClass::Weed;
+    EXPECT_EQ(add_weed_parts(frame.cells, 0.6, 0.85, clearance_mm, weed, weed_class, p), 0u);
+    // No room left among the plants: counted, not written.
+    Detections full = frame.det;
+    std::array<PlantClass, kMaxPlants> room{};
+    room[0] = PlantClass::Unknown;
+    EXPECT_EQ(add_weed_parts(frame.cells, 0.6, 0.85, clearance_mm, full, std::span<PlantClass>(room.data(), 1),
+                             std::span<float>(p.data(), 1)),
+              0u);
+    EXPECT_EQ(full.stats.plants_over_capacity, frame.det.stats.plants_over_capacity + static_cast<int>(added));
+}

@@ -79,7 +79,7 @@ using vision::plant_classes_from_map;
 class ModelClassProvider final : public ClassProvider {
 public:
     ModelClassProvider(vision::PlantClassifier model, cv::Size frame_size, const vision::Params& params,
-                       double min_confidence, double weed_confidence);
+                       const ClassifyConfig& config);
     std::string_view name() const override { return "model"; }
     void classify(const drivers::Frame& frame, const vision::Params& params, const vision::Workspace& workspace,
                   FrameResult& result) override;
@@ -89,7 +89,7 @@ private:
     vision::ClassifyWorkspace workspace_;
     vision::CellWorkspace cells_;
     std::array<float, vision::kMaxPlants> probabilities_{};
-    double min_confidence_, weed_confidence_;
+    ClassifyConfig config_;
 };
 
 // A replayed recording's class column.

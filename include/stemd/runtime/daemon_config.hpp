@@ -46,6 +46,8 @@ struct ClassifyConfig {
     std::string model;             // empty: none
     double min_confidence = 0.6;   // probability
     double weed_confidence = 0.85;   // probability
+    bool weed_parts = true;               // weed cells of crop/unknown plants become targets (vision::add_weed_parts)
+    double weed_part_clearance_mm = 3;    // no crop or unknown vegetation this near a weed part's target
 };
 
 struct DaemonConfig {

@@ -33,6 +33,10 @@ struct LineFit {
 // nullopt with fewer than two leaves with a direction.
 std::optional<LineFit> fit_leaf_lines(std::span<const Leaf> leaves, double scale_px);
 
+// The confidence of a stem at the centre of mass: fixed and low, the point
+// does not come from converging leaves.
+inline constexpr float kCentreOfMassConfidence = 0.2f;
+
 struct StemEstimate {
     cv::Point2f stem;
     StemMethod method = StemMethod::com;

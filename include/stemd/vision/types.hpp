@@ -81,6 +81,7 @@ enum class ComReason : std::uint8_t {
     outside_box,      // the leaf estimate left the plant's bounding box
     contour_overflow, // the outer contour was longer than the workspace holds
     ill_conditioned,  // the leaf lines do not pin a point down (robust estimator)
+    weed_part,        // a weed part of a larger plant, found by the crop/weed cells (vision/cells)
 };
 
 // The words of the configurable enums, in the order config files list them
