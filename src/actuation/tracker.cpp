@@ -144,7 +144,7 @@ std::span<const Target> Tracker::update(const TrackFrame& frame) noexcept
             continue;
         for (std::size_t i = 0; i < cap; ++i) {
             const Track& t = tracks_[i];
-            if (!t.active)
+            if (!t.active || t.weed_part != dets[d].weed_part)
                 continue;
             const double ds = dets[d].s_mm - t.s_mm;
             if (ds >= r || ds <= -r)
@@ -194,6 +194,7 @@ std::span<const Target> Tracker::update(const TrackFrame& frame) noexcept
         Track& t = tracks_[free_hint];
         t = Track{};
         t.active = true;
+        t.weed_part = det.weed_part;
         add_sighting(t, det, frame.seq);
         ++active_;
         ++counters_.tracks_created;

@@ -72,6 +72,7 @@ std::span<const actuation::TrackDetection> PlantProjector::project(const FrameRe
         d.plant_class = r.has_class_map ? r.plant_class[i] : PlantClass::Unknown;
         d.leaves = static_cast<std::uint8_t>(std::min<std::size_t>(p.leaves.size(), 255));
         d.extent_mm = extent_mm(p, odom_at_capture);
+        d.weed_part = p.com_reason == vision::ComReason::weed_part;
     }
     return {detections_.data(), n};
 }

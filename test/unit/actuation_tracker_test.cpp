@@ -243,6 +243,33 @@ TEST(ActuationTracker, GreedyClosestFirstIsOneToOne)
     EXPECT_EQ(tracker.counters().tracks_created, 2u);
 }
 
+TEST(ActuationTracker, AWeedPartAndThePlantItGrewIntoAreTrackedApart)
+{
+    Tracker tracker(params(2));
+    TrackDetection crop{1000, 0, 0.2f, PlantClass::Crop, 3};
+    TrackDetection part{1005, 0, 0.2f, PlantClass::Weed, 0};
+    part.weed_part = true;
+    const TrackDetection first[] = {crop, part};
+    EXPECT_TRUE(tracker.update(frame_at(1000, first)).empty());
+    EXPECT_EQ(tracker.active_tracks(), 2u);
+    // The crop is missed, and the part is seen nearer the crop's track
+    // (1 mm) than its own (4 mm): it still joins its own.
+    part.s_mm = 1001;
+    const auto out = tracker.update(frame_at(1010, std::span(&part, 1)));
+    ASSERT_EQ(out.size(), 1u) << "the part's track confirmed by its second sighting, the crop's not";
+    EXPECT_EQ(out[0].plant_class, PlantClass::Weed);
+    EXPECT_NEAR(out[0].s_mm, 1003, 1e-9);
+    EXPECT_EQ(tracker.counters().tracks_created, 2u);
+    // And a plant's sighting never joins a part's track, even on it: the
+    // crop's own track takes it (its second sighting) and stays crop.
+    const TrackDetection on_part{1003, 0, 0.2f, PlantClass::Crop, 3};
+    const auto crop_out = tracker.update(frame_at(1020, std::span(&on_part, 1)));
+    ASSERT_EQ(crop_out.size(), 1u);
+    EXPECT_EQ(crop_out[0].plant_class, PlantClass::Crop);
+    EXPECT_NEAR(crop_out[0].s_mm, 1001.5, 1e-9);
+    EXPECT_EQ(tracker.counters().tracks_created, 2u);
+}
+
 TEST(ActuationTracker, CapacityDropsAreCounted)
 {
     TrackerParams p = params();

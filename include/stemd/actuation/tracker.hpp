@@ -90,6 +90,11 @@ struct TrackDetection {
     PlantClass plant_class = PlantClass::Unknown;
     std::uint8_t leaves = 0;
     double extent_mm = 0;     // along-track half-size of the plant (for the exit rule), >= 0
+    // A weed part of a larger plant (vision::add_weed_parts): it lies
+    // within a few mm of the plant it grew into, so the two are tracked
+    // apart, each only with its own kind; a part's sighting never votes
+    // weed on its crop's track.
+    bool weed_part = false;
 };
 
 struct TrackFrame {
@@ -191,6 +196,7 @@ private:
         double extent_mm = 0;         // largest along-track half-size seen
         std::uint64_t first_seq = 0;
         std::uint64_t last_seq = 0;
+        bool weed_part = false;       // a track of weed parts takes weed-part sightings only
 
         // The class of more weight among the sightings; a tie is Unknown.
         PlantClass plant_class() const
