@@ -49,6 +49,26 @@ double box_sum(const std::vector<double>& integral, int stride, int x0, int y0, 
     return at(x1 + 1, y1 + 1) - at(x0, y1 + 1) - at(x1 + 1, y0) + at(x0, y0);
 }
 
+// Fills `integral` (the grid with one extra row and column of zeros) with
+// the sums of value(cell, gx, gy) over each square from the origin. Cell by
+// cell in row-major order, so `value` may read the entry of `integral` its
+// cell's sum is about to replace.
+template <class Value>
+void fill_integral(std::vector<double>& integral, cv::Size grid, Value value)
+{
+    const int stride = grid.width + 1;
+    std::fill(integral.begin(), integral.begin() + stride, 0.0);
+    for (int gy = 0; gy < grid.height; ++gy) {
+        double row_sum = 0;
+        integral[static_cast<std::size_t>(gy + 1) * stride] = 0;
+        for (int gx = 0; gx < grid.width; ++gx) {
+            row_sum += value(static_cast<std::size_t>(gy) * grid.width + gx, gx, gy);
+            integral[static_cast<std::size_t>(gy + 1) * stride + gx + 1] =
+                integral[static_cast<std::size_t>(gy) * stride + gx + 1] + row_sum;
+        }
+    }
+}
+
 }  // namespace
 
 std::string_view cell_feature_name(int feature)
@@ -111,14 +131,7 @@ void cell_context(const CellContextInput& in, CellContextScratch& scratch, std::
         frame_w += w;
     }
     for (auto* integral : {&scratch.integral_p_, &scratch.integral_w_})
-        for (int gy = 1; gy <= grid.height; ++gy) {
-            double row_sum = 0;
-            for (int gx = 1; gx <= grid.width; ++gx) {
-                const std::size_t i = static_cast<std::size_t>(gy) * stride + static_cast<std::size_t>(gx);
-                row_sum += (*integral)[i];
-                (*integral)[i] = (*integral)[i - static_cast<std::size_t>(stride)] + row_sum;
-            }
-        }
+        fill_integral(*integral, grid, [&](std::size_t, int gx, int gy) { return (*integral)[cell_index(gx, gy)]; });
     std::array<int, kContextRingsMm.size()> ring{};
     for (std::size_t r = 0; r < ring.size(); ++r)
         ring[r] = std::max(1, static_cast<int>(std::lround(kContextRingsMm[r] / std::max(in.cell_mm, 1e-6))));
@@ -314,18 +327,6 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
     // rows, colour over the sampled vegetation pixels.
     const std::size_t n = ws.cells();
     const int stride = grid.width + 1;
-    auto integral_of = [&](std::vector<double>& integral, auto value) {
-        std::fill(integral.begin(), integral.begin() + stride, 0.0);
-        for (int gy = 0; gy < grid.height; ++gy) {
-            double row_sum = 0;
-            integral[static_cast<std::size_t>(gy + 1) * stride] = 0;
-            for (int gx = 0; gx < grid.width; ++gx) {
-                row_sum += value(static_cast<std::size_t>(gy) * grid.width + gx, gx, gy);
-                integral[static_cast<std::size_t>(gy + 1) * stride + gx + 1] =
-                    integral[static_cast<std::size_t>(gy) * stride + gx + 1] + row_sum;
-            }
-        }
-    };
     // Pixels on the sampled rows of a cell.
     auto cell_pixels = [&](int gx, int gy) {
         const int w = std::min(cell_px, width - gx * cell_px);
@@ -334,11 +335,11 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
         const int rows = y1 > y0 ? (y1 + 1) / 2 - (y0 + 1) / 2 : 0;
         return static_cast<double>(w) * rows;
     };
-    integral_of(ws.integral_fill_, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].vegetation_px); });
-    integral_of(ws.integral_px_, [&](std::size_t, int gx, int gy) { return cell_pixels(gx, gy); });
-    integral_of(ws.integral_g_, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].g); });
-    integral_of(ws.integral_r_, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].r); });
-    integral_of(ws.integral_n_, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].sampled_px); });
+    fill_integral(ws.integral_fill_, grid, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].vegetation_px); });
+    fill_integral(ws.integral_px_, grid, [&](std::size_t, int gx, int gy) { return cell_pixels(gx, gy); });
+    fill_integral(ws.integral_g_, grid, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].g); });
+    fill_integral(ws.integral_r_, grid, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].r); });
+    fill_integral(ws.integral_n_, grid, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].sampled_px); });
     double frame_fill = 0, frame_px = 0;
     for (int gx = 0; gx < grid.width; ++gx) {
         ws.column_fill_[static_cast<std::size_t>(gx)] = box_sum(ws.integral_fill_, stride, gx, 0, gx, grid.height - 1);

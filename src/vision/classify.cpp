@@ -94,6 +94,16 @@ void write_list(cv::FileStorage& fs, const char* key, const std::vector<std::str
     fs << "]";
 }
 
+// The list name(0), ..., name(count - 1) under `key`: what same_names()
+// checks on load.
+void write_names(cv::FileStorage& fs, const char* key, int count, std::string_view (*name)(int))
+{
+    fs << key << "[";
+    for (int f = 0; f < count; ++f)
+        fs << std::string(name(f));
+    fs << "]";
+}
+
 }  // namespace
 
 std::string_view feature_name(int feature)
@@ -548,19 +558,10 @@ bool PlantClassifier::save(const std::filesystem::path& path, ModelInfo info, st
         fs << "cell_mm" << info_.cell_mm;
         fs << "cell_trees" << info_.cell_trees;
         fs << "map_weed_bar" << info_.map_weed_bar;
-        {
-            std::vector<std::string> names;
-            for (int f = 0; f < kCellFeatureCount; ++f)
-                names.emplace_back(cell_feature_name(f));
-            write_list(fs, "cell_feature_names", names);
-        }
+        write_names(fs, "cell_feature_names", kCellFeatureCount, cell_feature_name);
         fs << "context_trees" << info_.context_trees;
-        if (context_forest_) {
-            std::vector<std::string> names;
-            for (int f = 0; f < kContextFeatureCount; ++f)
-                names.emplace_back(context_feature_name(f));
-            write_list(fs, "context_feature_names", names);
-        }
+        if (context_forest_)
+            write_names(fs, "context_feature_names", kContextFeatureCount, context_feature_name);
         fs << "cross_validation" << info.cross_validation;
         fs << "}";
         fs << "forest" << "{";
