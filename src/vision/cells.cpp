@@ -192,6 +192,7 @@ CellWorkspace::CellWorkspace(cv::Size frame_size, double gsd_mm_per_px, double c
     listed_probability_.resize(n);
     listed_plant_.resize(n);
     context_.resize(n);
+    context_rows_.resize(n);
     context_scratch_ = CellContextScratch(grid_);
     in_part_.resize(n);
     part_stack_.resize(n);
@@ -462,16 +463,15 @@ void classify_cells(const PlantClassifier& model, CellWorkspace& ws)
     // The forest's probability of each cell, then its mean over the 3x3
     // cells around it weighed by their vegetation: neighbouring cells are
     // mostly the same plant, and one cell's features are noisy.
-    for (const std::uint32_t i : ws.vegetated())
-        ws.raw_[i] = model.cell_weed_probability(ws.rows_[i]);
+    const auto cells = ws.vegetated();
+    model.cell_weed_probabilities(
+        cells.size(), [&](std::size_t k) { return ws.rows_[cells[k]].data(); }, ws.listed_probability_.data());
     if (model.has_context()) {
         // The second stage: each cell's row and what the first stage said
         // around it.
-        const auto cells = ws.vegetated();
         for (std::size_t k = 0; k < cells.size(); ++k) {
             ws.listed_weight_[k] = ws.rows_[cells[k]][c_fill];
             ws.listed_plant_[k] = ws.plant_[cells[k]];
-            ws.listed_probability_[k] = ws.raw_[cells[k]];
         }
         const CellContextInput input{.grid = ws.grid_,
                                      .cell_mm = ws.cell_mm_,
@@ -480,14 +480,17 @@ void classify_cells(const PlantClassifier& model, CellWorkspace& ws)
                                      .plant = {ws.listed_plant_.data(), cells.size()},
                                      .probability = {ws.listed_probability_.data(), cells.size()}};
         cell_context(input, ws.context_scratch_, {ws.context_.data(), cells.size()});
-        ContextRow row;
         for (std::size_t k = 0; k < cells.size(); ++k) {
+            ContextRow& row = ws.context_rows_[k];
             const CellRow& own = ws.rows_[cells[k]];
             std::copy(own.begin(), own.end(), row.begin());
             std::copy(ws.context_[k].begin(), ws.context_[k].end(), row.begin() + kCellFeatureCount);
-            ws.raw_[cells[k]] = model.context_weed_probability(row);
         }
+        model.context_weed_probabilities(
+            cells.size(), [&](std::size_t k) { return ws.context_rows_[k].data(); }, ws.listed_probability_.data());
     }
+    for (std::size_t k = 0; k < cells.size(); ++k)
+        ws.raw_[cells[k]] = ws.listed_probability_[k];
     const int gw = ws.grid_.width, gh = ws.grid_.height;
     const int radius = kCellSmoothRadius;
     const auto bar = static_cast<float>(model.info().map_weed_bar);

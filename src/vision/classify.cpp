@@ -466,20 +466,53 @@ FlatForest flatten(const cv::ml::RTrees& forest)
     FlatForest flat;
     const auto& nodes = forest.getNodes();
     const auto& splits = forest.getSplits();
+    const auto node_count = static_cast<int>(nodes.size());
+    const int vars = forest.getVarCount();
+    const auto valid = [&](int i) { return i >= 0 && i < node_count; };
     flat.nodes.reserve(nodes.size());
-    for (const auto& node : nodes) {
-        FlatForest::Node n{-1, 0.0f, -1, -1, static_cast<float>(node.value)};
+    flat.vote.reserve(nodes.size());
+    for (int i = 0; i < node_count; ++i) {
+        const auto& node = nodes[static_cast<std::size_t>(i)];
+        FlatForest::Node n{0, 0.0f, {i, i}};
         if (node.split >= 0) {
+            if (static_cast<std::size_t>(node.split) >= splits.size())
+                return {};
             const auto& split = splits[static_cast<std::size_t>(node.split)];
+            if (split.varIdx < 0 || split.varIdx >= vars || !valid(node.left) || !valid(node.right))
+                return {};
             n.var = split.varIdx;
             n.threshold = split.c;
             // An inversed split sends values at or below c right.
-            n.left = split.inversed ? node.right : node.left;
-            n.right = split.inversed ? node.left : node.right;
+            n.child = split.inversed ? std::array<int, 2>{node.right, node.left}
+                                     : std::array<int, 2>{node.left, node.right};
         }
         flat.nodes.push_back(n);
+        flat.vote.push_back(static_cast<float>(node.value));
     }
-    flat.roots = forest.getRoots();
+    // Each tree's depth, walking every path; a cycle or a tree deeper than
+    // kMaxFlatDepth makes the forest one this walk refuses.
+    std::vector<std::pair<int, int>> stack;
+    for (const int root : forest.getRoots()) {
+        if (!valid(root))
+            return {};
+        int depth = 0;
+        stack.assign(1, {root, 0});
+        while (!stack.empty()) {
+            const auto [at, level] = stack.back();
+            stack.pop_back();
+            const FlatForest::Node& n = flat.nodes[static_cast<std::size_t>(at)];
+            if (n.child[0] == at && n.child[1] == at) {
+                depth = std::max(depth, level);
+                continue;
+            }
+            if (level >= kMaxFlatDepth)
+                return {};
+            stack.emplace_back(n.child[0], level + 1);
+            stack.emplace_back(n.child[1], level + 1);
+        }
+        flat.roots.push_back(root);
+        flat.depths.push_back(depth);
+    }
     return flat;
 }
 

@@ -275,6 +275,22 @@ TEST(Cells, TheFlatForestVotesAsOpenCvDoes)
         split += p > 0 && p < 1;
     }
     EXPECT_GT(split, 0) << "the check needs split votes";
+
+    // Rows walked eight at a time, with a short last group (300 = 37 x 8 + 4)
+    // and a first group cut short too, vote as each row alone.
+    for (const int first : {0, 3}) {
+        const auto count = static_cast<std::size_t>(samples.rows - first);
+        std::vector<float> batch(count + 1, -1.0f);
+        flat.weed_fractions(count, [&](std::size_t k) { return samples.ptr<float>(first + static_cast<int>(k)); },
+                            batch.data());
+        for (std::size_t k = 0; k < count; ++k)
+            EXPECT_EQ(batch[k], flat.weed_fraction(samples.ptr<float>(first + static_cast<int>(k)))) << "row " << k;
+        EXPECT_EQ(batch[count], -1.0f) << "nothing written past the rows";
+    }
+    for (std::size_t t = 0; t < flat.roots.size(); ++t) {
+        EXPECT_GT(flat.depths[t], 0) << "tree " << t;
+        EXPECT_LE(flat.depths[t], ForestOptions{}.max_depth) << "no deeper than the forest was allowed to grow";
+    }
 }
 
 TEST(Cells, CellFeaturesMeasureColourWidthAndTheRow)
