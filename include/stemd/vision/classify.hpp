@@ -218,14 +218,15 @@ struct FlatForest {
     }
 
     // weed_fraction() of `count` rows at once, row k at row_of(k), into
-    // out[k]: each tree is walked by eight rows side by side while its
-    // nodes are in cache, so their loads overlap. The same values as
+    // out[k]: each tree is walked by sixteen rows side by side while its
+    // nodes are in cache, so their loads overlap (8 lanes gave 1.44 ms on
+    // the bench, 16 1.30, 32 1.46: spills). The same values as
     // weed_fraction() (the votes are summed in the same tree order);
     // allocates nothing.
     template <class RowOf>
     void weed_fractions(std::size_t count, const RowOf& row_of, float* out) const
     {
-        constexpr std::size_t kLanes = 8;
+        constexpr std::size_t kLanes = 16;
         std::fill(out, out + count, 0.0f);
         for (std::size_t t = 0; t < roots.size(); ++t) {
             for (std::size_t first = 0; first < count; first += kLanes) {
