@@ -7,16 +7,19 @@
 //               [--cell-max-depth N] [--cell-samples N] [--cell-context yes|no] [--seed N]
 //               [--test-on RECORDING]... [--test-set K=V]... RECORDING...
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <ctime>
 #include <filesystem>
+#include <fstream>
 #include <iomanip>
 #include <iostream>
-#include <optional>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -64,6 +67,8 @@ struct CellSample {
     float vegetation_px = 0;   // its labelled segmented vegetation pixels
     std::uint32_t cell = 0;    // grid index
     std::uint16_t plant = 0;   // 1 + plant index, 0 none
+    int crop_px = 0;           // its segmented vegetation pixels the class image calls crop
+    int weed_px = 0;           // and weed
 };
 
 struct FrameSamples {
@@ -215,10 +220,42 @@ bool collect(const std::vector<tools::FrameJob>& jobs, Pipeline& pipeline, std::
             fs_out.cells.push_back(
                 {cells.row(c),
                  labelled == 0 ? 0 : to_value(cell_crop[c] >= cell_weed[c] ? PlantClass::Crop : PlantClass::Weed),
-                 static_cast<float>(labelled), c, cells.plant(c)});
+                 static_cast<float>(labelled), c, cells.plant(c), cell_crop[c], cell_weed[c]});
         }
         fs_out.grid = cells.grid();
         out.push_back(std::move(fs_out));
+    }
+    return true;
+}
+
+// Every vegetated cell of every frame as one CSV line, for analysis
+// outside stemd (the rows the forests train on, with their pixel counts).
+bool write_cells_csv(const std::string& path, const std::vector<FrameSamples>& frames, int folds, std::string& error)
+{
+    std::ofstream out(path);
+    if (!out) {
+        error = path + ": cannot write (" + std::strerror(errno) + ")";
+        return false;
+    }
+    out << "frame,image,fold,cell,gx,gy,plant,crop_px,weed_px";
+    for (int f = 0; f < vision::kCellFeatureCount; ++f)
+        out << ',' << vision::cell_feature_name(f);
+    out << '\n' << std::setprecision(9);
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+        const FrameSamples& frame = frames[i];
+        const auto width = static_cast<std::uint32_t>(std::max(frame.grid.width, 1));
+        for (const CellSample& c : frame.cells) {
+            out << i << ',' << frame.name << ',' << i % static_cast<std::size_t>(folds) << ',' << c.cell << ','
+                << c.cell % width << ',' << c.cell / width << ',' << c.plant << ',' << c.crop_px << ',' << c.weed_px;
+            for (const float v : c.row)
+                out << ',' << v;
+            out << '\n';
+        }
+    }
+    out.flush();
+    if (!out) {
+        error = path + ": write failed (" + std::strerror(errno) + ")";
+        return false;
     }
     return true;
 }
@@ -480,6 +517,7 @@ int main(int argc, char** argv)
     int cell_samples = 40000;
     std::string cell_weights = "cells";
     std::string cell_context = "yes";
+    std::string cells_csv;
     app.add_option("--out", out_path, "model file to write (.yaml or .json)")->required();
     tools::add_config_options(app, config_args);
     app.add_option("--folds", folds, "cross-validation folds; frame i is in fold i mod N")
@@ -501,6 +539,9 @@ int main(int argc, char** argv)
                    "(its squares, band, plant and frame); no: the first forest decides")
         ->check(CLI::IsMember({"yes", "no"}));
     app.add_option("--seed", forest.seed, "seed of the forests' random draws");
+    app.add_option("--cells-csv", cells_csv,
+                   "also write every vegetated cell's row as CSV (frame, image, fold, cell, gx, gy, plant, crop_px, "
+                   "weed_px, then the cell features by name)");
     app.add_option("--test-on", test_recordings,
                    "also score the final model on this recording (another camera or field)")
         ->allow_extra_args(false);
@@ -530,6 +571,10 @@ int main(int argc, char** argv)
     if (static_cast<int>(frames.size()) < folds) {
         std::cerr << "stemd-train: " << frames.size() << " frames, fewer than " << folds << " folds\n";
         return kUsageError;
+    }
+    if (!cells_csv.empty() && !write_cells_csv(cells_csv, frames, folds, error)) {
+        std::cerr << "stemd-train: --cells-csv " << error << "\n";
+        return 1;
     }
 
     auto own_row = [&](std::size_t f, std::size_t c, float* out) {

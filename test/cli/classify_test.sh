@@ -23,11 +23,26 @@ grep -Eq 'gsd_mm_per_px: (0?\.33$|3\.30*[0-9]*e-01)' "$tmp/model.yaml" || fail "
 grep -q "$tmp/rec" "$tmp/model.yaml" || fail "model file does not name its recording"
 
 # Same data, same seed: the same forest.
-"$tools/stemd-train" --out "$tmp/again.yaml" --config "$src/config/stemd.yaml" --folds 3 --trees 20 "$tmp/rec" \
-  >/dev/null 2>&1 || fail "second training"
+# (With --cells-csv, which must not change the training.)
+"$tools/stemd-train" --out "$tmp/again.yaml" --config "$src/config/stemd.yaml" --folds 3 --trees 20 \
+  --cells-csv "$tmp/cells.csv" "$tmp/rec" >/dev/null 2>&1 || fail "second training"
 # (Both forests: the plant forest's section runs on into the cell forest's.)
 diff <(sed -n '/^forest:/,$p' "$tmp/model.yaml") <(sed -n '/^forest:/,$p' "$tmp/again.yaml") >/dev/null \
   || fail "training is not deterministic"
+
+# The cells' rows: a header naming every feature, one line per vegetated
+# cell with as many fields, labelled pixels on some, folds 0-2, and as many
+# cells as the model file says were labelled at least.
+head -1 "$tmp/cells.csv" | grep -q '^frame,image,fold,cell,gx,gy,plant,crop_px,weed_px,cell_fill,cell_r_mean,.*,log_area_mm2,' ||
+  fail "cells csv header: $(head -1 "$tmp/cells.csv")"
+awk -F, 'NR == 1 { n = NF; next } NF != n { print "line " NR " has " NF " fields, the header " n; bad = 1 }
+  $3 < 0 || $3 > 2 { print "line " NR ": fold " $3; bad = 1 }
+  $8 + $9 > 0 { labelled++ }
+  END { if (NR < 2 || labelled == 0) { print "no labelled cell"; bad = 1 } exit bad }' "$tmp/cells.csv" ||
+  fail "cells csv rows"
+labelled=$(sed -n 's/.* plants and \([0-9]*\) labelled cells from .*/\1/p' "$tmp/train.txt")
+[ -n "$labelled" ] && [ "$(awk -F, 'NR > 1 && $8 + $9 > 0' "$tmp/cells.csv" | wc -l)" -eq "$labelled" ] ||
+  fail "cells csv: not the $labelled labelled cells stemd-train counted"
 
 "$tools/stemd-detect" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" \
   --csv "$tmp/pred.csv" --class-out "$tmp/class" "$tmp/rec" >/dev/null 2>"$tmp/err.txt" \
