@@ -5,7 +5,8 @@
 //   stemd-train --out MODEL [--config FILE] [--set K=V]... [--folds N]
 //               [--trees N] [--max-depth N] [--cell-mm MM] [--cell-trees N]
 //               [--cell-max-depth N] [--cell-samples N] [--cell-context yes|no] [--seed N]
-//               [--test-on RECORDING]... [--test-set K=V]... RECORDING...
+//               [--cell-weights cells|pixels] [--test-on RECORDING]... [--test-set K=V]...
+//               [--cells-csv FILE] RECORDING...
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
@@ -64,11 +65,11 @@ struct Sample {
 struct CellSample {
     vision::CellRow row;
     int label = 0;
-    float vegetation_px = 0;   // its labelled segmented vegetation pixels
     std::uint32_t cell = 0;    // grid index
     std::uint16_t plant = 0;   // 1 + plant index, 0 none
     int crop_px = 0;           // its segmented vegetation pixels the class image calls crop
     int weed_px = 0;           // and weed
+    int labelled_px() const { return crop_px + weed_px; }
 };
 
 struct FrameSamples {
@@ -220,7 +221,7 @@ bool collect(const std::vector<tools::FrameJob>& jobs, Pipeline& pipeline, std::
             fs_out.cells.push_back(
                 {cells.row(c),
                  labelled == 0 ? 0 : to_value(cell_crop[c] >= cell_weed[c] ? PlantClass::Crop : PlantClass::Weed),
-                 static_cast<float>(labelled), c, cells.plant(c), cell_crop[c], cell_weed[c]});
+                 c, cells.plant(c), cell_crop[c], cell_weed[c]});
         }
         fs_out.grid = cells.grid();
         out.push_back(std::move(fs_out));
@@ -308,7 +309,7 @@ void cell_matrices(const std::vector<FrameSamples>& frames, const std::vector<st
                 write_row(f, c, samples.ptr<float>(r));
                 labels.at<int>(r) = s.label;
                 if (weights)
-                    weights->at<float>(r) = s.vegetation_px;
+                    weights->at<float>(r) = static_cast<float>(s.labelled_px());
                 ++r;
                 next += stride;
             }

@@ -276,8 +276,8 @@ TEST(Cells, TheFlatForestVotesAsOpenCvDoes)
     }
     EXPECT_GT(split, 0) << "the check needs split votes";
 
-    // Rows walked eight at a time, with a short last group (300 = 37 x 8 + 4)
-    // and a first group cut short too, vote as each row alone.
+    // Rows walked in groups, with a short last group (300 and 297 rows are
+    // no multiple of 8, 16 or 32), vote as each row alone.
     for (const int first : {0, 3}) {
         const auto count = static_cast<std::size_t>(samples.rows - first);
         std::vector<float> batch(count + 1, -1.0f);
