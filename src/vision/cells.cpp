@@ -1,9 +1,9 @@
 #include "stemd/vision/cells.hpp"
 
+#include "stemd/vision/bitmask.hpp"
 #include "stemd/vision/stem.hpp"
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <cstring>
 
@@ -23,24 +23,6 @@ constexpr std::array<std::string_view, kCellContextCount> kContextNames{
     "context_near", "context_mid", "context_wide", "context_far", "context_band", "context_plant", "context_frame",
 };
 
-// Set bits of row[] in [x0, x1).
-int range_popcount(const std::uint64_t* row, int x0, int x1)
-{
-    if (x1 <= x0)
-        return 0;
-    const int w0 = x0 >> 6, w1 = (x1 - 1) >> 6;
-    int n = 0;
-    for (int w = w0; w <= w1; ++w) {
-        std::uint64_t bits = row[w];
-        if (w == w0)
-            bits &= ~0ull << (x0 & 63);
-        if (w == w1 && (x1 & 63) != 0)
-            bits &= ~0ull >> (64 - (x1 & 63));
-        n += std::popcount(bits);
-    }
-    return n;
-}
-
 // Sum over the grid square [x0, x1] x [y0, y1] of an integral image with
 // one extra row and column of zeros.
 double box_sum(const std::vector<double>& integral, int stride, int x0, int y0, int x1, int y1)
@@ -49,24 +31,47 @@ double box_sum(const std::vector<double>& integral, int stride, int x0, int y0, 
     return at(x1 + 1, y1 + 1) - at(x0, y1 + 1) - at(x1 + 1, y0) + at(x0, y0);
 }
 
-// Fills `integral` (the grid with one extra row and column of zeros) with
-// the sums of value(cell, gx, gy) over each square from the origin. Cell by
-// cell in row-major order, so `value` may read the entry of `integral` its
-// cell's sum is about to replace.
+// Fills each of `integrals` (the grid with one extra row and column of
+// zeros) with the sums of its entry of value(cell, gx, gy) over each square
+// from the origin, all in one pass. Cell by cell in row-major order, so
+// `value` may read the entry of an integral its cell's sum is about to
+// replace.
+template <std::size_t N, class Value>
+void fill_integrals(const std::array<std::vector<double>*, N>& integrals, cv::Size grid, Value value)
+{
+    const std::size_t stride = static_cast<std::size_t>(grid.width) + 1;
+    for (std::vector<double>* integral : integrals)
+        std::fill(integral->begin(), integral->begin() + static_cast<std::ptrdiff_t>(stride), 0.0);
+    for (int gy = 0; gy < grid.height; ++gy) {
+        std::array<double, N> row_sum{};
+        const std::size_t above = static_cast<std::size_t>(gy) * stride, here = above + stride;
+        for (std::vector<double>* integral : integrals)
+            (*integral)[here] = 0;
+        for (int gx = 0; gx < grid.width; ++gx) {
+            const std::array<double, N> v = value(static_cast<std::size_t>(gy) * static_cast<std::size_t>(grid.width) + static_cast<std::size_t>(gx), gx, gy);
+            const std::size_t at = static_cast<std::size_t>(gx) + 1;
+            for (std::size_t k = 0; k < N; ++k) {
+                row_sum[k] += v[k];
+                (*integrals[k])[here + at] = (*integrals[k])[above + at] + row_sum[k];
+            }
+        }
+    }
+}
+
 template <class Value>
 void fill_integral(std::vector<double>& integral, cv::Size grid, Value value)
 {
-    const int stride = grid.width + 1;
-    std::fill(integral.begin(), integral.begin() + stride, 0.0);
-    for (int gy = 0; gy < grid.height; ++gy) {
-        double row_sum = 0;
-        integral[static_cast<std::size_t>(gy + 1) * stride] = 0;
-        for (int gx = 0; gx < grid.width; ++gx) {
-            row_sum += value(static_cast<std::size_t>(gy) * grid.width + gx, gx, gy);
-            integral[static_cast<std::size_t>(gy + 1) * stride + gx + 1] =
-                integral[static_cast<std::size_t>(gy) * stride + gx + 1] + row_sum;
-        }
-    }
+    fill_integrals<1>({&integral}, grid, [&](std::size_t i, int gx, int gy) { return std::array<double, 1>{value(i, gx, gy)}; });
+}
+
+// Pixels of cell (gx, gy) on the rows cell_features() samples: the even rows
+// y with y + 1 < height.
+double sampled_cell_px(int gx, int gy, int cell_px, cv::Size frame)
+{
+    const int w = std::min(cell_px, frame.width - gx * cell_px);
+    const int y0 = gy * cell_px, y1 = std::min(y0 + cell_px, frame.height - 1);
+    const int rows = y1 > y0 ? (y1 + 1) / 2 - (y0 + 1) / 2 : 0;
+    return static_cast<double>(w) * rows;
 }
 
 }  // namespace
@@ -92,6 +97,8 @@ CellContextScratch::CellContextScratch(cv::Size grid) : grid_(grid)
     const std::size_t integral = static_cast<std::size_t>(grid.width + 1) * static_cast<std::size_t>(grid.height + 1);
     integral_p_.resize(integral);
     integral_w_.resize(integral);
+    cell_p_.resize(static_cast<std::size_t>(std::max(grid.area(), 0)));
+    cell_w_.resize(cell_p_.size());
     column_p_.resize(static_cast<std::size_t>(grid.width));
     column_w_.resize(static_cast<std::size_t>(grid.width));
 }
@@ -104,24 +111,22 @@ void cell_context(const CellContextInput& in, CellContextScratch& scratch, std::
         return;
     const int stride = grid.width + 1;
     // Integral images of p·w and w over the grid, built from the listed
-    // cells (the others hold no vegetation: zero).
-    std::fill(scratch.integral_p_.begin(), scratch.integral_p_.end(), 0.0);
-    std::fill(scratch.integral_w_.begin(), scratch.integral_w_.end(), 0.0);
+    // cells (the others hold no vegetation: zero). The per-cell grids are
+    // zero between calls: only the listed cells are written, and cleared
+    // after.
     std::fill(scratch.column_p_.begin(), scratch.column_p_.end(), 0.0);
     std::fill(scratch.column_w_.begin(), scratch.column_w_.end(), 0.0);
     scratch.plant_p_.fill(0.0);
     scratch.plant_w_.fill(0.0);
     double frame_p = 0, frame_w = 0;
-    const auto cell_index = [&](int gx, int gy) { return static_cast<std::size_t>(gy + 1) * stride + static_cast<std::size_t>(gx + 1); };
     for (std::size_t k = 0; k < count; ++k) {
         const std::uint32_t c = in.cells[k];
         if (c >= static_cast<std::uint32_t>(grid.area()))
             continue;
         const int gx = static_cast<int>(c % static_cast<std::uint32_t>(grid.width));
-        const int gy = static_cast<int>(c / static_cast<std::uint32_t>(grid.width));
         const double w = in.weight[k], pw = w * static_cast<double>(in.probability[k]);
-        scratch.integral_p_[cell_index(gx, gy)] = pw;
-        scratch.integral_w_[cell_index(gx, gy)] = w;
+        scratch.cell_p_[c] = pw;
+        scratch.cell_w_[c] = w;
         scratch.column_p_[static_cast<std::size_t>(gx)] += pw;
         scratch.column_w_[static_cast<std::size_t>(gx)] += w;
         const std::uint16_t id = in.plant[k] <= kMaxPlants ? in.plant[k] : 0;
@@ -130,8 +135,14 @@ void cell_context(const CellContextInput& in, CellContextScratch& scratch, std::
         frame_p += pw;
         frame_w += w;
     }
-    for (auto* integral : {&scratch.integral_p_, &scratch.integral_w_})
-        fill_integral(*integral, grid, [&](std::size_t, int gx, int gy) { return (*integral)[cell_index(gx, gy)]; });
+    fill_integrals<2>({&scratch.integral_p_, &scratch.integral_w_}, grid, [&](std::size_t i, int, int) {
+        return std::array<double, 2>{scratch.cell_p_[i], scratch.cell_w_[i]};
+    });
+    for (std::size_t k = 0; k < count; ++k) {
+        const std::uint32_t c = in.cells[k];
+        if (c < static_cast<std::uint32_t>(grid.area()))
+            scratch.cell_p_[c] = scratch.cell_w_[c] = 0;
+    }
     std::array<int, kContextRingsMm.size()> ring{};
     for (std::size_t r = 0; r < ring.size(); ++r)
         ring[r] = std::max(1, static_cast<int>(std::lround(kContextRingsMm[r] / std::max(in.cell_mm, 1e-6))));
@@ -176,12 +187,18 @@ CellWorkspace::CellWorkspace(cv::Size frame_size, double gsd_mm_per_px, double c
     for (int x = 0; x < width; ++x)
         cell_x_[static_cast<std::size_t>(x)] = static_cast<std::uint16_t>(x / cell_px_);
     transitions_.resize(static_cast<std::size_t>((width + 63) / 64) + 1);
+    vertical_.resize(transitions_.size());
+    row_counts_.resize(3 * static_cast<std::size_t>(grid_.width));
     sums_.resize(n);
     const std::size_t integral = static_cast<std::size_t>(grid_.width + 1) * static_cast<std::size_t>(grid_.height + 1);
     for (auto* v : {&integral_fill_, &integral_px_, &integral_g_, &integral_r_, &integral_n_})
         v->resize(integral);
     column_fill_.resize(static_cast<std::size_t>(grid_.width));
     column_px_.resize(static_cast<std::size_t>(grid_.width));
+    // The sampled pixels depend on the geometry alone.
+    fill_integral(integral_px_, grid_, [&](std::size_t, int gx, int gy) { return sampled_cell_px(gx, gy, cell_px_, frame_size); });
+    for (int gx = 0; gx < grid_.width; ++gx)
+        column_px_[static_cast<std::size_t>(gx)] = box_sum(integral_px_, grid_.width + 1, gx, 0, gx, grid_.height - 1);
     rows_.resize(n);
     plant_.resize(n);
     vegetated_.resize(n);
@@ -221,8 +238,8 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
 
     // One pass over every other row (the features are means and ratios:
     // half the rows estimate them well). Vegetation and boundary counts by
-    // popcount per cell; colour, gradients and the plant vote on every fourth
-    // vegetation pixel of the row.
+    // bit counts per cell; colour, gradients and the plant vote on every
+    // fourth vegetation pixel of the row.
     constexpr std::uint64_t kEveryFourth = 0x1111111111111111ull;
     auto total = [](const cv::Vec3b& v) { return v[0] + v[1] + v[2]; };
     for (int y = 0; y + 1 < height; y += 2) {
@@ -234,7 +251,9 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
         if (any == 0)
             continue;   // soil only: nothing to count
         // Boundaries: a pixel differing from its right neighbour, or from
-        // the one below.
+        // the one below. Per cell: the row's vegetation, the row below's (a
+        // cell with neither takes no boundary, not even its right edge's),
+        // and the two boundary counts, one counting call per row each.
         for (int w = 0; w < words; ++w) {
             const std::uint64_t next = w + 1 < words ? vrow[w + 1] : 0;
             const std::uint64_t right = (vrow[w] >> 1) | (next << 63);
@@ -242,30 +261,32 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
             if (w + 1 == words)
                 edge &= vegetation.last_word_mask() >> 1;   // the frame's right border is no boundary
             ws.transitions_[static_cast<std::size_t>(w)] = edge;
+            ws.vertical_[static_cast<std::size_t>(w)] = vrow[w] ^ below[w];
         }
-        const std::size_t grid_row = static_cast<std::size_t>(y / cell_px) * static_cast<std::size_t>(grid.width);
-        for (int cx = 0; cx < grid.width; ++cx) {
-            const int x0 = cx * cell_px, x1 = std::min(x0 + cell_px, width);
-            const int n = range_popcount(vrow, x0, x1);
-            CellWorkspace::Sums& s = ws.sums_[grid_row + static_cast<std::size_t>(cx)];
-            s.vegetation_px += n;
-            if (n == 0 && range_popcount(below, x0, x1) == 0)
+        std::fill(ws.row_counts_.begin(), ws.row_counts_.end(), 0);
+        const std::size_t gw = static_cast<std::size_t>(grid.width);
+        int* const row_vegetation = ws.row_counts_.data();
+        int* const below_vegetation = row_vegetation + gw;
+        int* const row_boundary = below_vegetation + gw;
+        add_span_bit_counts(vrow, width, cell_px, row_vegetation);
+        add_span_bit_counts(below, width, cell_px, below_vegetation);
+        add_span_bit_counts(ws.transitions_.data(), width, cell_px, row_boundary);
+        add_span_bit_counts(ws.vertical_.data(), width, cell_px, row_boundary);
+        const std::size_t grid_row = static_cast<std::size_t>(y / cell_px) * gw;
+        // Only cells that meet vegetation in either row can count anything.
+        std::size_t next_cell = 0;
+        for (int w = 0; w < words; ++w) {
+            if ((vrow[w] | below[w]) == 0)
                 continue;
-            s.boundary += range_popcount(ws.transitions_.data(), x0, x1);
-            // Vertical boundaries: pixels whose lower neighbour differs.
-            int vertical = 0;
-            {
-                const int w0 = x0 >> 6, w1 = (x1 - 1) >> 6;
-                for (int w = w0; w <= w1; ++w) {
-                    std::uint64_t bits = vrow[w] ^ below[w];
-                    if (w == w0)
-                        bits &= ~0ull << (x0 & 63);
-                    if (w == w1 && (x1 & 63) != 0)
-                        bits &= ~0ull >> (64 - (x1 & 63));
-                    vertical += std::popcount(bits);
-                }
+            const std::size_t last_cell = ws.cell_x_[static_cast<std::size_t>(std::min(w * 64 + 63, width - 1))];
+            for (std::size_t cx = std::max<std::size_t>(ws.cell_x_[static_cast<std::size_t>(w * 64)], next_cell);
+                 cx <= last_cell; ++cx) {
+                CellWorkspace::Sums& s = ws.sums_[grid_row + cx];
+                s.vegetation_px += row_vegetation[cx];
+                if (row_vegetation[cx] != 0 || below_vegetation[cx] != 0)
+                    s.boundary += row_boundary[cx];
             }
-            s.boundary += vertical;
+            next_cell = last_cell + 1;
         }
         const auto* bgr = frame.bgr.ptr<cv::Vec3b>(y);
         const auto* bgr_up = frame.bgr.ptr<cv::Vec3b>(std::max(y - 1, 0));
@@ -328,23 +349,15 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
     // rows, colour over the sampled vegetation pixels.
     const std::size_t n = ws.cells();
     const int stride = grid.width + 1;
-    // Pixels on the sampled rows of a cell.
-    auto cell_pixels = [&](int gx, int gy) {
-        const int w = std::min(cell_px, width - gx * cell_px);
-        // The even rows y in [y0, y1) with y + 1 < height, as the pass reads.
-        const int y0 = gy * cell_px, y1 = std::min(y0 + cell_px, height - 1);
-        const int rows = y1 > y0 ? (y1 + 1) / 2 - (y0 + 1) / 2 : 0;
-        return static_cast<double>(w) * rows;
-    };
-    fill_integral(ws.integral_fill_, grid, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].vegetation_px); });
-    fill_integral(ws.integral_px_, grid, [&](std::size_t, int gx, int gy) { return cell_pixels(gx, gy); });
-    fill_integral(ws.integral_g_, grid, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].g); });
-    fill_integral(ws.integral_r_, grid, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].r); });
-    fill_integral(ws.integral_n_, grid, [&](std::size_t i, int, int) { return static_cast<double>(ws.sums_[i].sampled_px); });
+    fill_integrals<4>({&ws.integral_fill_, &ws.integral_g_, &ws.integral_r_, &ws.integral_n_}, grid,
+                      [&](std::size_t i, int, int) {
+                          const CellWorkspace::Sums& s = ws.sums_[i];
+                          return std::array<double, 4>{static_cast<double>(s.vegetation_px), static_cast<double>(s.g),
+                                                       static_cast<double>(s.r), static_cast<double>(s.sampled_px)};
+                      });
     double frame_fill = 0, frame_px = 0;
     for (int gx = 0; gx < grid.width; ++gx) {
         ws.column_fill_[static_cast<std::size_t>(gx)] = box_sum(ws.integral_fill_, stride, gx, 0, gx, grid.height - 1);
-        ws.column_px_[static_cast<std::size_t>(gx)] = box_sum(ws.integral_px_, stride, gx, 0, gx, grid.height - 1);
         frame_fill += ws.column_fill_[static_cast<std::size_t>(gx)];
         frame_px += ws.column_px_[static_cast<std::size_t>(gx)];
     }
@@ -411,7 +424,7 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
         const float count = static_cast<float>(s.sampled_px);
         const float r = s.r / count, g = s.g / count;
         const float brightness = s.brightness / count;
-        f[c_fill] = static_cast<float>(s.vegetation_px / std::max(cell_pixels(gx, gy), 1.0));
+        f[c_fill] = static_cast<float>(s.vegetation_px / std::max(sampled_cell_px(gx, gy, cell_px, ws.frame_size_), 1.0));
         f[c_r_mean] = r;
         f[c_g_mean] = g;
         f[c_r_std] = std::sqrt(std::max(0.0f, s.rr / count - r * r));

@@ -1,5 +1,6 @@
 #include "stemd/vision/classify.hpp"
 
+#include "stemd/vision/bitmask.hpp"
 #include "stemd/vision/cells.hpp"
 
 #include <algorithm>
@@ -140,116 +141,100 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
         frame.bgr.type() != CV_8UC3 || dws.frame_size() != ws.frame_size_)
         return;
     ws.plants_ = det.plants.size();
-    const BitMask& closed = dws.closed();
     const BitMask& vegetation = dws.vegetation();
     const std::span<const std::uint16_t> piece_plant = dws.piece_plant();
     const bool has_nir = !frame.nir.empty() && frame.nir.size() == ws.frame_size_ && frame.nir.type() == CV_8UC1;
 
-    // One pass over the closed mask, run by run: each run gets its plant
-    // once, its index pixels in one fill, its moments in closed form from
-    // its ends and its vegetation count by popcount. Only colour, texture
-    // and NDVI read pixels, on every other row: they are means, and half
-    // the rows estimate them well.
+    // One pass over the closed mask, run by run, from its labelling: each
+    // run gets its plant once, its index pixels in one fill, its moments in
+    // closed form from its ends and its vegetation count by bit count. Only
+    // colour, texture and NDVI read pixels, on every other row: they are
+    // means, and half the rows estimate them well.
     std::fill(ws.sums_.begin(), ws.sums_.begin() + static_cast<std::ptrdiff_t>(ws.plants_), ClassifyWorkspace::Sums{});
     const int width = ws.frame_size_.width, height = ws.frame_size_.height;
-    const int words = closed.words_per_row();
-    // The first set (want = 1) or clear (want = 0) bit at or after x, or width.
-    auto next_bit = [&](const std::uint64_t* row, int x, bool want) {
-        if (x >= width)
-            return width;
-        int w = x >> 6;
-        std::uint64_t bits = (want ? row[w] : ~row[w]) & (~0ull << (x & 63));
-        while (bits == 0) {
-            if (++w >= words)
-                return width;
-            bits = want ? row[w] : ~row[w];
-        }
-        return std::min(w * 64 + std::countr_zero(bits), width);
-    };
+    const LabelScratch& pieces = dws.pieces();
     int dirty_top = height, dirty_bottom = -1, dirty_left = width, dirty_right = -1;
-    for (int y = 0; y < height; ++y) {
-        const std::uint64_t* crow = closed.row(y);
+    for (std::size_t k = 0; k < pieces.run_count(); ++k) {
+        const LabelScratch::LabelledRun run = pieces.run(k);
+        const std::uint16_t id = piece_plant[static_cast<std::size_t>(run.component)];
+        if (id == 0)
+            continue;
+        const int y = run.y, run_start = run.x0, run_stop = run.x1 + 1;   // one past the run's end
         const std::uint64_t* vrow = vegetation.row(y);
         auto* index_row = ws.plant_index_.ptr<std::uint16_t>(y);
+        const bool sample_row = (y & 1) == 0;
         const auto* bgr = frame.bgr.ptr<cv::Vec3b>(y);
         const auto* bgr_up = frame.bgr.ptr<cv::Vec3b>(std::max(y - 1, 0));
         const auto* bgr_down = frame.bgr.ptr<cv::Vec3b>(std::min(y + 1, height - 1));
         const std::uint8_t* nir = has_nir ? frame.nir.ptr<std::uint8_t>(y) : nullptr;
-        const bool sample_row = (y & 1) == 0;
-        for (int run_start = next_bit(crow, 0, true); run_start < width;) {
-            const int run_stop = next_bit(crow, run_start, false);   // one past the run's end
-            const int piece = component_at(dws.pieces(), {run_start, y});
-            const std::uint16_t id = piece >= 0 ? piece_plant[static_cast<std::size_t>(piece)] : 0;
-            if (id != 0) {
-                ClassifyWorkspace::Sums& s = ws.sums_[id - 1u];
-                const cv::Rect& box = det.plants[id - 1u].bbox;
-                std::fill(index_row + run_start, index_row + run_stop, id);
-                dirty_top = std::min(dirty_top, y);
-                dirty_bottom = y;
-                dirty_left = std::min(dirty_left, run_start);
-                dirty_right = std::max(dirty_right, run_stop - 1);
-                // Pixels x0..x1 relative to the box corner, all on row dy.
-                const double n = run_stop - run_start;
-                const double x0 = run_start - box.x, x1 = run_stop - 1 - box.x, dy = y - box.y;
-                const double sum_x = (x0 + x1) * n / 2;
-                s.closed_px += run_stop - run_start;
-                s.x += sum_x;
-                s.y += dy * n;
-                s.xx += (x1 * (x1 + 1) * (2 * x1 + 1) - (x0 - 1) * x0 * (2 * x0 - 1)) / 6;
-                s.yy += dy * dy * n;
-                s.xy += dy * sum_x;
-                // The run's vegetation pixels, word by word.
-                long vegetation_px = 0, sampled_px = 0, brightness = 0, gradient = 0;
-                float r_sum = 0, g_sum = 0, b_sum = 0, rr = 0, gg = 0, ndvi_sum = 0, ndvi2 = 0;
-                for (int w = run_start >> 6; w <= (run_stop - 1) >> 6; ++w) {
-                    std::uint64_t bits = vrow[w];
-                    if (w == run_start >> 6)
-                        bits &= ~0ull << (run_start & 63);
-                    if (w == (run_stop - 1) >> 6 && (run_stop & 63) != 0)
-                        bits &= ~0ull >> (64 - (run_stop & 63));
-                    vegetation_px += std::popcount(bits);
-                    if (!sample_row)
-                        continue;
-                    visit_bits(bits, w * 64, [&](int x) {
-                        ++sampled_px;
-                        const cv::Vec3b& p = bgr[x];
-                        const int sum = p[0] + p[1] + p[2];
-                        brightness += sum;
-                        // Reciprocals from a table: a division per pixel and
-                        // channel would cost more than the rest of the pass.
-                        const float inv = ws.reciprocal_[static_cast<std::size_t>(sum)];
-                        const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
-                        r_sum += r;
-                        g_sum += g;
-                        b_sum += static_cast<float>(p[0]) * inv;
-                        rr += r * r;
-                        gg += g * g;
-                        auto total = [](const cv::Vec3b& v) { return v[0] + v[1] + v[2]; };
-                        const int left = total(bgr[std::max(x - 1, 0)]), right = total(bgr[std::min(x + 1, width - 1)]);
-                        gradient += std::abs(right - left) + std::abs(total(bgr_down[x]) - total(bgr_up[x]));
-                        if (nir) {
-                            const int nv = nir[x], red = p[2];
-                            const float ndvi =
-                                static_cast<float>(nv - red) * ws.reciprocal_[static_cast<std::size_t>(nv + red)];
-                            ndvi_sum += ndvi;
-                            ndvi2 += ndvi * ndvi;
-                        }
-                    });
+        ClassifyWorkspace::Sums& s = ws.sums_[id - 1u];
+        const cv::Rect& box = det.plants[id - 1u].bbox;
+        std::fill(index_row + run_start, index_row + run_stop, id);
+        dirty_top = std::min(dirty_top, y);
+        dirty_bottom = y;
+        dirty_left = std::min(dirty_left, run_start);
+        dirty_right = std::max(dirty_right, run_stop - 1);
+        // Pixels x0..x1 relative to the box corner, all on row dy.
+        const double n = run_stop - run_start;
+        const double x0 = run_start - box.x, x1 = run_stop - 1 - box.x, dy = y - box.y;
+        const double sum_x = (x0 + x1) * n / 2;
+        s.closed_px += run_stop - run_start;
+        s.x += sum_x;
+        s.y += dy * n;
+        s.xx += (x1 * (x1 + 1) * (2 * x1 + 1) - (x0 - 1) * x0 * (2 * x0 - 1)) / 6;
+        s.yy += dy * dy * n;
+        s.xy += dy * sum_x;
+        // The run's vegetation pixels: counted on an unsampled row,
+        // visited word by word on a sampled one.
+        long vegetation_px = 0, sampled_px = 0, brightness = 0, gradient = 0;
+        float r_sum = 0, g_sum = 0, b_sum = 0, rr = 0, gg = 0, ndvi_sum = 0, ndvi2 = 0;
+        if (!sample_row)
+            vegetation_px = count_bits_in_range(vrow, run_start, run_stop);
+        for (int w = run_start >> 6; sample_row && w <= (run_stop - 1) >> 6; ++w) {
+            std::uint64_t bits = vrow[w];
+            if (w == run_start >> 6)
+                bits &= ~0ull << (run_start & 63);
+            if (w == (run_stop - 1) >> 6 && (run_stop & 63) != 0)
+                bits &= ~0ull >> (64 - (run_stop & 63));
+            visit_bits(bits, w * 64, [&](int x) {
+                ++sampled_px;
+                const cv::Vec3b& p = bgr[x];
+                const int sum = p[0] + p[1] + p[2];
+                brightness += sum;
+                // Reciprocals from a table: a division per pixel and
+                // channel would cost more than the rest of the pass.
+                const float inv = ws.reciprocal_[static_cast<std::size_t>(sum)];
+                const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
+                r_sum += r;
+                g_sum += g;
+                b_sum += static_cast<float>(p[0]) * inv;
+                rr += r * r;
+                gg += g * g;
+                auto total = [](const cv::Vec3b& v) { return v[0] + v[1] + v[2]; };
+                const int left = total(bgr[std::max(x - 1, 0)]), right = total(bgr[std::min(x + 1, width - 1)]);
+                gradient += std::abs(right - left) + std::abs(total(bgr_down[x]) - total(bgr_up[x]));
+                if (nir) {
+                    const int nv = nir[x], red = p[2];
+                    const float ndvi =
+                        static_cast<float>(nv - red) * ws.reciprocal_[static_cast<std::size_t>(nv + red)];
+                    ndvi_sum += ndvi;
+                    ndvi2 += ndvi * ndvi;
                 }
-                s.vegetation_px += vegetation_px;
-                s.sampled_px += sampled_px;
-                s.brightness += static_cast<double>(brightness);
-                s.gradient += static_cast<double>(gradient);
-                s.r += r_sum;
-                s.g += g_sum;
-                s.b += b_sum;
-                s.rr += rr;
-                s.gg += gg;
-                s.ndvi += ndvi_sum;
-                s.ndvi2 += ndvi2;
-            }
-            run_start = next_bit(crow, run_stop, true);
+            });
         }
+        if (sample_row)
+            vegetation_px = sampled_px;   // every vegetation pixel of a sampled row is visited
+        s.vegetation_px += vegetation_px;
+        s.sampled_px += sampled_px;
+        s.brightness += static_cast<double>(brightness);
+        s.gradient += static_cast<double>(gradient);
+        s.r += r_sum;
+        s.g += g_sum;
+        s.b += b_sum;
+        s.rr += rr;
+        s.gg += gg;
+        s.ndvi += ndvi_sum;
+        s.ndvi2 += ndvi2;
     }
     ws.dirty_ = dirty_bottom >= 0 ? cv::Rect(dirty_left, dirty_top, dirty_right - dirty_left + 1,
                                               dirty_bottom - dirty_top + 1)

@@ -10,7 +10,7 @@ void LabelScratch::reserve(int width_px, int height_px)
     const std::size_t max_runs = static_cast<std::size_t>(width_px / 2 + 1) * static_cast<std::size_t>(height_px);
     runs_.reserve(max_runs);
     parent_.reserve(max_runs);
-    root_slot_.reserve(max_runs);
+    run_component_.reserve(max_runs);
 }
 
 namespace {
@@ -86,13 +86,15 @@ void label_components(const BitMask& mask, LabelScratch& scratch, std::vector<Co
         previous_end = runs.size();
     }
 
-    auto& slot = scratch.root_slot_;
-    slot.assign(runs.size(), -1);
+    // A root is its component's first run, so its component is known before
+    // any other run of it is reached.
+    auto& component = scratch.run_component_;
+    component.assign(runs.size(), -1);
     for (std::size_t i = 0; i < runs.size(); ++i) {
         const int root = find_root(parent, static_cast<int>(i));
         const auto& run = runs[i];
         if (root == static_cast<int>(i)) {
-            slot[i] = static_cast<int>(out.size());
+            component[i] = static_cast<int>(out.size());
             Component c;
             c.x_min = run.x0;
             c.x_max = run.x1;
@@ -100,7 +102,8 @@ void label_components(const BitMask& mask, LabelScratch& scratch, std::vector<Co
             c.first_pixel = {run.x0, run.y};
             out.push_back(c);
         }
-        Component& c = out[static_cast<std::size_t>(slot[static_cast<std::size_t>(root)])];
+        component[i] = component[static_cast<std::size_t>(root)];
+        Component& c = out[static_cast<std::size_t>(component[i])];
         const long n = run.x1 - run.x0 + 1;
         c.area_px += n;
         c.sum_x += static_cast<double>(run.x0 + run.x1) * static_cast<double>(n) / 2.0;
@@ -123,10 +126,7 @@ int component_at(const LabelScratch& scratch, cv::Point p)
     const auto run = std::prev(after);
     if (run->y != p.y || p.x > run->x1)
         return -1;
-    int i = static_cast<int>(run - runs.begin());
-    while (scratch.parent_[static_cast<std::size_t>(i)] != i)
-        i = scratch.parent_[static_cast<std::size_t>(i)];
-    return scratch.root_slot_[static_cast<std::size_t>(i)];
+    return scratch.run_component_[static_cast<std::size_t>(run - runs.begin())];
 }
 
 void reduce_labelled_mask(const LabelScratch& scratch, int cell_px, BitMask& out)
@@ -171,13 +171,6 @@ void set_range(std::uint64_t* row, int x0, int x1)
     }
 }
 
-int root_of(const std::vector<int>& parent, int i)
-{
-    while (parent[static_cast<std::size_t>(i)] != i)
-        i = parent[static_cast<std::size_t>(i)];
-    return i;
-}
-
 }  // namespace
 
 void keep_seeded_components(const LabelScratch& scratch, const BitMask& seeds, std::vector<std::uint8_t>& keep,
@@ -185,18 +178,18 @@ void keep_seeded_components(const LabelScratch& scratch, const BitMask& seeds, s
 {
     const auto& runs = scratch.runs_;
     std::size_t components = 0;
-    for (const int slot : scratch.root_slot_)
-        components = std::max(components, static_cast<std::size_t>(slot + 1));
+    for (const int component : scratch.run_component_)
+        components = std::max(components, static_cast<std::size_t>(component + 1));
     keep.assign(components, 0);
     for (std::size_t i = 0; i < runs.size(); ++i) {
         const LabelScratch::Run& run = runs[i];
         if (any_in_range(seeds.row(run.y), run.x0, run.x1))
-            keep[static_cast<std::size_t>(scratch.root_slot_[static_cast<std::size_t>(root_of(scratch.parent_, static_cast<int>(i)))])] = 1;
+            keep[static_cast<std::size_t>(scratch.run_component_[i])] = 1;
     }
     out.clear();
     for (std::size_t i = 0; i < runs.size(); ++i) {
         const LabelScratch::Run& run = runs[i];
-        if (keep[static_cast<std::size_t>(scratch.root_slot_[static_cast<std::size_t>(root_of(scratch.parent_, static_cast<int>(i)))])])
+        if (keep[static_cast<std::size_t>(scratch.run_component_[i])])
             set_range(out.row(run.y), run.x0, run.x1);
     }
 }

@@ -107,3 +107,34 @@ TEST(Plants, ComponentAtFindsThePixelsComponent)
         EXPECT_EQ(component_at(scratch, {0, mask.rows}), -1);
     }
 }
+
+TEST(Plants, LabelledRunsTileTheMaskInRasterOrderWithTheirComponents)
+{
+    for (const std::uint64_t seed : {1u, 2u, 3u}) {
+        const cv::Mat mask = stemd::test::random_blob_mask({131, 67}, seed, 10, 0.05);
+        const stemd::test::LabelledMask labelled(mask);
+        const LabelScratch& scratch = labelled.scratch;
+        cv::Mat drawn = cv::Mat::zeros(mask.size(), CV_8UC1);
+        int last_y = -1, last_x1 = -2;
+        for (std::size_t k = 0; k < scratch.run_count(); ++k) {
+            const LabelScratch::LabelledRun run = scratch.run(k);
+            // Raster order, maximal runs: a run on the same row starts past
+            // the gap after the one before it.
+            ASSERT_TRUE(run.y > last_y || (run.y == last_y && run.x0 > last_x1 + 1)) << "run " << k;
+            ASSERT_LE(run.x0, run.x1);
+            if (run.x0 > 0) {
+                ASSERT_EQ(mask.at<std::uint8_t>(run.y, run.x0 - 1), 0) << "run " << k;
+            }
+            if (run.x1 + 1 < mask.cols) {
+                ASSERT_EQ(mask.at<std::uint8_t>(run.y, run.x1 + 1), 0) << "run " << k;
+            }
+            for (int x = run.x0; x <= run.x1; ++x) {
+                drawn.at<std::uint8_t>(run.y, x) = 255;
+                ASSERT_EQ(run.component, component_at(scratch, {x, run.y})) << x << "," << run.y;
+            }
+            last_y = run.y;
+            last_x1 = run.x1;
+        }
+        EXPECT_EQ(cv::countNonZero(drawn != mask), 0);
+    }
+}

@@ -80,6 +80,13 @@ private:
 // plain x86-64 baseline (a software popcount per word) and the instruction is
 // picked once at program start when the CPU reports it.
 long count_bits(const std::uint64_t* words, std::size_t n);
+// The set bits of a row's pixels [x0, x1) (0 when x1 <= x0), counted alike.
+long count_bits_in_range(const std::uint64_t* row, int x0, int x1);
+// Adds to counts[c] the set bits of the row's pixels [c * span_px,
+// min((c + 1) * span_px, width_px)), for every span that starts inside the
+// row (ceil(width_px / span_px) of them): a grid's per-cell counts for one
+// row in one call, counted alike. Nothing when span_px < 1.
+void add_span_bit_counts(const std::uint64_t* row, int width_px, int span_px, int* counts);
 
 // An 8-bit mask to bits: a pixel is set when it is nonzero (or zero, for
 // masks that mark vegetation with 0). `out` is resized if needed.

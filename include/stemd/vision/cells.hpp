@@ -127,6 +127,7 @@ private:
     friend void cell_context(const CellContextInput&, CellContextScratch&, std::span<CellContext>);
     cv::Size grid_;
     std::vector<double> integral_p_, integral_w_, column_p_, column_w_;
+    std::vector<double> cell_p_, cell_w_;   // p·w and w per cell, zero but while a call runs
     std::array<double, kMaxPlants + 1> plant_p_{}, plant_w_{};
 };
 
@@ -180,7 +181,8 @@ private:
     int cell_px_ = 1;
     cv::Size grid_;
     std::vector<std::uint16_t> cell_x_;        // grid column of each frame column
-    std::vector<std::uint64_t> transitions_;   // one row of bits
+    std::vector<std::uint64_t> transitions_, vertical_;   // one row of bits each
+    std::vector<int> row_counts_;                        // one row's per-cell counts, three to a column
     std::vector<Sums> sums_;
     std::vector<double> integral_fill_, integral_px_, integral_g_, integral_r_, integral_n_;
     std::vector<double> column_fill_, column_px_;

@@ -25,7 +25,20 @@ public:
     void reserve(int width_px, int height_px);
     std::size_t reserved_bytes() const
     {
-        return runs_.capacity() * sizeof(Run) + (parent_.capacity() + root_slot_.capacity()) * sizeof(int);
+        return runs_.capacity() * sizeof(Run) + (parent_.capacity() + run_component_.capacity()) * sizeof(int);
+    }
+
+    // After label_components: its runs in raster order (x1 inclusive), each
+    // with the index (into label_components' `out`) of its component, so a
+    // pass over the labelled mask needs neither a bit scan nor a lookup.
+    struct LabelledRun {
+        int y, x0, x1, component;
+    };
+    std::size_t run_count() const { return runs_.size(); }
+    LabelledRun run(std::size_t i) const
+    {
+        const Run& r = runs_[i];
+        return {r.y, r.x0, r.x1, run_component_[i]};
     }
 
 private:
@@ -36,7 +49,7 @@ private:
     struct Run { int y, x0, x1; };
     std::vector<Run> runs_;
     std::vector<int> parent_;
-    std::vector<int> root_slot_;
+    std::vector<int> run_component_;
 };
 
 // Components in raster order of their first pixel. `out` is cleared and
