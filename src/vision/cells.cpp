@@ -209,7 +209,7 @@ CellWorkspace::CellWorkspace(cv::Size frame_size, double gsd_mm_per_px, double c
     listed_probability_.resize(n);
     listed_plant_.resize(n);
     context_.resize(n);
-    context_rows_.resize(n);
+    context_rows_.resize(n * kContextFeatureCount);
     context_scratch_ = CellContextScratch(grid_);
     in_part_.resize(n);
     part_stack_.resize(n);
@@ -332,17 +332,10 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
     }
 
     // The frame's mean R+G+B as plant_features() measured it; a frame with
-    // no plant has none, then from every 4th pixel of every 4th row here.
+    // no plant has none, then measured here alike.
     double frame_brightness = plants.frame_brightness();
-    if (frame_brightness <= 0) {
-        long sum = 0, samples = 0;
-        for (int y = 0; y < height; y += 4) {
-            const auto* row = frame.bgr.ptr<cv::Vec3b>(y);
-            for (int x = 0; x < width; x += 4, ++samples)
-                sum += total(row[x]);
-        }
-        frame_brightness = static_cast<double>(sum) / static_cast<double>(std::max(samples, 1L));
-    }
+    if (frame_brightness <= 0)
+        frame_brightness = sampled_frame_brightness(frame.bgr);
     frame_brightness = std::max(frame_brightness, 1.0);
 
     // Grid sums for the neighbourhoods: vegetation and pixels on the sampled
@@ -476,9 +469,16 @@ void classify_cells(const PlantClassifier& model, CellWorkspace& ws)
     // The forest's probability of each cell, then its mean over the 3x3
     // cells around it weighed by their vegetation: neighbouring cells are
     // mostly the same plant, and one cell's features are noisy.
+    // Each cell's features go first into its row of the second stage, back
+    // to back: both forests walk rows at constant offsets from one pointer.
     const auto cells = ws.vegetated();
-    model.cell_weed_probabilities(
-        cells.size(), [&](std::size_t k) { return ws.rows_[cells[k]].data(); }, ws.listed_probability_.data());
+    constexpr std::size_t kStride = kContextFeatureCount;
+    float* const rows = ws.context_rows_.data();
+    for (std::size_t k = 0; k < cells.size(); ++k) {
+        const CellRow& own = ws.rows_[cells[k]];
+        std::copy(own.begin(), own.end(), rows + k * kStride);
+    }
+    model.cell_weed_probabilities_packed<kStride>(cells.size(), rows, ws.listed_probability_.data());
     if (model.has_context()) {
         // The second stage: each cell's row and what the first stage said
         // around it.
@@ -493,14 +493,9 @@ void classify_cells(const PlantClassifier& model, CellWorkspace& ws)
                                      .plant = {ws.listed_plant_.data(), cells.size()},
                                      .probability = {ws.listed_probability_.data(), cells.size()}};
         cell_context(input, ws.context_scratch_, {ws.context_.data(), cells.size()});
-        for (std::size_t k = 0; k < cells.size(); ++k) {
-            ContextRow& row = ws.context_rows_[k];
-            const CellRow& own = ws.rows_[cells[k]];
-            std::copy(own.begin(), own.end(), row.begin());
-            std::copy(ws.context_[k].begin(), ws.context_[k].end(), row.begin() + kCellFeatureCount);
-        }
-        model.context_weed_probabilities(
-            cells.size(), [&](std::size_t k) { return ws.context_rows_[k].data(); }, ws.listed_probability_.data());
+        for (std::size_t k = 0; k < cells.size(); ++k)
+            std::copy(ws.context_[k].begin(), ws.context_[k].end(), rows + k * kStride + kCellFeatureCount);
+        model.context_weed_probabilities_packed<kStride>(cells.size(), rows, ws.listed_probability_.data());
     }
     for (std::size_t k = 0; k < cells.size(); ++k)
         ws.raw_[cells[k]] = ws.listed_probability_[k];

@@ -287,6 +287,20 @@ TEST(Cells, TheFlatForestVotesAsOpenCvDoes)
             EXPECT_EQ(batch[k], flat.weed_fraction(samples.ptr<float>(first + static_cast<int>(k)))) << "row " << k;
         EXPECT_EQ(batch[count], -1.0f) << "nothing written past the rows";
     }
+    // The same from rows packed back to back, with room between them (a
+    // stride longer than the features), in whole groups and a short last one.
+    constexpr std::size_t kStride = kPlantFeatureCount + 3;
+    std::vector<float> packed(static_cast<std::size_t>(samples.rows) * kStride, 1e9f);
+    for (int i = 0; i < samples.rows; ++i)
+        std::copy(samples.ptr<float>(i), samples.ptr<float>(i) + kPlantFeatureCount,
+                  packed.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(i) * kStride));
+    for (const std::size_t count : {std::size_t{300}, std::size_t{297}, std::size_t{16}, std::size_t{5}, std::size_t{0}}) {
+        std::vector<float> batch(count + 1, -1.0f);
+        flat.weed_fractions_packed<kStride>(count, packed.data(), batch.data());
+        for (std::size_t k = 0; k < count; ++k)
+            EXPECT_EQ(batch[k], flat.weed_fraction(samples.ptr<float>(static_cast<int>(k)))) << count << " rows, row " << k;
+        EXPECT_EQ(batch[count], -1.0f) << "nothing written past the rows";
+    }
     for (std::size_t t = 0; t < flat.roots.size(); ++t) {
         EXPECT_GT(flat.depths[t], 0) << "tree " << t;
         EXPECT_LE(flat.depths[t], ForestOptions{}.max_depth) << "no deeper than the forest was allowed to grow";

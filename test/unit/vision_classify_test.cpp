@@ -140,6 +140,30 @@ TEST(Classify, NdviFeaturesComeFromTheNirPlane)
     EXPECT_NEAR(c.cws.features()[0][f_ndvi_std], 0.0, 1e-4);
 }
 
+TEST(Classify, FrameBrightnessIsTheMeanOfEveryFourthPixelOfEveryFourthRow)
+{
+    // Widths around the 16-pixel blocks, heights not a multiple of 4, and a
+    // view into a larger frame (rows not contiguous).
+    cv::RNG rng(21);
+    cv::Mat big(40, 120, CV_8UC3);
+    rng.fill(big, cv::RNG::UNIFORM, 0, 256);
+    for (const int width : {1, 3, 15, 16, 17, 33, 64, 100}) {
+        for (const int height : {1, 4, 7, 13}) {
+            const cv::Mat frame = big(cv::Rect(5, 2, width, height));
+            long sum = 0, samples = 0;
+            for (int y = 0; y < height; y += 4)
+                for (int x = 0; x < width; x += 4, ++samples) {
+                    const cv::Vec3b p = frame.at<cv::Vec3b>(y, x);
+                    sum += p[0] + p[1] + p[2];
+                }
+            EXPECT_EQ(sampled_frame_brightness(frame), std::max(static_cast<double>(sum) / static_cast<double>(samples), 1.0))
+                << width << "x" << height;
+        }
+    }
+    EXPECT_EQ(sampled_frame_brightness(cv::Mat(8, 8, CV_8UC3, cv::Scalar::all(0))), 1.0) << "a black frame: the floor";
+    EXPECT_EQ(sampled_frame_brightness(cv::Mat()), 1.0);
+}
+
 TEST(Classify, DecisionLeavesTheUnsureMiddleUnknown)
 {
     // weed_confidence at min_confidence or below: the symmetric decision.

@@ -196,7 +196,7 @@ private:
     std::vector<float> listed_weight_, listed_probability_;
     std::vector<std::uint16_t> listed_plant_;
     std::vector<CellContext> context_;
-    std::vector<ContextRow> context_rows_;
+    std::vector<float> context_rows_;   // a ContextRow per vegetated cell, back to back
     CellContextScratch context_scratch_;
     // add_weed_parts(): cells already in a part, and the flood fill's stack.
     std::vector<std::uint8_t> in_part_;

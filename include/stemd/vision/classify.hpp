@@ -125,6 +125,11 @@ private:
 void plant_features(const FrameView& frame, const Params& params, const Workspace& detect_workspace,
                     const Detections& detections, ClassifyWorkspace& workspace);
 
+// The frame's mean R+G+B over every 4th pixel of every 4th row (at least
+// 1): the classifier's brightness normaliser, as its models were trained.
+// CV_8UC3; an empty frame gives 1.
+double sampled_frame_brightness(const cv::Mat& bgr);
+
 // The class of a plant from its weed probability, asymmetric because a
 // crop called weed is stamped and a weed called crop is only left standing:
 // weed at or above the higher of weed_confidence and min_confidence, crop at
@@ -253,6 +258,38 @@ struct FlatForest {
         for (std::size_t k = 0; k < count; ++k)
             out[k] /= static_cast<float>(roots.size());
     }
+
+    // weed_fractions() of `count` rows of kStride floats laid out one after
+    // another from `rows`. A lane's row is then a constant offset from one
+    // pointer instead of a pointer of its own, which frees the registers the
+    // sixteen walks need. The same values.
+    template <std::size_t kStride>
+    void weed_fractions_packed(std::size_t count, const float* rows, float* out) const
+    {
+        constexpr std::size_t kLanes = 16;
+        const std::size_t whole = count - count % kLanes;
+        std::fill(out, out + whole, 0.0f);
+        for (std::size_t t = 0; t < roots.size(); ++t) {
+            for (std::size_t first = 0; first < whole; first += kLanes) {
+                const float* group = rows + first * kStride;
+                std::array<int, kLanes> at;
+                at.fill(roots[t]);
+                for (int step = 0; step < depths[t]; ++step)
+                    for (std::size_t j = 0; j < kLanes; ++j) {
+                        const Node& node = nodes[static_cast<std::size_t>(at[j])];
+                        at[j] = node.child[group[j * kStride + static_cast<std::size_t>(node.var)] <= node.threshold ? 0 : 1];
+                    }
+                for (std::size_t j = 0; j < kLanes; ++j)
+                    out[first + j] += vote[static_cast<std::size_t>(at[j])];
+            }
+        }
+        if (!roots.empty())
+            for (std::size_t k = 0; k < whole; ++k)
+                out[k] /= static_cast<float>(roots.size());
+        // The rows after the last whole group.
+        weed_fractions(
+            count - whole, [&](std::size_t k) { return rows + (whole + k) * kStride; }, out + whole);
+    }
 };
 
 // The same trees as `forest`, whose variables must all be ordered (as
@@ -300,6 +337,13 @@ public:
     {
         cell_flat_.weed_fractions(count, row_of, out);
     }
+    // The same for `count` rows laid out kStride floats apart from `rows`,
+    // each starting with its kCellFeatureCount features (the faster walk).
+    template <std::size_t kStride>
+    void cell_weed_probabilities_packed(std::size_t count, const float* rows, float* out) const
+    {
+        cell_flat_.weed_fractions_packed<kStride>(count, rows, out);
+    }
     // Variable importance of the cell forest (training only, empty after load).
     const cv::Mat& cell_importance() const { return cell_importance_; }
 
@@ -318,6 +362,11 @@ public:
     void context_weed_probabilities(std::size_t count, const RowOf& row_of, float* out) const
     {
         context_flat_.weed_fractions(count, row_of, out);
+    }
+    template <std::size_t kStride>
+    void context_weed_probabilities_packed(std::size_t count, const float* rows, float* out) const
+    {
+        context_flat_.weed_fractions_packed<kStride>(count, rows, out);
     }
     const cv::Mat& context_importance() const { return context_importance_; }
 
