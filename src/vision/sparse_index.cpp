@@ -20,14 +20,13 @@ void SparseIndexScratch::reserve(int width_px, int height_px)
     queue_.reserve(tiles);
     raw_row_.assign(static_cast<std::size_t>(height_), 0);
     row_sums_.assign(static_cast<std::size_t>(width_), 0);
-    column_above_.assign(kSparseTilePx, 0);
     computed_ = 0;
 }
 
 std::size_t SparseIndexScratch::reserved_bytes() const
 {
     return state_.capacity() + queue_.capacity() * sizeof(int) + raw_row_.capacity() +
-           row_sums_.capacity() * sizeof(std::uint16_t) + column_above_.capacity();
+           row_sums_.capacity() * sizeof(std::uint16_t);
 }
 
 // The tile work of one frame, on the scratch's buffers.
@@ -81,41 +80,32 @@ struct SparseTiles {
     }
 
     // Queues the neighbours that a pixel above the level within reach_px of
-    // the tile's sides can reach (a bounding box: possibly more, never less).
+    // the tile's sides can reach. Only the strips within reach of the sides
+    // are read: a pixel anywhere else reaches no neighbour.
     void grow(int tile, int level, int reach_px) const
     {
         const cv::Rect r = tile_rect(tile);
-        std::uint8_t* above = s.column_above_.data();
-        std::fill(above, above + r.width, std::uint8_t{0});
-        int y_min = -1, y_max = -1;
         const auto t = static_cast<std::uint8_t>(level);
+        const int reach_x = std::min(reach_px, r.width), reach_y = std::min(reach_px, r.height);
+        const auto any_above = [t](const std::uint8_t* p, int n) {
+            std::uint8_t any = 0;
+            for (int i = 0; i < n; ++i)
+                any |= static_cast<std::uint8_t>(p[i] > t);
+            return any != 0;
+        };
+        bool left = false, right = false, up = false, down = false;
         for (int y = r.y; y < r.y + r.height; ++y) {
             const std::uint8_t* p = index.ptr<std::uint8_t>(y) + r.x;
-            std::uint8_t any = 0;
-            for (int i = 0; i < r.width; ++i) {
-                const auto hit = static_cast<std::uint8_t>(p[i] > t);
-                above[i] |= hit;
-                any |= hit;
-            }
-            if (any) {
-                if (y_min < 0)
-                    y_min = y;
-                y_max = y;
+            left = left || any_above(p, reach_x);
+            right = right || any_above(p + r.width - reach_x, reach_x);
+            const bool top = y < r.y + reach_y, bottom = y >= r.y + r.height - reach_y;
+            if ((top && !up) || (bottom && !down)) {
+                const bool any = any_above(p, r.width);
+                up = up || (top && any);
+                down = down || (bottom && any);
             }
         }
-        if (y_min < 0)
-            return;
-        int x_min = 0;
-        while (!above[x_min])
-            ++x_min;
-        int x_max = r.width - 1;
-        while (!above[x_max])
-            --x_max;
-        x_min += r.x;
-        x_max += r.x;
         const int col = tile % s.cols_, row = tile / s.cols_;
-        const bool left = x_min < r.x + reach_px, right = x_max >= r.x + r.width - reach_px;
-        const bool up = y_min < r.y + reach_px, down = y_max >= r.y + r.height - reach_px;
         for (int dy = -1; dy <= 1; ++dy) {
             if ((dy < 0 && !up) || (dy > 0 && !down) || row + dy < 0 || row + dy >= s.rows_)
                 continue;

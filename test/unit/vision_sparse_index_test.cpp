@@ -1,6 +1,9 @@
 // The smoothed index on fewer pixels against the whole-frame index.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <vector>
+
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -232,6 +235,36 @@ TEST(SparseIndex, APlantAcrossManyTilesIsComputedWhole)
     Params params;
     params.gsd_mm_per_px = 0.4;
     expect_same_detections(bgr, params);
+}
+
+TEST(SparseIndex, ATileReachesTheNeighboursOnlyOnTheSidesItsVegetationIsNear)
+{
+    // Three frames, a leaf in tile (2, 2) (x and y 128..191) crossing the
+    // sampled row 156 or 188, reach 5 px: in the middle it reaches no
+    // neighbour; within reach of the right side, the right one; within reach
+    // of the right and lower sides, those two and the one diagonally
+    // between them. Soil without noise, so no tile but the leaf's is found.
+    struct Case {
+        cv::Rect leaf;
+        std::vector<cv::Point> reached;   // tile (col, row)
+    };
+    const Case cases[] = {
+        {{150, 152, 12, 8}, {}},
+        {{176, 152, 12, 8}, {{3, 2}}},
+        {{176, 180, 12, 8}, {{3, 2}, {2, 3}, {3, 3}}},
+    };
+    for (const Case& c : cases) {
+        cv::Mat bgr(480, 640, CV_8UC3, kSoil);
+        cv::rectangle(bgr, c.leaf, kLeaf, cv::FILLED);
+        const Sparse sparse(bgr, RgbIndex::chromatic_exg, 5);
+        for (int row = 0; row < 8; ++row)
+            for (int col = 0; col < 10; ++col) {
+                const bool own = col == 2 && row == 2;
+                const bool reached = std::find(c.reached.begin(), c.reached.end(), cv::Point(col, row)) != c.reached.end();
+                EXPECT_EQ(sparse.scratch.computed(col, row), own || reached)
+                    << "leaf at " << c.leaf.x << "," << c.leaf.y << ": tile " << col << "," << row;
+            }
+    }
 }
 
 TEST(SparseIndex, APieceShorterThanTheStepBetweenSampledRowsAndFarFromPlantsIsMissed)

@@ -79,7 +79,6 @@ private:
     std::vector<int> queue_;                 // tiles to compute
     std::vector<std::uint8_t> raw_row_;      // per row: raw index computed for the whole row
     std::vector<std::uint16_t> row_sums_;    // smoothing scratch, one per column
-    std::vector<std::uint8_t> column_above_; // one tile's columns: a pixel above the level
 };
 
 // The smoothed index (3x3 binomial of excess_green or chromatic_excess_green)
