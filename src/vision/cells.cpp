@@ -33,9 +33,7 @@ double box_sum(const std::vector<double>& integral, int stride, int x0, int y0, 
 
 // Fills each of `integrals` (the grid with one extra row and column of
 // zeros) with the sums of its entry of value(cell, gx, gy) over each square
-// from the origin, all in one pass. Cell by cell in row-major order, so
-// `value` may read the entry of an integral its cell's sum is about to
-// replace.
+// from the origin, all in one pass over the grid.
 template <std::size_t N, class Value>
 void fill_integrals(const std::array<std::vector<double>*, N>& integrals, cv::Size grid, Value value)
 {
