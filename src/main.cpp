@@ -154,6 +154,9 @@ int run(int argc, char** argv, Phase& phase)
         daemon_config.replay_loop = false;
     // Recordings may carry class maps (the scheduler's policy reads them).
     daemon_config.class_maps = daemon_config.source_kind == "replay";
+    // Before anything is sized by the method: the frame slots' planes, the
+    // model's channels.
+    const std::string segmentation_choice = runtime::resolve_auto_segmentation(daemon_config);
     runtime::ActuationConfig& actuation_config = settings.actuation;
     if (!args.can_log.empty()) {
         actuation_config.can_interface.clear();
@@ -250,6 +253,8 @@ int run(int argc, char** argv, Phase& phase)
     runtime::set_log_level(daemon_config.log_level);
     const auto log = runtime::make_logger("main");
     const auto status_log = runtime::make_logger("status");
+    if (!segmentation_choice.empty())
+        log->info("{}", segmentation_choice);
 
     if (stop_came())
         return 0;

@@ -70,13 +70,15 @@ else echo "eval-real: no $data/cwfid-train: skipped" >&2; fi
 
 if [ -f "$data/bonirob/frames.csv" ]; then
   b=$data/bonirob
-  stems bonirob "$b" "$b/stems.csv" 0.395 rgb
-  stems bonirob "$b" "$b/stems.csv" 0.395 rgb+nir --set segment.method=ndvi
-  stems bonirob "$b" "$b/stems.csv" 0.395 "rgb+nir, exg and ndvi" --set segment.method=exg_and_ndvi
-  stems bonirob "$b" "$b/stems.csv" 0.395 "rgb, centre of mass" --set stem.method=com
-  targets bonirob "$b" "$b/plants.csv" 0.395 rgb
-  targets bonirob "$b" "$b/plants.csv" 0.395 rgb+nir --set segment.method=ndvi
-  targets bonirob "$b" "$b/plants.csv" 0.395 "rgb+nir, exg and ndvi" --set segment.method=exg_and_ndvi
+  # The recording has a nir column: the default (segment.method auto)
+  # reads it; "rgb" is the same camera without its NIR plane.
+  stems bonirob "$b" "$b/stems.csv" 0.395 "rgb+nir, default"
+  stems bonirob "$b" "$b/stems.csv" 0.395 rgb --set segment.method=chromatic_exg
+  stems bonirob "$b" "$b/stems.csv" 0.395 "rgb+nir, ndvi" --set segment.method=ndvi
+  stems bonirob "$b" "$b/stems.csv" 0.395 "rgb, centre of mass" --set segment.method=chromatic_exg --set stem.method=com
+  targets bonirob "$b" "$b/plants.csv" 0.395 "rgb+nir, default"
+  targets bonirob "$b" "$b/plants.csv" 0.395 rgb --set segment.method=chromatic_exg
+  targets bonirob "$b" "$b/plants.csv" 0.395 "rgb+nir, ndvi" --set segment.method=ndvi
 else echo "eval-real: no $data/bonirob: skipped" >&2; fi
 
 python3 - "$rows" <<'PY'

@@ -19,8 +19,11 @@ if [ ! -f "$out/strip/plants.csv" ]; then
   echo "== generating a 3 m late-stage field strip (5 km/h, 30 fps, seed 1) in $out/strip"
   "$bin/tools/stemd-synth" --strip --out "$out/strip" --preset late --seed 1 --length-mm 3000
 fi
-echo "== stemd --replay $out/strip --once --can-log $out/can.log --map $out/map.jsonl"
-"$bin/src/runtime/stemd" --config config/stemd.yaml --set status.interval_s=1 \
+echo "== stemd --replay $out/strip --once --can-log $out/can.log --map $out/map.jsonl (preloaded)"
+# Preloaded: a camera delivers its frames decoded, and decoding the strip's
+# RGB and NIR PNGs (the default segment.method auto reads both) would
+# hold the replay below 30 fps on two cores.
+"$bin/src/runtime/stemd" --config config/stemd.yaml --set status.interval_s=1 --set source.replay_preload=true \
   --replay "$out/strip" --once --detections-csv "$out/detections.csv" \
   --can-log "$out/can.log" --map "$out/map.jsonl"
 echo "== the first TARGET commands (candump -L; id 0x301 = TARGET, 0x303 = HEARTBEAT; see config/stemd.dbc)"

@@ -345,6 +345,9 @@ int main(int argc, char** argv)
     options.seed = 2024;
     for (int i = 0; i < frame_count; ++i)
         setup.frames.push_back(synth::generate_frame(options, i));
+    // The bench frames carry NIR; it times the RGB camera's pipeline (what
+    // segment.method auto runs without a NIR plane), as its tables say.
+    setup.params.segmentation = vision::resolve_segmentation(vision::Params{}.segmentation, false);
     setup.params.closing_radius_px = radius;
     setup.params.edge_radius_px = std::max(edge_radius, 0);
     setup.params.sparse_index = sparse_index;

@@ -126,8 +126,19 @@ int main(int argc, char** argv)
     if (const auto exit_code = parse_args(argc, argv, args, config))
         return *exit_code;
     std::string error;
-    const vision::Params params = config.settings().daemon.vision;
+    vision::Params params = config.settings().daemon.vision;
     const runtime::ClassifyConfig& classify = config.settings().daemon.classify;
+    std::vector<tools::FrameJob> jobs;
+    if (!tools::collect_frames(args.inputs, params.segmentation, jobs, error)) {
+        std::cerr << "stemd-detect: " << error << "\n";
+        return kUsageError;
+    }
+    if (params.segmentation == vision::Segmentation::automatic) {
+        params.segmentation = tools::frames_segmentation(params.segmentation, jobs);
+        std::cerr << "stemd-detect: segment.method auto: " << vision::to_string(params.segmentation)
+                  << (vision::uses_nir(params.segmentation) ? " (every frame has a nir image)\n"
+                                                            : " (not every frame has a nir image)\n");
+    }
     std::optional<vision::PlantClassifier> model;
     if (!classify.model.empty()) {
         model = vision::PlantClassifier::load(classify.model, error);
@@ -145,11 +156,6 @@ int main(int argc, char** argv)
         return kUsageError;
     }
 
-    std::vector<tools::FrameJob> jobs;
-    if (!tools::collect_frames(args.inputs, params.segmentation, jobs, error)) {
-        std::cerr << "stemd-detect: " << error << "\n";
-        return kUsageError;
-    }
     for (const std::string* dir : {&args.mask_dir, &args.class_dir, &args.overlay_dir}) {
         if (!dir->empty() && !ensure_dir(*dir, error)) {
             std::cerr << "stemd-detect: " << error << "\n";

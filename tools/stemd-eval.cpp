@@ -385,7 +385,7 @@ int run_sweep(const Args& args)
     config::Config config;
     if (const auto config_error = config::build_config(args.config, config))
         return fail(config_error->to_string());
-    const vision::Params base = config.settings().daemon.vision;
+    vision::Params base = config.settings().daemon.vision;
     std::string error;
     const auto gt = eval::read_stem_points(args.positional[0], error);
     if (!gt)
@@ -395,6 +395,7 @@ int run_sweep(const Args& args)
         return fail(args.positional[1] + ": not a recording directory (no frames.csv)");
     if (!tools::collect_frames({args.positional[1]}, base.segmentation, jobs, error))
         return fail(error);
+    base.segmentation = tools::frames_segmentation(base.segmentation, jobs);
     // Frames are decoded once and kept: the sweep runs over them many times.
     std::vector<tools::LoadedFrame> frames(jobs.size());
     for (std::size_t i = 0; i < jobs.size(); ++i)

@@ -176,6 +176,7 @@ int main(int argc, char** argv)
         return kUsageError;
     }
     // Cameras deliver bgr only; a replay fills the planes the segmentation reads.
+    runtime::resolve_auto_segmentation(daemon_config);
     const vision::Segmentation planes =
         daemon_config.source_kind == "replay" ? daemon_config.vision.segmentation : vision::Segmentation::exg;
     const fs::path out = args.out;

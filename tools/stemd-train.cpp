@@ -155,7 +155,9 @@ bool load_params(const config::ConfigArgs& config_args, vision::Params& params, 
     return true;
 }
 
-bool frame_jobs(const std::vector<std::string>& recordings, const vision::Params& params,
+// The recordings' frames with a class image; segment.method auto is
+// resolved on them (params.segmentation then names the method that ran).
+bool frame_jobs(const std::vector<std::string>& recordings, vision::Params& params,
                 std::vector<tools::FrameJob>& jobs, std::string& error)
 {
     for (const std::string& r : recordings) {
@@ -177,6 +179,7 @@ bool frame_jobs(const std::vector<std::string>& recordings, const vision::Params
         error = "no frame with a class image";
         return false;
     }
+    params.segmentation = tools::frames_segmentation(params.segmentation, jobs);
     return true;
 }
 

@@ -1,5 +1,7 @@
 #include "tool_frames.hpp"
 
+#include <algorithm>
+
 #include <opencv2/imgcodecs.hpp>
 
 #include "stemd/io/recording.hpp"
@@ -43,6 +45,13 @@ bool collect_frames(const std::vector<std::string>& inputs, vision::Segmentation
     return true;
 }
 
+vision::Segmentation frames_segmentation(vision::Segmentation configured, const std::vector<FrameJob>& jobs)
+{
+    const bool every_nir =
+        !jobs.empty() && std::all_of(jobs.begin(), jobs.end(), [](const FrameJob& job) { return !job.nir.empty(); });
+    return vision::resolve_segmentation(configured, every_nir);
+}
+
 bool load_frame(const FrameJob& job, vision::Segmentation segmentation, bool want_rgb, LoadedFrame& out,
                 std::string& error)
 {
@@ -62,6 +71,8 @@ bool load_frame(const FrameJob& job, vision::Segmentation segmentation, bool wan
     }
     if (!io::load_image(job.rgb, cv::IMREAD_COLOR, out.bgr, error))
         return false;
+    if (segmentation == vision::Segmentation::automatic && !job.nir.empty())
+        return io::load_image(job.nir, cv::IMREAD_GRAYSCALE, out.nir, error);
     if (vision::uses_nir(segmentation)) {
         if (job.nir.empty()) {
             error = job.image + ": no nir image for --segment " + std::string(vision::to_string(segmentation));

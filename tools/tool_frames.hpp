@@ -24,12 +24,18 @@ struct FrameJob {
 bool collect_frames(const std::vector<std::string>& inputs, vision::Segmentation segmentation,
                     std::vector<FrameJob>& jobs, std::string& error);
 
+// The method `configured` runs on these frames: segment.method auto is
+// exg_and_ndvi when every frame has a nir image and chromatic_exg
+// otherwise (image files have none); any other method stays.
+vision::Segmentation frames_segmentation(vision::Segmentation configured, const std::vector<FrameJob>& jobs);
+
 struct LoadedFrame {
     cv::Mat bgr, nir, mask;
 };
 
 // Loads the images the segmentation needs (and the rgb image for mask
-// segmentation when want_rgb). False + error naming the file if unreadable.
+// segmentation when want_rgb; with auto, the nir image when the frame has
+// one). False + error naming the file if unreadable.
 bool load_frame(const FrameJob& job, vision::Segmentation segmentation, bool want_rgb, LoadedFrame& out,
                 std::string& error);
 

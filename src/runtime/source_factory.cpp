@@ -1,5 +1,7 @@
 #include "stemd/runtime/source_factory.hpp"
 
+#include <algorithm>
+
 // STEMD_HAVE_LIBCAMERA comes from stemd_drivers: libcamera is optional.
 #include "stemd/drivers/source_factory.hpp"
 #include "stemd/io/recording.hpp"
@@ -39,6 +41,29 @@ std::optional<std::string> check_source_config(const DaemonConfig& d, const conf
         return config.origin_of("source.nir_device") +
                ": key 'source.nir_device': a NIR camera needs source.kind v4l2";
     return std::nullopt;
+}
+
+std::string resolve_auto_segmentation(DaemonConfig& d)
+{
+    if (d.vision.segmentation != vision::Segmentation::automatic)
+        return {};
+    std::string why;
+    bool nir = false;
+    if (d.source_kind == "v4l2") {
+        nir = !d.nir_device.empty();
+        why = nir ? "a NIR camera (source.nir_device " + d.nir_device + ")" : "no NIR camera (source.nir_device)";
+    } else if (d.source_kind == "replay") {
+        std::string error;
+        const auto recording = d.replay_dir.empty() ? std::nullopt : io::read_recording(d.replay_dir, error);
+        nir = recording && !recording->frames.empty() &&
+              std::all_of(recording->frames.begin(), recording->frames.end(),
+                          [](const io::RecordingFrame& f) { return !f.nir.empty(); });
+        why = nir ? "every replayed frame has a nir image" : "not every replayed frame has a nir image";
+    } else {
+        why = "source.kind " + d.source_kind + " delivers no NIR plane";
+    }
+    d.vision.segmentation = vision::resolve_segmentation(d.vision.segmentation, nir);
+    return "segment.method auto: " + std::string(vision::to_string(d.vision.segmentation)) + " (" + why + ")";
 }
 
 std::unique_ptr<drivers::FrameSource> make_frame_source(const DaemonConfig& config, std::function<bool()> cancelled)

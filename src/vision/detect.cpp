@@ -5,6 +5,7 @@
 #include <limits>
 #include <numbers>
 #include <span>
+#include <type_traits>
 
 #include "stemd/base/clock.hpp"
 #include "stemd/vision/contour.hpp"
@@ -209,6 +210,15 @@ Workspace::Workspace(cv::Size frame_size, const Params& params)
 
 void detect(const FrameView& frame, const Params& params, Workspace& ws, Detections& out, StageTimes* times)
 {
+    if (params.segmentation == Segmentation::automatic) {
+        // The frame's planes pick the method; Params holds no heap memory,
+        // so the copy allocates nothing.
+        static_assert(std::is_trivially_copyable_v<Params>);
+        Params resolved = params;
+        resolved.segmentation = resolve_segmentation(params.segmentation, !frame.nir.empty());
+        detect(frame, resolved, ws, out, times);
+        return;
+    }
     out.plants.clear();
     out.stats = DetectStats{};
     out.status = check_frame(frame, params, ws.frame_size_);

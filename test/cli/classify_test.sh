@@ -8,8 +8,10 @@ tools=$1 src=$2
 . "$(dirname "$0")/../support/script.sh"
 
 "$tools/stemd-synth" --strip --out "$tmp/rec" --length-mm 1500 --width 640 --height 480 --seed 5 >/dev/null
+# The strip carries NIR; the classifier is tested on RGB (segment.method
+# auto would take the NIR plane: tested in detect_test.sh and on BoniRob).
 
-"$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" --folds 3 --trees 20 "$tmp/rec" \
+"$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --folds 3 --trees 20 "$tmp/rec" \
   >"$tmp/train.txt" 2>&1 || fail "stemd-train exited $?: $(cat "$tmp/train.txt")"
 grep -q '^3-fold cross-validation by frame' "$tmp/train.txt" || fail "no cross-validation figures"
 grep -q 'crop safety: [0-9]* of [0-9]* crop plants called weed' "$tmp/train.txt" || fail "no crop-safety figure"
@@ -24,7 +26,7 @@ grep -q "$tmp/rec" "$tmp/model.yaml" || fail "model file does not name its recor
 
 # Same data, same seed: the same forest.
 # (With --cells-csv, which must not change the training.)
-"$tools/stemd-train" --out "$tmp/again.yaml" --config "$src/config/stemd.yaml" --folds 3 --trees 20 \
+"$tools/stemd-train" --out "$tmp/again.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --folds 3 --trees 20 \
   --cells-csv "$tmp/cells.csv" "$tmp/rec" >/dev/null 2>&1 || fail "second training"
 # (Both forests: the plant forest's section runs on into the cell forest's.)
 diff <(sed -n '/^forest:/,$p' "$tmp/model.yaml") <(sed -n '/^forest:/,$p' "$tmp/again.yaml") >/dev/null \
@@ -44,7 +46,7 @@ labelled=$(sed -n 's/.* plants and \([0-9]*\) labelled cells from .*/\1/p' "$tmp
 [ -n "$labelled" ] && [ "$(awk -F, 'NR > 1 && $8 + $9 > 0' "$tmp/cells.csv" | wc -l)" -eq "$labelled" ] ||
   fail "cells csv: not the $labelled labelled cells stemd-train counted"
 
-"$tools/stemd-detect" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" \
+"$tools/stemd-detect" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --set classify.model="$tmp/model.yaml" \
   --csv "$tmp/pred.csv" --class-out "$tmp/class" "$tmp/rec" >/dev/null 2>"$tmp/err.txt" \
   || fail "detect with a model exited $?: $(cat "$tmp/err.txt")"
 [ "$(head -1 "$tmp/pred.csv")" = "image,plant,x,y,method,leaves,area_px,estimator,confidence,class,weed_probability" ] \
@@ -60,35 +62,35 @@ frames=$(($(wc -l <"$tmp/rec/frames.csv") - 1))
 [ -s "$tmp/class/000000.png" ] || fail "class map not named like its input"
 
 # min_confidence 1: no plant is sure enough, every one is unknown.
-"$tools/stemd-detect" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" \
+"$tools/stemd-detect" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --set classify.model="$tmp/model.yaml" \
   --set classify.min_confidence=1 --csv "$tmp/sure.csv" "$tmp/rec" >/dev/null 2>&1 || fail "min_confidence 1 run"
 awk -F, 'NR > 1 && $10 != "unknown" && ($11 == "" || !($11 == 1 || $11 == 0)) { bad = 1 } END { exit bad }' "$tmp/sure.csv" \
   || fail "a plant below certainty was classed"
 
 # Refusals, each naming the model file.
 set +e
-"$tools/stemd-detect" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" \
+"$tools/stemd-detect" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --set classify.model="$tmp/model.yaml" \
   --set camera.gsd_mm_per_px=0.5 "$tmp/rec" >/dev/null 2>"$tmp/gsd.txt"
 rc=$?
 set -e
 [ $rc -eq 2 ] || fail "a model of another GSD: exit $rc"
 grep -q "$tmp/model.yaml.*gsd" "$tmp/gsd.txt" || fail "GSD refusal: $(cat "$tmp/gsd.txt")"
 set +e
-"$tools/stemd-detect" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" \
+"$tools/stemd-detect" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --set classify.model="$tmp/model.yaml" \
   --segment exg_and_ndvi "$tmp/rec" >/dev/null 2>"$tmp/nir.txt"
 rc=$?
 set -e
 [ $rc -eq 2 ] || fail "an rgb model on rgb+nir: exit $rc"
 grep -q "$tmp/model.yaml.*rgb+nir" "$tmp/nir.txt" || fail "channel refusal: $(cat "$tmp/nir.txt")"
 set +e
-"$tools/stemd-detect" --config "$src/config/stemd.yaml" --class-out "$tmp/none" "$tmp/rec" >/dev/null 2>"$tmp/nomodel.txt"
+"$tools/stemd-detect" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --class-out "$tmp/none" "$tmp/rec" >/dev/null 2>"$tmp/nomodel.txt"
 rc=$?
 set -e
 [ $rc -eq 2 ] || fail "--class-out without a model: exit $rc"
 grep -q 'classify.model' "$tmp/nomodel.txt" || fail "no-model refusal: $(cat "$tmp/nomodel.txt")"
 
 # Without a model the csv keeps its columns.
-"$tools/stemd-detect" --config "$src/config/stemd.yaml" --csv "$tmp/plain.csv" "$tmp/rec" >/dev/null 2>&1
+"$tools/stemd-detect" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --csv "$tmp/plain.csv" "$tmp/rec" >/dev/null 2>&1
 [ "$(head -1 "$tmp/plain.csv")" = "image,plant,x,y,method,leaves,area_px,estimator,confidence" ] \
   || fail "csv header without a model: $(head -1 "$tmp/plain.csv")"
 

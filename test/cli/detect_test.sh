@@ -27,6 +27,9 @@ for f in 000000 000001 000002; do
   [ -s "$tmp/overlays/$f.png" ] || fail "no overlay $f"
 done
 grep -q '^timing median over 3 frames: index' "$tmp/err.txt" || fail "no timing summary"
+# The shipped segment.method auto takes the nir column every frame has.
+grep -qx 'stemd-detect: segment.method auto: exg_and_ndvi (every frame has a nir image)' "$tmp/err.txt" ||
+  fail "auto's choice with nir: $(grep segment "$tmp/err.txt")"
 
 # The detections are good enough to be scored.
 recall=$("$tools/stemd-eval" "$tmp/rec/stems.csv" "$tmp/pred.csv" --json | sed 's/.*"recall":\([0-9.]*\).*/\1/')
@@ -41,6 +44,14 @@ awk -v r="$recall" 'BEGIN { exit !(r >= 0.5) }' || fail "recall $recall below 0.
 # A single image argument is named by its basename.
 "$tools/stemd-detect" --csv - "$tmp/rec/rgb/000001.png" 2>/dev/null >"$tmp/single.csv" || fail "single image"
 sed -n 2p "$tmp/single.csv" | grep -q '^000001\.png,0,' || fail "single image row: $(sed -n 2p "$tmp/single.csv")"
+# An image file has no nir plane: auto runs chromatic_exg, the same rows.
+"$tools/stemd-detect" --csv "$tmp/single_auto.csv" "$tmp/rec/rgb/000001.png" >/dev/null 2>"$tmp/single.err" ||
+  fail "single image, auto"
+grep -qx 'stemd-detect: segment.method auto: chromatic_exg (not every frame has a nir image)' "$tmp/single.err" ||
+  fail "auto's choice without nir: $(cat "$tmp/single.err")"
+"$tools/stemd-detect" --segment chromatic_exg --csv "$tmp/single_rgb.csv" "$tmp/rec/rgb/000001.png" >/dev/null 2>&1 ||
+  fail "single image, chromatic_exg"
+cmp -s "$tmp/single_auto.csv" "$tmp/single_rgb.csv" || fail "auto without nir is not chromatic_exg"
 
 # --set overrides; a bad key or value is one line naming it, exit 2.
 "$tools/stemd-detect" --set closing.radius_px=6 --csv "$tmp/m6.csv" "$tmp/rec" >/dev/null || fail "--set run"

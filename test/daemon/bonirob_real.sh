@@ -3,7 +3,8 @@
 # the robot's wheel odometry (../shared/data/bonirob, or $STEMD_REAL_DATA/
 # bonirob). Sugar beets 1 and 2 of plants.csv are each seen whole in two
 # frames 265 mm apart: each must get exactly one TARGET, within 10 mm of
-# the truth, and no second one within 30 mm, from RGB alone and from RGB+NIR.
+# the truth, and no second one within 30 mm, from RGB alone and from RGB+NIR
+# (NDVI, and the default, which takes the NIR plane the recording has).
 # All four plants of plants.csv get exactly one TARGET within 10 mm (the
 # last one is seen only in the last frame: the end of the recording must not
 # drop it). Three runs of the same paced replay send the same TARGETs and
@@ -54,8 +55,14 @@ print("all plants, within 10 mm: %d of %d with a command, %d second commands, %d
 sys.exit(0 if s["plants"] == 4 and s["matched"] == 4 and s["duplicates"] == 0 else 1)
 PY
 
-for method in chromatic_exg ndvi; do
+# auto is the shipped default: the recording has a nir column, so it must
+# take the NIR plane (exg_and_ndvi) and say so.
+for method in chromatic_exg ndvi auto; do
   run $method "$tmp/$method.log" "$tmp/$method.map"
+  if [ $method = auto ]; then
+    grep -q 'segment.method auto: exg_and_ndvi (every replayed frame has a nir image)' "$tmp/$method.log.err" ||
+      fail "auto: no log line choosing exg_and_ndvi: $(grep -i 'segment' "$tmp/$method.log.err" | head -3)"
+  fi
   total=$(grep 'total:' "$tmp/$method.log.err") || fail "$method: no total line"
   grep -q '3 frames in, 3 out' <<<"$total" || fail "$method: not every frame went through: $total"
   grep -q 'deadline_misses 0,' <<<"$total" || fail "$method: deadline misses: $total"

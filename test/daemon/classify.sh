@@ -11,16 +11,18 @@ set -euo pipefail
 stemd=$1 tools=$2 src=$3
 . "$(dirname "$0")/../support/script.sh"
 
+# The strips carry NIR; the classifier is tested on RGB, as before segment.method
+# auto (which would take the NIR plane: bonirob_real.sh runs it).
 synth_strip "$tmp/train" 3000 6
 synth_strip "$tmp/strip" 2000
-"$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" "$tmp/train" >"$tmp/train.txt" 2>&1 ||
+"$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg "$tmp/train" >"$tmp/train.txt" 2>&1 ||
   fail "stemd-train exited $?: $(cat "$tmp/train.txt")"
 # The replayed strip without its class column (t_ns,rgb,nir,mask,odom_mm).
 head -1 "$tmp/strip/frames.csv" | grep -q '^t_ns,rgb,nir,mask,odom_mm,class$' || fail "unexpected strip columns"
 awk -F, -v OFS=, '{ NF = 5; print }' "$tmp/strip/frames.csv" >"$tmp/frames.csv"
 mv "$tmp/frames.csv" "$tmp/strip/frames.csv"
 
-"$stemd" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" --replay "$tmp/strip" --once \
+"$stemd" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --set classify.model="$tmp/model.yaml" --replay "$tmp/strip" --once \
   --can-log "$tmp/can.log" --map "$tmp/map.jsonl" 2>"$tmp/err" || fail "stemd exited $?: $(tail -5 "$tmp/err")"
 grep -q "classify.model $tmp/model.yaml" "$tmp/err" || fail "the model is not named at start"
 
@@ -30,7 +32,7 @@ score_weeds_only "$tmp/strip" "$tmp/can.log" "$tmp/map.jsonl" "$src/config/stemd
 
 # Only certainty counts: below a weed probability of 1 a plant is unknown,
 # and no unknown plant is commanded under auto.
-"$stemd" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" \
+"$stemd" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --set classify.model="$tmp/model.yaml" \
   --set classify.min_confidence=1 --replay "$tmp/strip" --once --can-log "$tmp/unsure.log" \
   --map "$tmp/unsure.jsonl" 2>"$tmp/unsure.err" || fail "stemd (min_confidence 1) exited $?"
 if grep '"class":"unknown"' "$tmp/unsure.jsonl" | grep -q '"reason":"sent"'; then fail "an unknown plant was sent"; fi
@@ -39,7 +41,7 @@ grep -q '"class":"unknown"' "$tmp/unsure.jsonl" || fail "no unknown plant in the
 
 # A model for another GSD is refused at start, naming the file.
 set +e
-"$stemd" --config "$src/config/stemd.yaml" --set classify.model="$tmp/model.yaml" --set camera.gsd_mm_per_px=0.2 \
+"$stemd" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --set classify.model="$tmp/model.yaml" --set camera.gsd_mm_per_px=0.2 \
   --replay "$tmp/strip" --once --check-config >/dev/null 2>"$tmp/gsd.err"
 rc=$?
 set -e

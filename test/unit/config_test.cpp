@@ -153,7 +153,7 @@ TEST(ConfigSchema, ProductKeysHaveTheirUnitsRangesAndChoices)
     const KeySpec* method = find_key("segment.method");
     ASSERT_NE(method, nullptr);
     EXPECT_EQ(method->type, ValueType::choice);
-    EXPECT_EQ(list_choices(*method), "chromatic_exg, exg, ndvi, mask, exg_and_ndvi");
+    EXPECT_EQ(list_choices(*method), "auto, chromatic_exg, exg, ndvi, mask, exg_and_ndvi");
     EXPECT_TRUE(is_choice(*method, "mask"));
     EXPECT_FALSE(is_choice(*method, "ex"));
     EXPECT_FALSE(is_choice(*method, ""));
@@ -205,7 +205,7 @@ TEST(ConfigSchema, MarkdownTableHasOneRowPerKey)
               std::string::npos);
     EXPECT_NE(table.find("| `closing.radius_px` | integer | px | `5` | [0, 50] | radius m of the elliptic"),
               std::string::npos);
-    EXPECT_NE(table.find("| `segment.method` | choice |  | `chromatic_exg` | `chromatic_exg`, `exg`, `ndvi`, `mask`, `exg_and_ndvi` | "), std::string::npos);
+    EXPECT_NE(table.find("| `segment.method` | choice |  | `auto` | `auto`, `chromatic_exg`, `exg`, `ndvi`, `mask`, `exg_and_ndvi` | "), std::string::npos);
     EXPECT_NE(table.find("| `plants.min_area_mm2` | real | mm2 | `10` | [0, 100000] | "), std::string::npos);
 }
 
@@ -347,7 +347,7 @@ TEST_F(ConfigFileTest, AcceptsCrlfLineEndingsAndAByteOrderMark)
 TEST_F(ConfigFileTest, HashInsideAValueIsNotAComment)
 {
     // '#' starts a comment only after whitespace, and never inside quotes.
-    expect_error("segment:\n  method: \"exg # x\"\n", 2, "segment.method", "'exg # x' is not one of chromatic_exg, exg, ndvi, mask, exg_and_ndvi");
+    expect_error("segment:\n  method: \"exg # x\"\n", 2, "segment.method", "'exg # x' is not one of auto, chromatic_exg, exg, ndvi, mask, exg_and_ndvi");
     expect_error("segment:\n  method: exg#x\n", 2, "segment.method", "'exg#x' is not one of");
 }
 
@@ -450,7 +450,7 @@ TEST_F(ConfigFileTest, OutOfRange)
 
 TEST_F(ConfigFileTest, ChoiceNotAllowedListsTheChoices)
 {
-    expect_error("segment:\n  method: rgb\n", 2, "segment.method", "'rgb' is not one of chromatic_exg, exg, ndvi, mask, exg_and_ndvi");
+    expect_error("segment:\n  method: rgb\n", 2, "segment.method", "'rgb' is not one of auto, chromatic_exg, exg, ndvi, mask, exg_and_ndvi");
     expect_error("stem:\n  method: Leaves\n", 2, "stem.method", "'Leaves' is not one of robust, paper, com");
 }
 
@@ -459,7 +459,7 @@ TEST_F(ConfigFileTest, EmptyValues)
     expect_error("closing:\n  radius_px:\n", 2, "closing.radius_px", "empty value");
     expect_error("closing:\n  radius_px:   # nothing\nstem:\n  min_leaves: 3\n", 2, "closing.radius_px",
                  "empty value");
-    expect_error("segment:\n  method: \"\"\n", 2, "segment.method", "'' is not one of chromatic_exg, exg, ndvi, mask, exg_and_ndvi");
+    expect_error("segment:\n  method: \"\"\n", 2, "segment.method", "'' is not one of auto, chromatic_exg, exg, ndvi, mask, exg_and_ndvi");
     // YAML's explicit nulls are no value either, with a word on quoting them.
     const std::string null_message = "empty value ('~' and 'null' are YAML for no value; quote them for the text)";
     expect_error("can:\n  log_file: ~\n", 2, "can.log_file", null_message);
@@ -643,7 +643,7 @@ TEST(ConfigSet, BadValuesGiveOneLineAndChangeNothing)
         {"closing.radius_px=abc", "--set closing.radius_px=abc: key 'closing.radius_px': expected an integer, got 'abc'"},
         {"closing.radius_px=51", "--set closing.radius_px=51: key 'closing.radius_px': 51 is out of range [0, 50] px"},
         {"closing.radius_px=", "--set closing.radius_px=: key 'closing.radius_px': empty value"},
-        {"segment.method=rgb", "--set segment.method=rgb: key 'segment.method': 'rgb' is not one of chromatic_exg, exg, ndvi, mask, exg_and_ndvi"},
+        {"segment.method=rgb", "--set segment.method=rgb: key 'segment.method': 'rgb' is not one of auto, chromatic_exg, exg, ndvi, mask, exg_and_ndvi"},
         {"closing.radius=6", "--set closing.radius=6: key 'closing.radius': unknown key; did you mean 'closing.radius_px'?"},
         {"closing.radius_px", "--set closing.radius_px: expected KEY=VALUE, e.g. --set closing.radius_px=6"},
         {"=6", "--set =6: expected KEY=VALUE, e.g. --set closing.radius_px=6"},
@@ -744,7 +744,7 @@ TEST_F(ConfigFileTest, ToYamlRoundTrips)
     EXPECT_NE(yaml.find("closing:\n  radius_px: 7  # [0, 50] px; " + (dir_ / "test.yaml").string() + ":2\n"),
               std::string::npos)
         << yaml;
-    EXPECT_NE(yaml.find("  method: ndvi  # chromatic_exg|exg|ndvi|mask|exg_and_ndvi; --set\n"), std::string::npos) << yaml;
+    EXPECT_NE(yaml.find("  method: ndvi  # auto|chromatic_exg|exg|ndvi|mask|exg_and_ndvi; --set\n"), std::string::npos) << yaml;
 
     const fs::path dumped = write(yaml, "dumped.yaml");
     Config reloaded;

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <span>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -160,7 +161,7 @@ TEST(RealFrames, BoniRobRgbFindsAPlantWithItsStemInEveryFrame)
     REQUIRE_REAL_SET("bonirob");
     const auto frames = bonirob_frames();
     const auto truth = bonirob_truth();
-    const auto params = shipped_params({"camera.gsd_mm_per_px=0.395"});
+    const auto params = shipped_params({"camera.gsd_mm_per_px=0.395", "segment.method=chromatic_exg"});
     for (const BoniRobFrame& frame : frames) {
         std::vector<eval::StemPoint> frame_truth;
         for (const auto& t : truth)
@@ -214,7 +215,8 @@ TEST(RealFrames, BoniRobExgAndNdviFindsTheStemsAndNotDeadMatter)
 TEST(RealFrames, BoniRobRgbReportsOnlyPlantsAndTheOneStraw)
 {
     REQUIRE_REAL_SET("bonirob");
-    const auto stems = detect_stems(bonirob_frames(), shipped_params({"camera.gsd_mm_per_px=0.395"}));
+    const auto stems =
+        detect_stems(bonirob_frames(), shipped_params({"camera.gsd_mm_per_px=0.395", "segment.method=chromatic_exg"}));
     std::vector<eval::StemPoint> plants = bonirob_truth();
     plants.insert(plants.end(), {{"rgb_00000.png", 849, 70},
                                  {"rgb_00000.png", 1028, 85},
@@ -235,6 +237,33 @@ TEST(RealFrames, BoniRobRgbReportsOnlyPlantsAndTheOneStraw)
     ASSERT_FALSE(stems.empty());
     EXPECT_GE(static_cast<double>(on_plants) / static_cast<double>(stems.size()), 0.8)
         << on_plants << " of " << stems.size() << " reports on plants";
+}
+
+// The shipped default (segment.method auto) on the same camera: with its
+// NIR plane it reports what exg_and_ndvi reports, from RGB alone what
+// chromatic_exg reports.
+TEST(RealFrames, BoniRobDefaultTakesTheNirPlaneWhenTheFramesHaveOne)
+{
+    REQUIRE_REAL_SET("bonirob");
+    const auto frames = bonirob_frames();
+    std::vector<BoniRobFrame> rgb_only = frames;
+    for (BoniRobFrame& frame : rgb_only)
+        frame.nir = cv::Mat();
+    const auto key = [](const std::vector<eval::StemPoint>& stems) {
+        std::vector<std::tuple<std::string, double, double>> out;
+        for (const auto& s : stems)
+            out.emplace_back(s.image, s.x_px, s.y_px);
+        return out;
+    };
+    const auto shipped = shipped_params({"camera.gsd_mm_per_px=0.395"});
+    ASSERT_EQ(shipped.segmentation, vision::Segmentation::automatic);
+    const auto with_nir = detect_stems(frames, shipped);
+    EXPECT_EQ(key(with_nir),
+              key(detect_stems(frames, shipped_params({"camera.gsd_mm_per_px=0.395", "segment.method=exg_and_ndvi"}))));
+    EXPECT_EQ(key(detect_stems(rgb_only, shipped)),
+              key(detect_stems(rgb_only, shipped_params({"camera.gsd_mm_per_px=0.395", "segment.method=chromatic_exg"}))));
+    const auto truth = bonirob_truth();
+    EXPECT_EQ(eval::match_stems(truth, with_nir, 5.0, kBoniRobGsdMmPerPx).true_positives, static_cast<int>(truth.size()));
 }
 
 // Bare soil stays bare: a region of frame 0 with no plant in it (checked by

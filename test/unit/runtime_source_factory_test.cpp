@@ -2,6 +2,7 @@
 // and stemd-record build from the configuration.
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
 #include <optional>
 #include <string>
@@ -112,4 +113,47 @@ TEST(SourceFactory, ANirDeviceBuildsThePairedSource)
     ASSERT_TRUE(source);
     EXPECT_NE(source->name().find("/dev/video7"), std::string::npos) << source->name();
     EXPECT_NE(source->name().find("/dev/video8"), std::string::npos) << source->name();
+}
+
+// segment.method auto takes NIR where every frame brings it, and names why.
+TEST(SourceFactory, AutoSegmentationFollowsTheSourcesNirPlane)
+{
+    using vision::Segmentation;
+    const auto dir = test::scratch_dir("source_factory_auto");
+    std::filesystem::create_directories(dir / "with_nir");
+    std::filesystem::create_directories(dir / "one_without");
+    std::ofstream(dir / "with_nir" / "frames.csv") << "t_ns,rgb,nir,mask\n0,a.png,a_nir.png,\n100,b.png,b_nir.png,\n";
+    std::ofstream(dir / "one_without" / "frames.csv") << "t_ns,rgb,nir,mask\n0,a.png,a_nir.png,\n100,b.png,,\n";
+    const auto resolved = [](const std::string& yaml, std::string* line = nullptr) {
+        config::Config config;
+        EXPECT_FALSE(config.load_text(yaml, "auto.yaml"));
+        runtime::DaemonConfig d = config.settings().daemon;
+        EXPECT_EQ(d.vision.segmentation, Segmentation::automatic);   // the default
+        const std::string choice = runtime::resolve_auto_segmentation(d);
+        if (line)
+            *line = choice;
+        return d.vision.segmentation;
+    };
+    std::string line;
+    EXPECT_EQ(resolved("source:\n  kind: replay\n  replay_dir: " + (dir / "with_nir").string() + "\n", &line),
+              Segmentation::exg_and_ndvi);
+    EXPECT_EQ(line, "segment.method auto: exg_and_ndvi (every replayed frame has a nir image)");
+    EXPECT_EQ(resolved("source:\n  kind: replay\n  replay_dir: " + (dir / "one_without").string() + "\n"),
+              Segmentation::chromatic_exg);
+    EXPECT_EQ(resolved("source:\n  kind: replay\n  replay_dir: " + (dir / "absent").string() + "\n"),
+              Segmentation::chromatic_exg);
+    EXPECT_EQ(resolved("source:\n  kind: v4l2\n  nir_device: /dev/video2\n", &line), Segmentation::exg_and_ndvi);
+    EXPECT_NE(line.find("source.nir_device /dev/video2"), std::string::npos) << line;
+    EXPECT_EQ(resolved("source:\n  kind: v4l2\n"), Segmentation::chromatic_exg);
+    EXPECT_EQ(resolved("source:\n  kind: libcamera\n", &line), Segmentation::chromatic_exg);
+    EXPECT_NE(line.find("libcamera"), std::string::npos) << line;
+
+    // A method set by hand stays, and there is nothing to log.
+    config::Config config;
+    ASSERT_FALSE(config.load_text("segment:\n  method: ndvi\nsource:\n  kind: replay\n  replay_dir: " +
+                                      (dir / "one_without").string() + "\n",
+                                  "auto.yaml"));
+    runtime::DaemonConfig d = config.settings().daemon;
+    EXPECT_EQ(runtime::resolve_auto_segmentation(d), "");
+    EXPECT_EQ(d.vision.segmentation, Segmentation::ndvi);
 }

@@ -53,7 +53,7 @@ TEST(RealTime, DetectAllocatesNothingOnceTheWorkspaceExists)
     EXPECT_GT(ws->reserved_bytes(), 0u);
 
     for (const Segmentation seg :
-         {Segmentation::exg, Segmentation::ndvi, Segmentation::mask, Segmentation::exg_and_ndvi}) {
+         {Segmentation::exg, Segmentation::ndvi, Segmentation::mask, Segmentation::exg_and_ndvi, Segmentation::automatic}) {
         for (const ThresholdMethod t : {ThresholdMethod::otsu, ThresholdMethod::triangle, ThresholdMethod::min_error}) {
             params.segmentation = seg;
             params.threshold = t;

@@ -410,6 +410,27 @@ TEST(Detect, ExgAndNdviNeedBothSignaturesOfALeaf)
     EXPECT_EQ(centres(Segmentation::chromatic_exg), (std::vector<int>{60, 180}));
     EXPECT_EQ(centres(Segmentation::ndvi), (std::vector<int>{60, 300}));
     EXPECT_EQ(centres(Segmentation::exg_and_ndvi), (std::vector<int>{60}));
+
+    // auto (the default) reads the frame's planes: with NIR it needs both
+    // signatures, from RGB alone it is chromatic Excess Green.
+    ASSERT_EQ(Params{}.segmentation, Segmentation::automatic);
+    EXPECT_EQ(centres(Segmentation::automatic), (std::vector<int>{60}));
+    std::vector<int> rgb_only;
+    for (const Plant& p : detect({.bgr = bgr}, Params{.segmentation = Segmentation::automatic}).plants)
+        rgb_only.push_back(static_cast<int>(std::lround(p.centre_of_mass.x)));
+    EXPECT_EQ(rgb_only, (std::vector<int>{60, 180}));
+}
+
+TEST(Detect, AutoSegmentationResolvesFromTheNirPlane)
+{
+    EXPECT_EQ(resolve_segmentation(Segmentation::automatic, true), Segmentation::exg_and_ndvi);
+    EXPECT_EQ(resolve_segmentation(Segmentation::automatic, false), Segmentation::chromatic_exg);
+    for (const Segmentation s : {Segmentation::exg, Segmentation::chromatic_exg, Segmentation::ndvi,
+                                 Segmentation::mask, Segmentation::exg_and_ndvi})
+        for (const bool nir : {false, true})
+            EXPECT_EQ(resolve_segmentation(s, nir), s) << to_string(s);
+    EXPECT_EQ(parse_segmentation("auto"), Segmentation::automatic);
+    EXPECT_EQ(to_string(Segmentation::automatic), "auto");
 }
 
 // A yellow clod is as green as a leaf in Excess Green (2G - R - B) but has

@@ -22,6 +22,15 @@ namespace stemd::runtime {
 std::optional<std::string> check_source_config(const DaemonConfig& d, const config::Config& config,
                                                bool replay_from_cli, bool check_only = false);
 
+// segment.method auto made concrete for the configured source, before
+// anything is sized by it: exg_and_ndvi when the source delivers a NIR
+// plane with every frame (source.kind v4l2 with source.nir_device, or a
+// replayed recording whose every frame has a nir image), chromatic_exg
+// otherwise. Returns a line for the log naming the choice and why; empty
+// when the method was not auto. A replay directory that cannot be read
+// resolves to chromatic_exg (the source then reports it).
+std::string resolve_auto_segmentation(DaemonConfig& d);
+
 // The source config.source_kind names, not yet opened. Loggers are named
 // after the backend ("v4l2", "libcamera", "replay"). `cancelled`, if set,
 // is polled during the source's slow start-up steps (a replay's preload).

@@ -52,12 +52,24 @@ private:
 // is where both chromatic_exg and NDVI lie above their soil: chlorophyll
 // makes a leaf green and its cells make it bright in NIR, while a greenish
 // clod or a colour fringe fakes only the first and dead straw only the second.
-enum class Segmentation : std::uint8_t { exg, chromatic_exg, ndvi, mask, exg_and_ndvi };
+// automatic: the frames decide, exg_and_ndvi when they carry a NIR plane and
+// chromatic_exg when they do not (resolve_segmentation), so one
+// configuration serves an RGB and an RGB+NIR camera at its best.
+enum class Segmentation : std::uint8_t { exg, chromatic_exg, ndvi, mask, exg_and_ndvi, automatic };
 
 // The method reads the frame's NIR image.
 constexpr bool uses_nir(Segmentation s)
 {
     return s == Segmentation::ndvi || s == Segmentation::exg_and_ndvi;
+}
+
+// The method that runs on frames with (or without) a NIR plane: automatic
+// becomes exg_and_ndvi or chromatic_exg, every other method stays.
+constexpr Segmentation resolve_segmentation(Segmentation s, bool nir_plane)
+{
+    if (s != Segmentation::automatic)
+        return s;
+    return nir_plane ? Segmentation::exg_and_ndvi : Segmentation::chromatic_exg;
 }
 // above_soil: Otsu, but never inside the soil's own spread: max(Otsu,
 // soil mode + soil_sigmas standard deviations of the soil).
@@ -87,7 +99,7 @@ enum class ComReason : std::uint8_t {
 // The words of the configurable enums, in the order config files list them
 // (the schema takes its choices from these tables).
 inline constexpr base::EnumName<Segmentation> kSegmentationNames[]{
-    {Segmentation::chromatic_exg, "chromatic_exg"}, {Segmentation::exg, "exg"}, {Segmentation::ndvi, "ndvi"},
+    {Segmentation::automatic, "auto"},           {Segmentation::chromatic_exg, "chromatic_exg"}, {Segmentation::exg, "exg"}, {Segmentation::ndvi, "ndvi"},
     {Segmentation::mask, "mask"}, {Segmentation::exg_and_ndvi, "exg_and_ndvi"}};
 inline constexpr base::EnumName<ThresholdMethod> kThresholdMethodNames[]{
     {ThresholdMethod::above_soil, "above_soil"}, {ThresholdMethod::otsu, "otsu"},
@@ -111,7 +123,7 @@ std::optional<StemEstimator> parse_stem_estimator(std::string_view s);
 // The pipeline's parameters, in the units their names carry. Ranges are
 // enforced by the config schema (config/schema), not here.
 struct Params {
-    Segmentation segmentation = Segmentation::chromatic_exg;
+    Segmentation segmentation = Segmentation::automatic;
     ThresholdMethod threshold = ThresholdMethod::above_soil;
     MaskVegetation mask_vegetation = MaskVegetation::nonzero;
     // Automatic thresholds: if the mean index of the two classes differs by
