@@ -71,8 +71,6 @@ bool load_frame(const FrameJob& job, vision::Segmentation segmentation, bool wan
     }
     if (!io::load_image(job.rgb, cv::IMREAD_COLOR, out.bgr, error))
         return false;
-    if (segmentation == vision::Segmentation::automatic && !job.nir.empty())
-        return io::load_image(job.nir, cv::IMREAD_GRAYSCALE, out.nir, error);
     if (vision::uses_nir(segmentation)) {
         if (job.nir.empty()) {
             error = job.image + ": no nir image for --segment " + std::string(vision::to_string(segmentation));

@@ -34,8 +34,7 @@ struct LoadedFrame {
 };
 
 // Loads the images the segmentation needs (and the rgb image for mask
-// segmentation when want_rgb; with auto, the nir image when the frame has
-// one). False + error naming the file if unreadable.
+// segmentation when want_rgb). Resolve auto first (frames_segmentation). False + error naming the file if unreadable.
 bool load_frame(const FrameJob& job, vision::Segmentation segmentation, bool want_rgb, LoadedFrame& out,
                 std::string& error);
 

@@ -99,8 +99,8 @@ enum class ComReason : std::uint8_t {
 // The words of the configurable enums, in the order config files list them
 // (the schema takes its choices from these tables).
 inline constexpr base::EnumName<Segmentation> kSegmentationNames[]{
-    {Segmentation::automatic, "auto"},           {Segmentation::chromatic_exg, "chromatic_exg"}, {Segmentation::exg, "exg"}, {Segmentation::ndvi, "ndvi"},
-    {Segmentation::mask, "mask"}, {Segmentation::exg_and_ndvi, "exg_and_ndvi"}};
+    {Segmentation::automatic, "auto"}, {Segmentation::chromatic_exg, "chromatic_exg"}, {Segmentation::exg, "exg"},
+    {Segmentation::ndvi, "ndvi"},      {Segmentation::mask, "mask"},                   {Segmentation::exg_and_ndvi, "exg_and_ndvi"}};
 inline constexpr base::EnumName<ThresholdMethod> kThresholdMethodNames[]{
     {ThresholdMethod::above_soil, "above_soil"}, {ThresholdMethod::otsu, "otsu"},
     {ThresholdMethod::triangle, "triangle"}, {ThresholdMethod::min_error, "min_error"}};
