@@ -15,7 +15,12 @@ stemd=$1 tools=$2 src=$3
 . "$(dirname "$0")/../support/script.sh"
 
 synth_strip "$tmp/strip" 2000
-"$stemd" --config "$src/config/stemd.yaml" "${realtime_sets[@]}" --replay "$tmp/strip" --once \
+# RGB (chromatic_exg): the strip carries NIR, and what segment.method auto
+# would run on it (exg_and_ndvi: two full-frame indices, a second PNG
+# decoded per frame) does not keep the 15 fps pace in an ASan build (7 fps
+# out, 16 frames dropped); this pace was chosen for the RGB pipeline.
+"$stemd" --config "$src/config/stemd.yaml" "${realtime_sets[@]}" --set segment.method=chromatic_exg \
+  --replay "$tmp/strip" --once \
   --can-log "$tmp/can.log" --map "$tmp/map.jsonl" 2>"$tmp/err" || fail "stemd exited $?: $(tail -5 "$tmp/err")"
 
 # Exactly one command per weed, within 5 mm; none for crops (extra).
