@@ -10,8 +10,12 @@ tools=$1 src=$2
 "$tools/stemd-synth" --strip --out "$tmp/rec" --length-mm 1500 --width 640 --height 480 --seed 5 >/dev/null
 # The strip carries NIR; the classifier is tested on RGB (segment.method
 # auto would take the NIR plane: tested in detect_test.sh and on BoniRob).
+# Small forests on a subsample of the cells: this test is about what the
+# tools write and refuse, not how well they class (classify_real_test.sh
+# is); the defaults take ten times as long.
+small_forests=(--cell-trees 10 --cell-samples 6000)
 
-"$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --folds 3 --trees 20 "$tmp/rec" \
+"$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --folds 3 --trees 20 "${small_forests[@]}" "$tmp/rec" \
   >"$tmp/train.txt" 2>&1 || fail "stemd-train exited $?: $(cat "$tmp/train.txt")"
 grep -q '^3-fold cross-validation by frame' "$tmp/train.txt" || fail "no cross-validation figures"
 grep -q 'crop safety: [0-9]* of [0-9]* crop plants called weed' "$tmp/train.txt" || fail "no crop-safety figure"
@@ -26,7 +30,7 @@ grep -q "$tmp/rec" "$tmp/model.yaml" || fail "model file does not name its recor
 
 # Same data, same seed: the same forest.
 # (With --cells-csv, which must not change the training.)
-"$tools/stemd-train" --out "$tmp/again.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --folds 3 --trees 20 \
+"$tools/stemd-train" --out "$tmp/again.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --folds 3 --trees 20 "${small_forests[@]}" \
   --cells-csv "$tmp/cells.csv" "$tmp/rec" >/dev/null 2>&1 || fail "second training"
 # (Both forests: the plant forest's section runs on into the cell forest's.)
 diff <(sed -n '/^forest:/,$p' "$tmp/model.yaml") <(sed -n '/^forest:/,$p' "$tmp/again.yaml") >/dev/null \
