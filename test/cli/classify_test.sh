@@ -10,10 +10,6 @@ tools=$1 src=$2
 "$tools/stemd-synth" --strip --out "$tmp/rec" --length-mm 1500 --width 640 --height 480 --seed 5 >/dev/null
 # The strip carries NIR; the classifier is tested on RGB (segment.method
 # auto would take the NIR plane: tested in detect_test.sh and on BoniRob).
-# Small forests on a subsample of the cells: this test is about what the
-# tools write and refuse, not how well they class (classify_real_test.sh
-# is); the defaults take ten times as long.
-small_forests=(--cell-trees 10 --cell-samples 6000)
 
 "$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --folds 3 --trees 20 "${small_forests[@]}" "$tmp/rec" \
   >"$tmp/train.txt" 2>&1 || fail "stemd-train exited $?: $(cat "$tmp/train.txt")"

@@ -15,11 +15,9 @@ stemd=$1 tools=$2 src=$3
 # auto (which would take the NIR plane: bonirob_real.sh runs it).
 synth_strip "$tmp/train" 3000 6
 synth_strip "$tmp/strip" 2000
-# Small forests on a subsample of the cells, three folds: the defaults take
-# five times as long, and what is tested here is the daemon's use of a
-# model, whatever its accuracy (classify_real_test.sh measures that).
+# Small forests (script.sh) and three folds: the daemon's use of a model.
 "$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg \
-  --folds 3 --trees 30 --cell-trees 10 --cell-samples 6000 "$tmp/train" >"$tmp/train.txt" 2>&1 ||
+  --folds 3 --trees 30 "${small_forests[@]}" "$tmp/train" >"$tmp/train.txt" 2>&1 ||
   fail "stemd-train exited $?: $(cat "$tmp/train.txt")"
 # The replayed strip without its class column (t_ns,rgb,nir,mask,odom_mm).
 head -1 "$tmp/strip/frames.csv" | grep -q '^t_ns,rgb,nir,mask,odom_mm,class$' || fail "unexpected strip columns"

@@ -22,6 +22,12 @@ synth_strip() {
     "${strip_pace[@]}" >/dev/null
 }
 
+# stemd-train options for the tests of what the tools and the daemon do
+# with a model, not how well it classes (classify_real_test.sh measures
+# that): small forests on a subsample of the cells, about a tenth of the
+# defaults' training time.
+small_forests=(--cell-trees 10 --cell-samples 6000)
+
 # The robot's real-time settings (SCHED_FIFO threads, as in the README's
 # field setup) for the runs that assert exact TARGETs at the recorded pace:
 # a host busy with other tests can stall a normal-priority replay for
