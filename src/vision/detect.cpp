@@ -62,9 +62,12 @@ constexpr double kGreenerThanSoilSigmas = 2.0;
 // inside the soil's spread.
 constexpr double kEdgeAboveSoilSigmas = 2.0;
 
-// RGB: a seed's G exceeds its R by more than 1/50 of R + G + B (2 % of the
-// pixel's brightness: sensor noise, not a fitted level).
-constexpr int kGreenOverRedParts = 50;
+// RGB: a seed's G/R exceeds the soil's G/R (seen under the same light) by
+// this factor. Leaves measured 1.25 (their 10th percentile) to 1.5 (median)
+// times their soil's G/R on carrot-dev and BoniRob; at BoniRob's soil (G/R
+// 0.835) 1.25 is the absolute rule it replaced (G over R by 2 % of the
+// brightness), which failed under a colour cast.
+constexpr double kLeafGreenOverSoil = 1.25;
 
 // The dilation radius in cells, 0 when grouping is off.
 int group_radius_cells(const Params& params)
@@ -249,7 +252,8 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
         // Specks and fringes vanish under the opening; whatever survives it
         // keeps its whole component, thin petioles and grass blades included.
         // From RGB alone, a seed must also have a leaf's colour: more green
-        // than red (a yellowish clod or a fringe is as green in ExG).
+        // for its red than the soil under the same light (a yellowish clod
+        // or a fringe is as green in ExG).
         const bool leaf_colour_seeds =
             params.leaf_colour &&
             (params.segmentation == Segmentation::exg || params.segmentation == Segmentation::chromatic_exg);
@@ -260,7 +264,8 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
             const BitMask* to_open = &ws.thresholded_;
             if (leaf_colour_seeds) {
                 ws.second_ = ws.thresholded_;   // same size: no allocation
-                keep_greener_than_red(frame.bgr, kGreenOverRedParts, ws.second_);
+                keep_greener_than_red(frame.bgr, soil_colour(frame.bgr, ws.thresholded_), kLeafGreenOverSoil,
+                                      ws.second_);
                 to_open = &ws.second_;
             }
             if (opening_radius > 0)

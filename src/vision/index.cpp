@@ -225,15 +225,47 @@ void ndvi(const cv::Mat& bgr, const cv::Mat& nir, const NdviTable& table, cv::Ma
     }
 }
 
-void keep_greener_than_red(const cv::Mat& bgr, int parts, BitMask& mask)
+SoilColour soil_colour(const cv::Mat& bgr, const BitMask& vegetation)
 {
+    CV_Assert(bgr.type() == CV_8UC3 && bgr.cols == vegetation.width() && bgr.rows == vegetation.height());
+    std::uint64_t sum_b = 0, sum_g = 0, sum_r = 0;
+    long pixels = 0;
+    for (int band = 0; band < bgr.rows; band += kBrightnessRowStep) {
+        const int y = std::min(band + 4, bgr.rows - 1);
+        const cv::Vec3b* px = bgr.ptr<cv::Vec3b>(y);
+        for (int x = 0; x < bgr.cols; ++x) {
+            if (vegetation.get(x, y))
+                continue;
+            sum_b += px[x][0];
+            sum_g += px[x][1];
+            sum_r += px[x][2];
+            ++pixels;
+        }
+    }
+    SoilColour soil;
+    soil.pixels = pixels;
+    if (pixels > 0) {
+        const double n = static_cast<double>(pixels);
+        soil.b = static_cast<double>(sum_b) / n;
+        soil.g = static_cast<double>(sum_g) / n;
+        soil.r = static_cast<double>(sum_r) / n;
+    }
+    return soil;
+}
+
+void keep_greener_than_red(const cv::Mat& bgr, const SoilColour& soil, double min_ratio, BitMask& mask)
+{
+    // g / r > min_ratio * soil.g / soil.r, without a division: g * red_weight
+    // > r * green_weight.
+    const bool neutral = soil.g < 1.0 || soil.r < 1.0;
+    const auto red_weight = static_cast<float>(neutral ? 1.0 : soil.r);
+    const auto green_weight = static_cast<float>(min_ratio * (neutral ? 1.0 : soil.g));
     for (int y = 0; y < mask.height(); ++y) {
         const cv::Vec3b* px = bgr.ptr<cv::Vec3b>(y);
         std::uint64_t* words = mask.row(y);
         visit_row_bits(0, mask.words_per_row(), [words](int w) { return words[w]; }, [&](int x) {
             const cv::Vec3b& p = px[x];
-            const int b = p[0], g = p[1], r = p[2];
-            if (parts * (g - r) <= b + g + r)
+            if (static_cast<float>(p[1]) * red_weight <= static_cast<float>(p[2]) * green_weight)
                 words[x >> 6] &= ~(std::uint64_t{1} << (x & 63));
         });
     }

@@ -434,7 +434,8 @@ TEST(Detect, AutoSegmentationResolvesFromTheNirPlane)
 }
 
 // A yellow clod is as green as a leaf in Excess Green (2G - R - B) but has
-// more red than green; chlorophyll leaves have more green than red.
+// less green for its red than the soil (G/R 0.78 here); chlorophyll leaves
+// have far more.
 TEST(Detect, LeafColourTellsALeafFromAYellowClod)
 {
     cv::Mat bgr(240, 240, CV_8UC3, cv::Scalar(60, 70, 90));   // brown soil

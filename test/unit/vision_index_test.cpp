@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <array>
 #include <algorithm>
 #include <cmath>
 #include <vector>
@@ -151,4 +152,80 @@ TEST(SmoothBinomial3, EqualsOpenCvGaussian3x3WithReplicatedEdges)
         smooth_binomial3(src, row.data(), actual);
         ASSERT_EQ(cv::countNonZero(expected != actual), 0) << size;
     }
+}
+
+TEST(LeafColour, SoilColourIsTheMeanOfTheSampledRowsOutsideTheVegetation)
+{
+    // Rows 4 and 20 of a 24-row frame are the samples. Their vegetation
+    // pixels, and every other row, must not count.
+    static_assert(kBrightnessRowStep == 16);
+    cv::Mat bgr(24, 8, CV_8UC3, cv::Scalar(0, 255, 0));
+    bgr.row(4).setTo(cv::Scalar(10, 20, 30));
+    bgr.row(20).setTo(cv::Scalar(30, 40, 50));
+    BitMask vegetation(8, 24);
+    for (int x = 0; x < 4; ++x) {
+        vegetation.set(x, 20);
+        bgr.at<cv::Vec3b>(20, x) = {0, 250, 0};
+    }
+    const SoilColour soil = soil_colour(bgr, vegetation);
+    EXPECT_EQ(soil.pixels, 12);
+    EXPECT_DOUBLE_EQ(soil.b, (8 * 10 + 4 * 30) / 12.0);
+    EXPECT_DOUBLE_EQ(soil.g, (8 * 20 + 4 * 40) / 12.0);
+    EXPECT_DOUBLE_EQ(soil.r, (8 * 30 + 4 * 50) / 12.0);
+}
+
+namespace {
+
+// Which of a leaf, a yellowish clod and a dark straw pixel keep their bit,
+// in a frame of brown soil, with every channel scaled by `gains` (B, G, R).
+std::vector<bool> leaf_colour_kept(cv::Vec3d gains)
+{
+    const auto cast = [&](cv::Vec3d bgr) {
+        return cv::Vec3b(cv::saturate_cast<std::uint8_t>(bgr[0] * gains[0]),
+                         cv::saturate_cast<std::uint8_t>(bgr[1] * gains[1]),
+                         cv::saturate_cast<std::uint8_t>(bgr[2] * gains[2]));
+    };
+    cv::Mat bgr(16, 8, CV_8UC3);
+    bgr.setTo(cv::Scalar(cast({60, 70, 85})));  // soil: G/R 0.82
+    const std::array<cv::Vec3d, 3> probes{cv::Vec3d{40, 100, 75},   // leaf: G/R 1.33, 1.6 times the soil's
+                                          cv::Vec3d{70, 95, 100},   // clod: G/R 0.95, 1.16 times
+                                          cv::Vec3d{50, 60, 80}};   // straw: G/R 0.75
+    BitMask mask(8, 16);
+    for (int i = 0; i < 3; ++i) {
+        bgr.at<cv::Vec3b>(8, i) = cast(probes[static_cast<std::size_t>(i)]);
+        mask.set(i, 8);
+    }
+    keep_greener_than_red(bgr, soil_colour(bgr, mask), 1.25, mask);
+    return {mask.get(0, 8), mask.get(1, 8), mask.get(2, 8)};
+}
+
+}  // namespace
+
+TEST(LeafColour, KeepsLeavesAndNotClodsWhateverTheColourOfTheLight)
+{
+    const std::vector<bool> leaf_only{true, false, false};
+    EXPECT_EQ(leaf_colour_kept({1, 1, 1}), leaf_only);
+    // Warm light (evening sun; a white balance set for shade) makes the leaf
+    // redder than neutral grey; cool light makes the clod greener than red.
+    EXPECT_EQ(leaf_colour_kept({0.75, 1, 1.3}), leaf_only);
+    EXPECT_EQ(leaf_colour_kept({1.3, 1, 0.75}), leaf_only);
+    EXPECT_EQ(leaf_colour_kept({0.5, 0.5, 0.5}), leaf_only);
+}
+
+TEST(LeafColour, WithoutSoilInViewTheSoilIsNeutralGrey)
+{
+    // All vegetation: no soil pixel to compare with, so G must exceed R by
+    // the factor itself.
+    cv::Mat bgr(16, 2, CV_8UC3, cv::Scalar(40, 100, 75));  // G/R 1.33
+    bgr.at<cv::Vec3b>(0, 1) = {40, 100, 85};                // G/R 1.18
+    BitMask mask(2, 16);
+    for (int y = 0; y < 16; ++y)
+        for (int x = 0; x < 2; ++x)
+            mask.set(x, y);
+    const SoilColour soil = soil_colour(bgr, mask);
+    EXPECT_EQ(soil.pixels, 0);
+    keep_greener_than_red(bgr, soil, 1.25, mask);
+    EXPECT_TRUE(mask.get(0, 0));
+    EXPECT_FALSE(mask.get(1, 0));
+    EXPECT_TRUE(mask.get(1, 1));
 }

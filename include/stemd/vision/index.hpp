@@ -61,10 +61,23 @@ private:
 // `bgr` is CV_8UC3 (its red plane is used), `nir` CV_8UC1 of the same size.
 void ndvi(const cv::Mat& bgr, const cv::Mat& nir, const NdviTable& table, cv::Mat& index_u8);
 
-// Leaf colour: chlorophyll absorbs red, so a leaf in daylight reflects more
-// green than red; brown soil, yellowish clods and straw do not. Clears the
-// bits of `mask` (the size of `bgr`) whose pixel's G does not exceed its R
-// by more than (R + G + B) / `parts`. Only the set bits' pixels are read.
-void keep_greener_than_red(const cv::Mat& bgr, int parts, BitMask& mask);
+// The soil's colour under this frame's light: the mean B, G and R of the
+// pixels outside `vegetation` on row 4 of each band of kBrightnessRowStep
+// rows (the rows chromatic_mean_brightness reads), and how many there were.
+struct SoilColour {
+    double b = 0, g = 0, r = 0;
+    long pixels = 0;
+};
+SoilColour soil_colour(const cv::Mat& bgr, const BitMask& vegetation);
+
+// Leaf colour: chlorophyll absorbs red, so under any light a leaf reflects
+// more green for its red than the soil beside it; brown soil, yellowish
+// clods and straw do not. A cast of the light (or of the camera's white
+// balance) scales each channel alike for leaf and soil, so the ratio of
+// the two G/R ratios does not move with it. Clears the bits of `mask` (the
+// size of `bgr`) whose pixel's G/R does not exceed the soil's G/R by
+// `min_ratio`. Only the set bits' pixels are read. A soil without red or
+// green (fewer than one pixel of each) is taken as neutral grey.
+void keep_greener_than_red(const cv::Mat& bgr, const SoilColour& soil, double min_ratio, BitMask& mask);
 
 }  // namespace stemd::vision
