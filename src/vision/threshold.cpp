@@ -144,6 +144,9 @@ int min_error_threshold(const Histogram& histogram)
     return best < 0 ? otsu_threshold(histogram) : best;
 }
 
+// P(z < -1) / P(z < 0) for a normal distribution: 0.15866 / 0.5.
+constexpr double kOneSigmaBelowOfLowerHalf = 0.31731;
+
 int histogram_mode(const Histogram& histogram)
 {
     int mode = 0;
@@ -163,15 +166,43 @@ int soil_noise_threshold(const Histogram& histogram, double sigmas)
 {
     if (std::all_of(histogram.begin(), histogram.end(), [](auto count) { return count == 0; }))
         return 255;
+    // The soil's spread is a level or two, as wide as the histogram's bins:
+    // whole levels would move the threshold by whole sigmas (a mode that
+    // lies between two levels, a histogram combed by the index's
+    // quantisation in dark frames). So the mode is placed between levels
+    // (a parabola through the smoothed counts around it), each bin's pixels
+    // are spread evenly over its level's width, and sigma is read from a
+    // quantile of the lower side, which vegetation (above) does not reach: a
+    // normal soil has 0.3174 of its pixels below the mode more than one
+    // sigma below it.
     const int mode = histogram_mode(histogram);
-    // Half-normal spread of the levels at and below the mode.
-    double n = 0, squares = 0;
-    for (int v = 0; v <= mode; ++v) {
-        n += histogram[v];
-        squares += static_cast<double>(histogram[v]) * (v - mode) * (v - mode);
+    const auto smoothed = [&](int v) -> double {
+        if (v < 0 || v > 255)
+            return 0;
+        return static_cast<double>(histogram[static_cast<std::size_t>(v)]) +
+               (v > 0 ? histogram[static_cast<std::size_t>(v - 1)] : 0) +
+               (v < 255 ? histogram[static_cast<std::size_t>(v + 1)] : 0);
+    };
+    double peak = mode;
+    const double before = smoothed(mode - 1), at = smoothed(mode), after = smoothed(mode + 1);
+    const double curvature = before - 2 * at + after;
+    if (curvature < 0)
+        peak += std::clamp(0.5 * (before - after) / curvature, -0.5, 0.5);
+    double below_peak = 0;
+    for (int v = 0; v < 256 && v - 0.5 < peak; ++v)
+        below_peak += histogram[static_cast<std::size_t>(v)] * std::min(1.0, peak - (v - 0.5));
+    const double target = kOneSigmaBelowOfLowerHalf * below_peak;
+    double cumulative = 0, one_sigma_below = peak;
+    for (int v = 0; v < 256; ++v) {
+        const double count = histogram[static_cast<std::size_t>(v)];
+        if (count > 0 && cumulative + count >= target) {
+            one_sigma_below = (v - 0.5) + (target - cumulative) / count;
+            break;
+        }
+        cumulative += count;
     }
-    const double sigma = n > 0 ? std::sqrt(squares / n) : 0.0;
-    return static_cast<int>(std::clamp(std::ceil(mode + sigmas * sigma), 0.0, 255.0));
+    const double sigma = std::max(0.0, peak - one_sigma_below);
+    return static_cast<int>(std::clamp(std::ceil(peak + sigmas * sigma), 0.0, 255.0));
 }
 
 int above_soil_threshold(const Histogram& histogram, double sigmas)

@@ -316,6 +316,22 @@ TEST(Threshold, SoilNoiseThresholdIsTheModePlusSigmasOfTheLowerSide)
     EXPECT_EQ(soil_noise_threshold(Histogram{}, 5), 255);  // empty: nothing is vegetation
 }
 
+TEST(Threshold, SoilNoiseThresholdFollowsASoilAsNarrowAsTheLevels)
+{
+    // A soil whose mode lies between two levels and whose spread is a level
+    // or two (dark frames, NDVI's table): read in whole levels, mode and
+    // sigma both came out low, and the threshold two levels below mode +
+    // 5 sigma (105 for 107), inside the soil's own noise.
+    struct Soil {
+        double mode, sigma;
+    };
+    for (const Soil soil : {Soil{100.25, 1.0}, Soil{100.5, 1.2}, Soil{100.5, 2.0}, Soil{100.75, 1.5}}) {
+        const Histogram h = soil_and_vegetation(soil.mode, soil.sigma, 160, 0.01);
+        EXPECT_NEAR(soil_noise_threshold(h, 5), std::ceil(soil.mode + 5 * soil.sigma), 1)
+            << "soil mode " << soil.mode << ", sigma " << soil.sigma;
+    }
+}
+
 TEST(Threshold, AboveSoilKeepsOtsuWhereItSeparatesAndRisesAboveTheSoilWhereItDoesNot)
 {
     // 1 % vegetation: Otsu splits the soil near its mode, above_soil stays

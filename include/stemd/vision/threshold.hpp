@@ -31,7 +31,9 @@ int min_error_threshold(const Histogram& histogram);
 // as long as vegetation covers less of the frame than soil) plus `sigmas`
 // standard deviations, measured on the mode's lower side only, which
 // vegetation (above) does not reach. Valid for any small vegetation cover,
-// where Otsu and min_error split the soil itself.
+// where Otsu and min_error split the soil itself. Mode and sigma are read
+// between levels (a parabola at the mode, a quantile of the lower side),
+// as a soil's spread is often only a level or two.
 int soil_noise_threshold(const Histogram& histogram, double sigmas);
 
 // The soil's index level: the mode of the histogram smoothed over three
