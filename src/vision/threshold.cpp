@@ -173,7 +173,7 @@ int soil_noise_threshold(const Histogram& histogram, double sigmas)
     // (a parabola through the smoothed counts around it), each bin's pixels
     // are spread evenly over its level's width, and sigma is read from a
     // quantile of the lower side, which vegetation (above) does not reach: a
-    // normal soil has 0.3174 of its pixels below the mode more than one
+    // normal soil has 0.317 of its pixels below the mode more than one
     // sigma below it.
     const int mode = histogram_mode(histogram);
     const auto smoothed = [&](int v) -> double {

@@ -76,8 +76,8 @@ SoilColour soil_colour(const cv::Mat& bgr, const BitMask& vegetation);
 // balance) scales each channel alike for leaf and soil, so the ratio of
 // the two G/R ratios does not move with it. Clears the bits of `mask` (the
 // size of `bgr`) whose pixel's G/R does not exceed the soil's G/R by
-// `min_ratio`. Only the set bits' pixels are read. A soil without red or
-// green (fewer than one pixel of each) is taken as neutral grey.
+// `min_ratio`. Only the set bits' pixels are read. A soil whose mean red or
+// green is below one level (or no soil in view) is taken as neutral grey.
 void keep_greener_than_red(const cv::Mat& bgr, const SoilColour& soil, double min_ratio, BitMask& mask);
 
 }  // namespace stemd::vision
