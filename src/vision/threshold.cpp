@@ -147,13 +147,22 @@ int min_error_threshold(const Histogram& histogram)
 // P(z < -1) / P(z < 0) for a normal distribution: 0.15866 / 0.5.
 constexpr double kOneSigmaBelowOfLowerHalf = 0.31731;
 
+// Level v's count with its two neighbours' (0 outside [0, 255]).
+static std::uint64_t smoothed_count(const Histogram& histogram, int v)
+{
+    if (v < 0 || v > 255)
+        return 0;
+    return static_cast<std::uint64_t>(histogram[static_cast<std::size_t>(v)]) +
+           (v > 0 ? histogram[static_cast<std::size_t>(v - 1)] : 0) +
+           (v < 255 ? histogram[static_cast<std::size_t>(v + 1)] : 0);
+}
+
 int histogram_mode(const Histogram& histogram)
 {
     int mode = 0;
     std::uint64_t best = 0;
     for (int v = 0; v < 256; ++v) {
-        const std::uint64_t smoothed = static_cast<std::uint64_t>(histogram[v]) + (v > 0 ? histogram[v - 1] : 0) +
-                                       (v < 255 ? histogram[v + 1] : 0);
+        const std::uint64_t smoothed = smoothed_count(histogram, v);
         if (smoothed > best) {
             best = smoothed;
             mode = v;
@@ -176,13 +185,7 @@ int soil_noise_threshold(const Histogram& histogram, double sigmas)
     // normal soil has 0.317 of its pixels below the mode more than one
     // sigma below it.
     const int mode = histogram_mode(histogram);
-    const auto smoothed = [&](int v) -> double {
-        if (v < 0 || v > 255)
-            return 0;
-        return static_cast<double>(histogram[static_cast<std::size_t>(v)]) +
-               (v > 0 ? histogram[static_cast<std::size_t>(v - 1)] : 0) +
-               (v < 255 ? histogram[static_cast<std::size_t>(v + 1)] : 0);
-    };
+    const auto smoothed = [&](int v) { return static_cast<double>(smoothed_count(histogram, v)); };
     double peak = mode;
     const double before = smoothed(mode - 1), at = smoothed(mode), after = smoothed(mode + 1);
     const double curvature = before - 2 * at + after;
