@@ -47,6 +47,17 @@ stems() {  # name recording stems.csv gsd label [--set ...]
     "$("$bin/tools/stemd-eval" "$truth" "$out/$name-$label.csv" --gsd-mm-per-px "$gsd" --json)"
 }
 
+cwfid_stems() {  # label stems.csv [--set ...]: CWFID's stems within 15 px (1.65 mm at 0.11 mm/px)
+  local label=$1 truth=$2
+  shift 2
+  local csv="$out/cwfid-train-${label//[ ,]/-}.csv"
+  # The recording names frames by path, the annotation by file name.
+  "$bin/tools/stemd-detect" --config config/stemd.yaml --set camera.gsd_mm_per_px=0.11 "${sets[@]}" "$@" \
+    "$out/cwfid-train-recording" --csv - 2>"${csv%.csv}-detect.log" | sed 's#^[^,]*/##' >"$csv"
+  row cwfid-train stems "$label" \
+    "$("$bin/tools/stemd-eval" "$truth" "$csv" --gsd-mm-per-px 0.11 --tol-mm 1.65 --json)"
+}
+
 targets() {  # name recording plants.csv gsd label [--set ...]
   local name=$1 recording=$2 truth=$3 gsd=$4 label=$5
   shift 5
@@ -66,6 +77,12 @@ else echo "eval-real: no $data/carrot-dev: skipped" >&2; fi
 if [ -d "$data/cwfid-train/images" ]; then
   tools/cwfid-recording.sh "$data/cwfid-train" "$out/cwfid-train-recording" >/dev/null
   iou cwfid-train "$out/cwfid-train-recording" zero --set camera.gsd_mm_per_px=0.11
+  # Stems annotated by eye for this project (test/data/cwfid-train-stems.csv,
+  # README "Evaluation on real frames"): the sure ones, and all of them.
+  awk -F, 'NR == 1 || $5 == 1' test/data/cwfid-train-stems.csv >"$out/cwfid-train-stems-sure.csv"
+  cwfid_stems "sure, default" "$out/cwfid-train-stems-sure.csv"
+  cwfid_stems "sure, centre of mass" "$out/cwfid-train-stems-sure.csv" --set stem.method=com
+  cwfid_stems "all, default" test/data/cwfid-train-stems.csv
 else echo "eval-real: no $data/cwfid-train: skipped" >&2; fi
 
 if [ -f "$data/bonirob/frames.csv" ]; then
@@ -89,6 +106,10 @@ for r in rows:
     x = r["result"]
     if r["what"] == "mask IoU":
         text = "mean IoU %.3f (min %.3f) over %d frames" % (x["mean_iou"], x["min_iou"], x["frames"])
+    elif r["what"] == "stems" and r["set"] == "cwfid-train":
+        # Not every plant is annotated, so a precision would mean nothing.
+        text = "%d of %d stems within %g mm, %d reported, mean error %.2f mm" % (
+            x["true_positives"], x["ground_truth"], x["tol_mm"], x["predictions"], x["mean_error_mm"])
     elif r["what"] == "stems":
         text = "%d of %d stems within %g mm, precision %.0f %% (%d reported), mean error %.2f mm" % (
             x["true_positives"], x["ground_truth"], x["tol_mm"], 100 * x["precision"], x["predictions"],

@@ -9,6 +9,7 @@
 
 #include "stemd/base/clock.hpp"
 #include "stemd/vision/contour.hpp"
+#include "stemd/vision/leaves.hpp"
 #include "stemd/vision/stem.hpp"
 
 namespace stemd::vision {
@@ -96,6 +97,146 @@ cv::Point2f nearest_point(std::span<const cv::Point> contour, cv::Point2f target
 }
 
 }  // namespace
+
+// Pieces by group, then raster order, so each group's first piece is its
+// top-most one (std::sort: stable_sort would allocate).
+void sort_pieces_by_group(Workspace& ws)
+{
+    for (std::size_t i = 0; i < ws.piece_order_.size(); ++i)
+        ws.piece_order_[i] = static_cast<int>(i);
+    std::sort(ws.piece_order_.begin(), ws.piece_order_.end(), [&](int a, int b) {
+        const int group_a = ws.piece_group_[static_cast<std::size_t>(a)];
+        const int group_b = ws.piece_group_[static_cast<std::size_t>(b)];
+        return group_a != group_b ? group_a < group_b : a < b;
+    });
+}
+
+// Whether a piece is a plant with leaves of its own: its outline has two
+// or more cuts at the depth detect() would cut a plant of its size. A
+// contour too long to trace is no single leaf either.
+bool has_own_leaves(const Component& piece, const Params& params, Workspace& ws)
+{
+    if (static_cast<double>(piece.area_px) * params.gsd_mm_per_px * params.gsd_mm_per_px < params.min_plant_area_mm2)
+        return false;
+    if (!trace_outer_contour(ws.closed_, piece.first_pixel, ws.contour_))
+        return true;
+    convex_hull_indices(ws.contour_, ws.hull_, ws.hull_order_);
+    const double radius_px = std::sqrt(static_cast<double>(piece.area_px) / std::numbers::pi);
+    const auto depth_px = static_cast<float>(
+        std::max(params.defect_depth_mm / params.gsd_mm_per_px, params.defect_depth_rel * radius_px));
+    convexity_defects(ws.contour_, ws.hull_, depth_px, ws.defects_);
+    return ws.defects_.size() >= 3;
+}
+
+// The group gap joins a leaf whose petiole fell below the threshold to its
+// plant, but also neighbours that merely grew close. Within a group:
+//  - a piece with leaves of its own (three or more cuts) has a stem of its
+//    own and is a plant;
+//  - a detached leaf is elongated and its midrib points at its plant's
+//    stem: a piece whose long axis passes within a plant's equivalent
+//    radius of that plant's centre joins it (the nearest such plant,
+//    measured from the plant's equivalent circle); a speck below the
+//    plant size joins the nearest plant;
+//  - any other piece (a compact seedling, a leaf pointing elsewhere) is a
+//    plant of its own.
+// A group without such a plant stays one plant (every leaf of a seedling
+// apart). ws.piece_order_ must be sorted by group. Returns whether any
+// group was split; the groups are then renumbered in the raster order of
+// their first piece.
+bool split_groups_at_rosettes(const Params& params, Workspace& ws)
+{
+    const int pieces = static_cast<int>(ws.piece_order_.size());
+    auto& rosette = ws.piece_rosette_;
+    rosette.assign(static_cast<std::size_t>(pieces), 0);
+    const double pixel_area_mm2 = params.gsd_mm_per_px * params.gsd_mm_per_px;
+    int next_group = 0;
+    for (const int g : ws.piece_group_)
+        next_group = std::max(next_group, g + 1);
+    bool split = false;
+    for (int begin = 0; begin < pieces;) {
+        const int group = ws.piece_group_[static_cast<std::size_t>(ws.piece_order_[static_cast<std::size_t>(begin)])];
+        int end = begin + 1;
+        while (end < pieces && ws.piece_group_[static_cast<std::size_t>(ws.piece_order_[static_cast<std::size_t>(end)])] == group)
+            ++end;
+        const std::span<const int> members(ws.piece_order_.data() + begin, static_cast<std::size_t>(end - begin));
+        begin = end;
+        if (members.size() < 2)
+            continue;
+        int rosettes = 0;
+        for (const int m : members) {
+            rosette[static_cast<std::size_t>(m)] = has_own_leaves(ws.components_[static_cast<std::size_t>(m)], params, ws);
+            rosettes += rosette[static_cast<std::size_t>(m)];
+        }
+        if (rosettes == 0)
+            continue;
+        // The group's first rosette keeps its number; every other plant
+        // takes a new one.
+        bool first = true;
+        for (const int m : members) {
+            if (!rosette[static_cast<std::size_t>(m)])
+                continue;
+            if (!first) {
+                ws.piece_group_[static_cast<std::size_t>(m)] = next_group++;
+                split = true;
+            }
+            first = false;
+        }
+        for (const int m : members) {
+            if (rosette[static_cast<std::size_t>(m)])
+                continue;
+            const Component& piece = ws.components_[static_cast<std::size_t>(m)];
+            const bool speck = static_cast<double>(piece.area_px) * pixel_area_mm2 < params.min_plant_area_mm2;
+            Leaf leaf;
+            if (!speck && trace_outer_contour(ws.closed_, piece.first_pixel, ws.contour_))
+                leaf = leaf_from_polygon(ws.contour_, 0, static_cast<int>(ws.contour_.size()) - 1);
+            const bool has_axis = !speck && leaf.elongation >= kMinElongationForAxis;
+            double best = std::numeric_limits<double>::max();
+            int joined = -1;
+            for (const int r : members) {
+                if (!rosette[static_cast<std::size_t>(r)])
+                    continue;
+                const Component& plant = ws.components_[static_cast<std::size_t>(r)];
+                const double area = static_cast<double>(plant.area_px);
+                const double cx = plant.sum_x / area, cy = plant.sum_y / area;
+                const double radius = std::sqrt(area / std::numbers::pi);
+                if (has_axis) {
+                    const double off_axis = std::abs((cx - leaf.centre.x) * leaf.axis.y - (cy - leaf.centre.y) * leaf.axis.x);
+                    if (off_axis > radius)
+                        continue;
+                } else if (!speck) {
+                    continue;
+                }
+                const double dx = std::max({piece.x_min - cx, 0.0, cx - piece.x_max});
+                const double dy = std::max({piece.y_min - cy, 0.0, cy - piece.y_max});
+                const double gap = std::hypot(dx, dy) - radius;
+                if (gap < best) {
+                    best = gap;
+                    joined = r;
+                }
+            }
+            if (joined >= 0) {
+                ws.piece_group_[static_cast<std::size_t>(m)] = ws.piece_group_[static_cast<std::size_t>(joined)];
+                split = split || ws.piece_group_[static_cast<std::size_t>(joined)] != group;
+            } else {
+                ws.piece_group_[static_cast<std::size_t>(m)] = next_group++;
+                split = true;
+            }
+        }
+    }
+    if (!split)
+        return false;
+    // Renumber by first piece: pieces are in the raster order of their
+    // top-most pixel.
+    ws.group_rank_.assign(static_cast<std::size_t>(next_group), -1);
+    int ranked = 0;
+    for (int i = 0; i < pieces; ++i) {
+        int& rank = ws.group_rank_[static_cast<std::size_t>(ws.piece_group_[static_cast<std::size_t>(i)])];
+        if (rank < 0)
+            rank = ranked++;
+        ws.piece_group_[static_cast<std::size_t>(i)] = rank;
+    }
+    return true;
+}
 
 // How far from a pixel above the sparse index's level the index must be
 // known: the mixed-edge window, and the closing's reach, so that a piece
@@ -193,6 +334,7 @@ Workspace::Workspace(cv::Size frame_size, const Params& params)
     piece_order_.reserve(max_components);
     group_rank_.reserve(max_components);
     piece_plant_.reserve(max_components);
+    piece_rosette_.reserve(max_components);
     keep_.reserve(max_components);
     cells_.reset(width / kGroupCellPx + 1, height / kGroupCellPx + 1);
     grouped_.reset(cells_.width(), cells_.height());
@@ -334,15 +476,9 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
         for (int i = 0; i < pieces; ++i)
             ws.piece_group_[static_cast<std::size_t>(i)] = i;
     }
-    for (int i = 0; i < pieces; ++i)
-        ws.piece_order_[static_cast<std::size_t>(i)] = i;
-    // By group, then raster order, so each group's first piece is its
-    // top-most one (std::sort: stable_sort would allocate).
-    std::sort(ws.piece_order_.begin(), ws.piece_order_.end(), [&](int a, int b) {
-        const int group_a = ws.piece_group_[static_cast<std::size_t>(a)];
-        const int group_b = ws.piece_group_[static_cast<std::size_t>(b)];
-        return group_a != group_b ? group_a < group_b : a < b;
-    });
+    sort_pieces_by_group(ws);
+    if (group_radius > 0 && pieces > 1 && split_groups_at_rosettes(params, ws))
+        sort_pieces_by_group(ws);
     const std::int64_t t_plants = base::monotonic_ns();
 
     // 4. Leaves and stems, plant by plant.
@@ -477,7 +613,7 @@ std::size_t Workspace::reserved_bytes() const
            opening_.reserved_bytes() + closing_.reserved_bytes() + cells_.reserved_bytes() +
            grouped_.reserved_bytes() + grouping_.reserved_bytes() + group_labels_.reserved_bytes() + (groups_.capacity()) * sizeof(Component) +
            (piece_group_.capacity() + piece_order_.capacity() + group_rank_.capacity()) * sizeof(int) +
-           piece_plant_.capacity() * sizeof(std::uint16_t) + labels_.reserved_bytes() + components_.capacity() * sizeof(Component) +
+           piece_plant_.capacity() * sizeof(std::uint16_t) + piece_rosette_.capacity() + labels_.reserved_bytes() + components_.capacity() * sizeof(Component) +
            contour_.capacity() * sizeof(cv::Point) + (hull_.capacity() + hull_order_.capacity()) * sizeof(int) +
            defects_.capacity() * sizeof(Defect) + sizeof(NdviTable) + sparse_.reserved_bytes();
 }

@@ -14,9 +14,6 @@ constexpr float kCutMeanConfidence = 0.3f;
 // The robust fit needs lines that cross at a real angle: for two equal
 // leaves, conditioning = tan^2(angle / 2), so 0.05 is about 25 degrees.
 constexpr double kMinConditioning = 0.05;
-// A leaf whose principal second moments differ by less than this has no
-// clear long axis (a round blade): its root -> centre direction is used.
-constexpr double kMinElongationForAxis = 1.5;
 
 bool inside(const cv::Rect& bbox, cv::Point2f p)
 {

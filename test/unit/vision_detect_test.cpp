@@ -531,19 +531,75 @@ TEST(Detect, LeavesCutOffFromTheirStemAreOnePlant)
     EXPECT_LT(distance(p.stem, cv::Point2f(stem)), 1.0) << p.stem;
 }
 
-TEST(Detect, PlantsFartherApartThanTheGroupGapStayApart)
+// A leaf on its own, as a threshold leaves it when its petiole is too
+// thin or pale: an ellipse whose long axis runs along `angle_deg`.
+void draw_leaf(cv::Mat& mask, cv::Point2f centre, double angle_deg, double length_px, double half_width_px)
 {
-    // Two four-leaf plants whose leaf tips are 39 background pixels
-    // (12.9 mm at 0.33 mm/px) apart. Grouping works on 4 px cells: pieces
-    // within the gap always join, pieces up to about 8 px farther may.
-    cv::Mat mask = draw_plant({400, 300}, {100, 150}, {{0, 20, 60, 16}, {90, 20, 60, 16}, {180, 20, 60, 16}, {270, 20, 60, 16}}, 4);
-    mask |= draw_plant({400, 300}, {300, 150}, {{0, 20, 60, 16}, {90, 20, 60, 16}, {180, 20, 60, 16}, {270, 20, 60, 16}}, 4);
+    cv::ellipse(mask, cv::RotatedRect(centre, cv::Size2f(static_cast<float>(length_px), static_cast<float>(2 * half_width_px)),
+                                      static_cast<float>(angle_deg)),
+                255, cv::FILLED, cv::LINE_8);
+}
+
+const std::vector<LeafSpec> kFourLeaves{{0, 20, 60, 16}, {90, 20, 60, 16}, {180, 20, 60, 16}, {270, 20, 60, 16}};
+
+TEST(Detect, ADetachedLeafFartherThanTheGroupGapStaysApart)
+{
+    // A four-leaf plant whose right leaf ends at x = 180, and a leaf on its
+    // own pointing at its stem, 40 background pixels (13.2 mm at
+    // 0.33 mm/px) beyond. Grouping works on 4 px cells: pieces within the
+    // gap always join, pieces up to about 8 px farther may.
+    const cv::Point stem(100, 150);
+    cv::Mat mask = draw_plant({400, 300}, stem, kFourLeaves, 4);
+    draw_leaf(mask, {251, 150}, 0, 60, 16);  // from x = 221
     Params params = mask_params();
-    params.group_gap_mm = 10;  // 30 px: more than 8 px short of the 39
+    params.group_gap_mm = 10;  // 30 px: more than 8 px short of the 40
     const Detections apart = detect({.mask = mask}, params);
     ASSERT_EQ(apart.plants.size(), 2u);
-    EXPECT_LT(distance(apart.plants[0].stem, {100, 150}), 0.5);
-    EXPECT_LT(distance(apart.plants[1].stem, {300, 150}), 0.5);
-    params.group_gap_mm = 13;  // at least the 12.9 mm between them
-    EXPECT_EQ(detect({.mask = mask}, params).plants.size(), 1u);
+    EXPECT_LT(distance(apart.plants[0].stem, cv::Point2f(stem)), 0.5);
+    params.group_gap_mm = 13.5;  // at least the 13.2 mm between them
+    const Detections joined = detect({.mask = mask}, params);
+    ASSERT_EQ(joined.plants.size(), 1u);
+    EXPECT_EQ(joined.plants[0].area_px, cv::countNonZero(mask));
+    EXPECT_LT(distance(joined.plants[0].stem, cv::Point2f(stem)), 1.0) << joined.plants[0].stem;
+}
+
+TEST(Detect, NeighboursWithinTheGroupGapAreApartWhenEachHasItsOwnStem)
+{
+    // Two four-leaf plants whose leaf tips are 39 px apart, well within a
+    // 13 mm (39.4 px) gap, each with a stem where its leaves meet.
+    const cv::Point left(100, 150), right(300, 150);
+    cv::Mat mask = draw_plant({400, 300}, left, kFourLeaves, 4);
+    mask |= draw_plant({400, 300}, right, kFourLeaves, 4);
+    Params params = mask_params();
+    params.group_gap_mm = 13;
+    const Detections d = detect({.mask = mask}, params);
+    ASSERT_EQ(d.plants.size(), 2u);
+    EXPECT_LT(distance(d.plants[0].stem, cv::Point2f(left)), 0.5);
+    EXPECT_LT(distance(d.plants[1].stem, cv::Point2f(right)), 0.5);
+}
+
+TEST(Detect, ADetachedLeafJoinsThePlantItPointsAtAndNotANeighbour)
+{
+    // Between two four-leaf plants, 10 px below the right one's lower
+    // leaf: a leaf pointing up at the right plant's stem (it joins it), and
+    // beside the left plant's lower leaf a round seedling with no cuts and
+    // no long axis (a plant of its own).
+    const cv::Point left(100, 120), right(300, 120);
+    cv::Mat mask = draw_plant({400, 300}, left, kFourLeaves, 4);
+    mask |= draw_plant({400, 300}, right, kFourLeaves, 4);
+    draw_leaf(mask, {300, 240}, 90, 60, 14);             // 200..210: from y = 210, 10 px below the leaf tip at 200
+    cv::circle(mask, {140, 185}, 12, 255, cv::FILLED);  // 10 px right of the lower leaf's edge
+    Params params = mask_params();
+    params.group_gap_mm = 13;
+    const Detections d = detect({.mask = mask}, params);
+    ASSERT_EQ(d.plants.size(), 3u);
+    EXPECT_LT(distance(d.plants[0].stem, cv::Point2f(left)), 0.5);
+    EXPECT_LT(distance(d.plants[1].stem, cv::Point2f(right)), 1.0) << d.plants[1].stem;
+    EXPECT_LT(distance(d.plants[2].stem, {140, 185}), 0.5) << d.plants[2].stem;
+    EXPECT_EQ(d.plants[1].area_px, cv::countNonZero(draw_plant({400, 300}, right, kFourLeaves, 4)) +
+                                       [] {
+                                           cv::Mat leaf = cv::Mat::zeros(300, 400, CV_8UC1);
+                                           draw_leaf(leaf, {300, 240}, 90, 60, 14);
+                                           return cv::countNonZero(leaf);
+                                       }());
 }

@@ -52,6 +52,9 @@ public:
 private:
     friend void detect(const FrameView&, const Params&, Workspace&, Detections&, StageTimes*);
     friend void compute_index(const FrameView&, Segmentation, const Params&, Workspace&, bool);
+    friend void sort_pieces_by_group(Workspace&);
+    friend bool has_own_leaves(const Component&, const Params&, Workspace&);
+    friend bool split_groups_at_rosettes(const Params&, Workspace&);
     friend void threshold_index(const FrameView&, Segmentation, const Params&, Workspace&, DetectStats&, BitMask&,
                                 std::int64_t&);
     cv::Size frame_size_;
@@ -84,6 +87,7 @@ private:
     std::vector<int> piece_order_;          // pieces sorted by group
     std::vector<int> group_rank_;           // per group: its rank by first piece
     std::vector<std::uint16_t> piece_plant_;   // per piece: 1 + its plant's index, 0 = none
+    std::vector<std::uint8_t> piece_rosette_;  // per piece of a group: has leaves of its own
     std::vector<cv::Point> contour_;
     std::vector<int> hull_;
     std::vector<int> hull_order_;

@@ -16,6 +16,10 @@ namespace stemd::vision {
 // are skipped; nullopt when no pair is left.
 std::optional<cv::Point2f> mean_leaf_intersection(std::span<const Leaf> leaves, double min_angle_deg);
 
+// A leaf whose principal second moments differ by less than this has no
+// clear long axis (a round blade): its midrib's direction is unknown.
+inline constexpr double kMinElongationForAxis = 1.5;
+
 struct LineFit {
     cv::Point2f point;
     double rms_px = 0;        // weighted RMS distance of the point to the leaf lines
