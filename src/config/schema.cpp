@@ -222,7 +222,7 @@ constexpr std::array kSchema{
     real_key<STEMD_KEY(daemon.vision.min_plant_area_mm2)>("plants.min_area_mm2", "mm2", 0, 100000, "10",
         "plants with a smaller area are dropped as noise"),
     real_key<STEMD_KEY(daemon.vision.group_gap_mm)>("plants.group_gap_mm", "mm", 0, 50, "6",
-        "pieces of vegetation less than this far apart are one plant (leaves whose petioles fell below the threshold); 0: every piece is a plant"),
+        "pieces of vegetation less than this far apart are grouped: a leaf whose petiole fell below the threshold joins the plant it points at, and pieces with leaves of their own stay plants; 0: every piece is a plant"),
 
     real_key<STEMD_KEY(daemon.vision.defect_depth_mm)>("leaves.defect_depth_mm", "mm", 0.1, 100, "1",
         "convexity defects deeper than this cut the contour into leaves (the paper: 3.3)"),
