@@ -111,9 +111,10 @@ void sort_pieces_by_group(Workspace& ws)
     });
 }
 
-// Whether a piece is a plant with leaves of its own: its outline has two
-// or more cuts at the depth detect() would cut a plant of its size. A
-// contour too long to trace is no single leaf either.
+// Whether a piece is a plant with leaves of its own: its outline has three
+// or more cuts at the depth detect() would cut a plant of its size (a
+// single leaf can show two shallow ones where its blade meets the
+// petiole). A contour too long to trace is no single leaf either.
 bool has_own_leaves(const Component& piece, const Params& params, Workspace& ws)
 {
     if (static_cast<double>(piece.area_px) * params.gsd_mm_per_px * params.gsd_mm_per_px < params.min_plant_area_mm2)
