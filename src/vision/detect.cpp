@@ -98,6 +98,27 @@ cv::Point2f nearest_point(std::span<const cv::Point> contour, cv::Point2f target
 
 }  // namespace
 
+// The depth a convexity defect must reach to cut a plant (or piece) of
+// this equivalent radius: a fixed depth over-cuts large plants' wavy
+// edges and under-cuts small ones, so it also scales with the plant.
+float cut_depth_px(const Params& params, double radius_px)
+{
+    return static_cast<float>(
+        std::max(params.defect_depth_mm / params.gsd_mm_per_px, params.defect_depth_rel * radius_px));
+}
+
+// One past the last of the pieces in ws.piece_order_ (sorted by group)
+// that share the group of the piece at `begin`.
+int group_end(const Workspace& ws, int begin)
+{
+    const int pieces = static_cast<int>(ws.piece_order_.size());
+    const int group = ws.piece_group_[static_cast<std::size_t>(ws.piece_order_[static_cast<std::size_t>(begin)])];
+    int end = begin + 1;
+    while (end < pieces && ws.piece_group_[static_cast<std::size_t>(ws.piece_order_[static_cast<std::size_t>(end)])] == group)
+        ++end;
+    return end;
+}
+
 // Pieces by group, then raster order, so each group's first piece is its
 // top-most one (std::sort: stable_sort would allocate).
 void sort_pieces_by_group(Workspace& ws)
@@ -123,9 +144,7 @@ bool has_own_leaves(const Component& piece, const Params& params, Workspace& ws)
         return true;
     convex_hull_indices(ws.contour_, ws.hull_, ws.hull_order_);
     const double radius_px = std::sqrt(static_cast<double>(piece.area_px) / std::numbers::pi);
-    const auto depth_px = static_cast<float>(
-        std::max(params.defect_depth_mm / params.gsd_mm_per_px, params.defect_depth_rel * radius_px));
-    convexity_defects(ws.contour_, ws.hull_, depth_px, ws.defects_);
+    convexity_defects(ws.contour_, ws.hull_, cut_depth_px(params, radius_px), ws.defects_);
     return ws.defects_.size() >= 3;
 }
 
@@ -156,9 +175,7 @@ bool split_groups_at_rosettes(const Params& params, Workspace& ws)
     bool split = false;
     for (int begin = 0; begin < pieces;) {
         const int group = ws.piece_group_[static_cast<std::size_t>(ws.piece_order_[static_cast<std::size_t>(begin)])];
-        int end = begin + 1;
-        while (end < pieces && ws.piece_group_[static_cast<std::size_t>(ws.piece_order_[static_cast<std::size_t>(end)])] == group)
-            ++end;
+        const int end = group_end(ws, begin);
         const std::span<const int> members(ws.piece_order_.data() + begin, static_cast<std::size_t>(end - begin));
         begin = end;
         if (members.size() < 2)
@@ -484,12 +501,8 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
 
     // 4. Leaves and stems, plant by plant.
     const double pixel_area_mm2 = params.gsd_mm_per_px * params.gsd_mm_per_px;
-    const auto min_depth_px = static_cast<float>(params.defect_depth_mm / params.gsd_mm_per_px);
     for (int begin = 0; begin < pieces;) {
-        int end = begin + 1;
-        const int group = ws.piece_group_[static_cast<std::size_t>(ws.piece_order_[static_cast<std::size_t>(begin)])];
-        while (end < pieces && ws.piece_group_[static_cast<std::size_t>(ws.piece_order_[static_cast<std::size_t>(end)])] == group)
-            ++end;
+        const int end = group_end(ws, begin);
         const std::span<const int> members(ws.piece_order_.data() + begin, static_cast<std::size_t>(end - begin));
         begin = end;
         auto add_plant = [&](const Plant& plant) {
@@ -528,9 +541,7 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
 
         const double radius_px = std::sqrt(static_cast<double>(area_px) / std::numbers::pi);
         if (params.stem_estimator != StemEstimator::com) {
-            // The cut depth scales with the plant when asked: a fixed depth
-            // over-cuts large plants' wavy edges and under-cuts small ones.
-            const float depth_px = std::max(min_depth_px, static_cast<float>(params.defect_depth_rel * radius_px));
+            const float depth_px = cut_depth_px(params, radius_px);
             bool overflow = false;
             double hull_area_px = 0, perimeter_px = 0;
             for (const int m : members) {

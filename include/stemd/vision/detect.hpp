@@ -53,6 +53,7 @@ private:
     friend void detect(const FrameView&, const Params&, Workspace&, Detections&, StageTimes*);
     friend void compute_index(const FrameView&, Segmentation, const Params&, Workspace&, bool);
     friend void sort_pieces_by_group(Workspace&);
+    friend int group_end(const Workspace&, int);
     friend bool has_own_leaves(const Component&, const Params&, Workspace&);
     friend bool split_groups_at_rosettes(const Params&, Workspace&);
     friend void threshold_index(const FrameView&, Segmentation, const Params&, Workspace&, DetectStats&, BitMask&,
