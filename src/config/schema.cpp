@@ -197,7 +197,7 @@ constexpr std::array kSchema{
     enum_key<STEMD_KEY(daemon.vision.segmentation), vision::kSegmentationNames>("segment.method", "auto",
         "vegetation index: auto (exg_and_ndvi when the frames carry a NIR plane: a NIR camera (source.nir_device) or a recording with a nir column; chromatic_exg otherwise), chromatic Excess Green (RGB, exposure-invariant), Excess Green, NDVI (RGB+NIR), an external mask, or exg_and_ndvi (RGB+NIR: both chromatic Excess Green and NDVI above the soil)"),
     bool_key<STEMD_KEY(daemon.vision.leaf_colour)>("segment.leaf_colour", "true",
-        "exg, chromatic_exg: a plant needs a core of pixels whose green-to-red ratio is at least 1.25 times the soil's in the same frame, as chlorophyll makes a leaf; yellowish clods and colour fringes are not. Relative to the soil, so a colour cast of the light or the white balance does not move it"),
+        "exg, chromatic_exg: a plant needs a core of pixels whose green-to-red ratio is at least 1.25 times the soil's in the same frame, as chlorophyll makes a leaf; yellowish clods are not. Relative to the soil, so a colour cast of the light or the white balance does not move it. A piece is also dropped as a colour fringe when, with the green plane slid one pixel some way, none of its pixels passes that test (its green was a bright edge's, misregistered)"),
     bool_key<STEMD_KEY(daemon.vision.smooth_index)>("segment.smooth", "true",
         "smooth the index with a 3x3 binomial kernel before the threshold"),
     bool_key<STEMD_KEY(daemon.vision.sparse_index)>("segment.sparse_index", "true",

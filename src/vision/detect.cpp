@@ -354,6 +354,7 @@ Workspace::Workspace(cv::Size frame_size, const Params& params)
     piece_plant_.reserve(max_components);
     piece_rosette_.reserve(max_components);
     keep_.reserve(max_components);
+    fringe_passed_.reserve(max_components);
     cells_.reset(width / kGroupCellPx + 1, height / kGroupCellPx + 1);
     grouped_.reset(cells_.width(), cells_.height());
     group_labels_.reserve(cells_.width(), cells_.height());
@@ -422,10 +423,11 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
             // The seeds: the opening of the pixels that pass every test, so a
             // seed is a compact core, not one lucky pixel.
             const BitMask* to_open = &ws.thresholded_;
+            SoilColour soil;
             if (leaf_colour_seeds) {
                 ws.second_ = ws.thresholded_;   // same size: no allocation
-                keep_greener_than_red(frame.bgr, soil_colour(frame.bgr, ws.thresholded_), kLeafGreenOverSoil,
-                                      ws.second_);
+                soil = soil_colour(frame.bgr, ws.thresholded_);
+                keep_greener_than_red(frame.bgr, soil, kLeafGreenOverSoil, ws.second_);
                 to_open = &ws.second_;
             }
             if (opening_radius > 0)
@@ -435,7 +437,11 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
             if (green_seeds)
                 and_masks(ws.second_, ws.opened_);
             label_components(ws.thresholded_, ws.labels_, ws.components_);
-            keep_seeded_components(ws.labels_, ws.opened_, ws.keep_, ws.vegetation_);
+            mark_seeded_components(ws.labels_, ws.opened_, ws.keep_);
+            if (leaf_colour_seeds)
+                out.stats.colour_fringes = drop_colour_fringes(frame.bgr, soil, kLeafGreenOverSoil, ws.labels_,
+                                                               ws.keep_, ws.fringe_passed_);
+            paint_kept_components(ws.labels_, ws.keep_, ws.vegetation_);
         } else {
             std::swap(ws.thresholded_, ws.vegetation_);
         }
@@ -621,7 +627,7 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
 std::size_t Workspace::reserved_bytes() const
 {
     return (raw_index_.total() + index_.total()) * index_.elemSize() + smooth_row_.capacity() * sizeof(std::uint16_t) +
-           vegetation_.reserved_bytes() + thresholded_.reserved_bytes() + second_.reserved_bytes() + opened_.reserved_bytes() + edged_.reserved_bytes() + edges_.reserved_bytes() + keep_.capacity() + closed_.reserved_bytes() +
+           vegetation_.reserved_bytes() + thresholded_.reserved_bytes() + second_.reserved_bytes() + opened_.reserved_bytes() + edged_.reserved_bytes() + edges_.reserved_bytes() + keep_.capacity() + fringe_passed_.capacity() + closed_.reserved_bytes() +
            opening_.reserved_bytes() + closing_.reserved_bytes() + cells_.reserved_bytes() +
            grouped_.reserved_bytes() + grouping_.reserved_bytes() + group_labels_.reserved_bytes() + (groups_.capacity()) * sizeof(Component) +
            (piece_group_.capacity() + piece_order_.capacity() + group_rank_.capacity()) * sizeof(int) +

@@ -253,22 +253,77 @@ SoilColour soil_colour(const cv::Mat& bgr, const BitMask& vegetation)
     return soil;
 }
 
+namespace {
+
+// g / r > min_ratio * soil.g / soil.r, without a division: g * red_weight
+// > r * green_weight.
+struct GreenOverRed {
+    float red_weight, green_weight;
+    GreenOverRed(const SoilColour& soil, double min_ratio)
+    {
+        const bool neutral = soil.g < 1.0 || soil.r < 1.0;
+        red_weight = static_cast<float>(neutral ? 1.0 : soil.r);
+        green_weight = static_cast<float>(min_ratio * (neutral ? 1.0 : soil.g));
+    }
+    bool passes(int green, int red) const
+    {
+        return static_cast<float>(green) * red_weight > static_cast<float>(red) * green_weight;
+    }
+};
+
+}  // namespace
+
 void keep_greener_than_red(const cv::Mat& bgr, const SoilColour& soil, double min_ratio, BitMask& mask)
 {
-    // g / r > min_ratio * soil.g / soil.r, without a division: g * red_weight
-    // > r * green_weight.
-    const bool neutral = soil.g < 1.0 || soil.r < 1.0;
-    const auto red_weight = static_cast<float>(neutral ? 1.0 : soil.r);
-    const auto green_weight = static_cast<float>(min_ratio * (neutral ? 1.0 : soil.g));
+    const GreenOverRed test(soil, min_ratio);
     for (int y = 0; y < mask.height(); ++y) {
         const cv::Vec3b* px = bgr.ptr<cv::Vec3b>(y);
         std::uint64_t* words = mask.row(y);
         visit_row_bits(0, mask.words_per_row(), [words](int w) { return words[w]; }, [&](int x) {
             const cv::Vec3b& p = px[x];
-            if (static_cast<float>(p[1]) * red_weight <= static_cast<float>(p[2]) * green_weight)
+            if (!test.passes(p[1], p[2]))
                 words[x >> 6] &= ~(std::uint64_t{1} << (x & 63));
         });
     }
+}
+
+int drop_colour_fringes(const cv::Mat& bgr, const SoilColour& soil, double min_ratio, const LabelScratch& components,
+                        std::vector<std::uint8_t>& keep, std::vector<std::uint8_t>& passed)
+{
+    CV_Assert(bgr.type() == CV_8UC3);
+    const GreenOverRed test(soil, min_ratio);
+    constexpr std::uint8_t kEveryDirection = 0xFF;
+    passed.assign(keep.size(), 0);
+    const int width = bgr.cols, height = bgr.rows;
+    for (std::size_t i = 0; i < components.run_count(); ++i) {
+        const LabelScratch::LabelledRun run = components.run(i);
+        const auto c = static_cast<std::size_t>(run.component);
+        if (c >= keep.size() || !keep[c] || passed[c] == kEveryDirection)
+            continue;   // a leaf shows its own green within its first pixels
+        const cv::Vec3b* up = bgr.ptr<cv::Vec3b>(std::max(run.y - 1, 0));
+        const cv::Vec3b* row = bgr.ptr<cv::Vec3b>(run.y);
+        const cv::Vec3b* down = bgr.ptr<cv::Vec3b>(std::min(run.y + 1, height - 1));
+        std::uint8_t bits = passed[c];
+        for (int x = run.x0; x <= run.x1 && bits != kEveryDirection; ++x) {
+            const int red = row[x][2];
+            const int left = std::max(x - 1, 0), right = std::min(x + 1, width - 1);
+            // The green plane slid by (dx, dy): this pixel's red against
+            // the green of its neighbour at (-dx, -dy).
+            const int greens[8] = {up[left][1], up[x][1],  up[right][1],  row[left][1],
+                                   row[right][1], down[left][1], down[x][1], down[right][1]};
+            for (int k = 0; k < 8; ++k)
+                if (test.passes(greens[k], red))
+                    bits = static_cast<std::uint8_t>(bits | (1u << k));
+        }
+        passed[c] = bits;
+    }
+    int dropped = 0;
+    for (std::size_t c = 0; c < keep.size(); ++c)
+        if (keep[c] && passed[c] != kEveryDirection) {
+            keep[c] = 0;
+            ++dropped;
+        }
+    return dropped;
 }
 
 }  // namespace stemd::vision

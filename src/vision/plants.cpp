@@ -173,25 +173,34 @@ void set_range(std::uint64_t* row, int x0, int x1)
 
 }  // namespace
 
+void mark_seeded_components(const LabelScratch& scratch, const BitMask& seeds, std::vector<std::uint8_t>& keep)
+{
+    std::size_t components = 0;
+    for (std::size_t i = 0; i < scratch.run_count(); ++i)
+        components = std::max(components, static_cast<std::size_t>(scratch.run(i).component + 1));
+    keep.assign(components, 0);
+    for (std::size_t i = 0; i < scratch.run_count(); ++i) {
+        const LabelScratch::LabelledRun run = scratch.run(i);
+        if (any_in_range(seeds.row(run.y), run.x0, run.x1))
+            keep[static_cast<std::size_t>(run.component)] = 1;
+    }
+}
+
+void paint_kept_components(const LabelScratch& scratch, const std::vector<std::uint8_t>& keep, BitMask& out)
+{
+    out.clear();
+    for (std::size_t i = 0; i < scratch.run_count(); ++i) {
+        const LabelScratch::LabelledRun run = scratch.run(i);
+        if (keep[static_cast<std::size_t>(run.component)])
+            set_range(out.row(run.y), run.x0, run.x1);
+    }
+}
+
 void keep_seeded_components(const LabelScratch& scratch, const BitMask& seeds, std::vector<std::uint8_t>& keep,
                             BitMask& out)
 {
-    const auto& runs = scratch.runs_;
-    std::size_t components = 0;
-    for (const int component : scratch.run_component_)
-        components = std::max(components, static_cast<std::size_t>(component + 1));
-    keep.assign(components, 0);
-    for (std::size_t i = 0; i < runs.size(); ++i) {
-        const LabelScratch::Run& run = runs[i];
-        if (any_in_range(seeds.row(run.y), run.x0, run.x1))
-            keep[static_cast<std::size_t>(scratch.run_component_[i])] = 1;
-    }
-    out.clear();
-    for (std::size_t i = 0; i < runs.size(); ++i) {
-        const LabelScratch::Run& run = runs[i];
-        if (keep[static_cast<std::size_t>(scratch.run_component_[i])])
-            set_range(out.row(run.y), run.x0, run.x1);
-    }
+    mark_seeded_components(scratch, seeds, keep);
+    paint_kept_components(scratch, keep, out);
 }
 
 }  // namespace stemd::vision

@@ -218,10 +218,10 @@ TEST(RealFrames, BoniRobExgAndNdviFindsTheStemsAndNotDeadMatter)
 // at the tip and bright in NIR (a cotyledon: straw has parallel edges and a
 // square end); frame 2 (1216, 158), a seedling of three round leaves, green
 // and NIR-bright; frame 2 (812, 270), a green leaf, NIR-bright. Not a plant:
-// frame 0 (302, 724), beige straw with green colour fringes. Everything
-// RGB reports must be one of these plants, or that straw, which colour
-// cannot tell from the yellowish cotyledons.
-TEST(RealFrames, BoniRobRgbReportsOnlyPlantsAndTheOneStraw)
+// frame 0 (302, 724), beige straw with a green colour fringe along one
+// edge, green only because the green plane is misregistered by a pixel
+// (drop_colour_fringes). Everything RGB reports must be one of these plants.
+TEST(RealFrames, BoniRobRgbReportsOnlyPlantsAndNotTheStrawsColourFringe)
 {
     REQUIRE_REAL_SET("bonirob");
     const auto stems =
@@ -241,7 +241,7 @@ TEST(RealFrames, BoniRobRgbReportsOnlyPlantsAndTheOneStraw)
         else
             ADD_FAILURE() << stem.image << " (" << stem.x_px << ", " << stem.y_px << "): reported, and no plant is there";
     }
-    EXPECT_LE(on_straw, 1);
+    EXPECT_EQ(on_straw, 0);
     // Precision over plants: the goal is 80 %.
     ASSERT_FALSE(stems.empty());
     EXPECT_GE(static_cast<double>(on_plants) / static_cast<double>(stems.size()), 0.8)

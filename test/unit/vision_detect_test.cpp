@@ -287,6 +287,34 @@ cv::Mat soil_frame(cv::Size size, std::uint64_t seed)
 
 }  // namespace
 
+TEST(Detect, AColourFringeAlongABrightStrawIsNoPlant)
+{
+    // A bright straw on bare soil, the green plane then slid one pixel
+    // right (lateral chromatic aberration, Bayer interpolation) and the
+    // frame blurred as by the lens: the straw's right edge becomes a band a
+    // few pixels wide, green in chromatic ExG and for its red, with a core
+    // the opening keeps. Without the fringe test it is a plant.
+    cv::Mat bgr = soil_frame({400, 300}, 5);
+    cv::Mat straw = cv::Mat::zeros(bgr.size(), CV_8UC1);
+    cv::line(straw, {60, 60}, {140, 240}, 255, 9);
+    bgr.setTo(cv::Scalar(170, 200, 215), straw);
+    stemd::test::slide_green_plane_right(bgr);
+    cv::GaussianBlur(bgr, bgr, {5, 5}, 0.8);
+    Params params;
+    params.gsd_mm_per_px = 0.395;
+    const Detections d = detect({.bgr = bgr}, params);
+    ASSERT_EQ(d.status, DetectStatus::ok);
+    EXPECT_EQ(d.plants.size(), 0u) << "the straw's fringe must not be a plant";
+    EXPECT_GE(d.stats.colour_fringes, 1);
+    // A leaf on the same soil keeps its green whichever way the plane slides.
+    const cv::Point stem(290, 150);
+    const cv::Mat plant = draw_plant(bgr.size(), stem, {{10, 20, 70, 18}, {100, 20, 60, 16}, {200, 20, 70, 18}, {290, 20, 50, 16}}, 4);
+    bgr.setTo(cv::Scalar(40, 150, 50), plant);
+    const Detections with_plant = detect({.bgr = bgr}, params);
+    ASSERT_EQ(with_plant.plants.size(), 1u);
+    EXPECT_LT(distance(with_plant.plants[0].stem, cv::Point2f(stem)), 1.5);
+}
+
 TEST(Detect, BareSoilHasNoPlantsWithEveryAutomaticThreshold)
 {
     const cv::Mat bgr = soil_frame({400, 300}, 3);

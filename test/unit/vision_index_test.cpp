@@ -6,8 +6,10 @@
 #include <vector>
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "stemd/vision/index.hpp"
+#include "vision_test_util.hpp"
 
 using namespace stemd::vision;
 
@@ -228,4 +230,61 @@ TEST(LeafColour, WithoutSoilInViewTheSoilIsNeutralGrey)
     EXPECT_TRUE(mask.get(0, 0));
     EXPECT_FALSE(mask.get(1, 0));
     EXPECT_TRUE(mask.get(1, 1));
+}
+
+namespace {
+
+// Brown soil with a bright straw (columns 5-12) and a leaf disc, the green
+// plane then slid one pixel to the right, as a lens and the Bayer
+// interpolation misregister it: the column right of the straw takes the
+// straw's green over the soil's red, a band greener for its red than any
+// leaf. Also a leaf three pixels wide. Returns the frame; `mask` gets the
+// pixels that pass the leaf-colour test, labelled into `labels`.
+cv::Mat misregistered_frame(BitMask& mask, LabelScratch& labels, std::vector<Component>& components)
+{
+    cv::Mat bgr(40, 48, CV_8UC3, cv::Scalar(60, 70, 85));               // soil: G/R 0.82
+    cv::rectangle(bgr, cv::Rect(5, 4, 8, 32), cv::Scalar(150, 190, 200), cv::FILLED);  // straw: G/R 0.95
+    cv::circle(bgr, {30, 12}, 5, cv::Scalar(40, 100, 75), cv::FILLED);   // leaf: G/R 1.33
+    cv::rectangle(bgr, cv::Rect(22, 30, 20, 3), cv::Scalar(40, 100, 75), cv::FILLED);  // a thin leaf
+    stemd::test::slide_green_plane_right(bgr);
+    mask.reset(bgr.cols, bgr.rows);
+    for (int y = 0; y < bgr.rows; ++y)
+        for (int x = 0; x < bgr.cols; ++x)
+            mask.set(x, y);
+    keep_greener_than_red(bgr, soil_colour(bgr, BitMask(bgr.cols, bgr.rows)), 1.25, mask);
+    labels.reserve(bgr.cols, bgr.rows);
+    label_components(mask, labels, components);
+    return bgr;
+}
+
+}  // namespace
+
+TEST(ColourFringes, AFringeAlongABrightStrawIsDroppedAndLeavesAreKept)
+{
+    BitMask mask;
+    LabelScratch labels;
+    std::vector<Component> components;
+    const cv::Mat bgr = misregistered_frame(mask, labels, components);
+    // The band right of the straw passes the leaf-colour test by itself.
+    ASSERT_TRUE(mask.get(13, 20));
+    ASSERT_FALSE(mask.get(9, 20));
+    ASSERT_EQ(components.size(), 3u) << "the fringe, the leaf and the thin leaf";
+    std::vector<std::uint8_t> keep(components.size(), 1), passed;
+    const SoilColour soil = soil_colour(bgr, mask);
+    EXPECT_EQ(drop_colour_fringes(bgr, soil, 1.25, labels, keep, passed), 1);
+    for (std::size_t c = 0; c < components.size(); ++c) {
+        const bool fringe = components[c].x_max <= 14;
+        EXPECT_EQ(keep[c], fringe ? 0 : 1) << "component at x " << components[c].x_min << "-" << components[c].x_max;
+    }
+}
+
+TEST(ColourFringes, ComponentsAlreadyDroppedAreLeftAlone)
+{
+    BitMask mask;
+    LabelScratch labels;
+    std::vector<Component> components;
+    const cv::Mat bgr = misregistered_frame(mask, labels, components);
+    std::vector<std::uint8_t> keep(components.size(), 0), passed;
+    EXPECT_EQ(drop_colour_fringes(bgr, soil_colour(bgr, mask), 1.25, labels, keep, passed), 0);
+    EXPECT_EQ(std::count(keep.begin(), keep.end(), 0), static_cast<long>(components.size()));
 }

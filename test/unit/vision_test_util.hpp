@@ -1,5 +1,5 @@
-// Helpers shared by the vision tests: deterministic random masks, and a
-// mask's pieces as the pipeline labels them.
+// Helpers shared by the vision tests: deterministic random masks, a mask's
+// pieces as the pipeline labels them, and a misregistered green plane.
 #pragma once
 
 #include <cstdint>
@@ -47,5 +47,18 @@ struct LabelledMask {
     vision::LabelScratch scratch;
     std::vector<vision::Component> components;
 };
+
+// The green plane of a BGR frame slid one pixel to the right (its first
+// column kept), as a lens's lateral chromatic aberration or the Bayer
+// interpolation misregisters it against the red and blue.
+inline void slide_green_plane_right(cv::Mat& bgr)
+{
+    cv::Mat planes[3];
+    cv::split(bgr, planes);
+    cv::Mat slid = planes[1].clone();
+    planes[1](cv::Rect(0, 0, bgr.cols - 1, bgr.rows)).copyTo(slid(cv::Rect(1, 0, bgr.cols - 1, bgr.rows)));
+    planes[1] = slid;
+    cv::merge(planes, 3, bgr);
+}
 
 }  // namespace stemd::test

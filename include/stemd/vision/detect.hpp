@@ -72,6 +72,7 @@ private:
     BitMask second_;                        // exg_and_ndvi: the chromatic ExG mask, where seeds must lie
     BitMask opened_;                        // seeds: what survives the opening
     std::vector<std::uint8_t> keep_;        // per thresholded component: seeded
+    std::vector<std::uint8_t> fringe_passed_;  // per thresholded component: the slides its green survived
     BitMask edged_;                         // vegetation_ with its mixed edge pixels
     EdgeScratch edges_;
     BitMask closed_;

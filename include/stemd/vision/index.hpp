@@ -8,7 +8,10 @@
 #include <opencv2/core/mat.hpp>
 #include <opencv2/core/types.hpp>
 
+#include <vector>
+
 #include "stemd/vision/bitmask.hpp"
+#include "stemd/vision/plants.hpp"
 
 namespace stemd::vision {
 
@@ -79,5 +82,20 @@ SoilColour soil_colour(const cv::Mat& bgr, const BitMask& vegetation);
 // `min_ratio`. Only the set bits' pixels are read. A soil whose mean red or
 // green is below one level (or no soil in view) is taken as neutral grey.
 void keep_greener_than_red(const cv::Mat& bgr, const SoilColour& soil, double min_ratio, BitMask& mask);
+
+// Colour fringes: the Bayer pattern's interpolation and the lens's lateral
+// chromatic aberration misregister the green plane against the red by about
+// a pixel, so along the edge of a bright clod or straw a thin band can be
+// greener for its red than a leaf. That green belongs to the edge beside
+// it: slid back by the misregistration, the green plane leaves no pixel of
+// the band greener than the soil. A leaf's green is its own: whichever way
+// the plane slides by one pixel, some of its pixels stay greener for their
+// red than the soil by `min_ratio` (as keep_greener_than_red tests).
+// After label_components on a mask of bgr's size: clears keep[c] of each
+// kept component with a direction, of the eight one-pixel slides, in which
+// none of its pixels passes. `passed` is scratch with room for one entry per
+// component. Returns how many components it cleared.
+int drop_colour_fringes(const cv::Mat& bgr, const SoilColour& soil, double min_ratio, const LabelScratch& components,
+                        std::vector<std::uint8_t>& keep, std::vector<std::uint8_t>& passed);
 
 }  // namespace stemd::vision

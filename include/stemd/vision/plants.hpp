@@ -45,7 +45,6 @@ private:
     friend void label_components(const BitMask&, LabelScratch&, std::vector<Component>&);
     friend int component_at(const LabelScratch&, cv::Point);
     friend void reduce_labelled_mask(const LabelScratch&, int, BitMask&);
-    friend void keep_seeded_components(const LabelScratch&, const BitMask&, std::vector<std::uint8_t>&, BitMask&);
     struct Run { int y, x0, x1; };
     std::vector<Run> runs_;
     std::vector<int> parent_;
@@ -68,6 +67,13 @@ void reduce_labelled_mask(const LabelScratch& scratch, int cell_px, BitMask& out
 // per component.
 void keep_seeded_components(const LabelScratch& scratch, const BitMask& seeds, std::vector<std::uint8_t>& keep,
                             BitMask& out);
+
+// keep_seeded_components in its two steps, for a test of the kept
+// components between them: `keep` (one entry per component, resized) = 1
+// for each component holding a seed, then `out` (cleared first) = the
+// components whose `keep` is set.
+void mark_seeded_components(const LabelScratch& scratch, const BitMask& seeds, std::vector<std::uint8_t>& keep);
+void paint_kept_components(const LabelScratch& scratch, const std::vector<std::uint8_t>& keep, BitMask& out);
 
 // After label_components: the index (into its `out`) of the component
 // holding pixel `p`, or -1 if `p` is background. O(log runs), no allocation.

@@ -224,6 +224,7 @@ struct DetectStats {
     int vegetation_px = 0;          // after thresholding, before closing
     int components = 0;             // 8-connected components after closing
     int small_components = 0;       // dropped below min_plant_area
+    int colour_fringes = 0;         // seeded pieces dropped as colour fringes (leaf_colour)
     int plants_over_capacity = 0;   // plants beyond kMaxPlants, not reported
     int leaves_over_capacity = 0;   // leaves beyond kMaxLeaves, ignored
     int outside_box_fallbacks = 0;  // leaf estimates replaced by the centre of mass
