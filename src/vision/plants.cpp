@@ -196,11 +196,4 @@ void paint_kept_components(const LabelScratch& scratch, const std::vector<std::u
     }
 }
 
-void keep_seeded_components(const LabelScratch& scratch, const BitMask& seeds, std::vector<std::uint8_t>& keep,
-                            BitMask& out)
-{
-    mark_seeded_components(scratch, seeds, keep);
-    paint_kept_components(scratch, keep, out);
-}
-
 }  // namespace stemd::vision

@@ -4,11 +4,10 @@
 
 #include <array>
 #include <cstdint>
+#include <vector>
 
 #include <opencv2/core/mat.hpp>
 #include <opencv2/core/types.hpp>
-
-#include <vector>
 
 #include "stemd/vision/bitmask.hpp"
 #include "stemd/vision/plants.hpp"

@@ -61,17 +61,11 @@ void label_components(const BitMask& mask, LabelScratch& scratch, std::vector<Co
 // 1); it is cleared first.
 void reduce_labelled_mask(const LabelScratch& scratch, int cell_px, BitMask& out);
 
-// After label_components: `out` = the labelled components that hold at
-// least one set pixel of `seeds` (same size), whole and unchanged (a
-// reconstruction by dilation). `keep` is scratch with room for one entry
-// per component.
-void keep_seeded_components(const LabelScratch& scratch, const BitMask& seeds, std::vector<std::uint8_t>& keep,
-                            BitMask& out);
-
-// keep_seeded_components in its two steps, for a test of the kept
-// components between them: `keep` (one entry per component, resized) = 1
-// for each component holding a seed, then `out` (cleared first) = the
-// components whose `keep` is set.
+// After label_components, a reconstruction by dilation in two steps, with
+// room for a test of the kept components between them: `keep` (one entry
+// per component, resized; reserve it) = 1 for each component holding at
+// least one set pixel of `seeds` (same size), then `out` (cleared first) =
+// the components whose `keep` is set, whole and unchanged.
 void mark_seeded_components(const LabelScratch& scratch, const BitMask& seeds, std::vector<std::uint8_t>& keep);
 void paint_kept_components(const LabelScratch& scratch, const std::vector<std::uint8_t>& keep, BitMask& out);
 
