@@ -585,12 +585,19 @@ int main(int argc, char** argv)
         const vision::CellRow& row = frames[f].cells[c].row;
         std::copy(row.begin(), row.end(), out);
     };
+    // Only the final model's importance is printed: the folds' forests skip
+    // computing it (see ForestOptions::var_importance).
+    auto forest_options = [&](bool importance) {
+        vision::ForestOptions options = cell_forest;
+        options.var_importance = importance;
+        return options;
+    };
     auto train_cell_forest = [&](const std::vector<std::size_t>& which, vision::PlantClassifier& model,
-                                 std::string& why) {
+                                 bool importance, std::string& why) {
         cv::Mat samples, labels, weights;
         cell_matrices(frames, which, cell_samples, vision::kCellFeatureCount, own_row, samples, labels,
                       cell_weights == "pixels" ? &weights : nullptr);
-        if (model.train_cells(samples, labels, cell_forest, cell_mm, why, weights))
+        if (model.train_cells(samples, labels, forest_options(importance), cell_mm, why, weights))
             return true;
         why = "cells: " + why;
         return false;
@@ -599,7 +606,7 @@ int main(int argc, char** argv)
     // that never saw the frame gives them (the frame path's case): each of
     // `which` gets them from a cell forest trained on the other inner folds.
     auto train_context = [&](const std::vector<std::size_t>& which, vision::PlantClassifier& model,
-                             std::string& why) {
+                             bool importance, std::string& why) {
         const std::size_t inner = std::min<std::size_t>(kContextInnerFolds, which.size());
         std::vector<std::vector<float>> first(frames.size());
         for (std::size_t k = 0; k < inner; ++k) {
@@ -607,7 +614,7 @@ int main(int argc, char** argv)
             for (std::size_t i = 0; i < which.size(); ++i)
                 (i % inner == k ? held_out : fit).push_back(which[i]);
             vision::PlantClassifier stage;
-            if (!train_cell_forest(fit, stage, why)) {
+            if (!train_cell_forest(fit, stage, false, why)) {
                 why = "context, inner fold " + std::to_string(k) + ": " + why;
                 return false;
             }
@@ -641,18 +648,19 @@ int main(int argc, char** argv)
                 std::copy(context[f][c].begin(), context[f][c].end(), out + vision::kCellFeatureCount);
             },
             samples, labels, cell_weights == "pixels" ? &weights : nullptr);
-        if (model.train_context(samples, labels, cell_forest, why, weights))
+        if (model.train_context(samples, labels, forest_options(importance), why, weights))
             return true;
         why = "context: " + why;
         return false;
     };
-    auto train = [&](const std::vector<std::size_t>& which, std::string& why) -> std::optional<vision::PlantClassifier> {
+    auto train = [&](const std::vector<std::size_t>& which, bool importance,
+                     std::string& why) -> std::optional<vision::PlantClassifier> {
         cv::Mat samples, labels;
         plant_matrices(frames, which, samples, labels);
         auto model = vision::PlantClassifier::train(samples, labels, forest, why);
-        if (!model || !train_cell_forest(which, *model, why))
+        if (!model || !train_cell_forest(which, *model, importance, why))
             return std::nullopt;
-        if (cell_context == "yes" && !train_context(which, *model, why))
+        if (cell_context == "yes" && !train_context(which, *model, importance, why))
             return std::nullopt;
         return model;
     };
@@ -666,7 +674,7 @@ int main(int argc, char** argv)
         std::vector<std::size_t> train_frames, test_frames;
         for (std::size_t f = 0; f < frames.size(); ++f)
             (static_cast<int>(f % static_cast<std::size_t>(folds)) == k ? test_frames : train_frames).push_back(f);
-        const auto model = train(train_frames, error);
+        const auto model = train(train_frames, false, error);
         if (!model) {
             std::cerr << "stemd-train: fold " << k << ": " << error << "\n";
             return 1;
@@ -737,7 +745,7 @@ int main(int argc, char** argv)
     std::vector<std::size_t> all(frames.size());
     for (std::size_t f = 0; f < frames.size(); ++f)
         all[f] = f;
-    auto model = train(all, error);
+    auto model = train(all, true, error);
     if (!model) {
         std::cerr << "stemd-train: " << error << "\n";
         return 1;

@@ -545,7 +545,7 @@ std::optional<PlantClassifier> PlantClassifier::train(const cv::Mat& samples, co
 bool PlantClassifier::train_cells(const cv::Mat& samples, const cv::Mat& labels, const ForestOptions& options,
                                   double cell_mm, std::string& error, const cv::Mat& weights)
 {
-    auto forest = train_forest(samples, labels, kCellFeatureCount, options, true, error, weights);
+    auto forest = train_forest(samples, labels, kCellFeatureCount, options, options.var_importance, error, weights);
     if (!forest)
         return false;
     cell_forest_ = forest;
@@ -563,7 +563,7 @@ bool PlantClassifier::train_context(const cv::Mat& samples, const cv::Mat& label
         error = "the context forest needs a cell forest first";
         return false;
     }
-    auto forest = train_forest(samples, labels, kContextFeatureCount, options, true, error, weights);
+    auto forest = train_forest(samples, labels, kContextFeatureCount, options, options.var_importance, error, weights);
     if (!forest)
         return false;
     context_forest_ = forest;

@@ -461,6 +461,45 @@ TEST(Cells, TrainingCellsCanBeWeighedAndTheClassesStayBalancedByWeight)
     EXPECT_NE(error.find("weights"), std::string::npos) << error;
 }
 
+TEST(Cells, VariableImportanceIsComputedOnlyWhenAskedForAndLeavesTheForestAsUsable)
+{
+    // Feature 3 alone tells the classes apart; the others are noise.
+    const int n = 300;
+    cv::Mat samples(n, kCellFeatureCount, CV_32FC1), labels(n, 1, CV_32SC1);
+    cv::RNG rng(5);
+    rng.fill(samples, cv::RNG::UNIFORM, -1.0, 1.0);
+    for (int i = 0; i < n; ++i) {
+        const bool weed = i % 2 == 0;
+        samples.at<float>(i, 3) = static_cast<float>(weed ? rng.uniform(0.5, 1.5) : rng.uniform(-1.5, -0.5));
+        labels.at<int>(i) = to_value(weed ? PlantClass::Weed : PlantClass::Crop);
+    }
+    cv::Mat plant_samples, plant_labels;
+    plant_rows(plant_samples, plant_labels);
+    std::string error;
+    for (const bool importance : {false, true}) {
+        SCOPED_TRACE(importance ? "with importance" : "without");
+        auto model = PlantClassifier::train(plant_samples, plant_labels, {.trees = 5}, error);
+        ASSERT_TRUE(model) << error;
+        ASSERT_TRUE(model->train_cells(samples, labels, {.trees = 20, .max_depth = 4, .var_importance = importance},
+                                       3.0, error))
+            << error;
+        // Only the trees whose drawn features include feature 3 can tell,
+        // so the forest leans to the right class rather than agreeing.
+        CellRow row{};
+        row[3] = 1.0f;
+        EXPECT_GT(model->cell_weed_probability(row), 0.5f);
+        row[3] = -1.0f;
+        EXPECT_LT(model->cell_weed_probability(row), 0.5f);
+        if (!importance) {
+            EXPECT_TRUE(model->cell_importance().empty());
+            continue;
+        }
+        ASSERT_EQ(model->cell_importance().total(), static_cast<std::size_t>(kCellFeatureCount));
+        cv::Point most;
+        cv::minMaxLoc(model->cell_importance().reshape(1, 1), nullptr, nullptr, nullptr, &most);
+        EXPECT_EQ(most.x, 3) << "the one telling feature ranks first";
+    }
+}
 TEST(CellContext, EachFeatureIsTheVegetationWeighedMeanOfTheFirstStageOverItsReach)
 {
     // 3 mm cells: squares of 1, 2, 5 and 13 cells either side, the band 7

@@ -188,6 +188,11 @@ struct ForestOptions {
     // hold ten weeds per crop plant).
     bool balance_classes = true;
     std::uint64_t seed = 1;
+    // Compute OpenCV's out-of-bag variable importance (cell and context
+    // forests; the plant forest never does). Only a report reads it, and it
+    // predicts every out-of-bag sample once per feature and tree: more than
+    // half of a cell forest's training time.
+    bool var_importance = false;
 };
 
 // A trained forest as flat arrays, walked without OpenCV's per-call
@@ -344,7 +349,8 @@ public:
     {
         cell_flat_.weed_fractions_packed<kStride>(count, rows, out);
     }
-    // Variable importance of the cell forest (training only, empty after load).
+    // Variable importance of the cell forest (training with var_importance only,
+    // empty otherwise and after load).
     const cv::Mat& cell_importance() const { return cell_importance_; }
 
     // The context forest (vision/cells, the second stage): rows of
