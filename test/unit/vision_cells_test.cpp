@@ -500,6 +500,7 @@ TEST(Cells, VariableImportanceIsComputedOnlyWhenAskedForAndLeavesTheForestAsUsab
         EXPECT_EQ(most.x, 3) << "the one telling feature ranks first";
     }
 }
+
 TEST(CellContext, EachFeatureIsTheVegetationWeighedMeanOfTheFirstStageOverItsReach)
 {
     // 3 mm cells: squares of 1, 2, 5 and 13 cells either side, the band 7
