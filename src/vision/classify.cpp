@@ -410,7 +410,7 @@ namespace {
 // (internally 0 crop, 1 weed: PREDICT_SUM over the trees then counts the
 // weed votes); null with `error` set if it cannot be trained.
 cv::Ptr<cv::ml::RTrees> train_forest(const cv::Mat& samples, const cv::Mat& labels, int columns,
-                                     const ForestOptions& options, bool importance, std::string& error,
+                                     const ForestOptions& options, std::string& error,
                                      const cv::Mat& weights = {})
 {
     if (!weights.empty() && (weights.type() != CV_32FC1 || weights.total() != static_cast<std::size_t>(samples.rows))) {
@@ -445,7 +445,7 @@ cv::Ptr<cv::ml::RTrees> train_forest(const cv::Mat& samples, const cv::Mat& labe
     forest->setMaxDepth(options.max_depth);
     forest->setMinSampleCount(options.min_sample_count);
     forest->setActiveVarCount(0);   // sqrt of the feature count per split
-    forest->setCalculateVarImportance(importance);
+    forest->setCalculateVarImportance(options.var_importance);
     forest->setTermCriteria(cv::TermCriteria(cv::TermCriteria::MAX_ITER, options.trees, 0));
     if (options.balance_classes) {
         const double total = weighed[0] + weighed[1];
@@ -533,7 +533,10 @@ std::optional<PlantClassifier> PlantClassifier::train(const cv::Mat& samples, co
                                                       const ForestOptions& options, std::string& error)
 {
     PlantClassifier model;
-    model.forest_ = train_forest(samples, labels, kPlantFeatureCount, options, false, error);
+    // The plant forest keeps no importance to report: never worth its time.
+    ForestOptions plant_options = options;
+    plant_options.var_importance = false;
+    model.forest_ = train_forest(samples, labels, kPlantFeatureCount, plant_options, error);
     if (!model.forest_)
         return std::nullopt;
     model.trees_ = static_cast<float>(std::max<std::size_t>(model.forest_->getRoots().size(), 1));
@@ -545,7 +548,7 @@ std::optional<PlantClassifier> PlantClassifier::train(const cv::Mat& samples, co
 bool PlantClassifier::train_cells(const cv::Mat& samples, const cv::Mat& labels, const ForestOptions& options,
                                   double cell_mm, std::string& error, const cv::Mat& weights)
 {
-    auto forest = train_forest(samples, labels, kCellFeatureCount, options, options.var_importance, error, weights);
+    auto forest = train_forest(samples, labels, kCellFeatureCount, options, error, weights);
     if (!forest)
         return false;
     cell_forest_ = forest;
@@ -563,7 +566,7 @@ bool PlantClassifier::train_context(const cv::Mat& samples, const cv::Mat& label
         error = "the context forest needs a cell forest first";
         return false;
     }
-    auto forest = train_forest(samples, labels, kContextFeatureCount, options, options.var_importance, error, weights);
+    auto forest = train_forest(samples, labels, kContextFeatureCount, options, error, weights);
     if (!forest)
         return false;
     context_forest_ = forest;
