@@ -102,6 +102,31 @@ TEST(Classify, EveryPlantGetsExactlyItsOwnPixels)
     }
 }
 
+TEST(Classify, AReusedWorkspaceHoldsOnlyTheLatestFramesPlants)
+{
+    // Frames with plants in different places, through one pair of
+    // workspaces: the plant map and features must equal a fresh pair's,
+    // whatever the previous frame left.
+    const cv::Size size(400, 300);
+    const Params params = test_params();
+    Workspace ws(size, params);
+    ClassifyWorkspace cws(size, params);
+    Detections det;
+    const cv::Mat soil(size, CV_8UC3, cv::Scalar(60, 80, 110));
+    for (const std::uint64_t seed : {1u, 2u, 3u, 4u}) {
+        // The third frame is bare soil: nothing of the frame before may stay.
+        const cv::Mat bgr = seed == 3 ? soil : plants_frame(size, seed);
+        detect({.bgr = bgr}, params, ws, det);
+        plant_features({.bgr = bgr}, params, ws, det, cws);
+        const Classified fresh(bgr, params);
+        ASSERT_EQ(det.plants.size(), fresh.det.plants.size()) << "seed " << seed;
+        EXPECT_EQ(cv::countNonZero(cws.plant_index() != fresh.cws.plant_index()), 0) << "seed " << seed;
+        ASSERT_EQ(cws.features().size(), fresh.cws.features().size());
+        for (std::size_t i = 0; i < cws.features().size(); ++i)
+            EXPECT_EQ(cws.features()[i], fresh.cws.features()[i]) << "plant " << i << " seed " << seed;
+    }
+}
+
 TEST(Classify, ShapeFeaturesTellADiscFromALine)
 {
     const cv::Size size(300, 200);

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <utility>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -133,6 +134,31 @@ TEST(BitMask, CountBitsCountsEverySetBitOfEveryWord)
             for (int bit = 0; bit < 64; ++bit)
                 expected += static_cast<long>((words[i] >> bit) & 1);
         ASSERT_EQ(count_bits(words.data(), n), expected) << n << " words";
+    }
+}
+
+TEST(BitMask, BitRunsAreTheMaximalRunsOfSetBitsInOrder)
+{
+    // Against a bit-by-bit walk: zero, all-one, the top bit alone, runs
+    // reaching bit 63, alternating bits and random words, from offset x0.
+    cv::RNG rng(13);
+    std::vector<std::uint64_t> words = {0, ~std::uint64_t{0}, std::uint64_t{1} << 63, ~std::uint64_t{0} << 40,
+                                        0x5555555555555555ull, 0x8000000000000001ull, 0x00ff00ff00ff00ffull};
+    for (int i = 0; i < 40; ++i)
+        words.push_back((static_cast<std::uint64_t>(rng.next()) << 32) | rng.next());
+    for (const std::uint64_t bits : words) {
+        std::vector<std::pair<int, int>> expected;
+        for (int bit = 0; bit < 64; ++bit) {
+            if (((bits >> bit) & 1) == 0)
+                continue;
+            if (!expected.empty() && expected.back().second == 128 + bit)
+                ++expected.back().second;
+            else
+                expected.push_back({128 + bit, 128 + bit + 1});
+        }
+        std::vector<std::pair<int, int>> runs;
+        visit_bit_runs(bits, 128, [&](int start, int stop) { runs.push_back({start, stop}); });
+        EXPECT_EQ(runs, expected) << std::hex << bits;
     }
 }
 

@@ -21,6 +21,20 @@ inline void visit_bits(std::uint64_t bits, int x0, Visit&& visit)
         visit(x0 + std::countr_zero(bits));
 }
 
+// visit(x_start, x_stop) for each maximal run of set bits of `bits`,
+// lowest first, as pixels [x_start, x_stop) with bit 0 being pixel x0: for
+// loops that carry something from one pixel to the next.
+template <class Visit>
+inline void visit_bit_runs(std::uint64_t bits, int x0, Visit&& visit)
+{
+    while (bits != 0) {
+        const int start = std::countr_zero(bits);
+        const int length = std::countr_one(bits >> start);
+        visit(x0 + start, x0 + start + length);
+        bits = start + length < 64 ? bits & (~0ull << (start + length)) : 0;
+    }
+}
+
 // The row visitor: visit(x) for each set pixel of words [w0, w1) of a row,
 // word w taken as word_of(w) (a mask row's word, or that word filtered or
 // combined with others). word_of(w) is read once, before its bits are

@@ -109,7 +109,9 @@ private:
     };
     cv::Size frame_size_;
     cv::Mat plant_index_;
-    cv::Rect dirty_{};   // where plant_index_ holds nonzero values
+    // Per row, the columns [start, end) that plant_index_ may hold nonzero
+    // values in: the span of the last frame's plant runs on that row.
+    std::vector<cv::Range> written_;
     std::array<Sums, kMaxPlants> sums_{};
     std::array<FeatureRow, kMaxPlants> features_{};
     std::size_t plants_ = 0;
