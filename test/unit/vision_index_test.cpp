@@ -232,6 +232,51 @@ TEST(LeafColour, WithoutSoilInViewTheSoilIsNeutralGrey)
     EXPECT_TRUE(mask.get(1, 1));
 }
 
+TEST(LeafColour, EveryGreenAndRedPairIsJudgedByTheRatioRule)
+{
+    // All 65536 (G, R) pairs, in words wholly set and in scattered bits,
+    // for a few soils and factors: a pixel stays exactly when its G/R
+    // exceeds min_ratio times the soil's (G > R for a neutral soil). Pairs
+    // within rounding of the boundary are not judged.
+    cv::Mat bgr(256, 256, CV_8UC3);
+    for (int red = 0; red < 256; ++red)
+        for (int green = 0; green < 256; ++green)
+            bgr.at<cv::Vec3b>(red, green) = cv::Vec3b(90, static_cast<std::uint8_t>(green), static_cast<std::uint8_t>(red));
+    struct Case {
+        double soil_g, soil_r, min_ratio;
+    };
+    for (const Case c : {Case{70, 85, 1.25}, Case{120, 60, 1.25}, Case{33.3, 41.7, 1.1}, Case{0.5, 80, 1.25},
+                         Case{200, 200, 2.0}}) {
+        SoilColour soil;
+        soil.g = c.soil_g;
+        soil.r = c.soil_r;
+        soil.pixels = 1000;
+        const bool neutral = c.soil_g < 1.0 || c.soil_r < 1.0;
+        const double soil_ratio = neutral ? 1.0 : c.soil_g / c.soil_r;
+        for (const bool scattered : {false, true}) {
+            BitMask mask(256, 256);
+            for (int y = 0; y < 256; ++y)
+                for (int x = 0; x < 256; ++x)
+                    if (!scattered || (x * 7 + y * 3) % 5 != 0)
+                        mask.set(x, y);
+            const BitMask before = mask;
+            keep_greener_than_red(bgr, soil, c.min_ratio, mask);
+            for (int red = 0; red < 256; ++red)
+                for (int green = 0; green < 256; ++green) {
+                    if (!before.get(green, red)) {
+                        ASSERT_FALSE(mask.get(green, red));
+                        continue;
+                    }
+                    const double margin = green - red * c.min_ratio * soil_ratio;
+                    if (std::abs(margin) < 1e-3 * (1 + red))
+                        continue;
+                    ASSERT_EQ(mask.get(green, red), margin > 0)
+                        << "G " << green << " R " << red << " soil G/R " << soil_ratio << " x" << c.min_ratio;
+                }
+        }
+    }
+}
+
 namespace {
 
 // Brown soil with a bright straw (columns 5-12) and a leaf disc, the green
