@@ -187,6 +187,7 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
         return;
     ws.plants_ = det.plants.size();
     const BitMask& vegetation = dws.vegetation();
+    const int words = vegetation.words_per_row();
     const std::span<const std::uint16_t> piece_plant = dws.piece_plant();
     const bool has_nir = !frame.nir.empty() && frame.nir.size() == ws.frame_size_ && frame.nir.type() == CV_8UC1;
 
@@ -230,48 +231,44 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
         s.yy += dy * dy * n;
         s.xy += dy * sum_x;
         // The run's vegetation pixels: counted on an unsampled row,
-        // visited word by word on a sampled one.
+        // visited run of vegetation by run of vegetation on a sampled one.
         long vegetation_px = 0, sampled_px = 0, brightness = 0, gradient = 0;
         float r_sum = 0, g_sum = 0, b_sum = 0, rr = 0, gg = 0, ndvi_sum = 0, ndvi2 = 0;
         if (!sample_row)
             vegetation_px = count_bits_in_range(vrow, run_start, run_stop);
-        for (int w = run_start >> 6; sample_row && w <= (run_stop - 1) >> 6; ++w) {
-            std::uint64_t bits = vrow[w];
-            if (w == run_start >> 6)
-                bits &= ~0ull << (run_start & 63);
-            if (w == (run_stop - 1) >> 6 && (run_stop & 63) != 0)
-                bits &= ~0ull >> (64 - (run_stop & 63));
-            visit_bit_runs(bits, w * 64, [&](int x_start, int x_stop) {
-                // Along a run each pixel's R+G+B is its right neighbour's
-                // left one: read once, not three times.
-                int left = total(bgr[std::max(x_start - 1, 0)]), here = total(bgr[x_start]);
-                for (int x = x_start; x < x_stop; ++x) {
-                    const cv::Vec3b& p = bgr[x];
-                    const int sum = here;
-                    const int right = total(bgr[x + 1 < width ? x + 1 : width - 1]);
-                    brightness += sum;
-                    // Reciprocals from a table: a division per pixel and
-                    // channel would cost more than the rest of the pass.
-                    const float inv = ws.reciprocal_[static_cast<std::size_t>(sum)];
-                    const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
-                    r_sum += r;
-                    g_sum += g;
-                    b_sum += static_cast<float>(p[0]) * inv;
-                    rr += r * r;
-                    gg += g * g;
-                    gradient += std::abs(right - left) + std::abs(total(bgr_down[x]) - total(bgr_up[x]));
-                    if (nir) {
-                        const int nv = nir[x], red = p[2];
-                        const float ndvi =
-                            static_cast<float>(nv - red) * ws.reciprocal_[static_cast<std::size_t>(nv + red)];
-                        ndvi_sum += ndvi;
-                        ndvi2 += ndvi * ndvi;
-                    }
-                    left = here;
-                    here = right;
+        for (int x_start = sample_row ? next_bit(vrow, words, run_stop, run_start, true) : run_stop;
+             x_start < run_stop;) {
+            const int x_stop = next_bit(vrow, words, run_stop, x_start, false);   // one past the vegetation run
+            // Along a run each pixel's R+G+B is its right neighbour's
+            // left one: read once, not three times.
+            int left = total(bgr[std::max(x_start - 1, 0)]), here = total(bgr[x_start]);
+            for (int x = x_start; x < x_stop; ++x) {
+                const cv::Vec3b& p = bgr[x];
+                const int sum = here;
+                const int right = total(bgr[x + 1 < width ? x + 1 : width - 1]);
+                brightness += sum;
+                // Reciprocals from a table: a division per pixel and
+                // channel would cost more than the rest of the pass.
+                const float inv = ws.reciprocal_[static_cast<std::size_t>(sum)];
+                const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
+                r_sum += r;
+                g_sum += g;
+                b_sum += static_cast<float>(p[0]) * inv;
+                rr += r * r;
+                gg += g * g;
+                gradient += std::abs(right - left) + std::abs(total(bgr_down[x]) - total(bgr_up[x]));
+                if (nir) {
+                    const int nv = nir[x], red = p[2];
+                    const float ndvi =
+                        static_cast<float>(nv - red) * ws.reciprocal_[static_cast<std::size_t>(nv + red)];
+                    ndvi_sum += ndvi;
+                    ndvi2 += ndvi * ndvi;
                 }
-                sampled_px += x_stop - x_start;
-            });
+                left = here;
+                here = right;
+            }
+            sampled_px += x_stop - x_start;
+            x_start = next_bit(vrow, words, run_stop, x_stop, true);
         }
         if (sample_row)
             vegetation_px = sampled_px;   // every vegetation pixel of a sampled row is visited

@@ -38,22 +38,6 @@ void unite(std::vector<int>& parent, int a, int b)
         parent[static_cast<std::size_t>(a)] = b;
 }
 
-// Position of the first set (want_set) or clear bit at or after x, or width.
-int next_bit(const std::uint64_t* row, int words, int width, int x, bool want_set)
-{
-    int i = x >> 6;
-    if (i >= words)
-        return width;
-    std::uint64_t w = want_set ? row[i] : ~row[i];
-    w &= ~std::uint64_t{0} << (x & 63);
-    while (w == 0) {
-        if (++i >= words)
-            return width;
-        w = want_set ? row[i] : ~row[i];
-    }
-    return std::min(width, (i << 6) + std::countr_zero(w));
-}
-
 }  // namespace
 
 void label_components(const BitMask& mask, LabelScratch& scratch, std::vector<Component>& out)

@@ -1,7 +1,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <utility>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -137,28 +136,35 @@ TEST(BitMask, CountBitsCountsEverySetBitOfEveryWord)
     }
 }
 
-TEST(BitMask, BitRunsAreTheMaximalRunsOfSetBitsInOrder)
+TEST(BitMask, NextBitFindsTheNextSetOrClearBitBeforeTheWidth)
 {
-    // Against a bit-by-bit walk: zero, all-one, the top bit alone, runs
-    // reaching bit 63, alternating bits and random words, from offset x0.
+    // Against a bit-by-bit search: rows of 1 to 3 words with zero, full,
+    // single-bit and random words, every start, the width both the row's
+    // and a shorter one (the end of a run), past which nothing is found.
     cv::RNG rng(13);
-    std::vector<std::uint64_t> words = {0, ~std::uint64_t{0}, std::uint64_t{1} << 63, ~std::uint64_t{0} << 40,
-                                        0x5555555555555555ull, 0x8000000000000001ull, 0x00ff00ff00ff00ffull};
-    for (int i = 0; i < 40; ++i)
-        words.push_back((static_cast<std::uint64_t>(rng.next()) << 32) | rng.next());
-    for (const std::uint64_t bits : words) {
-        std::vector<std::pair<int, int>> expected;
-        for (int bit = 0; bit < 64; ++bit) {
-            if (((bits >> bit) & 1) == 0)
-                continue;
-            if (!expected.empty() && expected.back().second == 128 + bit)
-                ++expected.back().second;
-            else
-                expected.push_back({128 + bit, 128 + bit + 1});
+    for (const int words : {1, 2, 3}) {
+        for (int trial = 0; trial < 8; ++trial) {
+            std::vector<std::uint64_t> row(static_cast<std::size_t>(words));
+            for (int w = 0; w < words; ++w) {
+                const std::uint64_t random = (static_cast<std::uint64_t>(rng.next()) << 32) | rng.next();
+                const std::uint64_t kinds[] = {0, ~std::uint64_t{0}, std::uint64_t{1} << 63, random,
+                                               random & (random >> 2)};
+                row[static_cast<std::size_t>(w)] = kinds[(trial + w) % 5];
+            }
+            auto bit = [&](int x) { return ((row[static_cast<std::size_t>(x >> 6)] >> (x & 63)) & 1) != 0; };
+            for (const int width : {64 * words, 64 * words - 5, 37}) {
+                if (width > 64 * words || width <= 0)
+                    continue;
+                for (int x = 0; x <= width; ++x)
+                    for (const bool want_set : {true, false}) {
+                        int expected = x;
+                        while (expected < width && bit(expected) != want_set)
+                            ++expected;
+                        ASSERT_EQ(next_bit(row.data(), words, width, x, want_set), expected)
+                            << words << " words, width " << width << ", from " << x << (want_set ? " set" : " clear");
+                    }
+            }
         }
-        std::vector<std::pair<int, int>> runs;
-        visit_bit_runs(bits, 128, [&](int start, int stop) { runs.push_back({start, stop}); });
-        EXPECT_EQ(runs, expected) << std::hex << bits;
     }
 }
 

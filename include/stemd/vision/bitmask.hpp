@@ -2,6 +2,7 @@
 // stages work on whole words, which is what makes them cheap.
 #pragma once
 
+#include <algorithm>
 #include <bit>
 #include <cstdint>
 #include <vector>
@@ -21,18 +22,23 @@ inline void visit_bits(std::uint64_t bits, int x0, Visit&& visit)
         visit(x0 + std::countr_zero(bits));
 }
 
-// visit(x_start, x_stop) for each maximal run of set bits of `bits`,
-// lowest first, as pixels [x_start, x_stop) with bit 0 being pixel x0: for
-// loops that carry something from one pixel to the next.
-template <class Visit>
-inline void visit_bit_runs(std::uint64_t bits, int x0, Visit&& visit)
+// In a row of `words` 64-bit words: the position of the first set
+// (want_set) or clear bit at or after x, or `width` when there is none
+// before it. Runs of set bits are [next_bit(.., x, true), next_bit(.., that,
+// false)).
+inline int next_bit(const std::uint64_t* row, int words, int width, int x, bool want_set)
 {
-    while (bits != 0) {
-        const int start = std::countr_zero(bits);
-        const int length = std::countr_one(bits >> start);
-        visit(x0 + start, x0 + start + length);
-        bits = start + length < 64 ? bits & (~0ull << (start + length)) : 0;
+    int i = x >> 6;
+    if (i >= words)
+        return width;
+    std::uint64_t w = want_set ? row[i] : ~row[i];
+    w &= ~std::uint64_t{0} << (x & 63);
+    while (w == 0) {
+        if (++i >= words)
+            return width;
+        w = want_set ? row[i] : ~row[i];
     }
+    return std::min(width, (i << 6) + std::countr_zero(w));
 }
 
 // The row visitor: visit(x) for each set pixel of words [w0, w1) of a row,
