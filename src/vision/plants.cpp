@@ -1,7 +1,6 @@
 #include "stemd/vision/plants.hpp"
 
 #include <algorithm>
-#include <bit>
 
 namespace stemd::vision {
 
