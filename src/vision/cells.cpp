@@ -239,7 +239,6 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
     // bit counts per cell; colour, gradients and the plant vote on every
     // fourth vegetation pixel of the row.
     constexpr std::uint64_t kEveryFourth = 0x1111111111111111ull;
-    auto total = [](const cv::Vec3b& v) { return v[0] + v[1] + v[2]; };
     for (int y = 0; y + 1 < height; y += 2) {
         const std::uint64_t* vrow = vegetation.row(y);
         const std::uint64_t* below = vegetation.row(y + 1);
@@ -297,7 +296,7 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
                 CellWorkspace::Sums& s = ws.sums_[grid_row + ws.cell_x_[static_cast<std::size_t>(x)]];
                 ++s.sampled_px;
                 const cv::Vec3b& p = bgr[x];
-                const int sum = p[0] + p[1] + p[2];
+                const int sum = brightness_sum(p);
                 s.brightness += static_cast<float>(sum);
                 const float inv = ws.reciprocal_[static_cast<std::size_t>(sum)];
                 const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
@@ -305,8 +304,8 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
                 s.g += g;
                 s.rr += r * r;
                 s.gg += g * g;
-                const auto gx = static_cast<float>(total(bgr[std::min(x + 1, width - 1)]) - total(bgr[std::max(x - 1, 0)]));
-                const auto gy = static_cast<float>(total(bgr_down[x]) - total(bgr_up[x]));
+                const auto gx = static_cast<float>(brightness_sum(bgr[std::min(x + 1, width - 1)]) - brightness_sum(bgr[std::max(x - 1, 0)]));
+                const auto gy = static_cast<float>(brightness_sum(bgr_down[x]) - brightness_sum(bgr_up[x]));
                 s.gradient += std::abs(gx) + std::abs(gy);
                 s.sxx += gx * gx;
                 s.syy += gy * gy;

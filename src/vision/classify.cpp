@@ -199,7 +199,6 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
     std::fill(ws.sums_.begin(), ws.sums_.begin() + static_cast<std::ptrdiff_t>(ws.plants_), ClassifyWorkspace::Sums{});
     const int width = ws.frame_size_.width, height = ws.frame_size_.height;
     const LabelScratch& pieces = dws.pieces();
-    auto total = [](const cv::Vec3b& v) { return v[0] + v[1] + v[2]; };
     for (std::size_t k = 0; k < pieces.run_count(); ++k) {
         const LabelScratch::LabelledRun run = pieces.run(k);
         const std::uint16_t id = piece_plant[static_cast<std::size_t>(run.component)];
@@ -241,11 +240,11 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
             const int x_stop = next_bit(vrow, words, run_stop, x_start, false);   // one past the vegetation run
             // Along a run each pixel's R+G+B is its right neighbour's
             // left one: read once, not three times.
-            int left = total(bgr[std::max(x_start - 1, 0)]), here = total(bgr[x_start]);
+            int left = brightness_sum(bgr[std::max(x_start - 1, 0)]), here = brightness_sum(bgr[x_start]);
             for (int x = x_start; x < x_stop; ++x) {
                 const cv::Vec3b& p = bgr[x];
                 const int sum = here;
-                const int right = total(bgr[x + 1 < width ? x + 1 : width - 1]);
+                const int right = brightness_sum(bgr[x + 1 < width ? x + 1 : width - 1]);
                 brightness += sum;
                 // Reciprocals from a table: a division per pixel and
                 // channel would cost more than the rest of the pass.
@@ -256,7 +255,7 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
                 b_sum += static_cast<float>(p[0]) * inv;
                 rr += r * r;
                 gg += g * g;
-                gradient += std::abs(right - left) + std::abs(total(bgr_down[x]) - total(bgr_up[x]));
+                gradient += std::abs(right - left) + std::abs(brightness_sum(bgr_down[x]) - brightness_sum(bgr_up[x]));
                 if (nir) {
                     const int nv = nir[x], red = p[2];
                     const float ndvi =

@@ -127,6 +127,11 @@ private:
 void plant_features(const FrameView& frame, const Params& params, const Workspace& detect_workspace,
                     const Detections& detections, ClassifyWorkspace& workspace);
 
+// A pixel's R+G+B: the brightness that the colour features divide by and
+// the texture features differentiate, for the plant and the cell features
+// alike.
+inline int brightness_sum(const cv::Vec3b& bgr) { return bgr[0] + bgr[1] + bgr[2]; }
+
 // The frame's mean R+G+B over every 4th pixel of every 4th row (at least
 // 1): the classifier's brightness normaliser, as its models were trained.
 // CV_8UC3; an empty frame gives 1.
