@@ -27,6 +27,19 @@ for f in 000000 000001 000002; do
   [ -s "$tmp/overlays/$f.png" ] || fail "no overlay $f"
 done
 grep -q '^timing median over 3 frames: index' "$tmp/err.txt" || fail "no timing summary"
+# exg_and_ndvi computes its indices on every pixel: no tiles to report.
+! grep -q 'index tiles computed' "$tmp/err.txt" || fail "tiles reported without the sparse index"
+# The RGB index is sparse: each frame says how many of its 21 x 16 tiles
+# (64 px) it computed in full, at least the one a plant stands in.
+"$tools/stemd-detect" --segment chromatic_exg --timing "$tmp/rec" >/dev/null 2>"$tmp/tiles.txt" ||
+  fail "chromatic_exg --timing exited $?"
+computed=$(sed -n 's/^timing .*: index [0-9.]* .* total [0-9.]* ms, index tiles computed \([0-9]*\) of 336$/\1/p' "$tmp/tiles.txt")
+[ "$(echo "$computed" | grep -c .)" -eq 3 ] || fail "tiles per frame: $(grep '^timing' "$tmp/tiles.txt")"
+for c in $computed; do
+  [ "$c" -ge 1 ] && [ "$c" -le 336 ] || fail "tiles computed $c of 336"
+done
+grep -q '^timing median over 3 frames: index tiles computed [0-9.]* %$' "$tmp/tiles.txt" ||
+  fail "no tiles summary: $(grep median "$tmp/tiles.txt")"
 # The shipped segment.method auto takes the nir column every frame has.
 grep -qx 'stemd-detect: segment.method auto: exg_and_ndvi (every frame has a nir image)' "$tmp/err.txt" ||
   fail "auto's choice with nir: $(grep segment "$tmp/err.txt")"
