@@ -331,6 +331,7 @@ Workspace::Workspace(cv::Size frame_size, const Params& params)
     const int height = std::max(frame_size.height, 0);
     raw_index_.create(height, width, CV_8UC1);
     index_.create(height, width, CV_8UC1);
+    green_index_.create(height, width, CV_8UC1);
     smooth_row_.resize(static_cast<std::size_t>(width));
     sparse_.reserve(width, height);
     vegetation_.reset(width, height);
@@ -400,16 +401,8 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
         // exg_and_ndvi: NIR outlines the plants, and a piece of it is a plant
         // only where it is green too (a seed must lie in the ExG mask).
         const bool green_seeds = params.segmentation == Segmentation::exg_and_ndvi;
-        if (green_seeds) {
-            // Greener than the soil's own spread: a live leaf is, dead straw
-            // and leaves (bright in NIR too) are not. Thin and dark seedlings
-            // are far less green than a sugar-beet leaf, hence the low bar.
-            compute_index(frame, Segmentation::chromatic_exg, params, ws, false);
-            threshold_to_bits(ws.index_, soil_noise_threshold(ws.histogram_, kGreenerThanSoilSigmas), ws.second_);
-            threshold_index(frame, Segmentation::ndvi, params, ws, out.stats, ws.thresholded_, t_index);
-        } else {
-            threshold_index(frame, params.segmentation, params, ws, out.stats, ws.thresholded_, t_index);
-        }
+        threshold_index(frame, green_seeds ? Segmentation::ndvi : params.segmentation, params, ws, out.stats,
+                        ws.thresholded_, t_index);
         // Specks and fringes vanish under the opening; whatever survives it
         // keeps its whole component, thin petioles and grass blades included.
         // From RGB alone, a seed must also have a leaf's colour: more green
@@ -434,8 +427,15 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
                 open_mask(*to_open, opening_radius, ws.opened_, ws.opening_);
             else
                 ws.opened_ = *to_open;
-            if (green_seeds)
-                and_masks(ws.second_, ws.opened_);
+            if (green_seeds) {
+                // Greener than the soil's own spread: a live leaf is, dead
+                // straw and leaves (bright in NIR too) are not. Thin and dark
+                // seedlings are far less green than a sugar-beet leaf, hence
+                // the low bar. Only the seeds are tested, so the index is
+                // needed only on their rows, not on the whole frame.
+                keep_greener_than_soil(frame.bgr, kGreenerThanSoilSigmas, ws.sparse_, ws.raw_index_, ws.green_index_,
+                                       ws.opened_);
+            }
             label_components(ws.thresholded_, ws.labels_, ws.components_);
             mark_seeded_components(ws.labels_, ws.opened_, ws.keep_);
             if (leaf_colour_seeds)
@@ -626,7 +626,7 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
 
 std::size_t Workspace::reserved_bytes() const
 {
-    return (raw_index_.total() + index_.total()) * index_.elemSize() + smooth_row_.capacity() * sizeof(std::uint16_t) +
+    return (raw_index_.total() + index_.total() + green_index_.total()) * index_.elemSize() + smooth_row_.capacity() * sizeof(std::uint16_t) +
            vegetation_.reserved_bytes() + thresholded_.reserved_bytes() + second_.reserved_bytes() + opened_.reserved_bytes() + edged_.reserved_bytes() + edges_.reserved_bytes() + keep_.capacity() + fringe_passed_.capacity() + closed_.reserved_bytes() +
            opening_.reserved_bytes() + closing_.reserved_bytes() + cells_.reserved_bytes() +
            grouped_.reserved_bytes() + grouping_.reserved_bytes() + group_labels_.reserved_bytes() + (groups_.capacity()) * sizeof(Component) +

@@ -1,6 +1,7 @@
 #include "stemd/vision/sparse_index.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cstring>
 
 #include <opencv2/core.hpp>
@@ -20,13 +21,14 @@ void SparseIndexScratch::reserve(int width_px, int height_px)
     queue_.reserve(tiles);
     raw_row_.assign(static_cast<std::size_t>(height_), 0);
     row_sums_.assign(static_cast<std::size_t>(width_), 0);
+    mask_span_.assign(static_cast<std::size_t>(height_), cv::Range(0, 0));
     computed_ = 0;
 }
 
 std::size_t SparseIndexScratch::reserved_bytes() const
 {
     return state_.capacity() + queue_.capacity() * sizeof(int) + raw_row_.capacity() +
-           row_sums_.capacity() * sizeof(std::uint16_t);
+           row_sums_.capacity() * sizeof(std::uint16_t) + mask_span_.capacity() * sizeof(cv::Range);
 }
 
 // The tile work of one frame, on the scratch's buffers.
@@ -173,6 +175,27 @@ void sum_partials(const std::uint32_t (&partial)[4][256], Histogram& out)
         out[static_cast<std::size_t>(v)] = partial[0][v] + partial[1][v] + partial[2][v] + partial[3][v];
 }
 
+// Step 1: every band's sampled row, smoothed from the raw index on it and
+// beside it (those raw rows flagged in raw_row_), and their histogram.
+Histogram sampled_rows(const SparseTiles& tiles, std::uint8_t* raw_row, std::uint16_t* row_sums)
+{
+    const int width = tiles.bgr.cols, height = tiles.bgr.rows;
+    std::uint32_t partial[4][256] = {};
+    for (int band = 0; band < height; band += kSparseRowStep) {
+        const int y = sample_row(band, height);
+        for (int r = std::max(y - 1, 0); r <= std::min(y + 1, height - 1); ++r) {
+            if (!raw_row[r])
+                tiles.raw_span(r, 0, width);
+            raw_row[r] = 1;
+        }
+        smooth_binomial3_rect(tiles.raw, cv::Rect(0, y, width, 1), row_sums, tiles.index);
+        add_to_histogram(tiles.index.ptr<std::uint8_t>(y), width, partial);
+    }
+    Histogram sampled{};
+    sum_partials(partial, sampled);
+    return sampled;
+}
+
 }  // namespace
 
 int sparse_smoothed_index(const cv::Mat& bgr, RgbIndex kind, const SparseLevel& level, int reach_px,
@@ -192,18 +215,7 @@ int sparse_smoothed_index(const cv::Mat& bgr, RgbIndex kind, const SparseLevel& 
     const SparseTiles tiles{bgr, s, raw_u8, index_u8};
 
     // 1. The sampled rows, smoothed, and their histogram.
-    std::uint32_t partial[4][256] = {};
-    for (int band = 0; band < height; band += kSparseRowStep) {
-        const int y = sample_row(band, height);
-        for (int r = std::max(y - 1, 0); r <= std::min(y + 1, height - 1); ++r) {
-            tiles.raw_span(r, 0, width);
-            s.raw_row_[static_cast<std::size_t>(r)] = 1;
-        }
-        smooth_binomial3_rect(raw_u8, cv::Rect(0, y, width, 1), s.row_sums_.data(), index_u8);
-        add_to_histogram(index_u8.ptr<std::uint8_t>(y), width, partial);
-    }
-    Histogram sampled{};
-    sum_partials(partial, sampled);
+    const Histogram sampled = sampled_rows(tiles, s.raw_row_.data(), s.row_sums_.data());
     const bool any_sample = height > 0 && width > 0;
     if (any_sample) {
         // One soil sigma (at least one level) below the sampled threshold.
@@ -271,7 +283,7 @@ int sparse_smoothed_index(const cv::Mat& bgr, RgbIndex kind, const SparseLevel& 
         compute_histogram(index_u8, histogram);
         return s.level_;
     }
-    std::memset(partial, 0, sizeof partial);
+    std::uint32_t partial[4][256] = {};
     const auto soil = static_cast<std::uint8_t>(s.soil_);
     for (int tile = 0; tile < s.tiles(); ++tile) {
         const cv::Rect r = tiles.tile_rect(tile);
@@ -302,6 +314,78 @@ void complete_sparse_index(const cv::Mat& bgr, SparseIndexScratch& scratch, cv::
         tiles.queue(tile);
     tiles.compute_queued(begin);
     compute_histogram(index_u8, histogram);
+}
+
+int keep_greener_than_soil(const cv::Mat& bgr, double sigmas, SparseIndexScratch& scratch, cv::Mat& raw_u8,
+                           cv::Mat& index_u8, BitMask& mask)
+{
+    CV_Assert(bgr.type() == CV_8UC3 && bgr.cols == scratch.width_ && bgr.rows == scratch.height_);
+    CV_Assert(raw_u8.type() == CV_8UC1 && raw_u8.size() == bgr.size());
+    CV_Assert(index_u8.type() == CV_8UC1 && index_u8.size() == bgr.size());
+    CV_Assert(mask.width() == bgr.cols && mask.height() == bgr.rows);
+    SparseIndexScratch& s = scratch;
+    const int width = s.width_, height = s.height_;
+    if (width == 0 || height == 0)
+        return 255;
+    s.kind_ = RgbIndex::chromatic_exg;
+    s.mean_brightness_ = chromatic_mean_brightness(bgr);
+    std::fill(s.raw_row_.begin(), s.raw_row_.end(), std::uint8_t{0});
+    const SparseTiles tiles{bgr, s, raw_u8, index_u8};
+
+    // 1. The soil's noise from the sampled rows, as the sparse index reads
+    // it: the bar is a statistic of the soil, which every row shows alike.
+    const int bar = soil_noise_threshold(sampled_rows(tiles, s.raw_row_.data(), s.row_sums_.data()), sigmas);
+
+    // 2. Each row's set pixels, first to last.
+    const int words = mask.words_per_row();
+    for (int y = 0; y < height; ++y) {
+        const std::uint64_t* row = mask.row(y);
+        int first = -1, last = -1;
+        for (int w = 0; w < words && first < 0; ++w)
+            if (row[w] != 0)
+                first = 64 * w + std::countr_zero(row[w]);
+        for (int w = words - 1; w >= 0 && first >= 0 && last < 0; --w)
+            if (row[w] != 0)
+                last = 64 * w + 63 - std::countl_zero(row[w]);
+        s.mask_span_[static_cast<std::size_t>(y)] = first < 0 ? cv::Range(0, 0) : cv::Range(first, last + 1);
+    }
+
+    // 3. The raw index the smoothing of those spans reads: the rows above
+    // and below, one pixel wider on each side.
+    for (int y = 0; y < height; ++y) {
+        if (s.raw_row_[static_cast<std::size_t>(y)])
+            continue;
+        int lo = width, hi = 0;
+        for (int r = std::max(y - 1, 0); r <= std::min(y + 1, height - 1); ++r) {
+            const cv::Range& span = s.mask_span_[static_cast<std::size_t>(r)];
+            if (span.start < span.end) {
+                lo = std::min(lo, span.start - 1);
+                hi = std::max(hi, span.end + 1);
+            }
+        }
+        if (lo < hi)
+            tiles.raw_span(y, std::max(lo, 0), std::min(hi, width));
+    }
+
+    // 4. The smoothed index on each span, and the test on its set pixels.
+    for (int y = 0; y < height; ++y) {
+        const cv::Range& span = s.mask_span_[static_cast<std::size_t>(y)];
+        if (span.start >= span.end)
+            continue;
+        smooth_binomial3_rect(raw_u8, cv::Rect(span.start, y, span.end - span.start, 1), s.row_sums_.data(), index_u8);
+        const std::uint8_t* green = index_u8.ptr<std::uint8_t>(y);
+        std::uint64_t* row = mask.row(y);
+        for (int w = span.start / 64; w <= (span.end - 1) / 64; ++w) {
+            std::uint64_t keep = row[w];
+            for (std::uint64_t bits = row[w]; bits != 0; bits &= bits - 1) {
+                const int bit = std::countr_zero(bits);
+                if (green[64 * w + bit] <= bar)
+                    keep &= ~(std::uint64_t{1} << bit);
+            }
+            row[w] = keep;
+        }
+    }
+    return bar;
 }
 
 }  // namespace stemd::vision

@@ -306,5 +306,102 @@ TEST(SparseIndex, AThresholdBelowTheLevelFallsBackOnTheWholeFrame)
     EXPECT_EQ(out.stats.index_tiles_computed, out.stats.index_tiles);
 }
 
+
+// exg_and_ndvi's greenness test on the mask's rows only.
+struct Greener {
+    SparseIndexScratch scratch;
+    cv::Mat raw, index;
+    BitMask mask;
+    int bar = 0;
+    Greener(const cv::Mat& bgr, const BitMask& seeds, double sigmas = 2.0)
+        : mask(seeds)
+    {
+        scratch.reserve(bgr.cols, bgr.rows);
+        raw.create(bgr.size(), CV_8UC1);
+        index.create(bgr.size(), CV_8UC1);
+        bar = keep_greener_than_soil(bgr, sigmas, scratch, raw, index, mask);
+    }
+};
+
+// The seeds whose whole-frame smoothed index is above `bar`.
+BitMask whole_frame_greener(const cv::Mat& bgr, const BitMask& seeds, int bar)
+{
+    const WholeFrame whole(bgr, RgbIndex::chromatic_exg);
+    BitMask out;
+    out.reset(bgr.cols, bgr.rows);
+    for (int y = 0; y < bgr.rows; ++y)
+        for (int x = 0; x < bgr.cols; ++x)
+            if (seeds.get(x, y) && whole.index.at<std::uint8_t>(y, x) > bar)
+                out.set(x, y);
+    return out;
+}
+
+// Soil with green discs covering about `cover` of it.
+cv::Mat soil_with_leaves(cv::Size size, double cover, std::uint64_t seed)
+{
+    cv::Mat bgr = soil_frame(size, seed);
+    cv::RNG rng(seed + 1);
+    const int radius = 12;
+    const int discs = static_cast<int>(cover * size.area() / (3.14159 * radius * radius));
+    for (int i = 0; i < discs; ++i)
+        cv::circle(bgr, {rng.uniform(0, size.width), rng.uniform(0, size.height)}, radius, kLeaf, cv::FILLED);
+    return bgr;
+}
+
+TEST(GreenerThanSoil, OnTheSeedsRowsTheTestIsTheWholeFramesForTheSameBar)
+{
+    // 300 px wide (a last word of 44 px), seeds on every border, on whole
+    // rows, beside sampled rows and scattered over leaves and soil alike.
+    const cv::Mat bgr = soil_with_leaves({300, 200}, 0.1, 21);
+    BitMask seeds;
+    seeds.reset(bgr.cols, bgr.rows);
+    cv::RNG rng(22);
+    for (int y = 0; y < bgr.rows; ++y)
+        for (int x = 0; x < bgr.cols; ++x)
+            if (x == 0 || y == 0 || x == bgr.cols - 1 || y == bgr.rows - 1 || y == 37 || y == 3 || y == 5 ||
+                rng.uniform(0.0, 1.0) < 0.05)
+                seeds.set(x, y);
+    const Greener greener(bgr, seeds);
+    const BitMask expected = whole_frame_greener(bgr, seeds, greener.bar);
+    EXPECT_TRUE(same_bits(greener.mask, expected));
+    // Both outcomes occur: soil seeds go, leaf seeds stay.
+    EXPECT_GT(greener.mask.count(), 0);
+    EXPECT_LT(greener.mask.count(), seeds.count());
+}
+
+TEST(GreenerThanSoil, NoSeedsLeaveNoSeedsAndAnEmptyFrameHasNoBar)
+{
+    const cv::Mat bgr = soil_with_leaves({130, 70}, 0.2, 23);
+    BitMask seeds;
+    seeds.reset(bgr.cols, bgr.rows);
+    const Greener greener(bgr, seeds);
+    EXPECT_EQ(greener.mask.count(), 0);
+    EXPECT_LT(greener.bar, 255);
+
+    SparseIndexScratch scratch;
+    scratch.reserve(0, 0);
+    cv::Mat empty_bgr(0, 0, CV_8UC3), raw(0, 0, CV_8UC1), index(0, 0, CV_8UC1);
+    BitMask none;
+    none.reset(0, 0);
+    EXPECT_EQ(keep_greener_than_soil(empty_bgr, 2.0, scratch, raw, index, none), 255);
+}
+
+TEST(GreenerThanSoil, TheSampledRowsGiveTheWholeFramesBar)
+{
+    // The bar is a statistic of the soil, and every row shows the same
+    // soil: from 1 % to 30 % vegetation the sampled rows' bar is the whole
+    // frame's.
+    for (const double cover : {0.01, 0.1, 0.3}) {
+        for (std::uint64_t seed = 31; seed < 34; ++seed) {
+            const cv::Mat bgr = soil_with_leaves({1296, 966}, cover, seed);
+            BitMask seeds;
+            seeds.reset(bgr.cols, bgr.rows);
+            const Greener greener(bgr, seeds);
+            const WholeFrame whole(bgr, RgbIndex::chromatic_exg);
+            EXPECT_EQ(greener.bar, soil_noise_threshold(whole.histogram, 2.0)) << "cover " << cover << " seed " << seed;
+        }
+    }
+}
+
 }  // namespace
 }  // namespace stemd::vision

@@ -63,6 +63,7 @@ private:
     NdviTable ndvi_table_;
     cv::Mat raw_index_;                     // before smoothing
     cv::Mat index_;                         // what the threshold sees
+    cv::Mat green_index_;                   // exg_and_ndvi: chromatic ExG where the greenness test reads it
     std::vector<std::uint16_t> smooth_row_;
     SparseIndexScratch sparse_;
     bool sparse_pending_ = false;           // the index left soil tiles uncomputed

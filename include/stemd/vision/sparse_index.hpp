@@ -34,6 +34,7 @@
 
 #include <opencv2/core/mat.hpp>
 
+#include "stemd/vision/bitmask.hpp"
 #include "stemd/vision/threshold.hpp"
 
 namespace stemd::vision {
@@ -70,6 +71,7 @@ private:
     friend int sparse_smoothed_index(const cv::Mat&, RgbIndex, const SparseLevel&, int, SparseIndexScratch&, cv::Mat&,
                                      cv::Mat&, Histogram&);
     friend void complete_sparse_index(const cv::Mat&, SparseIndexScratch&, cv::Mat&, cv::Mat&, Histogram&);
+    friend int keep_greener_than_soil(const cv::Mat&, double, SparseIndexScratch&, cv::Mat&, cv::Mat&, BitMask&);
     friend struct SparseTiles;
     int width_ = 0, height_ = 0, cols_ = 0, rows_ = 0, computed_ = 0;
     int level_ = 255, soil_ = 0;
@@ -79,6 +81,7 @@ private:
     std::vector<int> queue_;                 // tiles to compute
     std::vector<std::uint8_t> raw_row_;      // per row: raw index computed for the whole row
     std::vector<std::uint16_t> row_sums_;    // smoothing scratch, one per column
+    std::vector<cv::Range> mask_span_;       // per row: first to one past the last set pixel of a mask
 };
 
 // The smoothed index (3x3 binomial of excess_green or chromatic_excess_green)
@@ -95,5 +98,17 @@ int sparse_smoothed_index(const cv::Mat& bgr, RgbIndex kind, const SparseLevel& 
 // and the exact histogram: then equal to smoothing the whole-frame index.
 void complete_sparse_index(const cv::Mat& bgr, SparseIndexScratch& scratch, cv::Mat& raw_u8, cv::Mat& index_u8,
                            Histogram& histogram);
+
+// exg_and_ndvi's greenness test, computed only where it is asked, not on
+// the whole frame: clears every pixel of `mask` whose smoothed chromatic
+// Excess Green is at or below the soil's noise, soil_noise_threshold(
+// sampled, sigmas) of the histogram of the sampled rows alone (step 1
+// above). The index goes into `raw_u8` and `index_u8` on the sampled rows
+// and, on each row of `mask`, from its first to its last set pixel (the raw
+// index one pixel further, for the smoothing): there it is the whole-frame
+// index, so for the same bar the test is the whole frame's, pixel for
+// pixel. Returns the bar (255 when the frame is empty).
+int keep_greener_than_soil(const cv::Mat& bgr, double sigmas, SparseIndexScratch& scratch, cv::Mat& raw_u8,
+                           cv::Mat& index_u8, BitMask& mask);
 
 }  // namespace stemd::vision
