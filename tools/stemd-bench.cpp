@@ -23,6 +23,7 @@
 #include <array>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <benchmark/benchmark.h>
@@ -276,8 +277,8 @@ public:
             }
         }
     }
-    void Print(int frames, const std::string& preset, int radius, std::size_t workspace_bytes,
-               double tiles_computed_pct) const
+    void Print(int frames, const std::string& preset, std::string_view segment, int radius,
+               std::size_t workspace_bytes, double tiles_computed_pct) const
     {
         // A MiB to 0.01, a time to 0.1 us; dividing by the exact power of ten
         // gives the double nearest the decimal, which dumps as that decimal.
@@ -286,6 +287,7 @@ public:
             {"frame_width_px", 1296},
             {"frame_height_px", 966},
             {"preset", preset},
+            {"segment", segment},
             {"closing_radius_px", radius},
             {"frames", frames},
             {"workspace_mib", rounded(static_cast<double>(workspace_bytes) / (1024.0 * 1024.0), 100)},
@@ -308,6 +310,7 @@ int main(int argc, char** argv)
     int frame_count = 8, radius = vision::Params{}.closing_radius_px, repetitions = 200;
     int edge_radius = vision::Params{}.edge_radius_px;
     bool sparse_index = vision::Params{}.sparse_index;
+    bool nir = false;
     std::string model_path;
     CLI::App app{"stemd-bench: per-stage and whole-pipeline timings on synthetic 1296x966 frames; other arguments "
                  "go to Google Benchmark (--benchmark_filter=REGEX, ...)"};
@@ -328,6 +331,8 @@ int main(int argc, char** argv)
         ->check(tools::value_check<int>("an integer", [](int) { return true; }));
     app.add_option("--sparse-index", sparse_index, "the index in full only in tiles near vegetation (1, the "
                                                    "default) or on every pixel (0)");
+    app.add_flag("--nir", nir, "the RGB+NIR camera's pipeline: the frames' NIR plane read, as segment.method auto "
+                               "then does (exg_and_ndvi); without it the RGB camera's (chromatic_exg)");
     app.add_option("--model", model_path, "crop/weed model for the classify stage (default: a forest trained on the "
                                           "bench frames)");
     if (const auto exit_code = tools::parse(app, argc, argv, {.tool = "stemd-bench", .pass_unknown = true}))
@@ -345,9 +350,10 @@ int main(int argc, char** argv)
     options.seed = 2024;
     for (int i = 0; i < frame_count; ++i)
         setup.frames.push_back(synth::generate_frame(options, i));
-    // The bench frames carry NIR; it times the RGB camera's pipeline (what
-    // segment.method auto runs without a NIR plane), as its tables say.
-    setup.params.segmentation = vision::resolve_segmentation(vision::Params{}.segmentation, false);
+    // The bench frames carry NIR; without --nir it times the RGB camera's
+    // pipeline (what segment.method auto runs without a NIR plane), as its
+    // tables say.
+    setup.params.segmentation = vision::resolve_segmentation(vision::Params{}.segmentation, nir);
     setup.params.closing_radius_px = radius;
     setup.params.edge_radius_px = std::max(edge_radius, 0);
     setup.params.sparse_index = sparse_index;
@@ -396,7 +402,7 @@ int main(int argc, char** argv)
         for (int k = 0; k < strip.frame_count; ++k) {
             const synth::StripFrame f = synth::render_strip_frame(strip, k);
             auto r = std::make_unique<runtime::FrameResult>();
-            vision::detect({.bgr = f.bgr}, setup.params, *setup.workspace, r->detections);
+            vision::detect({.bgr = f.bgr, .nir = f.nir}, setup.params, *setup.workspace, r->detections);
             r->odom_mm = f.odom_mm;
             actuation_setup.frames.push_back(std::move(r));
         }
@@ -443,7 +449,7 @@ int main(int argc, char** argv)
     if (json) {
         JsonLineReporter reporter;
         benchmark::RunSpecifiedBenchmarks(&reporter);
-        reporter.Print(frame_count, preset_name, radius, setup.workspace->reserved_bytes(), tiles_computed_pct);
+        reporter.Print(frame_count, preset_name, vision::to_string(setup.params.segmentation), radius, setup.workspace->reserved_bytes(), tiles_computed_pct);
     } else {
         benchmark::RunSpecifiedBenchmarks();
         std::printf("workspace: %.2f MiB reserved for 1296x966 frames (allocated once; detect() allocates nothing)\n",
