@@ -155,15 +155,6 @@ void pack_mask(const cv::Mat& mask_u8, MaskVegetation vegetation, BitMask& out)
     }
 }
 
-void and_masks(const BitMask& mask, BitMask& inout)
-{
-    const std::size_t words = static_cast<std::size_t>(inout.words_per_row()) * static_cast<std::size_t>(inout.height());
-    const std::uint64_t* a = mask.row(0);
-    std::uint64_t* b = inout.row(0);
-    for (std::size_t i = 0; i < words && inout.height() > 0; ++i)
-        b[i] &= a[i];
-}
-
 void unpack_mask(const BitMask& bits, cv::Mat& out_u8)
 {
     out_u8.create(bits.height(), bits.width(), CV_8UC1);

@@ -340,14 +340,12 @@ int keep_greener_than_soil(const cv::Mat& bgr, double sigmas, SparseIndexScratch
     const int words = mask.words_per_row();
     for (int y = 0; y < height; ++y) {
         const std::uint64_t* row = mask.row(y);
-        int first = -1, last = -1;
-        for (int w = 0; w < words && first < 0; ++w)
-            if (row[w] != 0)
-                first = 64 * w + std::countr_zero(row[w]);
-        for (int w = words - 1; w >= 0 && first >= 0 && last < 0; --w)
+        const int first = next_bit(row, words, width, 0, true);
+        int last = -1;
+        for (int w = words - 1; w >= 0 && first < width && last < 0; --w)
             if (row[w] != 0)
                 last = 64 * w + 63 - std::countl_zero(row[w]);
-        s.mask_span_[static_cast<std::size_t>(y)] = first < 0 ? cv::Range(0, 0) : cv::Range(first, last + 1);
+        s.mask_span_[static_cast<std::size_t>(y)] = first < width ? cv::Range(first, last + 1) : cv::Range(0, 0);
     }
 
     // 3. The raw index the smoothing of those spans reads: the rows above
@@ -375,15 +373,10 @@ int keep_greener_than_soil(const cv::Mat& bgr, double sigmas, SparseIndexScratch
         smooth_binomial3_rect(raw_u8, cv::Rect(span.start, y, span.end - span.start, 1), s.row_sums_.data(), index_u8);
         const std::uint8_t* green = index_u8.ptr<std::uint8_t>(y);
         std::uint64_t* row = mask.row(y);
-        for (int w = span.start / 64; w <= (span.end - 1) / 64; ++w) {
-            std::uint64_t keep = row[w];
-            for (std::uint64_t bits = row[w]; bits != 0; bits &= bits - 1) {
-                const int bit = std::countr_zero(bits);
-                if (green[64 * w + bit] <= bar)
-                    keep &= ~(std::uint64_t{1} << bit);
-            }
-            row[w] = keep;
-        }
+        visit_row_bits(span.start / 64, (span.end - 1) / 64 + 1, [row](int w) { return row[w]; }, [&](int x) {
+            if (green[x] <= bar)
+                row[x >> 6] &= ~(std::uint64_t{1} << (x & 63));
+        });
     }
     return bar;
 }

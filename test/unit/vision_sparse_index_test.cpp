@@ -306,7 +306,6 @@ TEST(SparseIndex, AThresholdBelowTheLevelFallsBackOnTheWholeFrame)
     EXPECT_EQ(out.stats.index_tiles_computed, out.stats.index_tiles);
 }
 
-
 // exg_and_ndvi's greenness test on the mask's rows only.
 struct Greener {
     SparseIndexScratch scratch;

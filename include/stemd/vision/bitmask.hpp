@@ -113,7 +113,5 @@ void add_span_bit_counts(const std::uint64_t* row, int width_px, int span_px, in
 void pack_mask(const cv::Mat& mask_u8, MaskVegetation vegetation, BitMask& out);
 // Bits to an 8-bit mask, 255 = set. `out` is (re)created with the mask's size.
 void unpack_mask(const BitMask& bits, cv::Mat& out_u8);
-// inout &= mask, pixel by pixel (the two of the same size).
-void and_masks(const BitMask& mask, BitMask& inout);
 
 }  // namespace stemd::vision
