@@ -1,0 +1,104 @@
+#!/usr/bin/python3
+"""A copy of a recording as another light or a noisier sensor would give it.
+
+Every frame's rgb (and nir) image is rewritten as PNG (lossless, so the
+perturbation is the only change):
+  --exposure K    every 8-bit value times K (0.25: two stops darker for a
+                  linear output; the frames' gamma makes the light's change
+                  larger still), rgb and nir alike;
+  --gains B,G,R   each colour channel times its gain: a colour cast of the
+                  light or of the white balance (nir untouched);
+  --noise-dn S    Gaussian noise of S digital numbers added after the
+                  scaling, as a sensor's read and gain noise: at a lower
+                  exposure the same S is a larger share of the signal.
+Values are rounded and saturated to 8 bits. Masks, class maps and every
+other column are kept (paths made absolute), so stemd-eval --iou and
+stemd-detect run on the copy as on the original.
+
+  tools/perturb-recording.py SRC_RECORDING DST_DIR [--exposure K]
+                             [--gains B,G,R] [--noise-dn S] [--seed N]
+
+Needs python3-opencv and python3-numpy (Debian).
+"""
+import argparse
+import csv
+import os
+import sys
+
+import cv2
+import numpy as np
+
+
+def gains(text):
+    parts = text.split(",")
+    if len(parts) != 3:
+        raise argparse.ArgumentTypeError(f"{text}: three gains B,G,R")
+    values = [float(p) for p in parts]
+    if any(v < 0 for v in values):
+        raise argparse.ArgumentTypeError(f"{text}: gains are not negative")
+    return values
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("src")
+    parser.add_argument("dst")
+    parser.add_argument("--exposure", type=float, default=1.0)
+    parser.add_argument("--gains", type=gains, default=[1.0, 1.0, 1.0])
+    parser.add_argument("--noise-dn", type=float, default=0.0)
+    parser.add_argument("--seed", type=int, default=1)
+    args = parser.parse_args()
+    if args.exposure < 0 or args.noise_dn < 0:
+        parser.error("--exposure and --noise-dn are not negative")
+    listing = os.path.join(args.src, "frames.csv")
+    try:
+        with open(listing, newline="") as f:
+            reader = csv.DictReader(f)
+            columns = reader.fieldnames or []
+            rows = list(reader)
+    except OSError as e:
+        sys.exit(f"perturb-recording: {listing}: {e.strerror}")
+    if "rgb" not in columns:
+        sys.exit(f"perturb-recording: {listing}: no rgb column")
+    os.makedirs(args.dst, exist_ok=True)
+    rng = np.random.default_rng(args.seed)
+
+    def source(path):
+        return path if os.path.isabs(path) else os.path.join(args.src, path)
+
+    def write(image, scale, name):
+        out = image.astype(np.float32) * scale
+        if args.noise_dn > 0:
+            out += rng.normal(0.0, args.noise_dn, out.shape).astype(np.float32)
+        path = os.path.join(args.dst, name)
+        if not cv2.imwrite(path, np.clip(np.rint(out), 0, 255).astype(np.uint8)):
+            sys.exit(f"perturb-recording: {path}: cannot write")
+
+    def png_name(path, prefix=""):
+        return prefix + os.path.splitext(os.path.basename(path))[0] + ".png"
+
+    for row in rows:
+        rgb = cv2.imread(source(row["rgb"]), cv2.IMREAD_COLOR)
+        if rgb is None:
+            sys.exit(f"perturb-recording: {source(row['rgb'])}: cannot read")
+        name = png_name(row["rgb"])
+        write(rgb, args.exposure * np.array(args.gains, np.float32), name)
+        row["rgb"] = name
+        if row.get("nir"):
+            nir = cv2.imread(source(row["nir"]), cv2.IMREAD_GRAYSCALE)
+            if nir is None:
+                sys.exit(f"perturb-recording: {source(row['nir'])}: cannot read")
+            name = png_name(row["nir"], "nir-")
+            write(nir, args.exposure, name)
+            row["nir"] = name
+        for column in ("mask", "class"):
+            if row.get(column):
+                row[column] = os.path.abspath(source(row[column]))
+    with open(os.path.join(args.dst, "frames.csv"), "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=columns)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+if __name__ == "__main__":
+    main()
