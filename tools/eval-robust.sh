@@ -42,6 +42,22 @@ conditions=(
 
 row() { printf '{"set":"%s","condition":"%s","config":"%s","result":%s}\n' "$1" "$2" "$3" "$4" >>"$rows"; }
 
+# The current condition ($label $exposure $gains $noise, set by the loop below).
+perturb() {  # name source: a copy of the recording under the condition
+  local copy="$out/$1-$label"
+  rm -rf "$copy"
+  tools/perturb-recording.py "$2" "$copy" --exposure "$exposure" --gains "$gains" --noise-dn "$noise"
+  echo "$copy"
+}
+iou() {  # name recording gt_vegetation [--set ...]
+  local name=$1 recording=$2 gt=$3
+  shift 3
+  "$bin/tools/stemd-detect" --config config/stemd.yaml "$@" "$recording" --mask-out "$recording/masks-out" \
+    >/dev/null 2>"$recording/detect.log"
+  row "$name" "$label" default \
+    "$("$bin/tools/stemd-eval" --iou "$recording/masks-out" "$recording" --gt-vegetation "$gt" --json)"
+}
+
 # A CWFID copy as a recording with masks (cwfid-recording.sh's frames.csv).
 cwfid=""
 if [ -d "$data/cwfid-train/images" ]; then
@@ -51,20 +67,6 @@ fi
 
 for condition in "${conditions[@]}"; do
   read -r label exposure gains noise <<<"$condition"
-  perturb() {  # name source
-    local copy="$out/$1-$label"
-    rm -rf "$copy"
-    tools/perturb-recording.py "$2" "$copy" --exposure "$exposure" --gains "$gains" --noise-dn "$noise"
-    echo "$copy"
-  }
-  iou() {  # name recording gt_vegetation [--set ...]
-    local name=$1 recording=$2 gt=$3
-    shift 3
-    "$bin/tools/stemd-detect" --config config/stemd.yaml "$@" "$recording" --mask-out "$recording/masks-out" \
-      >/dev/null 2>"$recording/detect.log"
-    row "$name" "$label" default \
-      "$("$bin/tools/stemd-eval" --iou "$recording/masks-out" "$recording" --gt-vegetation "$gt" --json)"
-  }
   if [ -f "$data/carrot-dev/frames.csv" ]; then
     iou carrot-dev "$(perturb carrot-dev "$data/carrot-dev")" nonzero
   fi
