@@ -285,7 +285,7 @@ void compute_index(const FrameView& frame, Segmentation method, const Params& pa
     }
     cv::Mat& index = params.smooth_index ? ws.raw_index_ : ws.index_;
     if (method == Segmentation::ndvi)
-        ndvi(frame.bgr, frame.nir, ws.ndvi_table_, index);
+        ndvi(frame.bgr, frame.nir, index);
     else if (method == Segmentation::chromatic_exg)
         chromatic_excess_green(frame.bgr, index);
     else
@@ -633,7 +633,7 @@ std::size_t Workspace::reserved_bytes() const
            (piece_group_.capacity() + piece_order_.capacity() + group_rank_.capacity()) * sizeof(int) +
            piece_plant_.capacity() * sizeof(std::uint16_t) + piece_rosette_.capacity() + labels_.reserved_bytes() + components_.capacity() * sizeof(Component) +
            contour_.capacity() * sizeof(cv::Point) + (hull_.capacity() + hull_order_.capacity()) * sizeof(int) +
-           defects_.capacity() * sizeof(Defect) + sizeof(NdviTable) + sparse_.reserved_bytes();
+           defects_.capacity() * sizeof(Defect) + sparse_.reserved_bytes();
 }
 
 Detections detect(const FrameView& frame, const Params& params)

@@ -200,18 +200,15 @@ void smooth_binomial3(const cv::Mat& src_u8, std::uint16_t* row_sums, cv::Mat& d
     smooth_binomial3_rect(src_u8, cv::Rect(0, 0, src_u8.cols, src_u8.rows), row_sums, dst_u8);
 }
 
-NdviTable::NdviTable()
+int ndvi_index(int nir, int red)
 {
-    for (int nir = 0; nir < 256; ++nir) {
-        for (int red = 0; red < 256; ++red) {
-            const int sum = nir + red;
-            const double ndvi = sum == 0 ? 0.0 : static_cast<double>(nir - red) / sum;
-            table_[(nir << 8) | red] = static_cast<std::uint8_t>(std::lround((ndvi + 1.0) * 127.5));
-        }
-    }
+    // (ndvi + 1) * 127.5 = 255 NIR / (NIR + R), rounded half up in integers:
+    // exact, where the same sum in doubles lands just below some halves.
+    const int sum = nir + red;
+    return sum == 0 ? 128 : (510 * nir + sum) / (2 * sum);
 }
 
-void ndvi(const cv::Mat& bgr, const cv::Mat& nir, const NdviTable& table, cv::Mat& index_u8)
+void ndvi(const cv::Mat& bgr, const cv::Mat& nir, cv::Mat& index_u8)
 {
     CV_Assert(bgr.type() == CV_8UC3 && nir.type() == CV_8UC1 && bgr.size() == nir.size());
     index_u8.create(bgr.size(), CV_8UC1);
@@ -220,8 +217,42 @@ void ndvi(const cv::Mat& bgr, const cv::Mat& nir, const NdviTable& table, cv::Ma
         const std::uint8_t* src = bgr.ptr<std::uint8_t>(y);
         const std::uint8_t* near_infrared = nir.ptr<std::uint8_t>(y);
         std::uint8_t* dst = index_u8.ptr<std::uint8_t>(y);
-        for (int x = 0; x < width; ++x)
-            dst[x] = table(near_infrared[x], src[3 * x + 2]);
+        int x = 0;
+#if CV_SIMD
+        // The quotient in float32, as fast as lookups in a 64 KiB table on a
+        // quiet core and faster when other work shares the cache. Exact: 255 NIR
+        // is exact in float32, and a quotient that is not a half lies at
+        // least 1 / (2 (NIR + R)) >= 1 / 1020 from one, far beyond float32's
+        // rounding at 255, so adding 0.5 and truncating rounds half up as
+        // ndvi_index does (checked on all 65 536 pairs in the tests). A
+        // zero sum becomes 128 / 1.
+        const int lanes = cv::v_uint8::nlanes;
+        const cv::v_float32 full_scale = cv::vx_setall_f32(255.0f), neutral = cv::vx_setall_f32(128.0f);
+        const cv::v_float32 zero = cv::vx_setzero_f32(), one = cv::vx_setall_f32(1.0f), half = cv::vx_setall_f32(0.5f);
+        auto quarter = [&](const cv::v_uint32& n, const cv::v_uint32& r) {
+            const cv::v_float32 near = cv::v_cvt_f32(cv::v_reinterpret_as_s32(n));
+            const cv::v_float32 sum = cv::v_cvt_f32(cv::v_reinterpret_as_s32(n + r));
+            const cv::v_float32 numerator = near * full_scale + ((sum == zero) & neutral);
+            return cv::v_trunc(numerator / cv::v_max(sum, one) + half);
+        };
+        for (; x + lanes <= width; x += lanes) {
+            cv::v_uint8 b, g, r;
+            cv::v_load_deinterleave(src + 3 * x, b, g, r);
+            cv::v_uint16 n0, n1, r0, r1;
+            cv::v_expand(cv::vx_load(near_infrared + x), n0, n1);
+            cv::v_expand(r, r0, r1);
+            cv::v_uint32 n00, n01, n10, n11, r00, r01, r10, r11;
+            cv::v_expand(n0, n00, n01);
+            cv::v_expand(n1, n10, n11);
+            cv::v_expand(r0, r00, r01);
+            cv::v_expand(r1, r10, r11);
+            const cv::v_int16 lo = cv::v_pack(quarter(n00, r00), quarter(n01, r01));
+            const cv::v_int16 hi = cv::v_pack(quarter(n10, r10), quarter(n11, r11));
+            cv::v_store(dst + x, cv::v_pack_u(lo, hi));
+        }
+#endif
+        for (; x < width; ++x)
+            dst[x] = static_cast<std::uint8_t>(ndvi_index(near_infrared[x], src[3 * x + 2]));
     }
 }
 

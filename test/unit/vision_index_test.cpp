@@ -31,30 +31,55 @@ TEST(ExcessGreen, MapsTheFullRangeLinearly)
     EXPECT_EQ(index.at<std::uint8_t>(0, 5), (512 - 255) / 4);
 }
 
-TEST(Ndvi, TableMatchesTheFormula)
+TEST(Ndvi, IndexIsTheNearestLevelHalvesUp)
 {
-    const NdviTable table;
-    EXPECT_EQ(table(0, 0), 128);      // no light: ndvi 0
-    EXPECT_EQ(table(255, 0), 255);    // +1
-    EXPECT_EQ(table(0, 255), 0);      // -1
-    EXPECT_EQ(table(100, 100), 128);  // 0
-    for (int nir = 0; nir < 256; nir += 17) {
-        for (int red = 1; red < 256; red += 13) {
-            const double ndvi = static_cast<double>(nir - red) / (nir + red);
-            EXPECT_EQ(table(nir, red), std::lround((ndvi + 1) * 127.5)) << nir << " " << red;
+    EXPECT_EQ(ndvi_index(0, 0), 128);      // no light: ndvi 0
+    EXPECT_EQ(ndvi_index(255, 0), 255);    // +1
+    EXPECT_EQ(ndvi_index(0, 255), 0);      // -1
+    EXPECT_EQ(ndvi_index(100, 100), 128);  // 0: 127.5, rounded up
+    EXPECT_EQ(ndvi_index(1, 9), 26);       // ndvi -0.8: 25.5 exactly, rounded up
+    for (int nir = 0; nir < 256; ++nir) {
+        for (int red = 0; red < 256; ++red) {
+            if (nir + red == 0)
+                continue;
+            // The nearest level to (ndvi + 1) * 127.5.
+            const double level = 255.0 * nir / (nir + red);
+            const int index = ndvi_index(nir, red);
+            ASSERT_LE(std::abs(index - level), 0.5) << nir << " " << red;
+            if (std::abs(index - level) == 0.5) {
+                ASSERT_GT(index, level) << nir << " " << red;
+            }
         }
     }
+}
+
+TEST(Ndvi, VectorPathEqualsTheIndexOnEveryPair)
+{
+    // Row = NIR, column = red (twice over, plus a tail the vector loop
+    // leaves to the scalar one), blue and green at random.
+    cv::Mat bgr(256, 2 * 256 + 7, CV_8UC3), nir(bgr.size(), CV_8UC1);
+    cv::randu(bgr, 0, 256);
+    for (int y = 0; y < bgr.rows; ++y) {
+        for (int x = 0; x < bgr.cols; ++x) {
+            bgr.at<cv::Vec3b>(y, x)[2] = static_cast<std::uint8_t>(x % 256);
+            nir.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(y);
+        }
+    }
+    cv::Mat index;
+    ndvi(bgr, nir, index);
+    for (int y = 0; y < bgr.rows; ++y)
+        for (int x = 0; x < bgr.cols; ++x)
+            ASSERT_EQ(index.at<std::uint8_t>(y, x), ndvi_index(y, x % 256)) << "nir " << y << " red " << x % 256;
 }
 
 TEST(Ndvi, UsesTheRedPlaneAndTheNirImage)
 {
     cv::Mat bgr(2, 2, CV_8UC3, cv::Scalar(7, 9, 50));  // red = 50
     cv::Mat nir(2, 2, CV_8UC1, cv::Scalar(150));
-    const NdviTable table;
     cv::Mat index;
-    ndvi(bgr, nir, table, index);
-    EXPECT_EQ(index.at<std::uint8_t>(1, 1), table(150, 50));
-    EXPECT_EQ(index.at<std::uint8_t>(1, 1), std::lround((100.0 / 200.0 + 1) * 127.5));
+    ndvi(bgr, nir, index);
+    EXPECT_EQ(index.at<std::uint8_t>(1, 1), ndvi_index(150, 50));
+    EXPECT_EQ(index.at<std::uint8_t>(1, 1), std::lround((100.0 / 200.0 + 1) * 127.5));  // 191.25
 }
 
 TEST(ExcessGreen, VectorPathEqualsTheFormulaOnEveryPixel)

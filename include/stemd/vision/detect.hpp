@@ -60,7 +60,6 @@ private:
                                 std::int64_t&);
     cv::Size frame_size_;
     int reserved_radius_px_ = 0;
-    NdviTable ndvi_table_;
     cv::Mat raw_index_;                     // before smoothing
     cv::Mat index_;                         // what the threshold sees
     cv::Mat green_index_;                   // exg_and_ndvi: chromatic ExG where the greenness test reads it

@@ -50,18 +50,12 @@ void smooth_binomial3(const cv::Mat& src_u8, std::uint16_t* row_sums, cv::Mat& d
 // `dst` must be allocated at src's size.
 void smooth_binomial3_rect(const cv::Mat& src_u8, cv::Rect rect, std::uint16_t* row_sums, cv::Mat& dst_u8);
 
-// NDVI (NIR - R) / (NIR + R) in [-1, 1], mapped to round((ndvi + 1) * 127.5);
-// NIR + R = 0 gives 128 (ndvi 0). One 256x256 table replaces the division.
-class NdviTable {
-public:
-    NdviTable();
-    std::uint8_t operator()(std::uint8_t nir, std::uint8_t red) const { return table_[(nir << 8) | red]; }
-
-private:
-    std::array<std::uint8_t, 256 * 256> table_;
-};
-// `bgr` is CV_8UC3 (its red plane is used), `nir` CV_8UC1 of the same size.
-void ndvi(const cv::Mat& bgr, const cv::Mat& nir, const NdviTable& table, cv::Mat& index_u8);
+// NDVI (NIR - R) / (NIR + R) in [-1, 1], mapped to (ndvi + 1) * 127.5 =
+// 255 NIR / (NIR + R) rounded half up; NIR + R = 0 gives 128 (ndvi 0).
+int ndvi_index(int nir, int red);
+// `bgr` is CV_8UC3 (its red plane is used), `nir` CV_8UC1 of the same size;
+// equal to ndvi_index on every pixel.
+void ndvi(const cv::Mat& bgr, const cv::Mat& nir, cv::Mat& index_u8);
 
 // The soil's colour under this frame's light: the mean B, G and R of the
 // pixels outside `vegetation` on row 4 of each band of kBrightnessRowStep
