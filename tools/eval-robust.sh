@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The real sets of DATA_DIR under other light and a noisier sensor
-# (tools/perturb-recording.py: exposure, colour cast, gain noise), each
+# (tools/perturb-recording.py: exposure, colour cast, vignetting, gain
+# noise), each
 # through the default configuration, in one table: mask IoU on carrot-dev
 # and cwfid-train against their human masks, and BoniRob's stems from
 # RGB+NIR and from RGB alone. The first row of each set is the frames as
@@ -25,28 +26,32 @@ mkdir -p "$out"
 rows="$out/rows.jsonl"
 : >"$rows"
 
-# label exposure gains noise_dn: the conditions, each a plausible field
-# departure from the recorded frames (two stops under, a 25 % warm or cool
-# cast, read noise of a few DN) and the two combined.
+# label exposure gains noise_dn vignetting: the conditions, each a
+# plausible field departure from the recorded frames (two stops under, a
+# 25 % warm or cool cast, read noise of a few DN, a lens's cos^4 falloff to
+# one or two stops at the corners) and exposure and noise combined.
 conditions=(
-  "as-recorded 1 1,1,1 0"
-  "exposure-0.5 0.5 1,1,1 0"
-  "exposure-0.25 0.25 1,1,1 0"
-  "warm-cast 1 0.8,1,1.25 0"
-  "cool-cast 1 1.25,1,0.8 0"
-  "noise-2dn 1 1,1,1 2"
-  "noise-4dn 1 1,1,1 4"
-  "exposure-0.5+noise-2dn 0.5 1,1,1 2"
-  "exposure-0.3+noise-2dn 0.3 1,1,1 2"
+  "as-recorded 1 1,1,1 0 1"
+  "exposure-0.5 0.5 1,1,1 0 1"
+  "exposure-0.25 0.25 1,1,1 0 1"
+  "warm-cast 1 0.8,1,1.25 0 1"
+  "cool-cast 1 1.25,1,0.8 0 1"
+  "vignetting-0.5 1 1,1,1 0 0.5"
+  "vignetting-0.25 1 1,1,1 0 0.25"
+  "noise-2dn 1 1,1,1 2 1"
+  "noise-4dn 1 1,1,1 4 1"
+  "exposure-0.5+noise-2dn 0.5 1,1,1 2 1"
+  "exposure-0.3+noise-2dn 0.3 1,1,1 2 1"
 )
 
 row() { printf '{"set":"%s","condition":"%s","config":"%s","result":%s}\n' "$1" "$2" "$3" "$4" >>"$rows"; }
 
-# The current condition ($label $exposure $gains $noise, set by the loop below).
+# The current condition ($label $exposure $gains $noise $vignetting, set by the loop below).
 perturb() {  # name source: a copy of the recording under the condition
   local copy="$out/$1-$label"
   rm -rf "$copy"
-  tools/perturb-recording.py "$2" "$copy" --exposure "$exposure" --gains "$gains" --noise-dn "$noise"
+  tools/perturb-recording.py "$2" "$copy" --exposure "$exposure" --gains "$gains" --noise-dn "$noise" \
+    --vignetting "$vignetting"
   echo "$copy"
 }
 iou() {  # name recording gt_vegetation [--set ...]
@@ -66,7 +71,7 @@ if [ -d "$data/cwfid-train/images" ]; then
 fi
 
 for condition in "${conditions[@]}"; do
-  read -r label exposure gains noise <<<"$condition"
+  read -r label exposure gains noise vignetting <<<"$condition"
   if [ -f "$data/carrot-dev/frames.csv" ]; then
     iou carrot-dev "$(perturb carrot-dev "$data/carrot-dev")" nonzero
   fi

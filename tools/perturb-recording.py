@@ -8,6 +8,9 @@ perturbation is the only change):
                   larger still), rgb and nir alike;
   --gains B,G,R   each colour channel times its gain: a colour cast of the
                   light or of the white balance (nir untouched);
+  --vignetting C  the lens's natural falloff, cos^4 of the field angle,
+                  scaled so the frame's corners get C of the centre's light
+                  (0.5: one stop darker at the corners), rgb and nir alike;
   --noise-dn S    Gaussian noise of S digital numbers added after the
                   scaling, as a sensor's read and gain noise: at a lower
                   exposure the same S is a larger share of the signal.
@@ -16,7 +19,8 @@ other column are kept (paths made absolute), so stemd-eval --iou and
 stemd-detect run on the copy as on the original.
 
   tools/perturb-recording.py SRC_RECORDING DST_DIR [--exposure K]
-                             [--gains B,G,R] [--noise-dn S] [--seed N]
+                             [--gains B,G,R] [--vignetting C] [--noise-dn S]
+                             [--seed N]
 
 Needs python3-opencv and python3-numpy (Debian).
 """
@@ -39,17 +43,33 @@ def gains(text):
     return values
 
 
+def falloff(shape, corner):
+    """Relative illumination over a frame: cos^4 of the field angle, the
+    angle's tangent growing linearly with the distance from the centre,
+    with the value at the corners `corner`."""
+    height, width = shape[:2]
+    y, x = np.mgrid[0:height, 0:width].astype(np.float32)
+    half_diagonal = np.hypot((width - 1) / 2.0, (height - 1) / 2.0)
+    rho2 = ((x - (width - 1) / 2.0) ** 2 + (y - (height - 1) / 2.0) ** 2) / max(half_diagonal, 1.0) ** 2
+    # cos^4(atan(t)) = 1 / (1 + t^2)^2, with t^2 = a rho^2 and (1 + a)^-2 = corner.
+    a = 1.0 / np.sqrt(corner) - 1.0
+    return (1.0 / (1.0 + a * rho2) ** 2).astype(np.float32)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("src")
     parser.add_argument("dst")
     parser.add_argument("--exposure", type=float, default=1.0)
     parser.add_argument("--gains", type=gains, default=[1.0, 1.0, 1.0])
+    parser.add_argument("--vignetting", type=float, default=1.0)
     parser.add_argument("--noise-dn", type=float, default=0.0)
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
     if args.exposure < 0 or args.noise_dn < 0:
         parser.error("--exposure and --noise-dn are not negative")
+    if not 0 < args.vignetting <= 1:
+        parser.error("--vignetting is the corners' share of the centre's light, in (0, 1]")
     listing = os.path.join(args.src, "frames.csv")
     try:
         with open(listing, newline="") as f:
@@ -68,6 +88,9 @@ def main():
 
     def write(image, scale, name):
         out = image.astype(np.float32) * scale
+        if args.vignetting < 1:
+            field = falloff(image.shape, args.vignetting)
+            out *= field[..., None] if out.ndim == 3 else field
         if args.noise_dn > 0:
             out += rng.normal(0.0, args.noise_dn, out.shape).astype(np.float32)
         path = os.path.join(args.dst, name)

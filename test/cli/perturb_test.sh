@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # tools/perturb-recording.py on a generated recording: exposure and gains
-# scale each channel (nir by the exposure alone), noise is reproducible for
+# scale each channel (nir by the exposure alone), vignetting darkens the
+# corners to the asked share and leaves the centre, noise is reproducible for
 # a seed, masks stay where they were, the copy is a recording stemd-detect
 # reads, and bad arguments exit 2 naming the option.
 #   perturb_test.sh TOOLS_DIR SOURCE_DIR
@@ -36,6 +37,31 @@ for ra, rb in zip(a, b):
         assert os.path.samefile(path(src, ra["mask"]), rb["mask"]), (ra["mask"], rb["mask"])
 PY
 
+"$perturb" "$tmp/rec" "$tmp/vignetted" --vignetting 0.25 >/dev/null || fail "perturb --vignetting exited $?"
+/usr/bin/python3 - "$tmp/rec" "$tmp/vignetted" <<'PY' || fail "vignetting"
+import csv, os, sys
+import cv2, numpy as np
+src, dst = sys.argv[1:]
+ra = next(csv.DictReader(open(os.path.join(src, "frames.csv"))))
+rb = next(csv.DictReader(open(os.path.join(dst, "frames.csv"))))
+def path(d, p): return p if os.path.isabs(p) else os.path.join(d, p)
+for column, flags in (("rgb", cv2.IMREAD_COLOR), ("nir", cv2.IMREAD_GRAYSCALE)):
+    a = cv2.imread(path(src, ra[column]), flags).astype(np.float64)
+    b = cv2.imread(path(dst, rb[column]), flags).astype(np.float64)
+    h, w = a.shape[:2]
+    # The corners get a quarter of the light, each value rounded to 8 bits.
+    for y, x in ((0, 0), (0, w - 1), (h - 1, 0), (h - 1, w - 1)):
+        assert np.abs(b[y, x] - a[y, x] * 0.25).max() <= 0.501, (column, y, x, a[y, x], b[y, x])
+    # The centre keeps its light; halfway to a corner, cos^4 gives
+    # 1 / (1 + a / 4)^2 with (1 + a)^2 = 4: a = 1, so 0.64.
+    assert np.abs(b[h // 2, w // 2] - a[h // 2, w // 2]).max() <= 1, column
+    ys, xs = (h - 1) // 4, (w - 1) // 4
+    bright = a[ys - 2:ys + 3, xs - 2:xs + 3].sum()
+    assert bright > 0
+    share = b[ys - 2:ys + 3, xs - 2:xs + 3].sum() / bright
+    assert 0.6 < share < 0.68, (column, share)
+PY
+
 "$perturb" "$tmp/rec" "$tmp/noisy1" --noise-dn 3 --seed 4 >/dev/null
 "$perturb" "$tmp/rec" "$tmp/noisy2" --noise-dn 3 --seed 4 >/dev/null
 first=$(head -2 "$tmp/rec/frames.csv" | tail -1 | cut -d, -f2)
@@ -61,6 +87,10 @@ set +e
 "$perturb" "$tmp/rec" "$tmp/bad" --gains 1,2 >/dev/null 2>"$tmp/err"; rc=$?
 set -e
 [ $rc -eq 2 ] && grep -q -- "--gains" "$tmp/err" || fail "bad --gains: rc $rc, $(cat "$tmp/err")"
+set +e
+"$perturb" "$tmp/rec" "$tmp/bad" --vignetting 0 >/dev/null 2>"$tmp/err"; rc=$?
+set -e
+[ $rc -eq 2 ] && grep -q -- "--vignetting" "$tmp/err" || fail "bad --vignetting: rc $rc, $(cat "$tmp/err")"
 set +e
 "$perturb" "$tmp/missing" "$tmp/bad" >/dev/null 2>"$tmp/err"; rc=$?
 set -e
