@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
 # The real sets of DATA_DIR under other light and a noisier sensor
-# (tools/perturb-recording.py: exposure, colour cast, vignetting, gain
-# noise), each
+# (tools/perturb-recording.py: exposure, colour cast, vignetting, motion
+# blur, gain noise, MJPEG compression), each
 # through the default configuration, in one table: mask IoU on carrot-dev
 # and cwfid-train against their human masks, and BoniRob's stems from
 # RGB+NIR and from RGB alone. The first row of each set is the frames as
 # recorded (re-written as PNG, so it matches tools/eval-real.sh).
 #   tools/eval-robust.sh [DATA_DIR] [OUT_DIR]    (defaults: ../shared/data, out/eval-robust)
-# Builds Release first when the tools are missing. About 4 minutes.
+# Builds Release first when the tools are missing. About 5 minutes.
 # Exit 0 when the table was made; 77 (skip) when DATA_DIR is absent.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -26,32 +26,40 @@ mkdir -p "$out"
 rows="$out/rows.jsonl"
 : >"$rows"
 
-# label exposure gains noise_dn vignetting: the conditions, each a
-# plausible field departure from the recorded frames (two stops under, a
-# 25 % warm or cool cast, read noise of a few DN, a lens's cos^4 falloff to
-# one or two stops at the corners) and exposure and noise combined.
+# label exposure gains noise_dn vignetting blur_px yuyv jpeg_quality: the
+# conditions, each a plausible field departure from the recorded frames
+# (two stops under, a 25 % warm or cool cast, a lens's cos^4 falloff to one
+# or two stops at the corners, 5 px of travel during the exposure, read
+# noise of a few DN, the colour at half horizontal resolution of the V4L2
+# source's default YUYV, a USB camera's MJPEG at quality 75 and 50) and
+# exposure and noise combined.
 conditions=(
-  "as-recorded 1 1,1,1 0 1"
-  "exposure-0.5 0.5 1,1,1 0 1"
-  "exposure-0.25 0.25 1,1,1 0 1"
-  "warm-cast 1 0.8,1,1.25 0 1"
-  "cool-cast 1 1.25,1,0.8 0 1"
-  "vignetting-0.5 1 1,1,1 0 0.5"
-  "vignetting-0.25 1 1,1,1 0 0.25"
-  "noise-2dn 1 1,1,1 2 1"
-  "noise-4dn 1 1,1,1 4 1"
-  "exposure-0.5+noise-2dn 0.5 1,1,1 2 1"
-  "exposure-0.3+noise-2dn 0.3 1,1,1 2 1"
+  "as-recorded 1 1,1,1 0 1 1 0 0"
+  "exposure-0.5 0.5 1,1,1 0 1 1 0 0"
+  "exposure-0.25 0.25 1,1,1 0 1 1 0 0"
+  "warm-cast 1 0.8,1,1.25 0 1 1 0 0"
+  "cool-cast 1 1.25,1,0.8 0 1 1 0 0"
+  "vignetting-0.5 1 1,1,1 0 0.5 1 0 0"
+  "vignetting-0.25 1 1,1,1 0 0.25 1 0 0"
+  "motion-blur-5px 1 1,1,1 0 1 5 0 0"
+  "yuyv-422 1 1,1,1 0 1 1 1 0"
+  "mjpeg-q75 1 1,1,1 0 1 1 0 75"
+  "mjpeg-q50 1 1,1,1 0 1 1 0 50"
+  "noise-2dn 1 1,1,1 2 1 1 0 0"
+  "noise-4dn 1 1,1,1 4 1 1 0 0"
+  "exposure-0.5+noise-2dn 0.5 1,1,1 2 1 1 0 0"
+  "exposure-0.3+noise-2dn 0.3 1,1,1 2 1 1 0 0"
 )
 
 row() { printf '{"set":"%s","condition":"%s","config":"%s","result":%s}\n' "$1" "$2" "$3" "$4" >>"$rows"; }
 
-# The current condition ($label $exposure $gains $noise $vignetting, set by the loop below).
+# The current condition ($label $exposure $gains $noise $vignetting $blur $yuyv $jpeg, set by the loop below).
 perturb() {  # name source: a copy of the recording under the condition
-  local copy="$out/$1-$label"
+  local copy="$out/$1-$label" camera=()
   rm -rf "$copy"
+  if [ "$yuyv" = 1 ]; then camera=(--yuyv); fi
   tools/perturb-recording.py "$2" "$copy" --exposure "$exposure" --gains "$gains" --noise-dn "$noise" \
-    --vignetting "$vignetting"
+    --vignetting "$vignetting" --motion-blur-px "$blur" "${camera[@]}" --jpeg-quality "$jpeg"
   echo "$copy"
 }
 iou() {  # name recording gt_vegetation [--set ...]
@@ -71,7 +79,7 @@ if [ -d "$data/cwfid-train/images" ]; then
 fi
 
 for condition in "${conditions[@]}"; do
-  read -r label exposure gains noise vignetting <<<"$condition"
+  read -r label exposure gains noise vignetting blur yuyv jpeg <<<"$condition"
   if [ -f "$data/carrot-dev/frames.csv" ]; then
     iou carrot-dev "$(perturb carrot-dev "$data/carrot-dev")" nonzero
   fi

@@ -11,16 +11,30 @@ perturbation is the only change):
   --vignetting C  the lens's natural falloff, cos^4 of the field angle,
                   scaled so the frame's corners get C of the centre's light
                   (0.5: one stop darker at the corners), rgb and nir alike;
+  --motion-blur-px L
+                  the travel during the exposure: each value the mean of L
+                  pixels along the image's columns (the direction of travel
+                  for camera.forward up or down), on the stored values, rgb
+                  and nir alike;
   --noise-dn S    Gaussian noise of S digital numbers added after the
                   scaling, as a sensor's read and gain noise: at a lower
-                  exposure the same S is a larger share of the signal.
+                  exposure the same S is a larger share of the signal;
+  --yuyv          the rgb frame as a V4L2 camera's YUYV (4:2:2) gives it:
+                  BT.601 limited-range Y, U, V, each horizontal pair of
+                  pixels sharing the mean of their U and V, decoded by
+                  OpenCV's COLOR_YUV2BGR_YUYV as stemd's V4L2 source does;
+  --jpeg-quality Q
+                  last, the frame encoded as a camera's MJPEG stream
+                  would be (OpenCV's JPEG at quality Q, colour at half
+                  resolution: 4:2:0) and decoded again.
 Values are rounded and saturated to 8 bits. Masks, class maps and every
 other column are kept (paths made absolute), so stemd-eval --iou and
 stemd-detect run on the copy as on the original.
 
   tools/perturb-recording.py SRC_RECORDING DST_DIR [--exposure K]
-                             [--gains B,G,R] [--vignetting C] [--noise-dn S]
-                             [--seed N]
+                             [--gains B,G,R] [--vignetting C]
+                             [--motion-blur-px L] [--noise-dn S] [--yuyv]
+                             [--jpeg-quality Q] [--seed N]
 
 Needs python3-opencv and python3-numpy (Debian).
 """
@@ -56,6 +70,28 @@ def falloff(shape, corner):
     return (1.0 / (1.0 + a * rho2) ** 2).astype(np.float32)
 
 
+def through_yuyv(bgr):
+    """An 8-bit BGR frame through a camera's YUYV: BT.601 limited range, the
+    chroma of each horizontal pair of pixels averaged, then OpenCV's decoder."""
+    f = bgr.astype(np.float32)
+    b, g, r = f[..., 0], f[..., 1], f[..., 2]
+    y = 16 + (65.481 * r + 128.553 * g + 24.966 * b) / 255
+    u = 128 + (-37.797 * r - 74.203 * g + 112.0 * b) / 255
+    v = 128 + (112.0 * r - 93.786 * g - 18.214 * b) / 255
+    height, width = y.shape
+    even = width - width % 2
+    packed = np.empty((height, width, 2), np.uint8)
+    packed[..., 0] = np.clip(np.rint(y), 0, 255)
+    u_pair = (u[:, 0:even:2] + u[:, 1:even:2]) / 2
+    v_pair = (v[:, 0:even:2] + v[:, 1:even:2]) / 2
+    packed[:, 0:even:2, 1] = np.clip(np.rint(u_pair), 0, 255)
+    packed[:, 1:even:2, 1] = np.clip(np.rint(v_pair), 0, 255)
+    if even < width:  # an odd last column keeps its own chroma in U only
+        packed[:, -1, 1] = np.clip(np.rint(u[:, -1]), 0, 255)
+    return cv2.cvtColor(packed[:, :even], cv2.COLOR_YUV2BGR_YUYV) if even == width else np.concatenate(
+        [cv2.cvtColor(np.ascontiguousarray(packed[:, :even]), cv2.COLOR_YUV2BGR_YUYV), bgr[:, even:]], axis=1)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("src")
@@ -63,13 +99,20 @@ def main():
     parser.add_argument("--exposure", type=float, default=1.0)
     parser.add_argument("--gains", type=gains, default=[1.0, 1.0, 1.0])
     parser.add_argument("--vignetting", type=float, default=1.0)
+    parser.add_argument("--motion-blur-px", type=int, default=1)
     parser.add_argument("--noise-dn", type=float, default=0.0)
+    parser.add_argument("--yuyv", action="store_true")
+    parser.add_argument("--jpeg-quality", type=int, default=0)
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
     if args.exposure < 0 or args.noise_dn < 0:
         parser.error("--exposure and --noise-dn are not negative")
     if not 0 < args.vignetting <= 1:
         parser.error("--vignetting is the corners' share of the centre's light, in (0, 1]")
+    if args.motion_blur_px < 1:
+        parser.error("--motion-blur-px is a length in pixels, at least 1")
+    if args.jpeg_quality and not 1 <= args.jpeg_quality <= 100:
+        parser.error("--jpeg-quality is in [1, 100] (0: no JPEG)")
     listing = os.path.join(args.src, "frames.csv")
     try:
         with open(listing, newline="") as f:
@@ -91,10 +134,21 @@ def main():
         if args.vignetting < 1:
             field = falloff(image.shape, args.vignetting)
             out *= field[..., None] if out.ndim == 3 else field
+        if args.motion_blur_px > 1:
+            kernel = np.full((args.motion_blur_px, 1), 1.0 / args.motion_blur_px, np.float32)
+            out = cv2.filter2D(out, -1, kernel, borderType=cv2.BORDER_REPLICATE)
         if args.noise_dn > 0:
             out += rng.normal(0.0, args.noise_dn, out.shape).astype(np.float32)
+        values = np.clip(np.rint(out), 0, 255).astype(np.uint8)
+        if args.yuyv and values.ndim == 3:
+            values = through_yuyv(values)
+        if args.jpeg_quality:
+            ok, encoded = cv2.imencode(".jpg", values, [cv2.IMWRITE_JPEG_QUALITY, args.jpeg_quality])
+            if not ok:
+                sys.exit(f"perturb-recording: {name}: cannot encode as JPEG")
+            values = cv2.imdecode(encoded, cv2.IMREAD_UNCHANGED)
         path = os.path.join(args.dst, name)
-        if not cv2.imwrite(path, np.clip(np.rint(out), 0, 255).astype(np.uint8)):
+        if not cv2.imwrite(path, values):
             sys.exit(f"perturb-recording: {path}: cannot write")
 
     def png_name(path, prefix=""):

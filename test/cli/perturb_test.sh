@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # tools/perturb-recording.py on a generated recording: exposure and gains
 # scale each channel (nir by the exposure alone), vignetting darkens the
-# corners to the asked share and leaves the centre, noise is reproducible for
+# corners to the asked share and leaves the centre, motion blur runs along
+# the columns only, YUYV shares colour between horizontal pairs, JPEG
+# stays near its input, noise is reproducible for
 # a seed, masks stay where they were, the copy is a recording stemd-detect
 # reads, and bad arguments exit 2 naming the option.
 #   perturb_test.sh TOOLS_DIR SOURCE_DIR
@@ -62,6 +64,52 @@ for column, flags in (("rgb", cv2.IMREAD_COLOR), ("nir", cv2.IMREAD_GRAYSCALE)):
     assert 0.6 < share < 0.68, (column, share)
 PY
 
+# Stripes: columns of alternating colour (constant down each column) and
+# rows of alternating brightness (constant along each row).
+/usr/bin/python3 - "$tmp/stripes" <<'PY' || fail "writing the stripes"
+import os, sys
+import cv2, numpy as np
+d = sys.argv[1]
+os.makedirs(d)
+columns = np.zeros((32, 64, 3), np.uint8)
+columns[:, 0::2] = (30, 160, 60)    # green leaf
+columns[:, 1::2] = (40, 70, 120)    # reddish soil
+rows = np.zeros((32, 64, 3), np.uint8)
+rows[0::2] = 50
+rows[1::2] = 150
+cv2.imwrite(os.path.join(d, "columns.png"), columns)
+cv2.imwrite(os.path.join(d, "rows.png"), rows)
+open(os.path.join(d, "frames.csv"), "w").write("t_ns,rgb\n0,columns.png\n1,rows.png\n")
+PY
+"$perturb" "$tmp/stripes" "$tmp/blurred" --motion-blur-px 5 >/dev/null || fail "perturb --motion-blur-px exited $?"
+"$perturb" "$tmp/stripes" "$tmp/yuyv" --yuyv >/dev/null || fail "perturb --yuyv exited $?"
+"$perturb" "$tmp/rec" "$tmp/jpeg" --jpeg-quality 50 >/dev/null || fail "perturb --jpeg-quality exited $?"
+/usr/bin/python3 - "$tmp" <<'PY' || fail "motion blur, YUYV, JPEG"
+import csv, os, sys
+import cv2, numpy as np
+t = sys.argv[1]
+def image(d, name): return cv2.imread(os.path.join(t, d, name)).astype(np.float64)
+# Travel runs down the columns: a pattern constant down them is kept, one
+# that alternates down them is averaged to its mean (5 rows: 3 of one, 2
+# of the other, so within 20 DN of 100).
+assert np.array_equal(image("blurred", "columns.png"), image("stripes", "columns.png"))
+middle = image("blurred", "rows.png")[4:-4]
+assert np.abs(middle - 100).max() <= 20, np.abs(middle - 100).max()
+# YUYV: each horizontal pair shares its colour, so the leaf and soil
+# columns come out with nearly the same hue; a flat field keeps its values.
+yuyv = image("yuyv", "columns.png")
+colour = yuyv[..., 1] - yuyv[..., 2]                 # G - R
+stripes = image("stripes", "columns.png")
+assert np.abs(colour[:, 0::2] - colour[:, 1::2]).max() < 0.2 * np.abs(stripes[:, 0::2, 1] - stripes[:, 0::2, 2] - (stripes[:, 1::2, 1] - stripes[:, 1::2, 2])).min()
+assert np.abs(image("yuyv", "rows.png") - image("stripes", "rows.png")).max() <= 1
+# JPEG at quality 50 changes a field frame's values but keeps the picture.
+ra = next(csv.DictReader(open(os.path.join(t, "rec", "frames.csv"))))
+rb = next(csv.DictReader(open(os.path.join(t, "jpeg", "frames.csv"))))
+source = cv2.imread(ra["rgb"] if os.path.isabs(ra["rgb"]) else os.path.join(t, "rec", ra["rgb"])).astype(np.float64)
+jpeg = image("jpeg", rb["rgb"])
+assert 0 < np.abs(jpeg - source).mean() < 8, np.abs(jpeg - source).mean()
+PY
+
 "$perturb" "$tmp/rec" "$tmp/noisy1" --noise-dn 3 --seed 4 >/dev/null
 "$perturb" "$tmp/rec" "$tmp/noisy2" --noise-dn 3 --seed 4 >/dev/null
 first=$(head -2 "$tmp/rec/frames.csv" | tail -1 | cut -d, -f2)
@@ -91,6 +139,13 @@ set +e
 "$perturb" "$tmp/rec" "$tmp/bad" --vignetting 0 >/dev/null 2>"$tmp/err"; rc=$?
 set -e
 [ $rc -eq 2 ] && grep -q -- "--vignetting" "$tmp/err" || fail "bad --vignetting: rc $rc, $(cat "$tmp/err")"
+for bad in "--motion-blur-px 0" "--jpeg-quality 101"; do
+  set +e
+  # shellcheck disable=SC2086  # the option and its value, split on purpose
+  "$perturb" "$tmp/rec" "$tmp/bad" $bad >/dev/null 2>"$tmp/err"; rc=$?
+  set -e
+  [ $rc -eq 2 ] && grep -q -- "${bad% *}" "$tmp/err" || fail "bad $bad: rc $rc, $(cat "$tmp/err")"
+done
 set +e
 "$perturb" "$tmp/missing" "$tmp/bad" >/dev/null 2>"$tmp/err"; rc=$?
 set -e
