@@ -17,6 +17,7 @@
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "stemd/eval/eval.hpp"
 #include "stemd/io/csv.hpp"
@@ -89,7 +90,39 @@ struct Light {
     cv::Scalar gains = cv::Scalar::all(1);
     double noise_dn = 0;
     double corner_light = 1;  // vignetting: the corners' share of the centre's light
+    bool yuyv = false;        // through a camera's YUYV (4:2:2) and the V4L2 source's decode
 };
+
+// An 8-bit BGR frame as a YUYV camera delivers it to the V4L2 source: BT.601
+// limited range, each horizontal pair of pixels sharing its mean U and V,
+// decoded by COLOR_YUV2BGR_YUYV (as tools/perturb-recording.py --yuyv).
+cv::Mat through_yuyv(const cv::Mat& bgr)
+{
+    const int even = bgr.cols - bgr.cols % 2;
+    cv::Mat packed(bgr.rows, even, CV_8UC2);
+    for (int y = 0; y < bgr.rows; ++y) {
+        const cv::Vec3b* px = bgr.ptr<cv::Vec3b>(y);
+        cv::Vec2b* out = packed.ptr<cv::Vec2b>(y);
+        for (int x = 0; x < even; x += 2) {
+            double u = 0, v = 0;
+            for (int k = 0; k < 2; ++k) {
+                const double b = px[x + k][0], g = px[x + k][1], r = px[x + k][2];
+                out[x + k][0] = cv::saturate_cast<std::uint8_t>(16 + (65.481 * r + 128.553 * g + 24.966 * b) / 255);
+                u += (128 + (-37.797 * r - 74.203 * g + 112.0 * b) / 255) / 2;
+                v += (128 + (112.0 * r - 93.786 * g - 18.214 * b) / 255) / 2;
+            }
+            out[x][1] = cv::saturate_cast<std::uint8_t>(u);
+            out[x + 1][1] = cv::saturate_cast<std::uint8_t>(v);
+        }
+    }
+    cv::Mat out = bgr.clone();
+    if (even > 0) {
+        cv::Mat decoded;
+        cv::cvtColor(packed, decoded, cv::COLOR_YUV2BGR_YUYV);
+        decoded.copyTo(out(cv::Rect(0, 0, even, bgr.rows)));
+    }
+    return out;
+}
 
 // A lens's natural falloff, cos^4 of the field angle, whose tangent grows
 // linearly from the centre, scaled to `corner_light` at the corners (as
@@ -110,7 +143,8 @@ cv::Mat falloff(cv::Size size, double corner_light)
 
 cv::Mat under(const cv::Mat& image, const Light& light, cv::RNG& rng)
 {
-    if (light.exposure == 1 && light.gains == cv::Scalar::all(1) && light.noise_dn == 0 && light.corner_light == 1)
+    if (light.exposure == 1 && light.gains == cv::Scalar::all(1) && light.noise_dn == 0 && light.corner_light == 1 &&
+        !light.yuyv)
         return image;
     cv::Mat values;
     image.convertTo(values, CV_32F);
@@ -128,7 +162,7 @@ cv::Mat under(const cv::Mat& image, const Light& light, cv::RNG& rng)
     }
     cv::Mat out;
     values.convertTo(out, CV_8U);
-    return out;
+    return light.yuyv && out.channels() == 3 ? through_yuyv(out) : out;
 }
 
 // Mean IoU over the frames of a recording whose mask column holds the
@@ -482,9 +516,10 @@ TEST(RealFrames, CarrotLeafColourTestCostsNothingUnderAColourCast)
 // Exposure and gain scale a pixel's channels alike, and the chromatic index
 // divides them out; the soil-relative threshold follows the noise the
 // sensor adds. Two stops darker, one stop darker with 2 DN of gain noise,
-// and a lens's falloff to one stop at the corners may not cost either
-// set's masks more than a point of IoU (tools/eval-robust.sh measured a
-// loss of at most 0.002 on 2026-11-28).
+// a lens's falloff to one stop at the corners, and the colour at half
+// horizontal resolution of the V4L2 source's default YUYV may not cost
+// either set's masks more than a point of IoU (tools/eval-robust.sh
+// measured a loss of at most 0.002 on 2026-11-28).
 TEST(RealFrames, MasksHoldDarkerVignettedAndUnderSensorNoise)
 {
     REQUIRE_REAL_SET("cwfid-train");
@@ -494,9 +529,10 @@ TEST(RealFrames, MasksHoldDarkerVignettedAndUnderSensorNoise)
     const auto cwfid_params = shipped_params({"camera.gsd_mm_per_px=0.11"});
     const double carrot_recorded = mean_mask_iou(carrot, carrot_params);
     const double cwfid_recorded = cwfid_mean_iou(cwfid_params);
-    const std::array<std::pair<const char*, Light>, 3> lights{{{"two stops darker", {.exposure = 0.25}},
+    const std::array<std::pair<const char*, Light>, 4> lights{{{"two stops darker", {.exposure = 0.25}},
                                                                {"a stop darker, 2 DN noise", {.exposure = 0.5, .noise_dn = 2}},
-                                                               {"a stop darker at the corners", {.corner_light = 0.5}}}};
+                                                               {"a stop darker at the corners", {.corner_light = 0.5}},
+                                                               {"through YUYV", {.yuyv = true}}}};
     for (const auto& [what, light] : lights) {
         const double carrot_iou = mean_mask_iou(carrot, carrot_params, light);
         const double cwfid_iou = cwfid_mean_iou(cwfid_params, light);
