@@ -72,24 +72,21 @@ def falloff(shape, corner):
 
 def through_yuyv(bgr):
     """An 8-bit BGR frame through a camera's YUYV: BT.601 limited range, the
-    chroma of each horizontal pair of pixels averaged, then OpenCV's decoder."""
+    chroma of each horizontal pair of pixels averaged, then OpenCV's decoder.
+    An odd last column has no pair and is kept as it was."""
     f = bgr.astype(np.float32)
     b, g, r = f[..., 0], f[..., 1], f[..., 2]
     y = 16 + (65.481 * r + 128.553 * g + 24.966 * b) / 255
     u = 128 + (-37.797 * r - 74.203 * g + 112.0 * b) / 255
     v = 128 + (112.0 * r - 93.786 * g - 18.214 * b) / 255
-    height, width = y.shape
-    even = width - width % 2
-    packed = np.empty((height, width, 2), np.uint8)
-    packed[..., 0] = np.clip(np.rint(y), 0, 255)
-    u_pair = (u[:, 0:even:2] + u[:, 1:even:2]) / 2
-    v_pair = (v[:, 0:even:2] + v[:, 1:even:2]) / 2
-    packed[:, 0:even:2, 1] = np.clip(np.rint(u_pair), 0, 255)
-    packed[:, 1:even:2, 1] = np.clip(np.rint(v_pair), 0, 255)
-    if even < width:  # an odd last column keeps its own chroma in U only
-        packed[:, -1, 1] = np.clip(np.rint(u[:, -1]), 0, 255)
-    return cv2.cvtColor(packed[:, :even], cv2.COLOR_YUV2BGR_YUYV) if even == width else np.concatenate(
-        [cv2.cvtColor(np.ascontiguousarray(packed[:, :even]), cv2.COLOR_YUV2BGR_YUYV), bgr[:, even:]], axis=1)
+    even = bgr.shape[1] - bgr.shape[1] % 2
+    packed = np.empty((bgr.shape[0], even, 2), np.uint8)
+    packed[..., 0] = np.clip(np.rint(y[:, :even]), 0, 255)
+    packed[:, 0::2, 1] = np.clip(np.rint((u[:, 0:even:2] + u[:, 1:even:2]) / 2), 0, 255)
+    packed[:, 1::2, 1] = np.clip(np.rint((v[:, 0:even:2] + v[:, 1:even:2]) / 2), 0, 255)
+    out = bgr.copy()
+    out[:, :even] = cv2.cvtColor(packed, cv2.COLOR_YUV2BGR_YUYV)
+    return out
 
 
 def main():
