@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
 # The real sets of DATA_DIR under other light and a noisier sensor
 # (tools/perturb-recording.py: exposure, colour cast, vignetting, motion
-# blur, gain noise, MJPEG compression), each
+# blur, gain noise, YUYV, MJPEG compression), each
 # through the default configuration, in one table: mask IoU on carrot-dev
 # and cwfid-train against their human masks, and BoniRob's stems from
 # RGB+NIR and from RGB alone. The first row of each set is the frames as
 # recorded (re-written as PNG, so it matches tools/eval-real.sh).
 #   tools/eval-robust.sh [DATA_DIR] [OUT_DIR]    (defaults: ../shared/data, out/eval-robust)
-# Builds Release first when the tools are missing. About 5 minutes.
+# Builds Release first when the tools are missing. About 5.5 minutes.
 # Exit 0 when the table was made; 77 (skip) when DATA_DIR is absent.
 set -euo pipefail
 cd "$(dirname "$0")/.."
