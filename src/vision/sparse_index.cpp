@@ -141,46 +141,12 @@ int sample_row(int band_start, int height)
     return std::min(band_start + kSparseRowStep / 2, height - 1);
 }
 
-// Four partial histograms, as compute_histogram.
-void add_to_histogram(const std::uint8_t* p, int n, std::uint32_t (&partial)[4][256])
-{
-    int x = 0;
-    for (; x + 4 <= n; x += 4) {
-        ++partial[0][p[x]];
-        ++partial[1][p[x + 1]];
-        ++partial[2][p[x + 2]];
-        ++partial[3][p[x + 3]];
-    }
-    for (; x < n; ++x)
-        ++partial[0][p[x]];
-}
-
-// ... each pixel counted `weight` times.
-void add_to_histogram(const std::uint8_t* p, int n, std::uint32_t weight, std::uint32_t (&partial)[4][256])
-{
-    int x = 0;
-    for (; x + 4 <= n; x += 4) {
-        partial[0][p[x]] += weight;
-        partial[1][p[x + 1]] += weight;
-        partial[2][p[x + 2]] += weight;
-        partial[3][p[x + 3]] += weight;
-    }
-    for (; x < n; ++x)
-        partial[0][p[x]] += weight;
-}
-
-void sum_partials(const std::uint32_t (&partial)[4][256], Histogram& out)
-{
-    for (int v = 0; v < 256; ++v)
-        out[static_cast<std::size_t>(v)] = partial[0][v] + partial[1][v] + partial[2][v] + partial[3][v];
-}
-
 // Step 1: every band's sampled row, smoothed from the raw index on it and
 // beside it (those raw rows flagged in raw_row_), and their histogram.
 Histogram sampled_rows(const SparseTiles& tiles, std::uint8_t* raw_row, std::uint16_t* row_sums)
 {
     const int width = tiles.bgr.cols, height = tiles.bgr.rows;
-    std::uint32_t partial[4][256] = {};
+    PartialHistograms partial;
     for (int band = 0; band < height; band += kSparseRowStep) {
         const int y = sample_row(band, height);
         for (int r = std::max(y - 1, 0); r <= std::min(y + 1, height - 1); ++r) {
@@ -189,10 +155,10 @@ Histogram sampled_rows(const SparseTiles& tiles, std::uint8_t* raw_row, std::uin
             raw_row[r] = 1;
         }
         smooth_binomial3_rect(tiles.raw, cv::Rect(0, y, width, 1), row_sums, tiles.index);
-        add_to_histogram(tiles.index.ptr<std::uint8_t>(y), width, partial);
+        partial.add(tiles.index.ptr<std::uint8_t>(y), width);
     }
     Histogram sampled{};
-    sum_partials(partial, sampled);
+    partial.sum(sampled);
     return sampled;
 }
 
@@ -283,24 +249,24 @@ int sparse_smoothed_index(const cv::Mat& bgr, RgbIndex kind, const SparseLevel& 
         compute_histogram(index_u8, histogram);
         return s.level_;
     }
-    std::uint32_t partial[4][256] = {};
+    PartialHistograms partial;
     const auto soil = static_cast<std::uint8_t>(s.soil_);
     for (int tile = 0; tile < s.tiles(); ++tile) {
         const cv::Rect r = tiles.tile_rect(tile);
         if (s.state_[static_cast<std::size_t>(tile)]) {
             for (int y = r.y; y < r.y + r.height; ++y)
-                add_to_histogram(index_u8.ptr<std::uint8_t>(y) + r.x, r.width, partial);
+                partial.add(index_u8.ptr<std::uint8_t>(y) + r.x, r.width);
             continue;
         }
         for (int band = r.y; band < r.y + r.height; band += kSparseRowStep) {
             const int y = sample_row(band, height);
             const auto band_rows = static_cast<std::uint32_t>(std::min(kSparseRowStep, height - band));
-            add_to_histogram(index_u8.ptr<std::uint8_t>(y) + r.x, r.width, band_rows, partial);
+            partial.add(index_u8.ptr<std::uint8_t>(y) + r.x, r.width, band_rows);
         }
         for (int y = r.y; y < r.y + r.height; ++y)
             std::memset(index_u8.ptr<std::uint8_t>(y) + r.x, soil, static_cast<std::size_t>(r.width));
     }
-    sum_partials(partial, histogram);
+    partial.sum(histogram);
     return s.level_;
 }
 

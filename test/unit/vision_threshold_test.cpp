@@ -84,6 +84,47 @@ TEST(Threshold, HistogramCountsEveryPixel)
     EXPECT_EQ(h[img.at<std::uint8_t>(5, 7)] > 0, true);
 }
 
+namespace {
+
+// The naive count of `img`'s values, each `weight` times.
+Histogram naive_histogram(const cv::Mat& img, std::uint32_t weight = 1)
+{
+    Histogram h{};
+    for (int y = 0; y < img.rows; ++y)
+        for (int x = 0; x < img.cols; ++x)
+            h[img.at<std::uint8_t>(y, x)] += weight;
+    return h;
+}
+
+}  // namespace
+
+TEST(Threshold, HistogramEqualsTheNaiveCountForAnyWidthAndStart)
+{
+    // Widths around the eight values a load reads at once, and views that
+    // start at an odd column (an unaligned first load) or skip columns at
+    // the end of each row.
+    for (const int width : {1, 3, 7, 8, 9, 15, 16, 17, 90}) {
+        for (const int kind : {0, 2, 3}) {
+            const cv::Mat whole = test_image(kind, static_cast<std::uint64_t>(width));
+            const cv::Mat img = whole(cv::Rect(3, 2, width, 40));
+            Histogram h;
+            compute_histogram(img, h);
+            EXPECT_EQ(h, naive_histogram(img)) << "width " << width << " kind " << kind;
+        }
+    }
+}
+
+TEST(Threshold, PartialHistogramsWeighEveryValueAndSum)
+{
+    const cv::Mat img = test_image(1, 9);
+    PartialHistograms partial;
+    for (int y = 0; y < img.rows; ++y)
+        partial.add(img.ptr<std::uint8_t>(y) + 1, img.cols - 1, 5);
+    Histogram h;
+    partial.sum(h);
+    EXPECT_EQ(h, naive_histogram(img(cv::Rect(1, 0, img.cols - 1, img.rows)), 5));
+}
+
 TEST(Threshold, BitsEqualComparisonForAnyWidth)
 {
     for (const int width : {1, 63, 64, 65, 127, 128, 200}) {

@@ -15,6 +15,18 @@ using Histogram = std::array<std::uint32_t, 256>;
 
 void compute_histogram(const cv::Mat& index_u8, Histogram& out);
 
+// A histogram counted in four partial tables, each value into the table
+// of its position modulo four: a run of equal values (smoothed soil) then
+// increments four counters in turn instead of waiting on one.
+struct PartialHistograms {
+    std::array<std::array<std::uint32_t, 256>, 4> counts{};
+
+    // Counts `n` values from `values`, each `weight` times.
+    void add(const std::uint8_t* values, int n, std::uint32_t weight = 1);
+    // The four tables summed into `out`.
+    void sum(Histogram& out) const;
+};
+
 // Both return t such that "index > t" is vegetation, as cv::threshold does.
 // Otsu: maximises the between-class variance. Triangle (Zack et al. 1977):
 // the level farthest from the line joining the histogram peak to the far
