@@ -3,6 +3,7 @@
 #include <array>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -53,10 +54,10 @@ TEST(Ndvi, IndexIsTheNearestLevelHalvesUp)
     }
 }
 
-TEST(Ndvi, VectorPathEqualsTheIndexOnEveryPair)
+TEST(Ndvi, EveryKernelEqualsTheIndexOnEveryPair)
 {
-    // Row = NIR, column = red (twice over, plus a tail the vector loop
-    // leaves to the scalar one), blue and green at random.
+    // Row = NIR, column = red (twice over, plus a tail the vector loops
+    // leave to the scalar one), blue and green at random.
     cv::Mat bgr(256, 2 * 256 + 7, CV_8UC3), nir(bgr.size(), CV_8UC1);
     cv::randu(bgr, 0, 256);
     for (int y = 0; y < bgr.rows; ++y) {
@@ -65,11 +66,41 @@ TEST(Ndvi, VectorPathEqualsTheIndexOnEveryPair)
             nir.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(y);
         }
     }
-    cv::Mat index;
-    ndvi(bgr, nir, index);
-    for (int y = 0; y < bgr.rows; ++y)
-        for (int x = 0; x < bgr.cols; ++x)
-            ASSERT_EQ(index.at<std::uint8_t>(y, x), ndvi_index(y, x % 256)) << "nir " << y << " red " << x % 256;
+    for (const Kernel kernel : {Kernel::baseline, Kernel::ssse3}) {
+        if (!kernel_available(kernel)) {
+            std::printf("this CPU has no SSSE3: only the baseline kernel is checked\n");
+            continue;
+        }
+        cv::Mat index;
+        ndvi(bgr, nir, index, kernel);
+        for (int y = 0; y < bgr.rows; ++y)
+            for (int x = 0; x < bgr.cols; ++x)
+                ASSERT_EQ(index.at<std::uint8_t>(y, x), ndvi_index(y, x % 256))
+                    << "kernel " << static_cast<int>(kernel) << " nir " << y << " red " << x % 256;
+    }
+}
+
+TEST(Ndvi, KernelsAgreeAtEveryWidthAndOnViews)
+{
+    // Widths around the sixteen-pixel steps and the two pixels the SSSE3
+    // loads read past a step, and a view into a wider image (rows not
+    // contiguous), so no load strays out of a row.
+    cv::RNG rng(11);
+    for (int width = 1; width <= 40; ++width) {
+        cv::Mat wide_bgr(3, width + 5, CV_8UC3), wide_nir(3, width + 5, CV_8UC1);
+        rng.fill(wide_bgr, cv::RNG::UNIFORM, 0, 256);
+        rng.fill(wide_nir, cv::RNG::UNIFORM, 0, 256);
+        const cv::Mat bgr = wide_bgr.colRange(2, 2 + width), nir = wide_nir.colRange(2, 2 + width);
+        cv::Mat portable, best;
+        ndvi(bgr, nir, portable, Kernel::baseline);
+        ndvi(bgr, nir, best);
+        for (int y = 0; y < bgr.rows; ++y)
+            for (int x = 0; x < width; ++x) {
+                const int expected = ndvi_index(nir.at<std::uint8_t>(y, x), bgr.at<cv::Vec3b>(y, x)[2]);
+                ASSERT_EQ(portable.at<std::uint8_t>(y, x), expected) << "width " << width << " x " << x;
+                ASSERT_EQ(best.at<std::uint8_t>(y, x), expected) << "width " << width << " x " << x;
+            }
+    }
 }
 
 TEST(Ndvi, UsesTheRedPlaneAndTheNirImage)

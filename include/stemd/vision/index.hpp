@@ -57,6 +57,19 @@ int ndvi_index(int nir, int red);
 // equal to ndvi_index on every pixel.
 void ndvi(const cv::Mat& bgr, const cv::Mat& nir, cv::Mat& index_u8);
 
+// The implementations of a per-pixel kernel: the build's baseline (x86-64:
+// SSE2, through OpenCV's universal intrinsics) and, on x86-64 CPUs that
+// have it, SSSE3, whose byte shuffle picks a channel out of packed BGR in
+// one instruction. The functions above run the best the CPU has, picked
+// once at start; the build itself stays at the baseline, as the robot's
+// CPU is not known when it is built.
+enum class Kernel { baseline, ssse3 };
+// Whether this CPU runs `kernel`.
+bool kernel_available(Kernel kernel);
+// ndvi() with the given implementation (the tests compare them); `kernel`
+// must be available.
+void ndvi(const cv::Mat& bgr, const cv::Mat& nir, cv::Mat& index_u8, Kernel kernel);
+
 // The soil's colour under this frame's light: the mean B, G and R of the
 // pixels outside `vegetation` on row 4 of each band of kBrightnessRowStep
 // rows (the rows chromatic_mean_brightness reads), and how many there were.
