@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -103,10 +104,23 @@ TEST(ChromaticExcessGreenSpan, SpansOfAnyWidthGiveTheWholeFrameIndex)
     const float mean = chromatic_mean_brightness(bgr);
     cv::Mat spans(bgr.size(), CV_8UC1, cv::Scalar(0));
     const int g = index_span_granule_px();
-    for (int y = 0; y < bgr.rows; ++y)
-        for (int x = 0; x < bgr.cols; x += 3 * g + 5)
-            chromatic_excess_green_span(bgr, y, x, std::min(x + 3 * g + 5, bgr.cols), mean, spans);
-    EXPECT_EQ(cv::norm(whole, spans, cv::NORM_INF), 0.0);
+    for (const Kernel kernel : {Kernel::baseline, Kernel::ssse3}) {
+        if (!kernel_available(kernel))
+            continue;
+        // Spans of every width from 1 to 40 (around the sixteen-pixel steps
+        // and the two pixels the SSSE3 loads read past a step), one after
+        // another along each row, and spans that end at the row's end.
+        spans.setTo(0);
+        for (int y = 0; y < bgr.rows; ++y)
+            for (int x = 0, width = 1 + y; x < bgr.cols; x += width, width = width % 40 + 1)
+                chromatic_excess_green_span(bgr, y, x, std::min(x + width, bgr.cols), mean, spans, kernel);
+        EXPECT_EQ(cv::norm(whole, spans, cv::NORM_INF), 0.0) << "kernel " << static_cast<int>(kernel);
+        spans.setTo(0);
+        for (int y = 0; y < bgr.rows; ++y)
+            for (int x = 0; x < bgr.cols; x += 3 * g + 5)
+                chromatic_excess_green_span(bgr, y, x, std::min(x + 3 * g + 5, bgr.cols), mean, spans, kernel);
+        EXPECT_EQ(cv::norm(whole, spans, cv::NORM_INF), 0.0) << "kernel " << static_cast<int>(kernel);
+    }
 }
 
 TEST(ChromaticExcessGreenSpan, TheScalarPathGivesTheVectorPathsValueForEveryColour)
@@ -123,12 +137,19 @@ TEST(ChromaticExcessGreenSpan, TheScalarPathGivesTheVectorPathsValueForEveryColo
         }
     const float mean = chromatic_mean_brightness(bgr);
     cv::Mat whole(bgr.size(), CV_8UC1), single(bgr.size(), CV_8UC1);
-    for (int y = 0; y < bgr.rows; ++y) {
-        chromatic_excess_green_span(bgr, y, 0, bgr.cols, mean, whole);
+    for (int y = 0; y < bgr.rows; ++y)
         for (int x = 0; x < bgr.cols; ++x)
             chromatic_excess_green_span(bgr, y, x, x + 1, mean, single);
+    // Every vector kernel this CPU has.
+    for (const Kernel kernel : {Kernel::baseline, Kernel::ssse3}) {
+        if (!kernel_available(kernel)) {
+            std::printf("this CPU has no SSSE3: only the baseline kernel is checked\n");
+            continue;
+        }
+        for (int y = 0; y < bgr.rows; ++y)
+            chromatic_excess_green_span(bgr, y, 0, bgr.cols, mean, whole, kernel);
+        EXPECT_EQ(cv::norm(whole, single, cv::NORM_INF), 0.0) << "kernel " << static_cast<int>(kernel);
     }
-    EXPECT_EQ(cv::norm(whole, single, cv::NORM_INF), 0.0);
     for (int y = 0; y < 64; ++y) {
         excess_green_span(bgr, y, 0, bgr.cols, whole);
         for (int x = 0; x < bgr.cols; ++x)

@@ -14,6 +14,17 @@
 
 namespace stemd::vision {
 
+// The implementations of the chromatic index and NDVI: the build's
+// baseline (x86-64: SSE2, through OpenCV's universal intrinsics) and, on
+// x86-64 CPUs that have it, SSSE3, whose byte shuffle picks a channel out
+// of packed BGR in one instruction. The functions without a Kernel
+// argument run the best the CPU has, picked once at start; the build
+// itself stays at the baseline, as the robot's CPU is not known when it is
+// built. Both give the same bytes.
+enum class Kernel { baseline, ssse3 };
+// Whether this CPU runs `kernel`.
+bool kernel_available(Kernel kernel);
+
 // Excess Green 2G - R - B in [-510, 510], mapped linearly to [0, 255]:
 // index = (2G - R - B + 512) / 4, rounded down. `bgr` is CV_8UC3.
 void excess_green(const cv::Mat& bgr, cv::Mat& index_u8);
@@ -40,6 +51,10 @@ void chromatic_excess_green(const cv::Mat& bgr, cv::Mat& index_u8);
 float chromatic_mean_brightness(const cv::Mat& bgr);
 void chromatic_excess_green_span(const cv::Mat& bgr, int y, int x_begin, int x_end, float mean_brightness,
                                  cv::Mat& index_u8);
+// The same with the given implementation (the tests compare them);
+// `kernel` must be available.
+void chromatic_excess_green_span(const cv::Mat& bgr, int y, int x_begin, int x_end, float mean_brightness,
+                                 cv::Mat& index_u8, Kernel kernel);
 
 // 3x3 binomial ([1 2 1] x [1 2 1] / 16, rounded; edges replicated).
 // `row_sums` is scratch of at least src.cols entries; `dst` must not be `src`.
@@ -57,15 +72,6 @@ int ndvi_index(int nir, int red);
 // equal to ndvi_index on every pixel.
 void ndvi(const cv::Mat& bgr, const cv::Mat& nir, cv::Mat& index_u8);
 
-// The implementations of a per-pixel kernel: the build's baseline (x86-64:
-// SSE2, through OpenCV's universal intrinsics) and, on x86-64 CPUs that
-// have it, SSSE3, whose byte shuffle picks a channel out of packed BGR in
-// one instruction. The functions above run the best the CPU has, picked
-// once at start; the build itself stays at the baseline, as the robot's
-// CPU is not known when it is built.
-enum class Kernel { baseline, ssse3 };
-// Whether this CPU runs `kernel`.
-bool kernel_available(Kernel kernel);
 // ndvi() with the given implementation (the tests compare them); `kernel`
 // must be available.
 void ndvi(const cv::Mat& bgr, const cv::Mat& nir, cv::Mat& index_u8, Kernel kernel);
