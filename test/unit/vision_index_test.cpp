@@ -310,13 +310,21 @@ TEST(LeafColour, EveryGreenAndRedPairIsJudgedByTheRatioRule)
         const bool neutral = c.soil_g < 1.0 || c.soil_r < 1.0;
         const double soil_ratio = neutral ? 1.0 : c.soil_g / c.soil_r;
         for (const bool scattered : {false, true}) {
-            BitMask mask(256, 256);
+            BitMask before(256, 256);
             for (int y = 0; y < 256; ++y)
                 for (int x = 0; x < 256; ++x)
                     if (!scattered || (x * 7 + y * 3) % 5 != 0)
-                        mask.set(x, y);
-            const BitMask before = mask;
-            keep_greener_than_red(bgr, soil, c.min_ratio, mask);
+                        before.set(x, y);
+            // Every kernel the CPU has keeps exactly the baseline's pixels.
+            BitMask mask = before;
+            keep_greener_than_red(bgr, soil, c.min_ratio, mask, Kernel::baseline);
+            if (kernel_available(Kernel::ssse3)) {
+                BitMask vector = before;
+                keep_greener_than_red(bgr, soil, c.min_ratio, vector, Kernel::ssse3);
+                for (int y = 0; y < 256; ++y)
+                    for (int x = 0; x < 256; ++x)
+                        ASSERT_EQ(vector.get(x, y), mask.get(x, y)) << "G " << x << " R " << y;
+            }
             for (int red = 0; red < 256; ++red)
                 for (int green = 0; green < 256; ++green) {
                     if (!before.get(green, red)) {

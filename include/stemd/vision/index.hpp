@@ -94,6 +94,8 @@ SoilColour soil_colour(const cv::Mat& bgr, const BitMask& vegetation);
 // `min_ratio`. Only the set bits' pixels are read. A soil whose mean red or
 // green is below one level (or no soil in view) is taken as neutral grey.
 void keep_greener_than_red(const cv::Mat& bgr, const SoilColour& soil, double min_ratio, BitMask& mask);
+// The same with the given implementation; `kernel` must be available.
+void keep_greener_than_red(const cv::Mat& bgr, const SoilColour& soil, double min_ratio, BitMask& mask, Kernel kernel);
 
 // Colour fringes: the Bayer pattern's interpolation and the lens's lateral
 // chromatic aberration misregister the green plane against the red by about
