@@ -364,6 +364,23 @@ bool cpu_has_ssse3()
 // Picked once at start, never on the frame path.
 const bool kSsse3 = cpu_has_ssse3();
 
+#if !defined(STEMD_HAVE_SSSE3_KERNELS)
+// No SSSE3 kernels on this architecture: kernel_available() never offers
+// them, and these names stand for the baseline's so that pick() compiles.
+constexpr auto& ndvi_ssse3 = ndvi_baseline;
+constexpr auto& chromatic_excess_green_span_ssse3 = chromatic_excess_green_span_baseline;
+#endif
+
+Kernel best_kernel() { return kSsse3 ? Kernel::ssse3 : Kernel::baseline; }
+
+// The implementation `kernel` names, of a baseline and SSSE3 pair.
+template <class Function>
+Function pick(Kernel kernel, Function baseline, Function ssse3)
+{
+    CV_Assert(kernel == Kernel::baseline || (kernel == Kernel::ssse3 && kSsse3));
+    return kernel == Kernel::ssse3 ? ssse3 : baseline;
+}
+
 }  // namespace
 
 bool kernel_available(Kernel kernel)
@@ -374,45 +391,26 @@ bool kernel_available(Kernel kernel)
 void ndvi(const cv::Mat& bgr, const cv::Mat& nir, cv::Mat& index_u8, Kernel kernel)
 {
     CV_Assert(bgr.type() == CV_8UC3 && nir.type() == CV_8UC1 && bgr.size() == nir.size());
-    CV_Assert(kernel_available(kernel));
     index_u8.create(bgr.size(), CV_8UC1);
-#if defined(STEMD_HAVE_SSSE3_KERNELS)
-    if (kernel == Kernel::ssse3) {
-        ndvi_ssse3(bgr, nir, index_u8);
-        return;
-    }
-#endif
-    ndvi_baseline(bgr, nir, index_u8);
+    pick(kernel, &ndvi_baseline, &ndvi_ssse3)(bgr, nir, index_u8);
 }
 
 void ndvi(const cv::Mat& bgr, const cv::Mat& nir, cv::Mat& index_u8)
 {
-    ndvi(bgr, nir, index_u8, kSsse3 ? Kernel::ssse3 : Kernel::baseline);
+    ndvi(bgr, nir, index_u8, best_kernel());
 }
 
 void chromatic_excess_green_span(const cv::Mat& bgr, int y, int x_begin, int x_end, float mean_brightness,
                                  cv::Mat& index_u8, Kernel kernel)
 {
-    CV_Assert(kernel_available(kernel));
-#if defined(STEMD_HAVE_SSSE3_KERNELS)
-    if (kernel == Kernel::ssse3) {
-        chromatic_excess_green_span_ssse3(bgr, y, x_begin, x_end, mean_brightness, index_u8);
-        return;
-    }
-#endif
-    chromatic_excess_green_span_baseline(bgr, y, x_begin, x_end, mean_brightness, index_u8);
+    pick(kernel, &chromatic_excess_green_span_baseline, &chromatic_excess_green_span_ssse3)(
+        bgr, y, x_begin, x_end, mean_brightness, index_u8);
 }
 
 void chromatic_excess_green_span(const cv::Mat& bgr, int y, int x_begin, int x_end, float mean_brightness,
                                  cv::Mat& index_u8)
 {
-#if defined(STEMD_HAVE_SSSE3_KERNELS)
-    if (kSsse3) {
-        chromatic_excess_green_span_ssse3(bgr, y, x_begin, x_end, mean_brightness, index_u8);
-        return;
-    }
-#endif
-    chromatic_excess_green_span_baseline(bgr, y, x_begin, x_end, mean_brightness, index_u8);
+    chromatic_excess_green_span(bgr, y, x_begin, x_end, mean_brightness, index_u8, best_kernel());
 }
 
 SoilColour soil_colour(const cv::Mat& bgr, const BitMask& vegetation)
@@ -532,26 +530,21 @@ __attribute__((target("ssse3"))) void keep_greener_than_red_ssse3(const cv::Mat&
         }
     }
 }
+#else
+constexpr auto& keep_greener_than_red_ssse3 = keep_greener_than_red_baseline;
 #endif
 
 }  // namespace
 
 void keep_greener_than_red(const cv::Mat& bgr, const SoilColour& soil, double min_ratio, BitMask& mask, Kernel kernel)
 {
-    CV_Assert(kernel_available(kernel));
-    const GreenOverRed test(soil, min_ratio);
-#if defined(STEMD_HAVE_SSSE3_KERNELS)
-    if (kernel == Kernel::ssse3) {
-        keep_greener_than_red_ssse3(bgr, test, mask);
-        return;
-    }
-#endif
-    keep_greener_than_red_baseline(bgr, test, mask);
+    pick(kernel, &keep_greener_than_red_baseline, &keep_greener_than_red_ssse3)(bgr, GreenOverRed(soil, min_ratio),
+                                                                                mask);
 }
 
 void keep_greener_than_red(const cv::Mat& bgr, const SoilColour& soil, double min_ratio, BitMask& mask)
 {
-    keep_greener_than_red(bgr, soil, min_ratio, mask, kSsse3 ? Kernel::ssse3 : Kernel::baseline);
+    keep_greener_than_red(bgr, soil, min_ratio, mask, best_kernel());
 }
 
 int drop_colour_fringes(const cv::Mat& bgr, const SoilColour& soil, double min_ratio, const LabelScratch& components,
