@@ -377,7 +377,7 @@ Kernel best_kernel() { return kSsse3 ? Kernel::ssse3 : Kernel::baseline; }
 template <class Function>
 Function pick(Kernel kernel, Function baseline, Function ssse3)
 {
-    CV_Assert(kernel == Kernel::baseline || (kernel == Kernel::ssse3 && kSsse3));
+    CV_Assert(kernel_available(kernel));
     return kernel == Kernel::ssse3 ? ssse3 : baseline;
 }
 
@@ -488,8 +488,8 @@ void keep_greener_than_red_baseline(const cv::Mat& bgr, const GreenOverRed& test
 #if defined(STEMD_HAVE_SSSE3_KERNELS)
 // Sixteen pixels a step wherever a step holds a set bit, with green and red
 // shuffled straight into 32-bit lanes and the same float products and
-// comparison as GreenOverRed::passes; the bit-by-bit walk mispredicted a
-// branch at every leaf edge.
+// comparison as GreenOverRed::passes, instead of a walk bit by bit with a
+// branch per pixel.
 __attribute__((target("ssse3"))) void keep_greener_than_red_ssse3(const cv::Mat& bgr, const GreenOverRed& test,
                                                                  BitMask& mask)
 {
