@@ -14,13 +14,13 @@
 
 namespace stemd::vision {
 
-// The implementations of the chromatic index and NDVI: the build's
-// baseline (x86-64: SSE2, through OpenCV's universal intrinsics) and, on
-// x86-64 CPUs that have it, SSSE3, whose byte shuffle picks a channel out
-// of packed BGR in one instruction. The functions without a Kernel
-// argument run the best the CPU has, picked once at start; the build
-// itself stays at the baseline, as the robot's CPU is not known when it is
-// built. Both give the same bytes.
+// The implementations of the chromatic index, NDVI and the leaf-colour
+// test: the build's baseline (x86-64: SSE2, through OpenCV's universal
+// intrinsics) and, on x86-64 CPUs that have it, SSSE3, whose byte shuffle
+// picks a channel out of packed BGR in one instruction. The functions
+// without a Kernel argument run the best the CPU has, picked once at
+// start; the build itself stays at the baseline, as the robot's CPU is not
+// known when it is built. Both give the same bytes.
 enum class Kernel { baseline, ssse3 };
 // Whether this CPU runs `kernel`.
 bool kernel_available(Kernel kernel);
