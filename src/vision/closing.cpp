@@ -95,14 +95,13 @@ void morph_pass(const BitMask& src, BitMask& dst, const Kernel& kernel, std::uin
     constexpr std::uint64_t outside = op == Op::dilate ? 0 : ~std::uint64_t{0};
     const std::uint64_t pad_bits = ~src.last_word_mask();
 
-    auto ring_row = [&](int y) { return ring + static_cast<std::size_t>((y + ring_rows) % ring_rows) * row_words; };
     // Rows that are entirely clear stay clear at every width: they are only
     // marked, which makes sparse frames cheap. For the erosion a clear row
     // anywhere in the window clears the output row.
     bool* row_clear = row_clear_flags;
     auto load = [&](int y) {
         const int slot_row = (y + ring_rows) % ring_rows;
-        std::uint64_t* slot0 = ring_row(y);
+        std::uint64_t* slot0 = ring + static_cast<std::size_t>(slot_row) * row_words;
         if (y < 0 || y >= height) {
             std::fill(slot0, slot0 + row_words, outside);
             row_clear[slot_row] = op == Op::dilate;
@@ -133,23 +132,29 @@ void morph_pass(const BitMask& src, BitMask& dst, const Kernel& kernel, std::uin
 
     for (int y = -radius; y < radius; ++y)
         load(y);
-    for (int y = 0; y < height; ++y) {
+    // The window's rows in ring order: its top row's place moves on by one
+    // per output row, so no division per kernel row (dense masks spent more
+    // time in them than in the ORs).
+    int top = ring_rows - radius;   // row -radius
+    for (int y = 0; y < height; ++y, top = top + 1 == ring_rows ? 0 : top + 1) {
         load(y + radius);
         std::uint64_t* out = dst.row(y);
         std::fill(out, out + words, 0);
+        auto window_row = [&](int k) { return top + k < ring_rows ? top + k : top + k - ring_rows; };
         if constexpr (op == Op::erode) {
             bool any_clear = false;
-            for (int dy = -radius; dy <= radius && !any_clear; ++dy)
-                any_clear = row_clear[(y + dy + ring_rows) % ring_rows];
+            for (int k = 0; k < ring_rows && !any_clear; ++k)
+                any_clear = row_clear[window_row(k)];
             if (any_clear)
                 continue;
             std::fill(out, out + words, ~std::uint64_t{0});
         }
-        for (int dy = -radius; dy <= radius; ++dy) {
-            if (op == Op::dilate && row_clear[(y + dy + ring_rows) % ring_rows])
+        for (int k = 0; k < ring_rows; ++k) {
+            const int ring_index = window_row(k);
+            if (op == Op::dilate && row_clear[ring_index])
                 continue;
-            const int slot = kernel.width_slot[static_cast<std::size_t>(dy + radius)];
-            const std::uint64_t* in = ring_row(y + dy) + slot * slot_words;
+            const int slot = kernel.width_slot[static_cast<std::size_t>(k)];
+            const std::uint64_t* in = ring + static_cast<std::size_t>(ring_index) * row_words + slot * slot_words;
             if constexpr (op == Op::dilate)
                 for (int i = 0; i < words; ++i)
                     out[i] |= in[i];
