@@ -61,16 +61,24 @@ template <Op op>
 void horizontal_step(const std::uint64_t* in, std::uint64_t* out, int words)
 {
     constexpr std::uint64_t outside = op == Op::dilate ? 0 : ~std::uint64_t{0};
-    for (int i = 0; i < words; ++i) {
-        const std::uint64_t previous = i > 0 ? in[i - 1] : outside;
-        const std::uint64_t next = i + 1 < words ? in[i + 1] : outside;
+    auto step = [&](int i, std::uint64_t previous, std::uint64_t next) {
         const std::uint64_t to_right = (in[i] << 1) | (previous >> 63);
         const std::uint64_t to_left = (in[i] >> 1) | (next << 63);
         if constexpr (op == Op::dilate)
             out[i] = in[i] | to_right | to_left;
         else
             out[i] = in[i] & to_right & to_left;
+    };
+    if (words == 1) {
+        step(0, outside, outside);
+        return;
     }
+    step(0, outside, in[1]);
+    // The interior without the border's conditions, so the compiler
+    // vectorises it.
+    for (int i = 1; i + 1 < words; ++i)
+        step(i, in[i - 1], in[i + 1]);
+    step(words - 1, in[words - 2], outside);
 }
 
 struct Kernel {
@@ -149,19 +157,34 @@ void morph_pass(const BitMask& src, BitMask& dst, const Kernel& kernel, std::uin
                 continue;
             std::fill(out, out + words, ~std::uint64_t{0});
         }
+        // The window's rows combined four at a time: one read and write of
+        // the output row per four input rows instead of per row. A short
+        // last group repeats its first row, which changes neither OR nor AND.
+        const std::uint64_t* group[4];
+        int grouped = 0;
+        auto combine_group = [&] {
+            for (int g = grouped; g < 4; ++g)
+                group[g] = group[0];
+            grouped = 0;
+            const std::uint64_t *a = group[0], *b = group[1], *c = group[2], *d = group[3];
+            if constexpr (op == Op::dilate)
+                for (int i = 0; i < words; ++i)
+                    out[i] |= (a[i] | b[i]) | (c[i] | d[i]);
+            else
+                for (int i = 0; i < words; ++i)
+                    out[i] &= (a[i] & b[i]) & (c[i] & d[i]);
+        };
         for (int k = 0; k < ring_rows; ++k) {
             const int ring_index = window_row(k);
             if (op == Op::dilate && row_clear[ring_index])
                 continue;
             const int slot = kernel.width_slot[static_cast<std::size_t>(k)];
-            const std::uint64_t* in = ring + static_cast<std::size_t>(ring_index) * row_words + slot * slot_words;
-            if constexpr (op == Op::dilate)
-                for (int i = 0; i < words; ++i)
-                    out[i] |= in[i];
-            else
-                for (int i = 0; i < words; ++i)
-                    out[i] &= in[i];
+            group[grouped++] = ring + static_cast<std::size_t>(ring_index) * row_words + slot * slot_words;
+            if (grouped == 4)
+                combine_group();
         }
+        if (grouped > 0)
+            combine_group();
         out[words - 1] &= src.last_word_mask();
     }
 }
