@@ -141,8 +141,7 @@ void morph_pass(const BitMask& src, BitMask& dst, const Kernel& kernel, std::uin
     for (int y = -radius; y < radius; ++y)
         load(y);
     // The window's rows in ring order: its top row's place moves on by one
-    // per output row, so no division per kernel row (dense masks spent more
-    // time in them than in the ORs).
+    // per output row, so no division per kernel row.
     int top = ring_rows - radius;   // row -radius
     for (int y = 0; y < height; ++y, top = top + 1 == ring_rows ? 0 : top + 1) {
         load(y + radius);
@@ -160,7 +159,7 @@ void morph_pass(const BitMask& src, BitMask& dst, const Kernel& kernel, std::uin
         // The window's rows combined four at a time: one read and write of
         // the output row per four input rows instead of per row. A short
         // last group repeats its first row, which changes neither OR nor AND.
-        const std::uint64_t* group[4];
+        const std::uint64_t* group[4] = {};
         int grouped = 0;
         auto combine_group = [&] {
             for (int g = grouped; g < 4; ++g)
