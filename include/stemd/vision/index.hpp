@@ -22,6 +22,7 @@ namespace stemd::vision {
 // start; the build itself stays at the baseline, as the robot's CPU is not
 // known when it is built. Both give the same bytes.
 enum class Kernel { baseline, ssse3 };
+inline constexpr std::array<Kernel, 2> kKernels{Kernel::baseline, Kernel::ssse3};
 // Whether this CPU runs `kernel`.
 bool kernel_available(Kernel kernel);
 
