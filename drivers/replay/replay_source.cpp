@@ -1,13 +1,6 @@
 #include "replay/replay_source.hpp"
 
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <time.h>
-#include <unistd.h>
-
-#include <cerrno>
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <system_error>
 
@@ -15,7 +8,6 @@
 
 #include "stemd/io/recording.hpp"
 #include "stemd/base/clock.hpp"
-#include "stemd/base/unique_fd.hpp"
 
 namespace stemd::drivers {
 
@@ -313,37 +305,11 @@ bool ReplaySource::fill(const Entry& entry, Frame& into)
 
 bool ReplaySource::read_file(const std::filesystem::path& path)
 {
-    // O_NONBLOCK: a FIFO in a recording must not block the capture thread
-    // (and with it the shutdown); it is refused below, like any non-file.
-    const base::UniqueFd file(::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK));
-    const int fd = file.get();
-    if (fd < 0) {
-        log_->warn("{}: cannot open: {} (errno {})", path.string(), std::strerror(errno), errno);
-        return false;
-    }
-    struct stat st {};
-    bool ok = fstat(fd, &st) == 0;
-    if (ok && !S_ISREG(st.st_mode)) {
-        log_->warn("{}: not a regular file", path.string());
-        return false;
-    }
-    if (ok) {
-        file_buffer_.resize(static_cast<std::size_t>(st.st_size));
-        std::size_t done = 0;
-        while (ok && done < file_buffer_.size()) {
-            const ssize_t n = ::read(fd, file_buffer_.data() + done, file_buffer_.size() - done);
-            if (n < 0 && errno == EINTR)
-                continue;
-            if (n <= 0) {
-                ok = false;
-                break;
-            }
-            done += static_cast<std::size_t>(n);
-        }
-    }
-    if (!ok)
-        log_->warn("{}: cannot read: {} (errno {})", path.string(), std::strerror(errno), errno);
-    return ok;
+    std::string why;
+    if (io::read_whole_file(path, file_buffer_, why))
+        return true;
+    log_->warn("{}: {}", path.string(), why);
+    return false;
 }
 
 bool ReplaySource::header_fits(const std::filesystem::path& path, cv::Size expected, bool count, Entry::Fault* fault)

@@ -1,16 +1,22 @@
 #include "stemd/io/recording.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 #include <algorithm>
 #include <cctype>
 #include <charconv>
 #include <cmath>
-#include <fstream>
 #include <iterator>
 #include <system_error>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "stemd/base/unique_fd.hpp"
 #include "stemd/io/csv.hpp"
 
 namespace stemd::io {
@@ -273,21 +279,55 @@ HeaderCheck check_image_header(std::span<const unsigned char> bytes, cv::Size ex
     return HeaderCheck::bad_size;
 }
 
-bool load_image(const std::filesystem::path& path, int imread_flags, cv::Mat& out, std::string& error)
+bool read_whole_file(const std::filesystem::path& path, std::vector<unsigned char>& bytes, std::string& error)
 {
-    std::error_code ec;
-    if (!std::filesystem::is_regular_file(path, ec)) {
-        error = path.string() + ": no such file";
+    // O_NONBLOCK: a FIFO must not block the reader (the replay's capture
+    // thread, and with it the shutdown); it is refused below, like any
+    // non-file.
+    const base::UniqueFd file(::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK));
+    const auto errno_text = [](const char* what) {
+        const int e = errno;
+        return std::string(what) + ": " + std::strerror(e) + " (errno " + std::to_string(e) + ")";
+    };
+    if (!file.valid()) {
+        error = errno_text("cannot open");
         return false;
     }
-    std::vector<unsigned char> bytes;
-    {
-        std::ifstream in(path, std::ios::binary);
-        bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-        if (in.bad()) {
-            error = path.string() + ": cannot read";
+    struct stat st {};
+    if (::fstat(file.get(), &st) != 0) {
+        error = errno_text("cannot read");
+        return false;
+    }
+    if (!S_ISREG(st.st_mode)) {
+        error = "not a regular file";
+        return false;
+    }
+    bytes.resize(static_cast<std::size_t>(st.st_size));
+    std::size_t done = 0;
+    while (done < bytes.size()) {
+        const ssize_t n = ::read(file.get(), bytes.data() + done, bytes.size() - done);
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n < 0) {
+            error = errno_text("cannot read");
             return false;
         }
+        if (n == 0) {
+            error = "cannot read: the file ended after " + std::to_string(done) + " of its " +
+                    std::to_string(bytes.size()) + " bytes";
+            return false;
+        }
+        done += static_cast<std::size_t>(n);
+    }
+    return true;
+}
+
+bool load_image(const std::filesystem::path& path, int imread_flags, cv::Mat& out, std::string& error)
+{
+    std::vector<unsigned char> bytes;
+    if (!read_whole_file(path, bytes, error)) {
+        error = path.string() + ": " + error;
+        return false;
     }
     std::string why;
     switch (check_image_header(bytes, {}, why)) {

@@ -147,7 +147,7 @@ expect_error "stemd-eval: --gt-vegetation: 'soil' is neither nonzero nor zero (s
 expect_error "stemd-eval: --tol-mm does not apply to --iou (see stemd-eval --help)" \
   --iou "$tmp/pred" "$tmp/rec" --tol-mm 5
 rm "$tmp/pred/f1.png"
-expect_error "stemd-eval: prediction $tmp/pred/f1.png: no such file" --iou "$tmp/pred" "$tmp/rec"
+expect_error "stemd-eval: prediction $tmp/pred/f1.png: cannot open: No such file or directory (errno 2)" --iou "$tmp/pred" "$tmp/rec"
 echo "not an image" >"$tmp/pred/f1.png"
 expect_error "stemd-eval: prediction $tmp/pred/f1.png: cannot decode: not a PNG, JPEG, BMP or PNM image" \
   --iou "$tmp/pred" "$tmp/rec"

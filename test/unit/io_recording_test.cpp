@@ -1,10 +1,13 @@
 // frames.csv: the four fixed columns, the optional odom_mm and class
-// columns, and errors naming file and line.
+// columns, and errors naming file and line; and the whole-file read that
+// image loading and replay use.
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
 #include <random>
+
+#include <sys/stat.h>
 
 #include "stemd/io/recording.hpp"
 #include "temp_dir_test.hpp"
@@ -170,4 +173,52 @@ TEST(RecordingOdometer, ParsesFiniteReals)
     EXPECT_FALSE(parse_odom_mm("1,5", v));
     EXPECT_FALSE(parse_odom_mm("NaN", v));
     EXPECT_EQ(v, 5.0);
+}
+
+namespace {
+
+using ReadWholeFileTest = stemd::test::TempDirTest;
+
+}  // namespace
+
+TEST_F(ReadWholeFileTest, ReadsEveryByteIntoAReusedBuffer)
+{
+    // A file larger than one read of a pipe or a page, of random bytes
+    // (zeros included), read into a buffer that held more before.
+    std::string content(3 * 1024 * 1024 + 17, '\0');
+    std::mt19937 rng(7);
+    for (char& c : content)
+        c = static_cast<char>(rng() & 0xFF);
+    const fs::path path = write(content, "frame.png");
+    std::vector<unsigned char> bytes(5 * 1024 * 1024, 0xAB);
+    std::string error;
+    ASSERT_TRUE(read_whole_file(path, bytes, error)) << error;
+    ASSERT_EQ(bytes.size(), content.size());
+    EXPECT_TRUE(std::equal(bytes.begin(), bytes.end(), content.begin(),
+                           [](unsigned char a, char b) { return a == static_cast<unsigned char>(b); }));
+    EXPECT_TRUE(error.empty());
+}
+
+TEST_F(ReadWholeFileTest, AnEmptyFileGivesNoBytes)
+{
+    std::vector<unsigned char> bytes(10, 1);
+    std::string error;
+    EXPECT_TRUE(read_whole_file(write("", "empty.png"), bytes, error)) << error;
+    EXPECT_TRUE(bytes.empty());
+}
+
+TEST_F(ReadWholeFileTest, SaysWhyAMissingFileADirectoryOrAFifoIsNotRead)
+{
+    std::vector<unsigned char> bytes;
+    std::string error;
+    EXPECT_FALSE(read_whole_file(dir_ / "missing.png", bytes, error));
+    EXPECT_EQ(error, "cannot open: No such file or directory (errno 2)");
+    EXPECT_FALSE(read_whole_file(dir_, bytes, error));
+    EXPECT_EQ(error, "not a regular file");
+    // No writer ever opens the FIFO: a blocking open or read would hang
+    // here (and fail the test by ctest's timeout).
+    const fs::path fifo = dir_ / "fifo.png";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    EXPECT_FALSE(read_whole_file(fifo, bytes, error));
+    EXPECT_EQ(error, "not a regular file");
 }
