@@ -4,10 +4,11 @@
 // one model file.
 //   stemd-train --out MODEL [--config FILE] [--set K=V]... [--folds N]
 //               [--trees N] [--max-depth N] [--cell-mm MM] [--cell-trees N]
-//               [--cell-max-depth N] [--cell-samples N] [--cell-context yes|no] [--seed N]
+//               [--cell-max-depth N] [--cell-samples N] [--cell-context yes|no] [--seed N] [--jobs N]
 //               [--cell-weights cells|pixels] [--test-on RECORDING]... [--test-set K=V]...
 //               [--cells-csv FILE] RECORDING...
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -23,6 +24,7 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -522,6 +524,7 @@ int main(int argc, char** argv)
     std::string cell_weights = "cells";
     std::string cell_context = "yes";
     std::string cells_csv;
+    int threads = static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 256u));
     app.add_option("--out", out_path, "model file to write (.yaml or .json)")->required();
     tools::add_config_options(app, config_args);
     app.add_option("--folds", folds, "cross-validation folds; frame i is in fold i mod N")
@@ -543,6 +546,10 @@ int main(int argc, char** argv)
                    "(its squares, band, plant and frame); no: the first forest decides")
         ->check(CLI::IsMember({"yes", "no"}));
     app.add_option("--seed", forest.seed, "seed of the forests' random draws");
+    app.add_option("--jobs", threads,
+                   "threads that train the folds' models and the final one (default: the CPU count); the models and "
+                   "figures do not depend on it")
+        ->check(CLI::Range(1, 256));
     app.add_option("--cells-csv", cells_csv,
                    "also write every vegetated cell's row as CSV (frame, image, fold, cell, gx, gy, plant, crop_px, "
                    "weed_px, then the cell features by name)");
@@ -667,18 +674,51 @@ int main(int argc, char** argv)
 
     // Cross-validation by frame: every plant and cell of a frame is in the
     // same fold, so none is scored by a forest that saw its own frame.
+    // Model k < folds is fold k's; model `folds` is the final one, on every
+    // frame. They are independent, so `threads` threads train them. Each forest
+    // seeds its own thread's cv::theRNG() (train_forest), so no model
+    // depends on the thread count or the order.
+    const auto in_fold = [&](std::size_t f, int k) { return static_cast<int>(f % static_cast<std::size_t>(folds)) == k; };
+    const int model_count = folds + 1;
+    std::vector<std::optional<vision::PlantClassifier>> models(static_cast<std::size_t>(model_count));
+    std::vector<std::string> model_errors(static_cast<std::size_t>(model_count));
+    std::atomic<int> next_model{0};
+    const auto train_models = [&] {
+        for (int k = next_model.fetch_add(1); k < model_count; k = next_model.fetch_add(1)) {
+            const auto i = static_cast<std::size_t>(k);
+            std::vector<std::size_t> which;
+            for (std::size_t f = 0; f < frames.size(); ++f)
+                if (k == folds || !in_fold(f, k))
+                    which.push_back(f);
+            try {
+                models[i] = train(which, k == folds, model_errors[i]);
+            } catch (const std::exception& e) {   // out of memory, or OpenCV outside train_forest's guard
+                model_errors[i] = e.what();
+                models[i].reset();
+            }
+        }
+    };
+    {
+        std::vector<std::thread> helpers;
+        for (int t = 1; t < std::min(threads, model_count); ++t)
+            helpers.emplace_back(train_models);
+        train_models();
+        for (std::thread& t : helpers)
+            t.join();
+    }
     Figures cv_figures, cv_figures_half;
     std::vector<std::pair<int, float>> out_of_fold;   // (label, weed probability from the cells)
     cv::Mat map;
     for (int k = 0; k < folds; ++k) {
-        std::vector<std::size_t> train_frames, test_frames;
-        for (std::size_t f = 0; f < frames.size(); ++f)
-            (static_cast<int>(f % static_cast<std::size_t>(folds)) == k ? test_frames : train_frames).push_back(f);
-        const auto model = train(train_frames, false, error);
+        const auto& model = models[static_cast<std::size_t>(k)];
         if (!model) {
-            std::cerr << "stemd-train: fold " << k << ": " << error << "\n";
+            std::cerr << "stemd-train: fold " << k << ": " << model_errors[static_cast<std::size_t>(k)] << "\n";
             return 1;
         }
+        std::vector<std::size_t> test_frames;
+        for (std::size_t f = 0; f < frames.size(); ++f)
+            if (in_fold(f, k))
+                test_frames.push_back(f);
         for (const std::size_t f : test_frames) {
             if (!pipeline.run(jobs[frames[f].job], error)) {
                 std::cerr << "stemd-train: " << error << "\n";
@@ -742,12 +782,9 @@ int main(int argc, char** argv)
            << cv_figures_half.text(std::to_string(folds) + "-fold cross-validation by frame", symmetric)
            << cv_figures.text(std::to_string(folds) + "-fold cross-validation by frame", decision) << sweep.str();
 
-    std::vector<std::size_t> all(frames.size());
-    for (std::size_t f = 0; f < frames.size(); ++f)
-        all[f] = f;
-    auto model = train(all, true, error);
+    auto& model = models[static_cast<std::size_t>(folds)];
     if (!model) {
-        std::cerr << "stemd-train: " << error << "\n";
+        std::cerr << "stemd-train: " << model_errors[static_cast<std::size_t>(folds)] << "\n";
         return 1;
     }
     model->set_map_weed_bar(kMapBars[map_bar]);

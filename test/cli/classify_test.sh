@@ -11,7 +11,7 @@ tools=$1 src=$2
 # The strip carries NIR; the classifier is tested on RGB (segment.method
 # auto would take the NIR plane: tested in detect_test.sh and on BoniRob).
 
-"$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --folds 3 --trees 20 "${small_forests[@]}" "$tmp/rec" \
+"$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --folds 3 --trees 20 "${small_forests[@]}" --jobs 1 "$tmp/rec" \
   >"$tmp/train.txt" 2>&1 || fail "stemd-train exited $?: $(cat "$tmp/train.txt")"
 grep -q '^3-fold cross-validation by frame' "$tmp/train.txt" || fail "no cross-validation figures"
 grep -q 'crop safety: [0-9]* of [0-9]* crop plants called weed' "$tmp/train.txt" || fail "no crop-safety figure"
@@ -24,13 +24,16 @@ grep -q 'channels: rgb$' "$tmp/model.yaml" || fail "model file does not say rgb"
 grep -Eq 'gsd_mm_per_px: (0?\.33$|3\.30*[0-9]*e-01)' "$tmp/model.yaml" || fail "model file does not hold the GSD"
 grep -q "$tmp/rec" "$tmp/model.yaml" || fail "model file does not name its recording"
 
-# Same data, same seed: the same forest.
+# Same data, same seed: the same forests and figures, on one thread or on
+# three (the four models of three folds and the final one at once).
 # (With --cells-csv, which must not change the training.)
 "$tools/stemd-train" --out "$tmp/again.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --folds 3 --trees 20 "${small_forests[@]}" \
-  --cells-csv "$tmp/cells.csv" "$tmp/rec" >/dev/null 2>&1 || fail "second training"
+  --jobs 3 --cells-csv "$tmp/cells.csv" "$tmp/rec" >"$tmp/again.txt" 2>&1 || fail "second training: $(cat "$tmp/again.txt")"
 # (Both forests: the plant forest's section runs on into the cell forest's.)
 diff <(sed -n '/^forest:/,$p' "$tmp/model.yaml") <(sed -n '/^forest:/,$p' "$tmp/again.yaml") >/dev/null \
   || fail "training is not deterministic"
+diff <(sed '$d' "$tmp/train.txt") <(sed '$d' "$tmp/again.txt") >/dev/null ||
+  fail "the figures depend on the thread count: $(diff <(sed '$d' "$tmp/train.txt") <(sed '$d' "$tmp/again.txt"))"
 
 # The cells' rows: a header naming every feature, one line per vegetated
 # cell with as many fields, labelled pixels on some, folds 0-2, and as many
