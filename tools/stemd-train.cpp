@@ -24,6 +24,7 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -675,9 +676,9 @@ int main(int argc, char** argv)
     // Cross-validation by frame: every plant and cell of a frame is in the
     // same fold, so none is scored by a forest that saw its own frame.
     // Model k < folds is fold k's; model `folds` is the final one, on every
-    // frame. They are independent, so `threads` threads train them. Each forest
-    // seeds its own thread's cv::theRNG() (train_forest), so no model
-    // depends on the thread count or the order.
+    // frame. They are independent, so `threads` threads train them. Each
+    // forest seeds its own thread's cv::theRNG() (train_forest), so no
+    // model depends on the thread count or the order.
     const auto in_fold = [&](std::size_t f, int k) { return static_cast<int>(f % static_cast<std::size_t>(folds)) == k; };
     const int model_count = folds + 1;
     std::vector<std::optional<vision::PlantClassifier>> models(static_cast<std::size_t>(model_count));
@@ -700,8 +701,13 @@ int main(int argc, char** argv)
     };
     {
         std::vector<std::thread> helpers;
-        for (int t = 1; t < std::min(threads, model_count); ++t)
-            helpers.emplace_back(train_models);
+        for (int t = 1; t < std::min(threads, model_count); ++t) {
+            try {
+                helpers.emplace_back(train_models);
+            } catch (const std::system_error&) {
+                break;   // no more threads (a process limit): the ones running take the rest
+            }
+        }
         train_models();
         for (std::thread& t : helpers)
             t.join();

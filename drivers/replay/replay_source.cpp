@@ -306,7 +306,7 @@ bool ReplaySource::fill(const Entry& entry, Frame& into)
 bool ReplaySource::read_file(const std::filesystem::path& path)
 {
     std::string why;
-    if (io::read_whole_file(path, file_buffer_, why))
+    if (io::read_whole_file(path, io::kMaxImageFileBytes, file_buffer_, why))
         return true;
     log_->warn("{}: {}", path.string(), why);
     return false;

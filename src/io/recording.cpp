@@ -4,12 +4,13 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <cerrno>
-#include <cstring>
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <iterator>
 #include <system_error>
 
@@ -279,7 +280,8 @@ HeaderCheck check_image_header(std::span<const unsigned char> bytes, cv::Size ex
     return HeaderCheck::bad_size;
 }
 
-bool read_whole_file(const std::filesystem::path& path, std::vector<unsigned char>& bytes, std::string& error)
+bool read_whole_file(const std::filesystem::path& path, std::size_t max_bytes, std::vector<unsigned char>& bytes,
+                     std::string& error)
 {
     // O_NONBLOCK: a FIFO must not block the reader (the replay's capture
     // thread, and with it the shutdown); it is refused below, like any
@@ -300,6 +302,10 @@ bool read_whole_file(const std::filesystem::path& path, std::vector<unsigned cha
     }
     if (!S_ISREG(st.st_mode)) {
         error = "not a regular file";
+        return false;
+    }
+    if (static_cast<std::uintmax_t>(st.st_size) > max_bytes) {
+        error = std::to_string(st.st_size) + " bytes, more than " + std::to_string(max_bytes);
         return false;
     }
     bytes.resize(static_cast<std::size_t>(st.st_size));
@@ -325,7 +331,7 @@ bool read_whole_file(const std::filesystem::path& path, std::vector<unsigned cha
 bool load_image(const std::filesystem::path& path, int imread_flags, cv::Mat& out, std::string& error)
 {
     std::vector<unsigned char> bytes;
-    if (!read_whole_file(path, bytes, error)) {
+    if (!read_whole_file(path, kMaxImageFileBytes, bytes, error)) {
         error = path.string() + ": " + error;
         return false;
     }

@@ -192,7 +192,7 @@ TEST_F(ReadWholeFileTest, ReadsEveryByteIntoAReusedBuffer)
     const fs::path path = write(content, "frame.png");
     std::vector<unsigned char> bytes(5 * 1024 * 1024, 0xAB);
     std::string error;
-    ASSERT_TRUE(read_whole_file(path, bytes, error)) << error;
+    ASSERT_TRUE(read_whole_file(path, kMaxImageFileBytes, bytes, error)) << error;
     ASSERT_EQ(bytes.size(), content.size());
     EXPECT_TRUE(std::equal(bytes.begin(), bytes.end(), content.begin(),
                            [](unsigned char a, char b) { return a == static_cast<unsigned char>(b); }));
@@ -203,7 +203,7 @@ TEST_F(ReadWholeFileTest, AnEmptyFileGivesNoBytes)
 {
     std::vector<unsigned char> bytes(10, 1);
     std::string error;
-    EXPECT_TRUE(read_whole_file(write("", "empty.png"), bytes, error)) << error;
+    EXPECT_TRUE(read_whole_file(write("", "empty.png"), kMaxImageFileBytes, bytes, error)) << error;
     EXPECT_TRUE(bytes.empty());
 }
 
@@ -211,14 +211,33 @@ TEST_F(ReadWholeFileTest, SaysWhyAMissingFileADirectoryOrAFifoIsNotRead)
 {
     std::vector<unsigned char> bytes;
     std::string error;
-    EXPECT_FALSE(read_whole_file(dir_ / "missing.png", bytes, error));
+    EXPECT_FALSE(read_whole_file(dir_ / "missing.png", kMaxImageFileBytes, bytes, error));
     EXPECT_EQ(error, "cannot open: No such file or directory (errno 2)");
-    EXPECT_FALSE(read_whole_file(dir_, bytes, error));
+    EXPECT_FALSE(read_whole_file(dir_, kMaxImageFileBytes, bytes, error));
     EXPECT_EQ(error, "not a regular file");
     // No writer ever opens the FIFO: a blocking open or read would hang
     // here (and fail the test by ctest's timeout).
     const fs::path fifo = dir_ / "fifo.png";
     ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
-    EXPECT_FALSE(read_whole_file(fifo, bytes, error));
+    EXPECT_FALSE(read_whole_file(fifo, kMaxImageFileBytes, bytes, error));
     EXPECT_EQ(error, "not a regular file");
+}
+
+TEST_F(ReadWholeFileTest, RefusesAFileOverTheLimitBeforeAllocating)
+{
+    // A sparse file far larger than the limit: refused from its size alone,
+    // and the buffer keeps what it held.
+    const fs::path path = write("", "huge.png");
+    fs::resize_file(path, kMaxImageFileBytes + 1);
+    std::vector<unsigned char> bytes(3, 7);
+    std::string error;
+    EXPECT_FALSE(read_whole_file(path, kMaxImageFileBytes, bytes, error));
+    EXPECT_EQ(error, std::to_string(kMaxImageFileBytes + 1) + " bytes, more than " + std::to_string(kMaxImageFileBytes));
+    EXPECT_EQ(bytes, std::vector<unsigned char>(3, 7));
+    // At the limit, read (a small limit, to keep the test small).
+    const fs::path small = write(std::string(100, 'x'), "small.png");
+    EXPECT_TRUE(read_whole_file(small, 100, bytes, error)) << error;
+    EXPECT_EQ(bytes.size(), 100u);
+    EXPECT_FALSE(read_whole_file(small, 99, bytes, error));
+    EXPECT_EQ(error, "100 bytes, more than 99");
 }

@@ -96,12 +96,19 @@ enum class HeaderCheck : std::uint8_t { ok, unreadable, bad_size };
 // `why` says what is wrong (without the path).
 HeaderCheck check_image_header(std::span<const unsigned char> bytes, cv::Size expected, std::string& why);
 
+// The largest image file any reader reads: kMaxImageSidePx a side at eight
+// bytes a pixel (16-bit RGBA, uncompressed), and 64 MiB of metadata.
+inline constexpr std::size_t kMaxImageFileBytes =
+    std::size_t{8} * kMaxImageSidePx * kMaxImageSidePx + (std::size_t{64} << 20);
+
 // Reads the whole regular file at `path` into `bytes` (resized to its
 // length; reused capacity is not given back) with read(2) in one loop. On
 // failure returns false and says why in `error`, without the path: "cannot
 // open: <reason> (errno N)", "not a regular file" (a FIFO is opened
-// non-blocking and refused, never waited on), or "cannot read: ...".
-bool read_whole_file(const std::filesystem::path& path, std::vector<unsigned char>& bytes, std::string& error);
+// non-blocking and refused, never waited on), "N bytes, more than
+// max_bytes" (refused before anything is allocated), or "cannot read: ...".
+bool read_whole_file(const std::filesystem::path& path, std::size_t max_bytes, std::vector<unsigned char>& bytes,
+                     std::string& error);
 
 // Loads an image; on failure (missing, unreadable, corrupt, a header
 // declaring an image larger than kMaxImageSidePx) returns false and says
