@@ -3,11 +3,14 @@
 // image loading and replay use.
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <random>
-
-#include <sys/stat.h>
+#include <string>
+#include <vector>
 
 #include "stemd/io/recording.hpp"
 #include "temp_dir_test.hpp"
