@@ -721,11 +721,9 @@ int main(int argc, char** argv)
             std::cerr << "stemd-train: fold " << k << ": " << model_errors[static_cast<std::size_t>(k)] << "\n";
             return 1;
         }
-        std::vector<std::size_t> test_frames;
-        for (std::size_t f = 0; f < frames.size(); ++f)
-            if (in_fold(f, k))
-                test_frames.push_back(f);
-        for (const std::size_t f : test_frames) {
+        for (std::size_t f = 0; f < frames.size(); ++f) {
+            if (!in_fold(f, k))
+                continue;
             if (!pipeline.run(jobs[frames[f].job], error)) {
                 std::cerr << "stemd-train: " << error << "\n";
                 return 1;
