@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 namespace stemd::vision {
 
@@ -586,6 +587,27 @@ std::size_t add_weed_parts(CellWorkspace& ws, double min_confidence, double weed
         return classified(c) && decide_class(ws.probability_[c], min_confidence, weed_confidence) == PlantClass::Weed;
     };
     const double clearance_px = std::max(clearance_mm, 0.0) / ws.gsd_;
+    // Cell centres in image coordinates (pixel centres at integers).
+    const auto cell_centre = [&](int g) { return (g + 0.5) * cell_px - 0.5; };
+    // Whether every classified cell whose square comes within clearance_px
+    // of `at` is weed.
+    const auto clear_at = [&](cv::Point2f at) {
+        const int reach = static_cast<int>(std::ceil(clearance_px / cell_px)) + 1;
+        const int cx = static_cast<int>(at.x + 0.5f) / cell_px, cy = static_cast<int>(at.y + 0.5f) / cell_px;
+        for (int ny = std::max(cy - reach, 0); ny <= std::min(cy + reach, gh - 1); ++ny)
+            for (int nx = std::max(cx - reach, 0); nx <= std::min(cx + reach, gw - 1); ++nx) {
+                const std::size_t n = static_cast<std::size_t>(ny) * static_cast<std::size_t>(gw) + static_cast<std::size_t>(nx);
+                if (!classified(n) || weed_cell(n))
+                    continue;
+                // Distance to the cell's square (pixel edges at -0.5).
+                const double left = nx * cell_px - 0.5, top_edge = ny * cell_px - 0.5;
+                const double dx = std::max({left - at.x, 0.0, at.x - (left + cell_px)});
+                const double dy = std::max({top_edge - at.y, 0.0, at.y - (top_edge + cell_px)});
+                if (dx * dx + dy * dy <= clearance_px * clearance_px)
+                    return false;
+            }
+        return true;
+    };
     for (const std::uint32_t c : ws.vegetated())
         ws.in_part_[c] = 0;
     std::size_t added = 0;
@@ -593,19 +615,19 @@ std::size_t add_weed_parts(CellWorkspace& ws, double min_confidence, double weed
         const std::uint16_t id = ws.plant_[seed];
         if (ws.in_part_[seed] || !weed_cell(seed) || id == 0 || id > plants || classes[id - 1u] == PlantClass::Weed)
             continue;
-        // The group: the plant's weed cells 8-connected to the seed.
-        std::size_t top = 0;
-        ws.part_stack_[top++] = seed;
+        // The group: the plant's weed cells 8-connected to the seed, listed
+        // in ws.part_stack_[0, listed) as they are found.
+        std::size_t listed = 0;
+        ws.part_stack_[listed++] = seed;
         ws.in_part_[seed] = 1;
         double sum_x = 0, sum_y = 0, sum_w = 0, sum_p = 0, width_mm = 0, area_px = 0;
         int x0 = gw, y0 = gh, x1 = -1, y1 = -1;
-        while (top > 0) {
-            const std::uint32_t c = ws.part_stack_[--top];
+        for (std::size_t next = 0; next < listed; ++next) {
+            const std::uint32_t c = ws.part_stack_[next];
             const int gx = static_cast<int>(c % static_cast<std::uint32_t>(gw)), gy = static_cast<int>(c / static_cast<std::uint32_t>(gw));
             const double w = ws.rows_[c][c_fill];
-            // Cell centres in image coordinates (pixel centres at integers).
-            sum_x += w * ((gx + 0.5) * cell_px - 0.5);
-            sum_y += w * ((gy + 0.5) * cell_px - 0.5);
+            sum_x += w * cell_centre(gx);
+            sum_y += w * cell_centre(gy);
             sum_w += w;
             sum_p += w * ws.probability_[c];
             width_mm += w * ws.rows_[c][c_width_mm];
@@ -617,39 +639,38 @@ std::size_t add_weed_parts(CellWorkspace& ws, double min_confidence, double weed
                     if (ws.in_part_[n] || ws.plant_[n] != id || !weed_cell(n))
                         continue;
                     ws.in_part_[n] = 1;
-                    ws.part_stack_[top++] = static_cast<std::uint32_t>(n);
+                    ws.part_stack_[listed++] = static_cast<std::uint32_t>(n);
                 }
         }
         if (sum_w <= 0)
             continue;
         const cv::Point2f centre(static_cast<float>(sum_x / sum_w), static_cast<float>(sum_y / sum_w));
-        // Clearance: every classified cell whose square comes within
-        // clearance_px of the centre must be weed.
-        bool clear = true;
-        const int reach = static_cast<int>(std::ceil(clearance_px / cell_px)) + 1;
-        const int cx = static_cast<int>(centre.x + 0.5f) / cell_px, cy = static_cast<int>(centre.y + 0.5f) / cell_px;
-        for (int ny = std::max(cy - reach, 0); ny <= std::min(cy + reach, gh - 1) && clear; ++ny)
-            for (int nx = std::max(cx - reach, 0); nx <= std::min(cx + reach, gw - 1); ++nx) {
-                const std::size_t n = static_cast<std::size_t>(ny) * static_cast<std::size_t>(gw) + static_cast<std::size_t>(nx);
-                if (!classified(n) || weed_cell(n))
-                    continue;
-                // Distance from the centre to the cell's square (pixel edges at -0.5).
-                const double left = nx * cell_px - 0.5, top_edge = ny * cell_px - 0.5;
-                const double dx = std::max({left - centre.x, 0.0, centre.x - (left + cell_px)});
-                const double dy = std::max({top_edge - centre.y, 0.0, centre.y - (top_edge + cell_px)});
-                if (dx * dx + dy * dy <= clearance_px * clearance_px) {
-                    clear = false;
-                    break;
+        // The strike goes to the group's centre when it is clear; else to
+        // the clear centre of one of its cells nearest to it, so that a
+        // weed whose centre lies near the crop it grew into is still
+        // struck, with nothing but weed within the clearance.
+        cv::Point2f strike = centre;
+        if (!clear_at(centre)) {
+            double best_d2 = std::numeric_limits<double>::max();
+            for (std::size_t k = 0; k < listed; ++k) {
+                const std::uint32_t c = ws.part_stack_[k];
+                const cv::Point2f at(static_cast<float>(cell_centre(static_cast<int>(c % static_cast<std::uint32_t>(gw)))),
+                                     static_cast<float>(cell_centre(static_cast<int>(c / static_cast<std::uint32_t>(gw)))));
+                const double d2 = (at - centre).dot(at - centre);
+                if (d2 < best_d2 && clear_at(at)) {
+                    best_d2 = d2;
+                    strike = at;
                 }
             }
-        if (!clear)
-            continue;
+            if (best_d2 == std::numeric_limits<double>::max())
+                continue;
+        }
         if (det.plants.full() || det.plants.size() >= std::min(classes.size(), probabilities.size())) {
             ++det.stats.plants_over_capacity;
             continue;
         }
         Plant part;
-        part.stem = centre;
+        part.stem = strike;
         part.has_stem = true;
         part.method = StemMethod::com;
         part.estimator = StemEstimator::com;

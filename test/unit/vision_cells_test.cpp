@@ -682,3 +682,60 @@ TEST(WeedParts, AWeedGrownIntoAnUnsurePlantBecomesATargetOfItsOwnClearOfTheCrop)
               0u);
     EXPECT_EQ(full.stats.plants_over_capacity, frame.det.stats.plants_over_capacity + static_cast<int>(added));
 }
+
+TEST(WeedParts, AWeedWhoseCentreLiesNearTheCropIsStruckAtItsNearestClearCell)
+{
+    const Params params = test_params();   // 0.3 mm/px: 5 px cells of 1.5 mm
+    const PlantClassifier model = pair_model(params, 1.5, 1);
+    cv::Mat bgr, truth;
+    const cv::Point crop_centre(114, 110), weed_centre(186, 110);
+    const int radius = 36;
+    touching_pair({320, 240}, {150, 110}, radius, bgr, truth);
+    Frame frame(bgr, params, 1.5);
+    ASSERT_EQ(frame.det.plants.size(), 1u);
+    classify_cells(model, frame.cells);
+    std::array<float, kMaxPlants> p{};
+    std::array<PlantClass, kMaxPlants> classes{};
+    classify_plants(model, frame.cws, frame.cells, 1, 0.6, 0.85, p, classes);
+    ASSERT_EQ(classes[0], PlantClass::Unknown);
+
+    // Wider than the weed's radius, so the crop lies within it of the
+    // weed's centre; narrower than its diameter, so its far side is clear.
+    const double clearance_px = 1.3 * radius;
+    const double clearance_mm = clearance_px * params.gsd_mm_per_px;
+    Detections det = frame.det;
+    const std::size_t added = add_weed_parts(frame.cells, 0.6, 0.85, clearance_mm, det, classes, p);
+    ASSERT_GE(added, 1u);
+    const int grid_width = frame.cells.grid().width;
+    const auto cell_centre = [&](std::uint32_t c) {
+        return cv::Point2f(static_cast<float>(static_cast<int>(c % static_cast<std::uint32_t>(grid_width)) * 5 + 2),
+                           static_cast<float>(static_cast<int>(c / static_cast<std::uint32_t>(grid_width)) * 5 + 2));
+    };
+    // Every classified cell within the clearance of `at` is weed.
+    const auto clear = [&](cv::Point2f at) {
+        for (const std::uint32_t c : frame.cells.vegetated()) {
+            const cv::Point2f centre = cell_centre(c);
+            const double dx = std::max({centre.x - 2.5 - at.x, 0.0, at.x - (centre.x + 2.5)});
+            const double dy = std::max({centre.y - 2.5 - at.y, 0.0, at.y - (centre.y + 2.5)});
+            if (dx * dx + dy * dy <= clearance_px * clearance_px && frame.cells.weed_probability(c) < 0.85f)
+                return false;
+        }
+        return true;
+    };
+    for (std::size_t i = 1; i < det.plants.size(); ++i) {
+        const Plant& part = det.plants[i];
+        EXPECT_EQ(classes[i], PlantClass::Weed);
+        EXPECT_EQ(part.com_reason, ComReason::weed_part);
+        EXPECT_FALSE(clear(part.centre_of_mass)) << "the crop lies within the clearance of the weed's centre";
+        EXPECT_TRUE(clear(part.stem)) << "the strike has only weed within its clearance";
+        EXPECT_LT(cv::norm(part.stem - cv::Point2f(weed_centre)), radius) << "on the weed";
+        // No clear weed cell of the plant lies nearer the weed's centre.
+        const double moved = cv::norm(part.stem - part.centre_of_mass);
+        EXPECT_GT(moved, 0.0);
+        for (const std::uint32_t c : frame.cells.vegetated()) {
+            if (frame.cells.plant(c) == 1 && frame.cells.weed_probability(c) >= 0.85f && clear(cell_centre(c))) {
+                EXPECT_GE(cv::norm(cell_centre(c) - part.centre_of_mass), moved - 1e-3) << "cell " << c;
+            }
+        }
+    }
+}

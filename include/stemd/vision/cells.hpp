@@ -242,11 +242,12 @@ void classify_plants(const PlantClassifier& model, const ClassifyWorkspace& plan
 // one blob with it, and that blob's one stem is not on the weed; its cells
 // still tell it apart. Each 8-connected group of a crop or unknown plant's
 // cells that decide_class() calls weed becomes a plant of its own in `det`,
-// classed weed, its stem at the group's vegetation-weighted
-// centre (the centre of mass, a small plant's stem), when no classified
-// cell that is not weed lies within `clearance_mm` of that centre: what a tool
-// strikes there is weed, not crop (out of fold on cwfid-train, per
-// annotated plant: weeds treated 23 % -> 42 %, crops struck 0 -> 0).
+// classed weed. Its stem is where no classified cell that is not weed lies
+// within `clearance_mm`, so what a tool strikes there is weed, not crop:
+// the group's vegetation-weighted centre (the centre of mass, a small
+// plant's stem) when that is clear, else the centre of the group's cell
+// nearest to it that is clear (Plant::centre_of_mass keeps the group's
+// centre); a group with no clear cell gets none.
 // Plants classed weed keep their one stem. `classes` and `probabilities`
 // get the new plants' entries; parts beyond the plants' capacity are
 // counted in det.stats.plants_over_capacity. Returns how many were added;
