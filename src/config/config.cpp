@@ -1,15 +1,9 @@
 #include "stemd/config/config.hpp"
 
-#include <array>
-#include <cerrno>
 #include <cstring>
 #include <span>
 
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
-
-#include "stemd/base/unique_fd.hpp"
+#include "stemd/base/whole_file.hpp"
 #include "values.hpp"
 #include "yaml_loader.hpp"
 
@@ -60,35 +54,27 @@ std::optional<ConfigError> Config::load_file(const std::filesystem::path& path)
     const std::string origin = path.string();
     if (origin.empty())
         return ConfigError{"--config", 0, "", "empty file name"};
-    // O_NONBLOCK: opening a FIFO must not hang the start (SIGTERM is only
-    // taken later); a FIFO or a device is refused, a config is a file.
+    // A FIFO must not hang the start (SIGTERM is only taken later), and
+    // /dev/zero must not fill the memory: a config is a regular file of a
+    // few kB.
     const auto unreadable = [&](std::string_view why) {
         return ConfigError{origin, 0, "", cat("cannot read file: ", why)};
     };
-    base::UniqueFd fd(::open(origin.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK));
-    struct stat st {};
-    if (!fd.valid() || ::fstat(fd.get(), &st) != 0)
-        return unreadable(std::strerror(errno));
-    if (S_ISDIR(st.st_mode))
-        return unreadable("it is a directory");
-    if (!S_ISREG(st.st_mode))
-        return unreadable("not a regular file (a FIFO or a device)");
-    // Read with a cap: a config is a few kB, and /dev/zero or a FIFO that
-    // never ends must not fill the memory.
     std::string text;
-    std::array<char, 4096> chunk;
-    for (;;) {
-        const ssize_t n = ::read(fd.get(), chunk.data(), chunk.size());
-        if (n < 0 && errno == EINTR)
-            continue;
-        if (n < 0)
-            return unreadable(cat("read error: ", std::strerror(errno)));
-        if (n == 0)
-            break;
-        if (text.size() + static_cast<std::size_t>(n) > kMaxConfigBytes)
-            return unreadable(
-                cat("larger than ", std::to_string(kMaxConfigBytes / 1024), " KiB; is it a configuration file?"));
-        text.append(chunk.data(), static_cast<std::size_t>(n));
+    const base::WholeFileResult read = base::read_whole_file(origin.c_str(), kMaxConfigBytes, text);
+    switch (read.status) {
+    case base::WholeFileStatus::ok: break;
+    case base::WholeFileStatus::cannot_open:
+    case base::WholeFileStatus::cannot_stat: return unreadable(std::strerror(read.error_number));
+    case base::WholeFileStatus::directory: return unreadable("it is a directory");
+    case base::WholeFileStatus::not_regular: return unreadable("not a regular file (a FIFO or a device)");
+    case base::WholeFileStatus::too_large:
+        return unreadable(
+            cat("larger than ", std::to_string(kMaxConfigBytes / 1024), " KiB; is it a configuration file?"));
+    case base::WholeFileStatus::read_error: return unreadable(cat("read error: ", std::strerror(read.error_number)));
+    case base::WholeFileStatus::truncated:
+        return unreadable(cat("it ended after ", std::to_string(read.read_bytes), " of its ",
+                              std::to_string(read.size_bytes), " bytes"));
     }
     return load_text(text, origin);
 }

@@ -1,12 +1,7 @@
 #include "stemd/io/recording.hpp"
 
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <cctype>
-#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
@@ -17,7 +12,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
-#include "stemd/base/unique_fd.hpp"
+#include "stemd/base/whole_file.hpp"
 #include "stemd/io/csv.hpp"
 
 namespace stemd::io {
@@ -283,49 +278,28 @@ HeaderCheck check_image_header(std::span<const unsigned char> bytes, cv::Size ex
 bool read_whole_file(const std::filesystem::path& path, std::size_t max_bytes, std::vector<unsigned char>& bytes,
                      std::string& error)
 {
-    // O_NONBLOCK: a FIFO must not block the reader (the replay's capture
-    // thread, and with it the shutdown); it is refused below, like any
-    // non-file.
-    const base::UniqueFd file(::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK));
-    const auto errno_text = [](const char* what) {
-        const int e = errno;
-        return std::string(what) + ": " + std::strerror(e) + " (errno " + std::to_string(e) + ")";
+    const base::WholeFileResult read = base::read_whole_file(path.c_str(), max_bytes, bytes);
+    const auto errno_text = [&](const char* what) {
+        return std::string(what) + ": " + std::strerror(read.error_number) + " (errno " +
+               std::to_string(read.error_number) + ")";
     };
-    if (!file.valid()) {
-        error = errno_text("cannot open");
-        return false;
+    switch (read.status) {
+    case base::WholeFileStatus::ok: return true;
+    case base::WholeFileStatus::cannot_open: error = errno_text("cannot open"); break;
+    case base::WholeFileStatus::cannot_stat:
+    case base::WholeFileStatus::read_error: error = errno_text("cannot read"); break;
+    case base::WholeFileStatus::directory:
+    case base::WholeFileStatus::not_regular: error = "not a regular file"; break;
+    case base::WholeFileStatus::too_large:
+        error = (read.size_is_lower_bound ? "at least " : "") + std::to_string(read.size_bytes) + " bytes, more than " +
+                std::to_string(max_bytes);
+        break;
+    case base::WholeFileStatus::truncated:
+        error = "cannot read: the file ended after " + std::to_string(read.read_bytes) + " of its " +
+                std::to_string(read.size_bytes) + " bytes";
+        break;
     }
-    struct stat st {};
-    if (::fstat(file.get(), &st) != 0) {
-        error = errno_text("cannot read");
-        return false;
-    }
-    if (!S_ISREG(st.st_mode)) {
-        error = "not a regular file";
-        return false;
-    }
-    if (static_cast<std::uintmax_t>(st.st_size) > max_bytes) {
-        error = std::to_string(st.st_size) + " bytes, more than " + std::to_string(max_bytes);
-        return false;
-    }
-    bytes.resize(static_cast<std::size_t>(st.st_size));
-    std::size_t done = 0;
-    while (done < bytes.size()) {
-        const ssize_t n = ::read(file.get(), bytes.data() + done, bytes.size() - done);
-        if (n < 0 && errno == EINTR)
-            continue;
-        if (n < 0) {
-            error = errno_text("cannot read");
-            return false;
-        }
-        if (n == 0) {
-            error = "cannot read: the file ended after " + std::to_string(done) + " of its " +
-                    std::to_string(bytes.size()) + " bytes";
-            return false;
-        }
-        done += static_cast<std::size_t>(n);
-    }
-    return true;
+    return false;
 }
 
 bool load_image(const std::filesystem::path& path, int imread_flags, cv::Mat& out, std::string& error)

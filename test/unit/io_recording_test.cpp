@@ -244,3 +244,20 @@ TEST_F(ReadWholeFileTest, RefusesAFileOverTheLimitBeforeAllocating)
     EXPECT_FALSE(read_whole_file(small, 99, bytes, error));
     EXPECT_EQ(error, "100 bytes, more than 99");
 }
+
+TEST_F(ReadWholeFileTest, AFileThatReportsNoSizeIsReadToItsEndWithinTheLimit)
+{
+    // The kernel's own files report a size of 0 and hold more: read on to
+    // the end, as a file that grew after its size was taken would be.
+    std::vector<unsigned char> bytes;
+    std::string error;
+    ASSERT_EQ(fs::file_size("/proc/self/status"), 0u) << "this kernel reports a size for /proc files";
+    ASSERT_TRUE(read_whole_file("/proc/self/status", kMaxImageFileBytes, bytes, error)) << error;
+    const std::string text(bytes.begin(), bytes.end());
+    EXPECT_EQ(text.rfind("Name:", 0), 0u) << text.substr(0, 40);
+    EXPECT_NE(text.find("\nPid:"), std::string::npos);
+    // The limit holds for what is read beyond the reported size too.
+    EXPECT_FALSE(read_whole_file("/proc/self/status", 10, bytes, error));
+    EXPECT_EQ(error.rfind("at least ", 0), 0u) << error;
+    EXPECT_NE(error.find(" bytes, more than 10"), std::string::npos) << error;
+}

@@ -102,11 +102,12 @@ inline constexpr std::size_t kMaxImageFileBytes =
     std::size_t{8} * kMaxImageSidePx * kMaxImageSidePx + (std::size_t{64} << 20);
 
 // Reads the whole regular file at `path` into `bytes` (resized to its
-// length; reused capacity is not given back) with read(2) in one loop. On
+// length; reused capacity is not given back), as base::read_whole_file. On
 // failure returns false and says why in `error`, without the path: "cannot
 // open: <reason> (errno N)", "not a regular file" (a FIFO is opened
 // non-blocking and refused, never waited on), "N bytes, more than
-// max_bytes" (refused before anything is allocated), or "cannot read: ...".
+// max_bytes" (refused from its size before anything is allocated; "at
+// least N" when it grew past its size while read), or "cannot read: ...".
 bool read_whole_file(const std::filesystem::path& path, std::size_t max_bytes, std::vector<unsigned char>& bytes,
                      std::string& error);
 
