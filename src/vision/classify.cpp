@@ -1,5 +1,6 @@
 #include "stemd/vision/classify.hpp"
 
+#include "stemd/base/whole_file.hpp"
 #include "stemd/vision/bitmask.hpp"
 #include "stemd/vision/cells.hpp"
 
@@ -679,10 +680,34 @@ bool read_walkable_forest(const cv::FileNode& node, int columns, const std::stri
 std::optional<PlantClassifier> PlantClassifier::load(const std::filesystem::path& path, std::string& error)
 {
     const std::string name = path.string();
+    // Read here, not by cv::FileStorage from the path: it would wait forever
+    // on a FIFO and read /dev/zero until the memory is gone.
+    std::string text;
+    const base::WholeFileResult read = base::read_whole_file(name.c_str(), kMaxModelFileBytes, text);
+    switch (read.status) {
+    case base::WholeFileStatus::ok: break;
+    case base::WholeFileStatus::cannot_open:
+    case base::WholeFileStatus::cannot_stat:
+    case base::WholeFileStatus::read_error:
+        error = name + ": cannot read the model file: " + std::strerror(read.error_number);
+        return std::nullopt;
+    case base::WholeFileStatus::directory:
+    case base::WholeFileStatus::not_regular:
+        error = name + ": cannot read the model file: not a regular file";
+        return std::nullopt;
+    case base::WholeFileStatus::too_large:
+        error = name + ": cannot read the model file: larger than " + std::to_string(kMaxModelFileBytes >> 20) +
+                " MiB; is it a model?";
+        return std::nullopt;
+    case base::WholeFileStatus::truncated:
+        error = name + ": cannot read the model file: it ended while read";
+        return std::nullopt;
+    }
     try {
-        cv::FileStorage fs(name, cv::FileStorage::READ);
+        // The format (YAML, JSON or XML) is told from the text's start.
+        cv::FileStorage fs(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
         if (!fs.isOpened()) {
-            error = name + ": cannot read the model file";
+            error = name + ": cannot read the model file: not a FileStorage document";
             return std::nullopt;
         }
         const cv::FileNode meta = fs["stemd_plant_classifier"];

@@ -8,6 +8,8 @@
 #include <fstream>
 #include <random>
 
+#include <sys/stat.h>
+
 #include <opencv2/imgproc.hpp>
 
 #include "stemd/vision/classify.hpp"
@@ -404,6 +406,17 @@ TEST(Classify, UnusableModelFilesAreRefusedNamingTheFile)
     EXPECT_FALSE(PlantClassifier::load(garbage, error));
     EXPECT_NE(error.find(garbage.string()), std::string::npos) << error;
     fs::remove(garbage);
+
+    // A FIFO no one writes (a blocking open would hang here until ctest's
+    // timeout), a device that never ends, a directory: refused at once.
+    const fs::path fifo = temp_path("fifo.yaml");
+    fs::remove(fifo);
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    for (const fs::path& path : {fifo, fs::path("/dev/zero"), fifo.parent_path()}) {
+        EXPECT_FALSE(PlantClassifier::load(path, error));
+        EXPECT_EQ(error, path.string() + ": cannot read the model file: not a regular file");
+    }
+    fs::remove(fifo);
 }
 
 TEST(Classify, TrainingRefusesOneClassOrBadLabels)

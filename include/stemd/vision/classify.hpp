@@ -311,6 +311,10 @@ struct FlatForest {
 inline constexpr int kMaxFlatDepth = 64;
 FlatForest flatten(const cv::ml::RTrees& forest);
 
+// Far above a model's size (CWFID's example: 2.5 MB; a forest grown to
+// its depth limit on noisy labels, tens of MB), far below the memory.
+inline constexpr std::size_t kMaxModelFileBytes = std::size_t{256} << 20;
+
 class PlantClassifier {
 public:
     // Trains on one row per plant (samples CV_32F, kPlantFeatureCount
@@ -318,7 +322,8 @@ public:
     // given options.seed (it reseeds the calling thread's cv::theRNG()).
     static std::optional<PlantClassifier> train(const cv::Mat& samples, const cv::Mat& labels,
                                                 const ForestOptions& options, std::string& error);
-    // Reads a model file; error names the file and the reason.
+    // Reads a model file (a regular file of at most kMaxModelFileBytes);
+    // error names the file and the reason.
     static std::optional<PlantClassifier> load(const std::filesystem::path& path, std::string& error);
     // Writes the forest with `info` (its trees field is filled in here).
     bool save(const std::filesystem::path& path, ModelInfo info, std::string& error) const;
