@@ -2,8 +2,8 @@
 
 #include <cctype>
 #include <cmath>
+#include <cstring>
 #include <exception>
-#include <fstream>
 #include <string_view>
 
 #include <opencv2/core/persistence.hpp>
@@ -11,6 +11,7 @@
 
 #include "one_line.hpp"
 #include "stemd/base/enum_names.hpp"
+#include "stemd/base/whole_file.hpp"
 
 namespace stemd::geometry {
 
@@ -232,7 +233,7 @@ namespace {
 //   distortion_coefficients: {rows: 1, cols: 5, data: [k1, k2, p1, p2, k3]}
 // rectification_matrix and projection_matrix describe a rectified stereo
 // image, not the raw frames stemd reads, and are not used.
-std::optional<Intrinsics> read_ros_camera_info(const std::string& path, std::string* error)
+std::optional<Intrinsics> read_ros_camera_info(const std::string& path, const std::string& text, std::string* error)
 {
     const auto fail = [&](const std::string& what) -> std::optional<Intrinsics> {
         set_error(error, path + ": " + what);
@@ -240,9 +241,7 @@ std::optional<Intrinsics> read_ros_camera_info(const std::string& path, std::str
     };
     YAML::Node root;
     try {
-        root = YAML::LoadFile(path);
-    } catch (const YAML::BadFile&) {
-        return fail("cannot open the calibration file");
+        root = YAML::Load(text);
     } catch (const YAML::ParserException& e) {
         return fail("line " + std::to_string(e.mark.line + 1) + ": invalid YAML: " + e.msg);
     } catch (const std::exception& e) {
@@ -335,34 +334,47 @@ std::optional<Intrinsics> read_ros_camera_info(const std::string& path, std::str
 
 // OpenCV's own files start with its "%YAML:1.0" line (not valid YAML 1.2),
 // are XML, or are JSON; the rest is read as ROS camera_info YAML.
-bool is_opencv_storage(const std::string& path)
+bool is_opencv_storage(std::string_view text)
 {
-    std::ifstream in(path, std::ios::binary);
-    if (!in)
-        return true;  // let the reader report the file
-    std::string head(64, '\0');
-    in.read(head.data(), static_cast<std::streamsize>(head.size()));
-    head.resize(static_cast<std::size_t>(in.gcount()));
     std::size_t i = 0;
-    while (i < head.size() && std::isspace(static_cast<unsigned char>(head[i])))
+    while (i < text.size() && std::isspace(static_cast<unsigned char>(text[i])))
         ++i;
-    const std::string_view start = std::string_view(head).substr(i);
-    return start.rfind("%YAML:", 0) == 0 || start.rfind("<?xml", 0) == 0 || start.rfind("{", 0) == 0;
+    const std::string_view start = text.substr(i);
+    return start.starts_with("%YAML:") || start.starts_with("<?xml") || start.starts_with("{");
 }
+
+// A calibration file is a few kB.
+constexpr std::size_t kMaxCalibrationBytes = std::size_t{1} << 20;
 
 }  // namespace
 
 std::optional<Intrinsics> read_calibration(const std::string& path, std::string* error)
 {
-    if (!is_opencv_storage(path))
-        return read_ros_camera_info(path, error);
     const auto fail = [&](const std::string& what) -> std::optional<Intrinsics> {
         set_error(error, path + ": " + what);
         return std::nullopt;
     };
+    // Read once here, not by the parsers from the path: they would wait
+    // forever on a FIFO and read /dev/zero until the memory is gone.
+    std::string text;
+    const base::WholeFileResult read = base::read_whole_file(path.c_str(), kMaxCalibrationBytes, text);
+    switch (read.status) {
+    case base::WholeFileStatus::ok: break;
+    case base::WholeFileStatus::cannot_open:
+    case base::WholeFileStatus::cannot_stat:
+    case base::WholeFileStatus::read_error:
+        return fail(std::string("cannot read the calibration file: ") + std::strerror(read.error_number));
+    case base::WholeFileStatus::directory:
+    case base::WholeFileStatus::not_regular: return fail("cannot read the calibration file: not a regular file");
+    case base::WholeFileStatus::too_large:
+        return fail("cannot read the calibration file: larger than 1 MiB; is it a calibration file?");
+    case base::WholeFileStatus::truncated: return fail("cannot read the calibration file: it ended while read");
+    }
+    if (!is_opencv_storage(text))
+        return read_ros_camera_info(path, text, error);
     try {
         cv::FileStorage fs;
-        if (!fs.open(path, cv::FileStorage::READ) || !fs.isOpened())
+        if (!fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY) || !fs.isOpened())
             return fail("cannot open or parse the calibration file");
         Intrinsics k;
         const auto read_int = [&](const char* name, int& out) -> bool {

@@ -1,6 +1,8 @@
 #include "stemd/io/csv.hpp"
 
-#include <fstream>
+#include <cstring>
+
+#include "stemd/base/whole_file.hpp"
 
 namespace stemd::io {
 
@@ -57,20 +59,38 @@ int CsvTable::column(std::string_view name) const
 
 std::optional<CsvTable> read_csv(const std::filesystem::path& path, std::string& error)
 {
-    std::ifstream in(path);
-    if (!in) {
-        error = path.string() + ": cannot open";
+    // Read whole through the shared reader: a FIFO named frames.csv must not
+    // hang the replay's start, nor /dev/zero fill the memory.
+    std::string text;
+    const base::WholeFileResult read = base::read_whole_file(path.c_str(), kMaxCsvBytes, text);
+    switch (read.status) {
+    case base::WholeFileStatus::ok: break;
+    case base::WholeFileStatus::cannot_open: error = path.string() + ": cannot open"; return std::nullopt;
+    case base::WholeFileStatus::cannot_stat:
+    case base::WholeFileStatus::read_error:
+        error = path.string() + ": cannot read: " + std::strerror(read.error_number);
+        return std::nullopt;
+    case base::WholeFileStatus::directory:
+    case base::WholeFileStatus::not_regular: error = path.string() + ": not a regular file"; return std::nullopt;
+    case base::WholeFileStatus::too_large:
+        error = path.string() + ": larger than " + std::to_string(kMaxCsvBytes >> 20) + " MiB; is it a CSV table?";
+        return std::nullopt;
+    case base::WholeFileStatus::truncated:
+        error = path.string() + ": cannot read: it ended while read";
         return std::nullopt;
     }
     CsvTable table;
-    std::string line;
     int line_no = 0;
     bool have_header = false;
-    while (std::getline(in, line)) {
+    for (std::size_t start = 0; start < text.size();) {
+        const std::size_t newline = text.find('\n', start);
+        const std::size_t end = newline == std::string::npos ? text.size() : newline;
+        std::string_view line(text.data() + start, end - start);
+        start = end + 1;
         ++line_no;
         if (!line.empty() && line.back() == '\r')
-            line.pop_back();
-        if (line.find_first_not_of(" \t") == std::string::npos)
+            line.remove_suffix(1);
+        if (line.find_first_not_of(" \t") == std::string_view::npos)
             continue;
         auto fields = split_csv_line(line);
         if (!have_header) {

@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <sys/stat.h>
 #include <unistd.h>
 #include <string>
 #include <vector>
@@ -439,6 +440,15 @@ TEST_F(CalibrationFileTest, MissingNodesAndBadFilesAreClearErrors)
     }
     EXPECT_FALSE(read_calibration(no_size.string(), &error));
     EXPECT_EQ(error, no_size.string() + ": missing or non-integer node 'image_width'");
+
+    // A FIFO no one writes (a blocking open would hang here until ctest's
+    // timeout), a device that never ends, a directory: refused at once.
+    const fs::path fifo = dir_ / "fifo.yaml";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    for (const fs::path& path : {fifo, fs::path("/dev/zero"), dir_}) {
+        EXPECT_FALSE(read_calibration(path.string(), &error));
+        EXPECT_EQ(error, path.string() + ": cannot read the calibration file: not a regular file");
+    }
 }
 
 TEST_F(CalibrationFileTest, ReadsRosCameraInfo)

@@ -127,6 +127,34 @@ TEST_F(RecordingTest, OtherRowErrors)
     EXPECT_EQ(error_, where(2) + "a frame needs an rgb or a mask path");
 }
 
+TEST_F(RecordingTest, AFramesCsvThatIsNoFileIsRefusedAtOnce)
+{
+    // A FIFO no one writes (a blocking read would hang the replay's start
+    // until ctest's timeout), and a directory.
+    const fs::path csv = dir_ / "frames.csv";
+    ASSERT_EQ(::mkfifo(csv.c_str(), 0600), 0);
+    EXPECT_FALSE(read_recording(dir_, error_));
+    EXPECT_EQ(error_, csv.string() + ": not a regular file");
+    fs::remove(csv);
+    fs::create_directory(csv);
+    EXPECT_FALSE(read_recording(dir_, error_));
+    EXPECT_EQ(error_, csv.string() + ": not a regular file");
+    fs::remove(csv);
+    EXPECT_FALSE(read_recording(dir_, error_));
+    EXPECT_EQ(error_, csv.string() + ": cannot open");
+    // Lines end in \n or \r\n, the last one may have neither, blank ones
+    // are skipped, and errors name the file's own line.
+    std::ofstream(csv, std::ios::binary) << "t_ns,rgb,nir,mask\r\n\n0,a.png,,\r\n  \n1000,b.png,,";
+    const auto rec = read_recording(dir_, error_);
+    ASSERT_TRUE(rec) << error_;
+    ASSERT_EQ(rec->frames.size(), 2u);
+    EXPECT_EQ(rec->frames[1].t_ns, 1000);
+    EXPECT_EQ(rec->frames[1].rgb, "b.png");
+    std::ofstream(csv, std::ios::binary) << "t_ns,rgb,nir,mask\r\n\n0,a.png,,\r\n  \nx,b.png,,";
+    EXPECT_FALSE(read_recording(dir_, error_));
+    EXPECT_EQ(error_, where(5) + "t_ns 'x' is not an integer");
+}
+
 TEST_F(RecordingTest, TimeMustIncreaseFromZeroWithBoundedGaps)
 {
     EXPECT_FALSE(read("t_ns,rgb,nir,mask\n-1,a.png,,\n"));

@@ -1,6 +1,7 @@
-// Reading a whole regular file with a size cap, as the configuration and
-// the image reader both do. Callers word the outcome for their users; this
-// only says what happened.
+// Reading a whole regular file with a size cap, for every file stemd reads
+// whole (the configuration, images, the model, the calibration, CSV
+// tables). Callers word the outcome for their users; this only says what
+// happened.
 #pragma once
 
 #include <cerrno>

@@ -2,6 +2,7 @@
 // detection CSVs): comma-separated, a header row, optional double quotes.
 #pragma once
 
+#include <cstddef>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -27,7 +28,12 @@ struct CsvTable {
     int column(std::string_view name) const;
 };
 
-// Reads a whole CSV file; blank lines are skipped. On failure returns
+// A recording's frames.csv of ten hours at 30 frames a second is about
+// 100 MB; anything larger is no table stemd wrote.
+inline constexpr std::size_t kMaxCsvBytes = std::size_t{256} << 20;
+
+// Reads a whole CSV file (a regular file of at most kMaxCsvBytes; a FIFO is
+// refused, never waited on); blank lines are skipped. On failure returns
 // nullopt and sets `error` to "<path>:<line>: <reason>" (or "<path>: <reason>").
 // Every row must have as many fields as the header.
 std::optional<CsvTable> read_csv(const std::filesystem::path& path, std::string& error);
