@@ -2,7 +2,6 @@
 
 #include <cctype>
 #include <cmath>
-#include <cstring>
 #include <exception>
 #include <string_view>
 
@@ -358,18 +357,8 @@ std::optional<Intrinsics> read_calibration(const std::string& path, std::string*
     // forever on a FIFO and read /dev/zero until the memory is gone.
     std::string text;
     const base::WholeFileResult read = base::read_whole_file(path.c_str(), kMaxCalibrationBytes, text);
-    switch (read.status) {
-    case base::WholeFileStatus::ok: break;
-    case base::WholeFileStatus::cannot_open:
-    case base::WholeFileStatus::cannot_stat:
-    case base::WholeFileStatus::read_error:
-        return fail(std::string("cannot read the calibration file: ") + std::strerror(read.error_number));
-    case base::WholeFileStatus::directory:
-    case base::WholeFileStatus::not_regular: return fail("cannot read the calibration file: not a regular file");
-    case base::WholeFileStatus::too_large:
-        return fail("cannot read the calibration file: larger than 1 MiB; is it a calibration file?");
-    case base::WholeFileStatus::truncated: return fail("cannot read the calibration file: it ended while read");
-    }
+    if (!read.ok())
+        return fail("cannot read the calibration file: " + base::why_unread(read, kMaxCalibrationBytes));
     if (!is_opencv_storage(text))
         return read_ros_camera_info(path, text, error);
     try {

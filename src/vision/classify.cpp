@@ -684,23 +684,8 @@ std::optional<PlantClassifier> PlantClassifier::load(const std::filesystem::path
     // on a FIFO and read /dev/zero until the memory is gone.
     std::string text;
     const base::WholeFileResult read = base::read_whole_file(name.c_str(), kMaxModelFileBytes, text);
-    switch (read.status) {
-    case base::WholeFileStatus::ok: break;
-    case base::WholeFileStatus::cannot_open:
-    case base::WholeFileStatus::cannot_stat:
-    case base::WholeFileStatus::read_error:
-        error = name + ": cannot read the model file: " + std::strerror(read.error_number);
-        return std::nullopt;
-    case base::WholeFileStatus::directory:
-    case base::WholeFileStatus::not_regular:
-        error = name + ": cannot read the model file: not a regular file";
-        return std::nullopt;
-    case base::WholeFileStatus::too_large:
-        error = name + ": cannot read the model file: larger than " + std::to_string(kMaxModelFileBytes >> 20) +
-                " MiB; is it a model?";
-        return std::nullopt;
-    case base::WholeFileStatus::truncated:
-        error = name + ": cannot read the model file: it ended while read";
+    if (!read.ok()) {
+        error = name + ": cannot read the model file: " + base::why_unread(read, kMaxModelFileBytes);
         return std::nullopt;
     }
     try {

@@ -622,20 +622,38 @@ TEST(CellContext, AModelWithAContextForestUsesItAndTheFileKeepsIt)
     fs::remove(path.string() + ".renamed.yaml");
 }
 
-TEST(WeedParts, AWeedGrownIntoAnUnsurePlantBecomesATargetOfItsOwnClearOfTheCrop)
-{
+// A crop and a weed of `radius` px touching, found as one plant whose
+// cells a model trained on such pairs has classified; the plant is
+// unknown (half crop, half weed: the blob is not treated).
+struct UnsurePair {
+    static constexpr int radius = 36;
+    const cv::Point crop_centre{114, 110}, weed_centre{186, 110};
     const Params params = test_params();   // 0.3 mm/px: 5 px cells of 1.5 mm
     const PlantClassifier model = pair_model(params, 1.5, 1);
-    cv::Mat bgr, truth;
-    const cv::Point crop_centre(114, 110), weed_centre(186, 110);
-    const int radius = 36;
-    touching_pair({320, 240}, {150, 110}, radius, bgr, truth);
-    Frame frame(bgr, params, 1.5);
-    ASSERT_EQ(frame.det.plants.size(), 1u);
-    classify_cells(model, frame.cells);
+    cv::Mat truth;
+    Frame frame{image(truth), params, 1.5};
     std::array<float, kMaxPlants> p{};
     std::array<PlantClass, kMaxPlants> classes{};
-    classify_plants(model, frame.cws, frame.cells, 1, 0.6, 0.85, p, classes);
+
+    UnsurePair()
+    {
+        classify_cells(model, frame.cells);
+        classify_plants(model, frame.cws, frame.cells, 1, 0.6, 0.85, p, classes);
+    }
+    static cv::Mat image(cv::Mat& truth)
+    {
+        cv::Mat bgr;
+        touching_pair({320, 240}, {150, 110}, radius, bgr, truth);
+        return bgr;
+    }
+};
+
+TEST(WeedParts, AWeedGrownIntoAnUnsurePlantBecomesATargetOfItsOwnClearOfTheCrop)
+{
+    UnsurePair pair;
+    auto& [crop_centre, weed_centre, params, model, truth, frame, p, classes] = pair;
+    const int radius = UnsurePair::radius;
+    ASSERT_EQ(frame.det.plants.size(), 1u);
     ASSERT_EQ(classes[0], PlantClass::Unknown) << "half crop, half weed: the blob is not treated";
 
     const double clearance_mm = 1.5;
@@ -685,18 +703,10 @@ TEST(WeedParts, AWeedGrownIntoAnUnsurePlantBecomesATargetOfItsOwnClearOfTheCrop)
 
 TEST(WeedParts, AWeedWhoseCentreLiesNearTheCropIsStruckAtItsNearestClearCell)
 {
-    const Params params = test_params();   // 0.3 mm/px: 5 px cells of 1.5 mm
-    const PlantClassifier model = pair_model(params, 1.5, 1);
-    cv::Mat bgr, truth;
-    const cv::Point crop_centre(114, 110), weed_centre(186, 110);
-    const int radius = 36;
-    touching_pair({320, 240}, {150, 110}, radius, bgr, truth);
-    Frame frame(bgr, params, 1.5);
+    UnsurePair pair;
+    auto& [crop_centre, weed_centre, params, model, truth, frame, p, classes] = pair;
+    const int radius = UnsurePair::radius;
     ASSERT_EQ(frame.det.plants.size(), 1u);
-    classify_cells(model, frame.cells);
-    std::array<float, kMaxPlants> p{};
-    std::array<PlantClass, kMaxPlants> classes{};
-    classify_plants(model, frame.cws, frame.cells, 1, 0.6, 0.85, p, classes);
     ASSERT_EQ(classes[0], PlantClass::Unknown);
 
     // Wider than the weed's radius, so the crop lies within it of the

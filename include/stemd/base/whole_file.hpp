@@ -7,6 +7,8 @@
 #include <cerrno>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
+#include <string>
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -117,6 +119,26 @@ WholeFileResult read_whole_file(const char* path, std::size_t max_bytes, Bytes& 
         result.read_bytes += static_cast<std::size_t>(n);
     }
     return result;
+}
+
+// Why a read failed, in words for a log line after "<path>: cannot read
+// the ... file: " (empty when it did not fail). Readers whose tests fix
+// older wordings (the configuration, images, CSV tables) keep their own.
+inline std::string why_unread(const WholeFileResult& result, std::size_t max_bytes)
+{
+    switch (result.status) {
+    case WholeFileStatus::ok: break;
+    case WholeFileStatus::cannot_open:
+    case WholeFileStatus::cannot_stat:
+    case WholeFileStatus::read_error: return std::strerror(result.error_number);
+    case WholeFileStatus::directory:
+    case WholeFileStatus::not_regular: return "not a regular file";
+    case WholeFileStatus::too_large:
+        return max_bytes >= (std::size_t{1} << 20) ? "larger than " + std::to_string(max_bytes >> 20) + " MiB"
+                                                   : "larger than " + std::to_string(max_bytes) + " bytes";
+    case WholeFileStatus::truncated: return "it ended while read";
+    }
+    return {};
 }
 
 }  // namespace stemd::base
