@@ -275,4 +275,9 @@ void dilate_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch&
     MorphologyAccess::apply<Op::dilate>(in, radius_px, out, scratch);
 }
 
+void erode_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch)
+{
+    MorphologyAccess::apply<Op::erode>(in, radius_px, out, scratch);
+}
+
 }  // namespace stemd::vision

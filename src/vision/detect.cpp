@@ -414,7 +414,8 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
         const int opening_radius = std::clamp(params.opening_radius_px, 0, kMaxClosingRadiusPx);
         if (opening_radius > 0 || green_seeds || leaf_colour_seeds) {
             // The seeds: the opening of the pixels that pass every test, so a
-            // seed is a compact core, not one lucky pixel.
+            // seed is a compact core, not one lucky pixel. The NIR path tests
+            // every opened pixel's greenness, so it needs the opening itself.
             const BitMask* to_open = &ws.thresholded_;
             SoilColour soil;
             if (leaf_colour_seeds) {
@@ -423,8 +424,12 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
                 keep_greener_than_red(frame.bgr, soil, kLeafGreenOverSoil, ws.second_);
                 to_open = &ws.second_;
             }
-            if (opening_radius > 0)
+            if (opening_radius > 0 && green_seeds)
                 open_mask(*to_open, opening_radius, ws.opened_, ws.opening_);
+            else if (opening_radius > 0)
+                // Only which components hold a seed matters below, and the
+                // erosion tells that as the opening does (erode_mask).
+                erode_mask(*to_open, opening_radius, ws.opened_, ws.opening_);
             else
                 ws.opened_ = *to_open;
             if (green_seeds) {

@@ -20,7 +20,7 @@ cv::Mat opencv_close(const cv::Mat& mask, int radius)
     return out;
 }
 
-// `morphology` (close_mask, open_mask, dilate_mask) of a 0/255 mask.
+// `morphology` (close_mask, open_mask, dilate_mask, erode_mask) of a 0/255 mask.
 using Morphology = void (*)(const BitMask&, int, BitMask&, ClosingScratch&);
 cv::Mat ours(Morphology morphology, const cv::Mat& mask, int radius)
 {
@@ -139,6 +139,58 @@ TEST(Opening, RemovesSpecksAndKeepsBlobs)
     EXPECT_FALSE(out.get(30, 20));
     EXPECT_TRUE(out.get(65, 15));
     EXPECT_TRUE(out.get(60, 15));  // straight edges survive a cross-shaped opening
+}
+
+TEST(Erosion, BitExactWithOpenCv)
+{
+    // cv::erode's default border is the largest value: outside is vegetation.
+    std::uint64_t seed = 400;
+    for (const cv::Size size : {cv::Size(1, 1), cv::Size(63, 9), cv::Size(65, 33), cv::Size(130, 70)}) {
+        for (const int radius : {0, 1, 2, 4, 10}) {
+            const cv::Mat mask = stemd::test::random_blob_mask(size, seed++, 6, 0.02);
+            cv::Mat expected = mask.clone();
+            if (radius > 0)
+                cv::erode(mask, expected,
+                          cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1)));
+            const cv::Mat actual = ours(erode_mask, mask, radius);
+            ASSERT_EQ(cv::countNonZero(expected != actual), 0) << "size " << size << " radius " << radius;
+        }
+    }
+}
+
+TEST(Erosion, SeedsExactlyTheComponentsTheOpeningSeeds)
+{
+    // Which 8-connected components of a mask hold a pixel of its opening,
+    // and which hold one of its erosion: the same, for blobs, specks,
+    // fringes and the frame's border.
+    std::uint64_t seed = 500;
+    long components_seen = 0, seeded = 0;
+    for (const cv::Size size : {cv::Size(40, 30), cv::Size(65, 33), cv::Size(130, 70), cv::Size(257, 41)}) {
+        for (const int radius : {1, 2, 3, 6}) {
+            for (const double salt : {0.02, 0.1, 0.3}) {
+                const cv::Mat mask = stemd::test::random_blob_mask(size, seed++, 10, salt);
+                cv::Mat labels;
+                const int count = cv::connectedComponents(mask, labels, 8, CV_32S);
+                const cv::Mat opened = ours(open_mask, mask, radius), eroded = ours(erode_mask, mask, radius);
+                std::vector<std::uint8_t> by_opening(static_cast<std::size_t>(count), 0), by_erosion(by_opening);
+                for (int y = 0; y < mask.rows; ++y)
+                    for (int x = 0; x < mask.cols; ++x) {
+                        const auto label = static_cast<std::size_t>(labels.at<int>(y, x));
+                        by_opening[label] |= opened.at<std::uint8_t>(y, x) != 0;
+                        by_erosion[label] |= eroded.at<std::uint8_t>(y, x) != 0;
+                    }
+                for (int c = 1; c < count; ++c) {
+                    ASSERT_EQ(by_opening[static_cast<std::size_t>(c)], by_erosion[static_cast<std::size_t>(c)])
+                        << "component " << c << ", size " << size << " radius " << radius << " salt " << salt;
+                    seeded += by_opening[static_cast<std::size_t>(c)];
+                }
+                components_seen += count - 1;
+            }
+        }
+    }
+    // Both answers occur often enough for the comparison to mean something.
+    EXPECT_GT(seeded, 50);
+    EXPECT_GT(components_seen - seeded, 50);
 }
 
 TEST(Dilation, BitExactWithOpenCv)

@@ -46,4 +46,12 @@ void open_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& s
 // out = dilate(in) with the same kernel (outside is background).
 void dilate_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch);
 
+// out = erode(in) with the same kernel (outside is vegetation), the first
+// half of open_mask. A connected set holds a pixel of open(in) exactly when
+// it holds one of erode(in): each opened pixel lies in a kernel placed
+// wholly inside `in` (the kernel is connected, so within one component) at
+// an eroded pixel. Where only which components survive the opening
+// matters, the erosion answers it at half the cost.
+void erode_mask(const BitMask& in, int radius_px, BitMask& out, ClosingScratch& scratch);
+
 }  // namespace stemd::vision

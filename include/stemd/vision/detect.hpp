@@ -70,7 +70,7 @@ private:
     BitMask vegetation_;                    // thresholded components the opening left a seed in
     BitMask thresholded_;
     BitMask second_;                        // exg_and_ndvi: the chromatic ExG mask, where seeds must lie
-    BitMask opened_;                        // seeds: what survives the opening
+    BitMask opened_;                        // seeds: the opening (NIR path) or its erosion, which seeds the same components
     std::vector<std::uint8_t> keep_;        // per thresholded component: seeded
     std::vector<std::uint8_t> fringe_passed_;  // per thresholded component: the slides its green survived
     BitMask edged_;                         // vegetation_ with its mixed edge pixels
