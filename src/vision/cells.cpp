@@ -654,8 +654,12 @@ std::size_t add_weed_parts(CellWorkspace& ws, double min_confidence, double weed
             double best_d2 = std::numeric_limits<double>::max();
             for (std::size_t k = 0; k < listed; ++k) {
                 const std::uint32_t c = ws.part_stack_[k];
-                const cv::Point2f at(static_cast<float>(cell_centre(static_cast<int>(c % static_cast<std::uint32_t>(gw)))),
-                                     static_cast<float>(cell_centre(static_cast<int>(c / static_cast<std::uint32_t>(gw)))));
+                // A last, partial cell's centre may lie past the frame's edge.
+                const cv::Point2f at(
+                    static_cast<float>(std::min(cell_centre(static_cast<int>(c % static_cast<std::uint32_t>(gw))),
+                                                ws.frame_size_.width - 1.0)),
+                    static_cast<float>(std::min(cell_centre(static_cast<int>(c / static_cast<std::uint32_t>(gw))),
+                                                ws.frame_size_.height - 1.0)));
                 const double d2 = (at - centre).dot(at - centre);
                 if (d2 < best_d2 && clear_at(at)) {
                     best_d2 = d2;
