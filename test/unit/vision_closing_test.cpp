@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <initializer_list>
+
 #include <opencv2/imgproc.hpp>
 
 #include "stemd/vision/bitmask.hpp"
@@ -36,6 +38,24 @@ cv::Mat ours(Morphology morphology, const cv::Mat& mask, int radius)
 cv::Mat our_close(const cv::Mat& mask, int radius)
 {
     return ours(close_mask, mask, radius);
+}
+
+// `morphology` against cv::morphologyEx(`opencv_op`) with the same ellipse
+// and OpenCV's default border, on random blob masks of every size and radius.
+void expect_like_opencv(Morphology morphology, int opencv_op, std::uint64_t seed, std::initializer_list<cv::Size> sizes,
+                        std::initializer_list<int> radii)
+{
+    for (const cv::Size size : sizes) {
+        for (const int radius : radii) {
+            const cv::Mat mask = stemd::test::random_blob_mask(size, seed++, 6, 0.02);
+            cv::Mat expected = mask.clone();
+            if (radius > 0)
+                cv::morphologyEx(mask, expected, opencv_op,
+                                 cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1)));
+            const cv::Mat actual = ours(morphology, mask, radius);
+            ASSERT_EQ(cv::countNonZero(expected != actual), 0) << "size " << size << " radius " << radius;
+        }
+    }
 }
 
 }  // namespace
@@ -144,18 +164,8 @@ TEST(Opening, RemovesSpecksAndKeepsBlobs)
 TEST(Erosion, BitExactWithOpenCv)
 {
     // cv::erode's default border is the largest value: outside is vegetation.
-    std::uint64_t seed = 400;
-    for (const cv::Size size : {cv::Size(1, 1), cv::Size(63, 9), cv::Size(65, 33), cv::Size(130, 70)}) {
-        for (const int radius : {0, 1, 2, 4, 10}) {
-            const cv::Mat mask = stemd::test::random_blob_mask(size, seed++, 6, 0.02);
-            cv::Mat expected = mask.clone();
-            if (radius > 0)
-                cv::erode(mask, expected,
-                          cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1)));
-            const cv::Mat actual = ours(erode_mask, mask, radius);
-            ASSERT_EQ(cv::countNonZero(expected != actual), 0) << "size " << size << " radius " << radius;
-        }
-    }
+    expect_like_opencv(erode_mask, cv::MORPH_ERODE, 400,
+                       {cv::Size(1, 1), cv::Size(63, 9), cv::Size(65, 33), cv::Size(130, 70)}, {0, 1, 2, 4, 10});
 }
 
 TEST(Erosion, SeedsExactlyTheComponentsTheOpeningSeeds)
@@ -195,16 +205,6 @@ TEST(Erosion, SeedsExactlyTheComponentsTheOpeningSeeds)
 
 TEST(Dilation, BitExactWithOpenCv)
 {
-    std::uint64_t seed = 300;
-    for (const cv::Size size : {cv::Size(1, 1), cv::Size(63, 9), cv::Size(130, 70)}) {
-        for (const int radius : {0, 1, 4, 10}) {
-            const cv::Mat mask = stemd::test::random_blob_mask(size, seed++, 6, 0.02);
-            cv::Mat expected = mask.clone();
-            if (radius > 0)
-                cv::dilate(mask, expected,
-                           cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1)));
-            const cv::Mat actual = ours(dilate_mask, mask, radius);
-            ASSERT_EQ(cv::countNonZero(expected != actual), 0) << "size " << size << " radius " << radius;
-        }
-    }
+    expect_like_opencv(dilate_mask, cv::MORPH_DILATE, 300, {cv::Size(1, 1), cv::Size(63, 9), cv::Size(130, 70)},
+                       {0, 1, 4, 10});
 }
