@@ -2,11 +2,10 @@
 
 #include <sys/stat.h>
 
-#include <cerrno>
-#include <cstring>
-#include <fstream>
+#include <cstdio>
 
 #include "stemd/base/strings.hpp"
+#include "stemd/base/whole_file.hpp"
 #include "stemd/config/schema.hpp"
 
 namespace stemd::web {
@@ -17,31 +16,32 @@ using base::cat;
 
 constexpr std::string_view kSpace = " \t\r\n";
 
+// A token is a line; anything far longer is not a token file.
+constexpr std::size_t kMaxTokenFileBytes = 64 * 1024;
+
 }  // namespace
 
 std::optional<std::string> read_token_file(const std::string& path, std::string& error)
 {
-    struct stat st {};
-    if (stat(path.c_str(), &st) != 0) {
-        error = cat(path, ": ", std::strerror(errno));
+    // One open for the checks and the read: a file swapped after a stat(2)
+    // (for a FIFO that would hang the start) is not read.
+    std::string text;
+    const base::WholeFileResult read = base::read_whole_file(path.c_str(), kMaxTokenFileBytes, text);
+    if (!read.ok()) {
+        error = cat(path, ": ", base::why_unread(read, kMaxTokenFileBytes));
         return std::nullopt;
     }
-    if (!S_ISREG(st.st_mode)) {
-        error = cat(path, ": not a regular file");
-        return std::nullopt;
-    }
-    if ((st.st_mode & (S_IRWXG | S_IRWXO)) != 0) {
+    if ((read.mode & (S_IRWXG | S_IRWXO)) != 0) {
         char mode[8];
-        std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777));
+        std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(read.mode & 07777));
         error = cat(path, ": mode ", mode, " lets group or others at the token (chmod 600)");
         return std::nullopt;
     }
-    std::ifstream in(path);
-    std::string line;
-    if (!in || !std::getline(in, line)) {
-        error = cat(path, ": cannot read the token", in.bad() ? ": read error" : " (empty file)");
+    if (text.empty()) {
+        error = cat(path, ": cannot read the token (empty file)");
         return std::nullopt;
     }
+    const std::string_view line = std::string_view(text).substr(0, text.find('\n'));
     const std::string token(base::trim(line, kSpace));
     if (token.size() < kMinTokenChars) {
         error = cat(path, ": the token has ", std::to_string(token.size()), " characters, at least ",

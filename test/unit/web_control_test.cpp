@@ -68,6 +68,11 @@ TEST(WebToken, RefusesMissingEmptyShortAndSharedFiles)
     EXPECT_NE(error.find("mode 0640"), std::string::npos) << error;
     EXPECT_FALSE(web::read_token_file(dir.path.string(), error));
     EXPECT_NE(error.find("not a regular file"), std::string::npos) << error;
+    // A FIFO no one writes, even at mode 600: refused at once, never waited on.
+    const std::filesystem::path fifo = dir.path / "fifo";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    EXPECT_FALSE(web::read_token_file(fifo.string(), error));
+    EXPECT_EQ(error, fifo.string() + ": not a regular file");
 }
 
 TEST(WebToken, BearerMatchesOnlyTheExactToken)

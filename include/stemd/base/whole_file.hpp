@@ -1,6 +1,6 @@
 // Reading a whole regular file with a size cap, for every file stemd reads
 // whole (the configuration, images, the model, the calibration, CSV
-// tables). Callers word the outcome for their users; this only says what
+// tables, the web token). Callers word the outcome for their users; this only says what
 // happened.
 #pragma once
 
@@ -35,6 +35,7 @@ struct WholeFileResult {
     std::uintmax_t size_bytes = 0;
     bool size_is_lower_bound = false;   // too_large past the size fstat(2) gave
     std::size_t read_bytes = 0;
+    std::uint32_t mode = 0;             // st_mode of the file opened, once fstat(2) succeeded
     bool ok() const { return status == WholeFileStatus::ok; }
 };
 
@@ -62,6 +63,7 @@ WholeFileResult read_whole_file(const char* path, std::size_t max_bytes, Bytes& 
         result.error_number = errno;
         return result;
     }
+    result.mode = static_cast<std::uint32_t>(st.st_mode);
     if (S_ISDIR(st.st_mode)) {
         result.status = WholeFileStatus::directory;
         return result;
