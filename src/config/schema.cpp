@@ -256,7 +256,7 @@ constexpr std::array kSchema{
     real_key<STEMD_KEY(daemon.classify.weed_confidence)>("classify.weed_confidence", "probability", 0.5, 1, "0.85",
         "crop safety: a plant is weed only when its weed probability is also at least this (crop plants called weed are stamped, weeds called crop only stay)"),
     bool_key<STEMD_KEY(daemon.classify.weed_parts)>("classify.weed_parts", "true",
-        "with a model: each group of a crop or unknown plant's cells at weed_confidence or above (a weed grown into it) becomes a weed target of its own, at the group's centre or, when crop lies within the clearance of it, at the nearest of its cells that is clear"),
+        "with a model: each group of a crop or unknown plant's cells at weed_confidence or above (a weed grown into it), and of a stemless weed's (grass), becomes a weed target of its own, at the group's centre or, when crop lies within the clearance of it, at the nearest of its cells that is clear"),
     real_key<STEMD_KEY(daemon.classify.weed_part_clearance_mm)>("classify.weed_part_clearance_mm", "mm", 0, 100, "3",
         "no crop or unknown vegetation may lie this near a weed part's target (its centre, else its nearest clear cell; none, no target); at least the tool's strike radius"),
 

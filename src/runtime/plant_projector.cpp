@@ -72,6 +72,8 @@ std::span<const actuation::TrackDetection> PlantProjector::project(const FrameRe
         d.plant_class = r.has_class_map ? r.plant_class[i] : PlantClass::Unknown;
         d.leaves = static_cast<std::uint8_t>(std::min<std::size_t>(p.leaves.size(), 255));
         d.extent_mm = extent_mm(p, odom_at_capture);
+        // A stemless weed's target stands for the whole plant, not for a
+        // part of another: it joins plant tracks (ComReason::stemless_weed).
         d.weed_part = p.com_reason == vision::ComReason::weed_part;
     }
     return {detections_.data(), n};

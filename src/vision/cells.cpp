@@ -613,7 +613,12 @@ std::size_t add_weed_parts(CellWorkspace& ws, double min_confidence, double weed
     std::size_t added = 0;
     for (const std::uint32_t seed : ws.vegetated()) {
         const std::uint16_t id = ws.plant_[seed];
-        if (ws.in_part_[seed] || !weed_cell(seed) || id == 0 || id > plants || classes[id - 1u] == PlantClass::Weed)
+        if (ws.in_part_[seed] || !weed_cell(seed) || id == 0 || id > plants)
+            continue;
+        // A weed with a stem of its own is struck there; one without (grass,
+        // or a stem below min_confidence) is still a weed to treat.
+        const bool stemless_weed = classes[id - 1u] == PlantClass::Weed;
+        if (stemless_weed && det.plants[id - 1u].has_stem)
             continue;
         // The group: the plant's weed cells 8-connected to the seed, listed
         // in ws.part_stack_[0, listed) as they are found.
@@ -679,7 +684,7 @@ std::size_t add_weed_parts(CellWorkspace& ws, double min_confidence, double weed
         part.method = StemMethod::com;
         part.estimator = StemEstimator::com;
         part.confidence = kCentreOfMassConfidence;
-        part.com_reason = ComReason::weed_part;
+        part.com_reason = stemless_weed ? ComReason::stemless_weed : ComReason::weed_part;
         part.area_px = static_cast<int>(std::lround(area_px));
         part.bbox = cv::Rect(x0 * cell_px, y0 * cell_px, (x1 - x0 + 1) * cell_px, (y1 - y0 + 1) * cell_px) &
                     cv::Rect(0, 0, ws.frame_size_.width, ws.frame_size_.height);

@@ -342,6 +342,40 @@ TEST(ActuationStage, AutoPolicyTreatsOnlyWeedsWithAClassMapAndEverythingWithout)
     }
 }
 
+TEST(ActuationStage, AWeedStemlessInSomeFramesIsStillOneTarget)
+{
+    // Weeds only. Every other frame sees each weed without a stem of its
+    // own, struck at its weed cells' centre 2 mm from the stem
+    // (ComReason::stemless_weed): that target stands for the same plant,
+    // so it joins the plant's track and adds no TARGET.
+    std::vector<Plant> weeds = strip(9);
+    for (Plant& p : weeds)
+        p.cls = PlantClass::Weed;
+    ActuationConfig config = base_config();
+    config.policy = PolicyChoice::weeds_only;
+    for (const auto reason : {vision::ComReason::stemless_weed, vision::ComReason::weed_part}) {
+        Stage run = make_stage(config);
+        for (int k = 0; k < frames_for(weeds); ++k) {
+            const auto r = frame(weeds, k, true);
+            if (k % 2)
+                for (vision::Plant& p : r->detections.plants) {
+                    p.com_reason = reason;
+                    p.stem.x += static_cast<float>(2.0 / kGsd);
+                }
+            run.stage->on_frame(*r, r->t_sample_ns + 3'000'000);
+        }
+        const auto sent = targets(*run.bus);
+        if (reason == vision::ComReason::stemless_weed) {
+            EXPECT_EQ(sent.size(), weeds.size()) << "one TARGET per weed";
+            expect_at_fire_positions(sent, weeds, 600, 10);
+        } else {
+            // A weed part stands for a weed grown into another plant, so
+            // parts and plants are tracked apart: two TARGETs per weed here.
+            EXPECT_EQ(sent.size(), 2 * weeds.size());
+        }
+    }
+}
+
 TEST(ActuationStage, CanOdometryDrivesTheFramesAndCorruptFramesAreRejected)
 {
     const auto plants = strip(8);

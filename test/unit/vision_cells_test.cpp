@@ -701,6 +701,40 @@ TEST(WeedParts, AWeedGrownIntoAnUnsurePlantBecomesATargetOfItsOwnClearOfTheCrop)
     EXPECT_EQ(full.stats.plants_over_capacity, frame.det.stats.plants_over_capacity + static_cast<int>(added));
 }
 
+TEST(WeedParts, AWeedWithoutAStemOfItsOwnIsStruckAtItsWeedCells)
+{
+    UnsurePair pair;
+    auto& [crop_centre, weed_centre, params, model, truth, frame, p, classes] = pair;
+    const int radius = UnsurePair::radius;
+    ASSERT_EQ(frame.det.plants.size(), 1u);
+    ASSERT_TRUE(frame.det.plants[0].has_stem);
+    const double clearance_mm = 1.5;
+    std::array<PlantClass, kMaxPlants> weed{};
+    weed[0] = PlantClass::Weed;
+
+    // Classed weed with a stem: struck at that stem, nothing added.
+    Detections with_stem = frame.det;
+    EXPECT_EQ(add_weed_parts(frame.cells, 0.6, 0.85, clearance_mm, with_stem, weed, p), 0u);
+    // Classed weed without one (grass, or a stem below min_confidence):
+    // its weed cells are struck, still clear of every other class.
+    Detections stemless = frame.det;
+    stemless.plants[0].has_stem = false;
+    const std::size_t added = add_weed_parts(frame.cells, 0.6, 0.85, clearance_mm, stemless, weed, p);
+    ASSERT_GE(added, 1u);
+    ASSERT_EQ(stemless.plants.size(), 1 + added);
+    EXPECT_FALSE(stemless.plants[0].has_stem) << "the plant itself stays stemless";
+    const double clearance_px = clearance_mm / params.gsd_mm_per_px;
+    for (std::size_t i = 1; i < stemless.plants.size(); ++i) {
+        const Plant& part = stemless.plants[i];
+        EXPECT_EQ(weed[i], PlantClass::Weed);
+        EXPECT_TRUE(part.has_stem);
+        EXPECT_EQ(part.com_reason, ComReason::stemless_weed);
+        EXPECT_EQ(to_string(part.com_reason), "stemless_weed");
+        EXPECT_LT(cv::norm(part.stem - cv::Point2f(weed_centre)), radius) << "on the weed cells";
+        EXPECT_GT(cv::norm(part.stem - cv::Point2f(crop_centre)), radius + clearance_px) << "clear of the crop";
+    }
+}
+
 TEST(WeedParts, AWeedWhoseCentreLiesNearTheCropIsStruckAtItsNearestClearCell)
 {
     UnsurePair pair;

@@ -248,10 +248,12 @@ void classify_plants(const PlantClassifier& model, const ClassifyWorkspace& plan
 // plant's stem) when that is clear, else the centre of the group's cell
 // nearest to it that is clear (Plant::centre_of_mass keeps the group's
 // centre); a group with no clear cell gets none.
-// Plants classed weed keep their one stem. `classes` and `probabilities`
-// get the new plants' entries; parts beyond the plants' capacity are
-// counted in det.stats.plants_over_capacity. Returns how many were added;
-// allocates nothing.
+// Plants classed weed keep their one stem; those without one (grass, or a
+// stem below min_confidence) get targets the same way, from their weed
+// cells (stem reason stemless_weed), so that "weeds only" treats them too.
+// `classes` and `probabilities` get the new plants' entries; parts beyond
+// the plants' capacity are counted in det.stats.plants_over_capacity.
+// Returns how many were added; allocates nothing.
 std::size_t add_weed_parts(CellWorkspace& cells, double min_confidence, double weed_confidence, double clearance_mm,
                            Detections& det, std::span<PlantClass> classes, std::span<float> probabilities);
 
