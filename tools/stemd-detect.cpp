@@ -21,6 +21,7 @@
 #include "stemd/io/csv.hpp"
 #include "stemd/io/recording.hpp"
 #include "stemd/config/config.hpp"
+#include "stemd/runtime/daemon_config.hpp"
 #include "stemd/vision/cells.hpp"
 #include "stemd/vision/classify.hpp"
 #include "stemd/vision/detect.hpp"
@@ -232,8 +233,8 @@ int main(int argc, char** argv)
             vision::classify_plants(*model, *classify_workspace, *cell_workspace, d.plants.size(),
                                     classify.min_confidence, classify.weed_confidence, weed_probability, plant_class);
             if (classify.weed_parts)
-                vision::add_weed_parts(*cell_workspace, classify.min_confidence, classify.weed_confidence,
-                                       classify.weed_part_clearance_mm, *detections, plant_class, weed_probability);
+                vision::add_weed_parts(*cell_workspace, runtime::weed_target_params(classify), *detections, plant_class,
+                                       weed_probability);
             classify_ms.push_back(static_cast<double>(base::monotonic_ns() - t0) / 1e6);
             classify_cpu_ms.push_back(static_cast<double>(thread_cpu_ns() - cpu0) / 1e6);
         }

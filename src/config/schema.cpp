@@ -259,6 +259,10 @@ constexpr std::array kSchema{
         "with a model: each group of a crop or unknown plant's cells at weed_confidence or above (a weed grown into it), and of a stemless weed's (grass), becomes a weed target of its own, at the group's centre or, when crop lies within the clearance of it, at the nearest of its cells that is clear"),
     real_key<STEMD_KEY(daemon.classify.weed_part_clearance_mm)>("classify.weed_part_clearance_mm", "mm", 0, 100, "3",
         "no crop or unknown vegetation may lie this near a weed part's target (its centre, else its nearest clear cell; none, no target); at least the tool's strike radius"),
+    real_key<STEMD_KEY(daemon.classify.weed_cover_radius_mm)>("classify.weed_cover_radius_mm", "mm", 0, 500, "0",
+        "with a model and classify.weed_parts: a plant classed weed wider than this gets further targets, each at its clear weed cell farthest from the targets so far, until every clear weed cell lies within this of one (touching weeds are one plant with one stem; weed parts of other plants get none); the reach of a strike, such as a spray's footprint radius; 0: one target per weed"),
+    int_key<STEMD_KEY(daemon.classify.max_targets_per_weed)>("classify.max_targets_per_weed", "count", 1, 64, "16",
+        "classify.weed_cover_radius_mm: at most this many targets on one weed plant (on each group of a stemless one), its first included"),
 
     // The daemon (stemd): frame source, rings, threads, status, logging.
     choice_key<STEMD_KEY(daemon.source_kind)>("source.kind", "replay", "replay|v4l2|libcamera",

@@ -34,10 +34,13 @@ void ModelClassProvider::classify(const drivers::Frame& frame, const vision::Par
         vision::classify_plants(model_, workspace_, cells_, plants, config_.min_confidence, config_.weed_confidence,
                                 probabilities_, result.plant_class);
         // Weeds grown into a crop get targets of their own.
-        if (config_.weed_parts)
-            vision::add_weed_parts(cells_, config_.min_confidence, config_.weed_confidence,
-                                   config_.weed_part_clearance_mm, result.detections, result.plant_class,
-                                   probabilities_);
+        if (config_.weed_parts) {
+            const vision::WeedTargetCounts added = vision::add_weed_parts(
+                cells_, weed_target_params(config_), result.detections, result.plant_class, probabilities_);
+            bump(counters_.weed_parts, added.parts);
+            bump(counters_.stemless_weeds, added.stemless);
+            bump(counters_.weed_cover, added.cover);
+        }
     }
     result.has_class_map = true;
 }

@@ -511,6 +511,10 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
     s.class_timeouts = classes.timeouts.load(std::memory_order_relaxed);
     s.class_bad_messages = classes.bad_messages.load(std::memory_order_relaxed);
     s.class_peers = classes.peers.load(std::memory_order_relaxed);
+    s.class_model = classes_->name() == "model";
+    s.weed_parts = classes.weed_parts.load(std::memory_order_relaxed);
+    s.stemless_weeds = classes.stemless_weeds.load(std::memory_order_relaxed);
+    s.weed_cover = classes.weed_cover.load(std::memory_order_relaxed);
     s.source_timeouts = source.timeouts;
     s.source_errors = source.errors;
     s.source_reopens = source.reopens;

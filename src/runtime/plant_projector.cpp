@@ -74,7 +74,9 @@ std::span<const actuation::TrackDetection> PlantProjector::project(const FrameRe
         d.extent_mm = extent_mm(p, odom_at_capture);
         // A stemless weed's target stands for the whole plant, not for a
         // part of another: it joins plant tracks (ComReason::stemless_weed).
-        d.weed_part = p.com_reason == vision::ComReason::weed_part;
+        // A further target on a wide weed lies beside that weed's own, so it
+        // is tracked apart as a part is.
+        d.weed_part = p.com_reason == vision::ComReason::weed_part || p.com_reason == vision::ComReason::weed_cover;
     }
     return {detections_.data(), n};
 }

@@ -88,6 +88,15 @@ std::string class_socket(const StatusSnapshot& now, const StatusSnapshot& before
                        now.class_bad_messages - before.class_bad_messages, now.class_peers - before.class_peers);
 }
 
+// The in-box model's weed targets beyond each plant's own stem.
+std::string class_model(const StatusSnapshot& now, const StatusSnapshot& before)
+{
+    if (!now.class_model)
+        return "";
+    return fmt::format(" | weed targets: parts {}, stemless {}, cover {}", now.weed_parts - before.weed_parts,
+                       now.stemless_weeds - before.stemless_weeds, now.weed_cover - before.weed_cover);
+}
+
 std::string durations(const StatusSnapshot& s)
 {
     std::string out = fmt::format("latency p50 {:.2f} p99 {:.2f} ms | pipeline p50 {:.2f} p99 {:.2f} ms",
@@ -107,7 +116,7 @@ std::string format_status(const StatusSnapshot& now, const StatusSnapshot& befor
                        static_cast<double>(now.frames_in - before.frames_in) / dt_s,
                        static_cast<double>(now.frames_out - before.frames_out) / dt_s,
                        now.no_vegetation - before.no_vegetation)
-           + behind(now, before) + " | " + drops(now, before) + source(now, before) + actuation(now, before) + class_socket(now, before) + " | "
+           + behind(now, before) + " | " + drops(now, before) + source(now, before) + actuation(now, before) + class_socket(now, before) + class_model(now, before) + " | "
            + durations(now) + tool_timing(now) + gnss(now);
 }
 
@@ -131,7 +140,7 @@ std::string format_summary(const StatusSnapshot& end, double run_s)
                        end.frames_out, end.stems_out, run_s,
                        run_s > 0 ? static_cast<double>(end.frames_out) / run_s : 0.0, end.no_vegetation)
            + behind(end, StatusSnapshot{}) + " | " + drops(end, StatusSnapshot{}) + source(end, StatusSnapshot{})
-           + actuation(end, StatusSnapshot{}) + class_socket(end, StatusSnapshot{}) + " | " + durations(end) + tool_timing(end) + gnss(end);
+           + actuation(end, StatusSnapshot{}) + class_socket(end, StatusSnapshot{}) + class_model(end, StatusSnapshot{}) + " | " + durations(end) + tool_timing(end) + gnss(end);
 }
 
 }  // namespace stemd::runtime

@@ -212,6 +212,7 @@ CellWorkspace::CellWorkspace(cv::Size frame_size, double gsd_mm_per_px, double c
     context_scratch_ = CellContextScratch(grid_);
     in_part_.resize(n);
     part_stack_.resize(n);
+    cover_d2_.resize(n);
     reciprocal_[0] = 0;
     for (std::size_t i = 1; i < reciprocal_.size(); ++i)
         reciprocal_[i] = 1.0f / static_cast<float>(i);
@@ -577,18 +578,29 @@ void classify_plants(const PlantClassifier& model, const ClassifyWorkspace& plan
 
 namespace stemd::vision {
 
-std::size_t add_weed_parts(CellWorkspace& ws, double min_confidence, double weed_confidence, double clearance_mm,
-                           Detections& det, std::span<PlantClass> classes, std::span<float> probabilities)
+WeedTargetCounts add_weed_parts(CellWorkspace& ws, const WeedTargetParams& params, Detections& det,
+                                std::span<PlantClass> classes, std::span<float> probabilities)
 {
     const std::size_t plants = std::min({det.plants.size(), classes.size(), probabilities.size()});
+    const std::size_t capacity = std::min(classes.size(), probabilities.size());
     const int gw = ws.grid_.width, gh = ws.grid_.height, cell_px = ws.cell_px_;
     const auto classified = [&](std::size_t c) { return ws.class_[c] != PlantClass::Unknown; };
     const auto weed_cell = [&](std::size_t c) {
-        return classified(c) && decide_class(ws.probability_[c], min_confidence, weed_confidence) == PlantClass::Weed;
+        return classified(c) &&
+               decide_class(ws.probability_[c], params.min_confidence, params.weed_confidence) == PlantClass::Weed;
     };
-    const double clearance_px = std::max(clearance_mm, 0.0) / ws.gsd_;
-    // Cell centres in image coordinates (pixel centres at integers).
+    const double clearance_px = std::max(params.clearance_mm, 0.0) / ws.gsd_;
+    const double cover_px = std::max(params.cover_radius_mm, 0.0) / ws.gsd_;
+    // Cell centres in image coordinates (pixel centres at integers); a
+    // last, partial cell's centre may lie past the frame's edge.
     const auto cell_centre = [&](int g) { return (g + 0.5) * cell_px - 0.5; };
+    const auto strike_point = [&](std::uint32_t c) {
+        return cv::Point2f(
+            static_cast<float>(std::min(cell_centre(static_cast<int>(c % static_cast<std::uint32_t>(gw))),
+                                        ws.frame_size_.width - 1.0)),
+            static_cast<float>(std::min(cell_centre(static_cast<int>(c / static_cast<std::uint32_t>(gw))),
+                                        ws.frame_size_.height - 1.0)));
+    };
     // Whether every classified cell whose square comes within clearance_px
     // of `at` is weed.
     const auto clear_at = [&](cv::Point2f at) {
@@ -608,15 +620,76 @@ std::size_t add_weed_parts(CellWorkspace& ws, double min_confidence, double weed
             }
         return true;
     };
+    WeedTargetCounts counts;
+    // A new weed target at `at`; false when the plants are full (counted).
+    const auto add_target = [&](cv::Point2f at, ComReason reason, double area_px, cv::Rect bbox, cv::Point2f centre,
+                                double width_mm, double probability) {
+        if (det.plants.full() || det.plants.size() >= capacity) {
+            ++det.stats.plants_over_capacity;
+            return false;
+        }
+        Plant target;
+        target.stem = at;
+        target.has_stem = true;
+        target.method = StemMethod::com;
+        target.estimator = StemEstimator::com;
+        target.confidence = kCentreOfMassConfidence;
+        target.com_reason = reason;
+        target.area_px = static_cast<int>(std::lround(area_px));
+        target.bbox = bbox & cv::Rect(0, 0, ws.frame_size_.width, ws.frame_size_.height);
+        target.centre_of_mass = centre;
+        target.first_pixel = target.bbox.tl();
+        target.mean_width_mm = static_cast<float>(width_mm);
+        const std::size_t index = det.plants.size();
+        det.plants.push_back(target);
+        classes[index] = PlantClass::Weed;
+        probabilities[index] = static_cast<float>(probability);
+        (reason == ComReason::weed_part ? counts.parts
+                                        : reason == ComReason::stemless_weed ? counts.stemless : counts.cover)++;
+        return true;
+    };
+    // Cover the weed cells listed in ws.part_stack_[begin, end), one target
+    // at `first` already: farthest clear cell first, until every clear one
+    // lies within cover_px of a target.
+    const auto cover = [&](std::size_t begin, std::size_t end, cv::Point2f first) {
+        for (std::size_t k = begin; k < end; ++k) {
+            const cv::Point2f at = strike_point(ws.part_stack_[k]);
+            ws.cover_d2_[k] = clear_at(at) ? static_cast<float>((at - first).dot(at - first)) : -1.0f;
+        }
+        for (std::size_t targets = 1; targets < params.max_targets_per_weed; ++targets) {
+            std::size_t farthest = end;
+            auto farthest_d2 = static_cast<float>(cover_px * cover_px);
+            for (std::size_t k = begin; k < end; ++k)
+                if (ws.cover_d2_[k] > farthest_d2) {
+                    farthest_d2 = ws.cover_d2_[k];
+                    farthest = k;
+                }
+            if (farthest == end)
+                return;
+            const std::uint32_t c = ws.part_stack_[farthest];
+            const cv::Point2f at = strike_point(c);
+            const int gx = static_cast<int>(c % static_cast<std::uint32_t>(gw)), gy = static_cast<int>(c / static_cast<std::uint32_t>(gw));
+            if (!add_target(at, ComReason::weed_cover, ws.rows_[c][c_fill] * cell_px * cell_px,
+                            cv::Rect(gx * cell_px, gy * cell_px, cell_px, cell_px), at, ws.rows_[c][c_width_mm],
+                            ws.probability_[c]))
+                return;
+            for (std::size_t k = begin; k < end; ++k)
+                if (ws.cover_d2_[k] >= 0) {
+                    const cv::Point2f d = strike_point(ws.part_stack_[k]) - at;
+                    ws.cover_d2_[k] = std::min(ws.cover_d2_[k], d.dot(d));
+                }
+        }
+    };
+    const bool covering = cover_px > 0 && params.max_targets_per_weed > 1;
     for (const std::uint32_t c : ws.vegetated())
         ws.in_part_[c] = 0;
-    std::size_t added = 0;
     for (const std::uint32_t seed : ws.vegetated()) {
         const std::uint16_t id = ws.plant_[seed];
         if (ws.in_part_[seed] || !weed_cell(seed) || id == 0 || id > plants)
             continue;
-        // A weed with a stem of its own is struck there; one without (grass,
-        // or a stem below min_confidence) is still a weed to treat.
+        // A weed with a stem of its own is struck there (and covered below);
+        // one without (grass, or a stem below min_confidence) is still a
+        // weed to treat.
         const bool stemless_weed = classes[id - 1u] == PlantClass::Weed;
         if (stemless_weed && det.plants[id - 1u].has_stem)
             continue;
@@ -658,13 +731,7 @@ std::size_t add_weed_parts(CellWorkspace& ws, double min_confidence, double weed
         if (!clear_at(centre)) {
             double best_d2 = std::numeric_limits<double>::max();
             for (std::size_t k = 0; k < listed; ++k) {
-                const std::uint32_t c = ws.part_stack_[k];
-                // A last, partial cell's centre may lie past the frame's edge.
-                const cv::Point2f at(
-                    static_cast<float>(std::min(cell_centre(static_cast<int>(c % static_cast<std::uint32_t>(gw))),
-                                                ws.frame_size_.width - 1.0)),
-                    static_cast<float>(std::min(cell_centre(static_cast<int>(c / static_cast<std::uint32_t>(gw))),
-                                                ws.frame_size_.height - 1.0)));
+                const cv::Point2f at = strike_point(ws.part_stack_[k]);
                 const double d2 = (at - centre).dot(at - centre);
                 if (d2 < best_d2 && clear_at(at)) {
                     best_d2 = d2;
@@ -674,30 +741,37 @@ std::size_t add_weed_parts(CellWorkspace& ws, double min_confidence, double weed
             if (best_d2 == std::numeric_limits<double>::max())
                 continue;
         }
-        if (det.plants.full() || det.plants.size() >= std::min(classes.size(), probabilities.size())) {
-            ++det.stats.plants_over_capacity;
-            continue;
-        }
-        Plant part;
-        part.stem = strike;
-        part.has_stem = true;
-        part.method = StemMethod::com;
-        part.estimator = StemEstimator::com;
-        part.confidence = kCentreOfMassConfidence;
-        part.com_reason = stemless_weed ? ComReason::stemless_weed : ComReason::weed_part;
-        part.area_px = static_cast<int>(std::lround(area_px));
-        part.bbox = cv::Rect(x0 * cell_px, y0 * cell_px, (x1 - x0 + 1) * cell_px, (y1 - y0 + 1) * cell_px) &
-                    cv::Rect(0, 0, ws.frame_size_.width, ws.frame_size_.height);
-        part.centre_of_mass = centre;
-        part.first_pixel = part.bbox.tl();
-        part.mean_width_mm = static_cast<float>(width_mm / sum_w);
-        const std::size_t index = det.plants.size();
-        det.plants.push_back(part);
-        classes[index] = PlantClass::Weed;
-        probabilities[index] = static_cast<float>(sum_p / sum_w);
-        ++added;
+        if (add_target(strike, stemless_weed ? ComReason::stemless_weed : ComReason::weed_part, area_px,
+                       cv::Rect(x0 * cell_px, y0 * cell_px, (x1 - x0 + 1) * cell_px, (y1 - y0 + 1) * cell_px),
+                       centre, width_mm / sum_w, sum_p / sum_w) &&
+            covering && stemless_weed)
+            cover(0, listed, strike);
     }
-    return added;
+    if (!covering)
+        return counts;
+    // Weeds with a stem: their weed cells, listed plant by plant in
+    // ws.part_stack_ (a counting sort over the plant ids), covered from the
+    // stem.
+    const std::size_t weeds = std::min(plants, kMaxPlants);
+    std::array<std::uint32_t, kMaxPlants + 2> start{};
+    for (const std::uint32_t c : ws.vegetated()) {
+        const std::uint16_t id = ws.plant_[c];
+        if (id != 0 && id <= weeds && weed_cell(c))
+            ++start[id + 1u];
+    }
+    for (std::size_t i = 1; i < start.size(); ++i)
+        start[i] += start[i - 1];
+    std::array<std::uint32_t, kMaxPlants + 1> next{};
+    std::copy_n(start.begin(), next.size(), next.begin());
+    for (const std::uint32_t c : ws.vegetated()) {
+        const std::uint16_t id = ws.plant_[c];
+        if (id != 0 && id <= weeds && weed_cell(c))
+            ws.part_stack_[next[id]++] = c;
+    }
+    for (std::size_t p = 0; p < weeds; ++p)
+        if (classes[p] == PlantClass::Weed && det.plants[p].has_stem)
+            cover(start[p + 1], start[p + 2], det.plants[p].stem);
+    return counts;
 }
 
 }  // namespace stemd::vision

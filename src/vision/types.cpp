@@ -15,7 +15,8 @@ constexpr EnumName<ComReason> kComReasons[]{
     {ComReason::none, "none"}, {ComReason::method_com, "method_com"}, {ComReason::too_few_leaves, "too_few_leaves"},
     {ComReason::no_intersections, "no_intersections"}, {ComReason::outside_box, "outside_box"},
     {ComReason::contour_overflow, "contour_overflow"}, {ComReason::ill_conditioned, "ill_conditioned"},
-    {ComReason::weed_part, "weed_part"}, {ComReason::stemless_weed, "stemless_weed"}};
+    {ComReason::weed_part, "weed_part"}, {ComReason::stemless_weed, "stemless_weed"},
+    {ComReason::weed_cover, "weed_cover"}};
 constexpr EnumName<DetectStatus> kDetectStatuses[]{
     {DetectStatus::ok, "ok"}, {DetectStatus::empty_frame, "empty_frame"}, {DetectStatus::bad_format, "bad_format"},
     {DetectStatus::size_mismatch, "size_mismatch"}, {DetectStatus::missing_nir, "missing_nir"},

@@ -32,6 +32,19 @@ grep -q "classify.model $tmp/model.yaml" "$tmp/err" || fail "the model is not na
 # treated, and crops never sent.
 score_weeds_only "$tmp/strip" "$tmp/can.log" "$tmp/map.jsonl" "$src/config/stemd.yaml"
 
+# Weeds wider than a strike's reach get further targets: counted in the
+# summary, and still no command near a plant that is no weed, no crop sent.
+"$stemd" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --set classify.model="$tmp/model.yaml" \
+  --set classify.weed_cover_radius_mm=2 --replay "$tmp/strip" --once --can-log "$tmp/cover.log" \
+  --map "$tmp/cover.jsonl" 2>"$tmp/cover.err" || fail "stemd (cover) exited $?: $(tail -5 "$tmp/cover.err")"
+cover=$(sed -n 's/.*total: .*weed targets: parts [0-9]*, stemless [0-9]*, cover \([0-9]*\).*/\1/p' "$tmp/cover.err")
+[ -n "$cover" ] && [ "$cover" -gt 0 ] || fail "no further target on a wide weed: $(grep total: "$tmp/cover.err")"
+grep -q "total: .*weed targets: parts [0-9]*, stemless [0-9]*, cover 0 |" "$tmp/err" || fail "cover without a radius: $(grep total: "$tmp/err")"
+if grep '"class":"crop"' "$tmp/cover.jsonl" | grep -q '"reason":"sent"'; then fail "a crop was sent (cover)"; fi
+sent_one=$(grep -c '"reason":"sent"' "$tmp/map.jsonl" || true)
+sent_cover=$(grep -c '"reason":"sent"' "$tmp/cover.jsonl" || true)
+[ "$sent_cover" -gt "$sent_one" ] || fail "no more targets sent with cover ($sent_cover) than without ($sent_one)"
+
 # Only certainty counts: below a weed probability of 1 a plant is unknown,
 # and no unknown plant is commanded under auto.
 "$stemd" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --set classify.model="$tmp/model.yaml" \
@@ -49,4 +62,4 @@ rc=$?
 set -e
 [ $rc -eq 2 ] || fail "a model of another GSD: exit $rc"
 grep -q "$tmp/model.yaml.*gsd" "$tmp/gsd.err" || fail "GSD refusal: $(cat "$tmp/gsd.err")"
-echo "PASS: $matched weeds treated, no crop commanded"
+echo "PASS: $matched weeds treated, no crop commanded; $cover further targets on wide weeds"

@@ -376,6 +376,69 @@ TEST(ActuationStage, AWeedStemlessInSomeFramesIsStillOneTarget)
     }
 }
 
+TEST(ActuationStage, EachFurtherTargetOnAWideWeedIsOneTargetOfItsOwn)
+{
+    // Weeds only. Each weed carries further targets (ComReason::weed_cover)
+    // besides its stem: one 16 mm to its right and 4 mm ahead in every
+    // frame, and one 6 mm to its left, within the tracker's association
+    // radius of the stem, in the frames that miss the stem. Both move by up
+    // to 1 mm from frame to frame, as a farthest cell does. Each is one
+    // TARGET at its own place: the left one is not taken for the stem.
+    std::vector<Plant> weeds = strip(9);
+    for (Plant& p : weeds)
+        p.cls = PlantClass::Weed;
+    struct Offset {
+        double ds_mm, dy_mm;
+    };
+    const Offset left{0, 6}, right{4, -16};
+    ActuationConfig config = base_config();
+    config.policy = PolicyChoice::weeds_only;
+    Stage run = make_stage(config);
+    for (int k = 0; k < frames_for(weeds); ++k) {
+        const auto seen = frame(weeds, k, true);
+        auto r = frame({}, k, true);
+        const double jitter_px = (k % 3 - 1) / kGsd;
+        for (std::size_t i = 0; i < seen->detections.plants.size(); ++i) {
+            if (k % 2 == 0) {
+                r->plant_class[r->detections.plants.size()] = PlantClass::Weed;
+                r->detections.plants.push_back(seen->detections.plants[i]);
+            }
+            for (const bool is_left : {true, false}) {
+                if (is_left && k % 2 == 0)
+                    continue;
+                const Offset& o = is_left ? left : right;
+                vision::Plant cover = seen->detections.plants[i];
+                // Image up is ahead, image left is the machine's left.
+                cover.stem.x -= static_cast<float>(o.dy_mm / kGsd + jitter_px);
+                cover.stem.y -= static_cast<float>(o.ds_mm / kGsd - jitter_px);
+                cover.com_reason = vision::ComReason::weed_cover;
+                r->plant_class[r->detections.plants.size()] = PlantClass::Weed;
+                r->detections.plants.push_back(cover);
+            }
+        }
+        run.stage->on_frame(*r, r->t_sample_ns + 3'000'000);
+    }
+    const auto sent = targets(*run.bus);
+    EXPECT_EQ(sent.size(), 3 * weeds.size()) << "the stem and two further targets per weed";
+    std::map<std::pair<std::size_t, int>, int> hits;   // (weed, 0 stem / 1 left / 2 right)
+    for (const auto& t : sent) {
+        bool found = false;
+        for (std::size_t i = 0; i < weeds.size() && !found; ++i) {
+            const Offset places[]{{0, 0}, left, right};
+            for (int which = 0; which < 3 && !found; ++which) {
+                const double ds = t.fire_odom_mm - (weeds[i].s_mm + places[which].ds_mm + 600);
+                const double dy = t.lateral_mm - (weeds[i].y_mm + places[which].dy_mm);
+                if (std::hypot(ds, dy) <= 2.0) {
+                    found = true;
+                    ++hits[{i, which}];
+                }
+            }
+        }
+        EXPECT_TRUE(found) << "fire " << t.fire_odom_mm << " lateral " << t.lateral_mm;
+    }
+    EXPECT_EQ(hits.size(), 3 * weeds.size()) << "one TARGET at each place";
+}
+
 TEST(ActuationStage, CanOdometryDrivesTheFramesAndCorruptFramesAreRejected)
 {
     const auto plants = strip(8);

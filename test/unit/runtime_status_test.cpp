@@ -23,6 +23,17 @@ StatusSnapshot with_actuation()
     return s;
 }
 
+// The status line from `before` to `now` shows `interval`, and the
+// summary at `now` shows `total`.
+void expect_interval_and_total(const StatusSnapshot& now, const StatusSnapshot& before, const std::string& interval,
+                               const std::string& total)
+{
+    const std::string line = format_status(now, before);
+    EXPECT_NE(line.find(interval), std::string::npos) << line;
+    const std::string summary = format_summary(now, 2.0);
+    EXPECT_NE(summary.find(total), std::string::npos) << summary;
+}
+
 }  // namespace
 
 TEST(Status, ActuationShowsTheCaptureToSendLatency)
@@ -58,10 +69,8 @@ TEST(Status, SourceTimeoutsErrorsAndReopensAreShown)
     now.source_timeouts = 7;
     now.source_errors = 4;
     now.source_reopens = 1;
-    const std::string line = format_status(now, before);
-    EXPECT_NE(line.find("source: timeouts 5, errors 3, reopens 1"), std::string::npos) << line;
-    const std::string summary = format_summary(now, 2.0);
-    EXPECT_NE(summary.find("source: timeouts 7, errors 4, reopens 1"), std::string::npos) << summary;
+    expect_interval_and_total(now, before, "source: timeouts 5, errors 3, reopens 1",
+                              "source: timeouts 7, errors 4, reopens 1");
 }
 
 TEST(Status, ToolTimingPerToolThatFiredOrLeads)
@@ -119,4 +128,25 @@ TEST(Status, GnssQualityIsShownAndAnEstimateOverTheMaximumIsNamed)
     s.gnss_eph_mm = -1;
     const std::string none = format_status(s, StatusSnapshot{});
     EXPECT_NE(none.find("gnss: none none, eph unknown"), std::string::npos) << none;
+}
+
+// With the in-box model, the weed targets it added beside the plants'
+// stems, by kind: the line the interval's, the summary the whole run's.
+TEST(Status, TheModelsWeedTargetsAreShownByKind)
+{
+    StatusSnapshot before = with_actuation();
+    before.t_ns = 1'000'000'000;
+    before.class_model = true;
+    before.weed_parts = 3;
+    before.stemless_weeds = 1;
+    before.weed_cover = 10;
+    StatusSnapshot now = before;
+    now.t_ns = 2'000'000'000;
+    now.weed_parts = 5;
+    now.stemless_weeds = 4;
+    now.weed_cover = 17;
+    expect_interval_and_total(now, before, "weed targets: parts 2, stemless 3, cover 7",
+                              "weed targets: parts 5, stemless 4, cover 17");
+    now.class_model = false;
+    EXPECT_EQ(format_status(now, before).find("weed targets"), std::string::npos) << "another provider adds none";
 }

@@ -140,7 +140,8 @@ TEST(RealTime, ClassifierAllocatesNothingOnceWarm)
         cell_class_map(*ws, *cells, map);
         classify_plants(*cell_model, *cws, *cells, out->plants.size(), 0.6, 0.85, probabilities, classes);
         *with_parts = *out;
-        add_weed_parts(*cells, 0.5, 0.5, 1.0, *with_parts, classes, probabilities);
+        add_weed_parts(*cells, {.min_confidence = 0.5, .weed_confidence = 0.5, .clearance_mm = 1.0, .cover_radius_mm = 2.0},
+                       *with_parts, classes, probabilities);
         EXPECT_EQ(stemd::test::allocations() - before, 0) << "heap allocations in the cells, round " << round;
     }
     EXPECT_GT(cells->vegetated().size(), 100u);

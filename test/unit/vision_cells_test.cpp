@@ -622,6 +622,37 @@ TEST(CellContext, AModelWithAContextForestUsesItAndTheFileKeepsIt)
     fs::remove(path.string() + ".renamed.yaml");
 }
 
+// add_weed_parts()'s settings at the default bars.
+WeedTargetParams targets(double clearance_mm, double cover_radius_mm = 0, std::size_t max_targets = 16)
+{
+    return {.min_confidence = 0.6,
+            .weed_confidence = 0.85,
+            .clearance_mm = clearance_mm,
+            .cover_radius_mm = cover_radius_mm,
+            .max_targets_per_weed = max_targets};
+}
+
+// The centre of a cell of 5 px (image coordinates, pixel centres at integers).
+cv::Point2f centre_of_cell(const CellWorkspace& cells, std::uint32_t c)
+{
+    const auto gw = static_cast<std::uint32_t>(cells.grid().width);
+    return {static_cast<float>(static_cast<int>(c % gw) * 5 + 2), static_cast<float>(static_cast<int>(c / gw) * 5 + 2)};
+}
+
+// Whether every vegetated cell of 5 px whose square comes within
+// clearance_px of `at` is weed at the default bar.
+bool only_weed_within(const CellWorkspace& cells, cv::Point2f at, double clearance_px)
+{
+    for (const std::uint32_t c : cells.vegetated()) {
+        const cv::Point2f centre = centre_of_cell(cells, c);
+        const double dx = std::max({centre.x - 2.5 - at.x, 0.0, at.x - (centre.x + 2.5)});
+        const double dy = std::max({centre.y - 2.5 - at.y, 0.0, at.y - (centre.y + 2.5)});
+        if (dx * dx + dy * dy <= clearance_px * clearance_px && cells.weed_probability(c) < 0.85f)
+            return false;
+    }
+    return true;
+}
+
 // A crop and a weed of `radius` px touching, found as one plant whose
 // cells a model trained on such pairs has classified; the plant is
 // unknown (half crop, half weed: the blob is not treated).
@@ -658,7 +689,7 @@ TEST(WeedParts, AWeedGrownIntoAnUnsurePlantBecomesATargetOfItsOwnClearOfTheCrop)
 
     const double clearance_mm = 1.5;
     Detections det = frame.det;
-    const std::size_t added = add_weed_parts(frame.cells, 0.6, 0.85, clearance_mm, det, classes, p);
+    const std::size_t added = add_weed_parts(frame.cells, targets(clearance_mm), det, classes, p).total();
     ASSERT_GE(added, 1u);
     ASSERT_EQ(det.plants.size(), 1 + added);
     const double clearance_px = clearance_mm / params.gsd_mm_per_px;
@@ -684,19 +715,19 @@ TEST(WeedParts, AWeedGrownIntoAnUnsurePlantBecomesATargetOfItsOwnClearOfTheCrop)
 
     // A clearance wider than the weed reaches the crop: no part.
     Detections wide = frame.det;
-    EXPECT_EQ(add_weed_parts(frame.cells, 0.6, 0.85, 30.0, wide, classes, p), 0u);
+    EXPECT_EQ(add_weed_parts(frame.cells, targets(30.0), wide, classes, p).total(), 0u);
     EXPECT_EQ(wide.plants.size(), 1u);
     // A plant classed weed keeps its one stem.
     Detections weed = frame.det;
     std::array<PlantClass, kMaxPlants> weed_class{};
     weed_class[0] = PlantClass::Weed;
-    EXPECT_EQ(add_weed_parts(frame.cells, 0.6, 0.85, clearance_mm, weed, weed_class, p), 0u);
+    EXPECT_EQ(add_weed_parts(frame.cells, targets(clearance_mm), weed, weed_class, p).total(), 0u);
     // No room left among the plants: counted, not written.
     Detections full = frame.det;
     std::array<PlantClass, kMaxPlants> room{};
     room[0] = PlantClass::Unknown;
-    EXPECT_EQ(add_weed_parts(frame.cells, 0.6, 0.85, clearance_mm, full, std::span<PlantClass>(room.data(), 1),
-                             std::span<float>(p.data(), 1)),
+    EXPECT_EQ(add_weed_parts(frame.cells, targets(clearance_mm), full, std::span<PlantClass>(room.data(), 1),
+                             std::span<float>(p.data(), 1)).total(),
               0u);
     EXPECT_EQ(full.stats.plants_over_capacity, frame.det.stats.plants_over_capacity + static_cast<int>(added));
 }
@@ -714,12 +745,12 @@ TEST(WeedParts, AWeedWithoutAStemOfItsOwnIsStruckAtItsWeedCells)
 
     // Classed weed with a stem: struck at that stem, nothing added.
     Detections with_stem = frame.det;
-    EXPECT_EQ(add_weed_parts(frame.cells, 0.6, 0.85, clearance_mm, with_stem, weed, p), 0u);
+    EXPECT_EQ(add_weed_parts(frame.cells, targets(clearance_mm), with_stem, weed, p).total(), 0u);
     // Classed weed without one (grass, or a stem below min_confidence):
     // its weed cells are struck, still clear of every other class.
     Detections stemless = frame.det;
     stemless.plants[0].has_stem = false;
-    const std::size_t added = add_weed_parts(frame.cells, 0.6, 0.85, clearance_mm, stemless, weed, p);
+    const std::size_t added = add_weed_parts(frame.cells, targets(clearance_mm), stemless, weed, p).total();
     ASSERT_GE(added, 1u);
     ASSERT_EQ(stemless.plants.size(), 1 + added);
     EXPECT_FALSE(stemless.plants[0].has_stem) << "the plant itself stays stemless";
@@ -748,7 +779,7 @@ TEST(WeedParts, AWeedWhoseCentreLiesNearTheCropIsStruckAtItsNearestClearCell)
     const double clearance_px = 1.3 * radius;
     const double clearance_mm = clearance_px * params.gsd_mm_per_px;
     Detections det = frame.det;
-    const std::size_t added = add_weed_parts(frame.cells, 0.6, 0.85, clearance_mm, det, classes, p);
+    const std::size_t added = add_weed_parts(frame.cells, targets(clearance_mm), det, classes, p).total();
     ASSERT_GE(added, 1u);
     const int grid_width = frame.cells.grid().width;
     const auto cell_centre = [&](std::uint32_t c) {
@@ -782,4 +813,81 @@ TEST(WeedParts, AWeedWhoseCentreLiesNearTheCropIsStruckAtItsNearestClearCell)
             }
         }
     }
+}
+
+TEST(WeedParts, AWeedWiderThanTheCoverRadiusGetsTargetsUntilEveryClearWeedCellIsInReach)
+{
+    UnsurePair pair;
+    auto& [crop_centre, weed_centre, params, model, truth, frame, p, classes] = pair;
+    const int radius = UnsurePair::radius;   // 10.8 mm
+    ASSERT_EQ(frame.det.plants.size(), 1u);
+    ASSERT_TRUE(frame.det.plants[0].has_stem);
+    const double clearance_mm = 1.5, cover_mm = 3.0;
+    const double clearance_px = clearance_mm / params.gsd_mm_per_px, cover_px = cover_mm / params.gsd_mm_per_px;
+    std::array<PlantClass, kMaxPlants> weed{};
+    weed[0] = PlantClass::Weed;
+
+    // Classed weed, once with its own stem (covered from the stem), once
+    // without (its weed cells' target first, then cover).
+    for (const bool stemless : {false, true}) {
+        SCOPED_TRACE(stemless ? "stemless weed plant" : "weed plant with a stem");
+        Detections det = frame.det;
+        det.plants[0].has_stem = !stemless;
+        std::array<PlantClass, kMaxPlants> cls = weed;
+        std::array<float, kMaxPlants> prob = p;
+        const WeedTargetCounts added = add_weed_parts(frame.cells, targets(clearance_mm, cover_mm, 64), det, cls, prob);
+        EXPECT_EQ(added.parts, 0u);
+        EXPECT_EQ(added.stemless, stemless ? 1u : 0u);
+        ASSERT_GE(added.cover, 3u) << "a weed 7 radii across needs several";
+        ASSERT_EQ(det.plants.size(), 1 + added.total());
+        std::vector<cv::Point2f> strikes;
+        if (!stemless)
+            strikes.push_back(det.plants[0].stem);
+        for (std::size_t i = 1; i < det.plants.size(); ++i) {
+            const Plant& t = det.plants[i];
+            EXPECT_EQ(cls[i], PlantClass::Weed);
+            EXPECT_TRUE(t.has_stem);
+            EXPECT_EQ(t.com_reason, i == 1 && stemless ? ComReason::stemless_weed : ComReason::weed_cover);
+            EXPECT_LT(cv::norm(t.stem - cv::Point2f(weed_centre)), radius + 3) << "on the weed";
+            EXPECT_TRUE(only_weed_within(frame.cells, t.stem, clearance_px)) << "clear of the crop";
+            for (const cv::Point2f& s : strikes)
+                EXPECT_GT(cv::norm(t.stem - s), cover_px) << "each further target beyond the reach of the others";
+            strikes.push_back(t.stem);
+        }
+        // Every clear weed cell of the plant lies within reach of a target.
+        std::size_t clear_weed_cells = 0;
+        for (const std::uint32_t c : frame.cells.vegetated()) {
+            const cv::Point2f at = centre_of_cell(frame.cells, c);
+            if (frame.cells.plant(c) != 1 || frame.cells.weed_probability(c) < 0.85f ||
+                !only_weed_within(frame.cells, at, clearance_px))
+                continue;
+            ++clear_weed_cells;
+            double nearest = 1e9;
+            for (const cv::Point2f& s : strikes)
+                nearest = std::min(nearest, cv::norm(at - s));
+            EXPECT_LE(nearest, cover_px + 1e-3) << "cell " << c;
+        }
+        EXPECT_GT(clear_weed_cells, 20u);
+
+        // No cover radius: one target per weed; a cap: no more than it.
+        Detections one = frame.det;
+        one.plants[0].has_stem = !stemless;
+        std::array<PlantClass, kMaxPlants> cls_one = weed;
+        const WeedTargetCounts single = add_weed_parts(frame.cells, targets(clearance_mm, 0, 64), one, cls_one, prob);
+        EXPECT_EQ(single.cover, 0u);
+        EXPECT_EQ(single.total(), stemless ? 1u : 0u);
+        Detections capped = frame.det;
+        capped.plants[0].has_stem = !stemless;
+        std::array<PlantClass, kMaxPlants> cls_capped = weed;
+        EXPECT_EQ(add_weed_parts(frame.cells, targets(clearance_mm, cover_mm, 3), capped, cls_capped, prob).cover, 2u)
+            << "the first target and two more";
+    }
+
+    // The same weed grown into a plant the classifier is unsure of: its part
+    // is struck once, not covered, since the plant itself is not a weed.
+    Detections part = frame.det;
+    ASSERT_EQ(classes[0], PlantClass::Unknown);
+    const WeedTargetCounts parts = add_weed_parts(frame.cells, targets(clearance_mm, cover_mm, 64), part, classes, p);
+    EXPECT_EQ(parts.parts, 1u);
+    EXPECT_EQ(parts.cover, 0u);
 }

@@ -90,10 +90,10 @@ struct TrackDetection {
     PlantClass plant_class = PlantClass::Unknown;
     std::uint8_t leaves = 0;
     double extent_mm = 0;     // along-track half-size of the plant (for the exit rule), >= 0
-    // A weed part of a larger plant (vision::add_weed_parts): it lies
-    // within a few mm of the plant it grew into, so the two are tracked
-    // apart, each only with its own kind; a part's sighting never votes
-    // weed on its crop's track.
+    // A weed part of a larger plant, or a further target on a wide weed
+    // (vision::add_weed_parts): it lies within a few mm of the plant it
+    // grew into or covers, so the two are tracked apart, each only with its
+    // own kind; a part's sighting never votes weed on its crop's track.
     bool weed_part = false;
 };
 

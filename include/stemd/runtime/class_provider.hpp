@@ -35,6 +35,9 @@ namespace stemd::runtime {
 // Each written by one thread (relaxed), read by the status line.
 struct ClassCounters {
     std::atomic<std::uint64_t> bad_class{0};      // plants whose class-map window held values above 2
+    std::atomic<std::uint64_t> weed_parts{0};     // weed targets from a crop/unknown plant's weed cells (model)
+    std::atomic<std::uint64_t> stemless_weeds{0}; // weed targets from a stemless weed plant's cells (model)
+    std::atomic<std::uint64_t> weed_cover{0};     // further targets on weeds wider than weed_cover_radius_mm (model)
     std::atomic<std::uint64_t> timeouts{0};       // frames whose class map did not come in time (plants unknown)
     std::atomic<std::uint64_t> maps{0};           // class maps received (socket)
     std::atomic<std::uint64_t> bad_messages{0};   // malformed messages, dropped (socket)

@@ -10,6 +10,7 @@
 
 #include "stemd/base/enum_names.hpp"
 #include "stemd/runtime/web_config.hpp"
+#include "stemd/vision/cells.hpp"
 #include "stemd/vision/types.hpp"
 
 namespace stemd::runtime {
@@ -48,7 +49,19 @@ struct ClassifyConfig {
     double weed_confidence = 0.85;   // probability
     bool weed_parts = true;               // weed cells of crop/unknown plants become targets (vision::add_weed_parts)
     double weed_part_clearance_mm = 3;    // no crop or unknown vegetation this near a weed part's target
+    double weed_cover_radius_mm = 0;      // a wider weed gets further targets; 0: one per weed
+    unsigned max_targets_per_weed = 16;   // with weed_cover_radius_mm, the first included
 };
+
+// add_weed_parts()'s settings from classify.*.
+inline vision::WeedTargetParams weed_target_params(const ClassifyConfig& config)
+{
+    return {.min_confidence = config.min_confidence,
+            .weed_confidence = config.weed_confidence,
+            .clearance_mm = config.weed_part_clearance_mm,
+            .cover_radius_mm = config.weed_cover_radius_mm,
+            .max_targets_per_weed = config.max_targets_per_weed};
+}
 
 struct DaemonConfig {
     // source.*

@@ -70,6 +70,10 @@ struct StatusSnapshot {
     // connections accepted.
     bool class_socket = false;
     std::uint64_t class_maps = 0, class_timeouts = 0, class_bad_messages = 0, class_peers = 0;
+    // classify.provider model: weed targets added beside the plants' stems
+    // (vision::add_weed_parts), by kind.
+    bool class_model = false;
+    std::uint64_t weed_parts = 0, stemless_weeds = 0, weed_cover = 0;
     // The source's own: waits without a frame, failures (a camera unplugged),
     // successful reopens after one.
     std::uint64_t source_timeouts = 0, source_errors = 0, source_reopens = 0;

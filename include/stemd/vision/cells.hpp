@@ -138,6 +138,9 @@ void cell_context(const CellContextInput& input, CellContextScratch& scratch, st
 
 // Everything the cells need per frame, allocated once for a frame size, GSD
 // and cell size; cell_features() and what follows allocate nothing.
+struct WeedTargetParams;
+struct WeedTargetCounts;
+
 class CellWorkspace {
 public:
     CellWorkspace(cv::Size frame_size, double gsd_mm_per_px, double cell_mm);
@@ -168,8 +171,8 @@ private:
     friend void cell_features(const FrameView&, const Params&, const Workspace&, const Detections&,
                               const ClassifyWorkspace&, CellWorkspace&);
     friend void classify_cells(const PlantClassifier&, CellWorkspace&);
-    friend std::size_t add_weed_parts(CellWorkspace&, double, double, double, Detections&, std::span<PlantClass>,
-                                      std::span<float>);
+    friend WeedTargetCounts add_weed_parts(CellWorkspace&, const WeedTargetParams&, Detections&,
+                                           std::span<PlantClass>, std::span<float>);
     struct Sums {
         int vegetation_px, sampled_px, boundary;   // on the sampled rows
         float r, g, rr, gg, brightness, gradient, sxx, syy, sxy, ndvi, ndvi2;
@@ -198,9 +201,12 @@ private:
     std::vector<CellContext> context_;
     std::vector<float> context_rows_;   // a ContextRow per vegetated cell, back to back
     CellContextScratch context_scratch_;
-    // add_weed_parts(): cells already in a part, and the flood fill's stack.
+    // add_weed_parts(): cells already in a part, the flood fill's stack (or
+    // a weed plant's cells), and each listed cell's squared distance to
+    // the nearest target (-1: not clear).
     std::vector<std::uint8_t> in_part_;
     std::vector<std::uint32_t> part_stack_;
+    std::vector<float> cover_d2_;
     std::array<float, 3 * 255 + 1> reciprocal_{};
 };
 
@@ -238,6 +244,25 @@ void classify_plants(const PlantClassifier& model, const ClassifyWorkspace& plan
                      std::size_t count, double min_confidence, double weed_confidence,
                      std::span<float> probabilities, std::span<PlantClass> classes);
 
+// How add_weed_parts() places weed targets.
+struct WeedTargetParams {
+    double min_confidence = 0.6;    // decide_class()'s bars, per cell
+    double weed_confidence = 0.85;
+    double clearance_mm = 3;        // no classified cell that is not weed this near a target
+    // A weed wider than a strike's reach: further targets until every clear
+    // weed cell of it lies within this of one; 0, one target per weed.
+    double cover_radius_mm = 0;
+    std::size_t max_targets_per_weed = 16;   // the first included, >= 1
+};
+
+// What add_weed_parts() added, by kind.
+struct WeedTargetCounts {
+    std::size_t parts = 0;      // ComReason::weed_part
+    std::size_t stemless = 0;   // ComReason::stemless_weed
+    std::size_t cover = 0;      // ComReason::weed_cover
+    std::size_t total() const { return parts + stemless + cover; }
+};
+
 // A weed grown into a crop, or into a plant the classifier is unsure of, is
 // one blob with it, and that blob's one stem is not on the weed; its cells
 // still tell it apart. Each 8-connected group of a crop or unknown plant's
@@ -251,10 +276,19 @@ void classify_plants(const PlantClassifier& model, const ClassifyWorkspace& plan
 // Plants classed weed keep their one stem; those without one (grass, or a
 // stem below min_confidence) get targets the same way, from their weed
 // cells (stem reason stemless_weed), so that "weeds only" treats them too.
-// `classes` and `probabilities` get the new plants' entries; parts beyond
+// With a cover radius, a plant classed weed wider than the radius (from its
+// stem, or each group of a stemless one from its target) gets more targets
+// (stem reason weed_cover): each at the centre of its clear weed cell
+// farthest from every target so far, for as long as that lies beyond the
+// radius and max_targets_per_weed allows. Touching weeds are found as one
+// plant with one stem; a stamp at that stem leaves the others, and a spray
+// there reaches no farther than its footprint. The weed parts of crop and
+// unknown plants are not covered: their plant's own class is not weed, and
+// further targets would reach deeper into it.
+// `classes` and `probabilities` get the new plants' entries; targets beyond
 // the plants' capacity are counted in det.stats.plants_over_capacity.
-// Returns how many were added; allocates nothing.
-std::size_t add_weed_parts(CellWorkspace& cells, double min_confidence, double weed_confidence, double clearance_mm,
-                           Detections& det, std::span<PlantClass> classes, std::span<float> probabilities);
+// Allocates nothing.
+WeedTargetCounts add_weed_parts(CellWorkspace& cells, const WeedTargetParams& params, Detections& det,
+                                std::span<PlantClass> classes, std::span<float> probabilities);
 
 }  // namespace stemd::vision

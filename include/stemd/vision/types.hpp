@@ -95,6 +95,7 @@ enum class ComReason : std::uint8_t {
     ill_conditioned,  // the leaf lines do not pin a point down (robust estimator)
     weed_part,        // a weed part of a larger plant, found by the crop/weed cells (vision/cells)
     stemless_weed,    // a plant classed weed without a stem of its own (grass, low confidence): its weed cells (vision/cells)
+    weed_cover,       // a further target on a weed wider than a strike's reach (vision/cells)
 };
 
 // The words of the configurable enums, in the order config files list them
