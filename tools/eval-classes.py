@@ -10,7 +10,10 @@ once without a model (the class-blind detector). Then, per annotated plant:
   - a crop plant "gets a weed-classed stem" when a stem reported inside it
     is classed weed (it would be stamped under scheduler.policy weeds_only);
   - a weed plant is "treated" when a stem reported inside it is classed
-    weed; class-blind, when any stem is reported inside it.
+    weed; class-blind, when any stem is reported inside it;
+  - "weed targets" counts the stems classed weed over the held-out frames:
+    the strikes "weeds only" would command (classify.weed_cover_radius_mm
+    adds some).
 A plant is an annotated polygon on CWFID (annotations/NNN_annotation.yaml;
 polygons may overlap, a stem inside two counts for both) and a connected
 region of one class in the class image on a recording with a class column,
@@ -148,11 +151,13 @@ def evaluate(name, recording, gsd, folds, tools, out, plants_of, inside, reuse_m
         model_stems.update(detections(os.path.join(fold, "classes.csv")))
         blind_stems.update(detections(os.path.join(fold, "blind.csv")))
     with_model = score(rows, model_stems, plants_of, inside)
+    weed_targets = sum(c == "weed" for stems in model_stems.values() for (_, _, c) in stems)
     blind = score(rows, blind_stems, plants_of, inside)
     pct = lambda n, d: f"{n} of {d} ({100.0 * n / max(d, 1):.1f} %)"
     print(f"{name:12} {len(rows)} frames, {folds} folds by frame: "
           f"crop plants with a weed-classed stem {pct(with_model['crop_weed_stem'], with_model['crop'])}; "
-          f"weed plants treated {pct(with_model['weed_treated'], with_model['weed'])}, "
+          f"weed plants treated {pct(with_model['weed_treated'], with_model['weed'])} "
+          f"with {weed_targets} weed targets, "
           f"class-blind (any stem inside) {pct(blind['weed_any_stem'], blind['weed'])}")
     sys.stdout.flush()
 
