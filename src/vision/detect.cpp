@@ -461,7 +461,7 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
             // above the halfway point between the soil and the threshold to
             // be more than halfway to the plant's mean: an exact bound that
             // leaves far fewer pixels to look at.
-            const int soil = histogram_mode(ws.histogram_);
+            const int soil = soil_mode(ws.histogram_);
             const int floor = std::max(soil_noise_threshold(ws.histogram_, kEdgeAboveSoilSigmas),
                                        (soil + out.stats.threshold) / 2);
             extend_to_mixed_edges(ws.index_, ws.vegetation_, soil, floor, edge_radius, ws.edged_, ws.edges_);

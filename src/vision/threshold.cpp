@@ -183,6 +183,45 @@ int histogram_mode(const Histogram& histogram)
     return mode;
 }
 
+// A leaf level lies at least this far above the soil: the separation of
+// the two classes' means that segment.min_class_separation asks by
+// default. Closer than that, a lower peak is a dark border or shadow
+// (damped to kIndexZeroLevel) under soil with a colour cast, not soil
+// under leaves.
+constexpr int kMinLeafAboveSoilLevels = 12;
+
+int soil_mode(const Histogram& histogram)
+{
+    const int mode = histogram_mode(histogram);
+    // Below the mode, downwards: the valley so far, and the highest level
+    // that rises to at least twice it (a peak of its own).
+    std::uint64_t valley = smoothed_count(histogram, mode);
+    int valley_level = mode, lower = -1, lower_valley_level = mode;
+    std::uint64_t lower_count = 0;
+    for (int v = mode - 1; v >= 0; --v) {
+        const std::uint64_t count = smoothed_count(histogram, v);
+        if (count < valley) {
+            valley = count;
+            valley_level = v;
+        }
+        if (count >= 2 * valley && count > lower_count) {
+            lower = v;
+            lower_count = count;
+            lower_valley_level = valley_level;
+        }
+    }
+    if (lower < 0 || mode - lower < kMinLeafAboveSoilLevels ||
+        std::abs(lower - kIndexZeroLevel) >= std::abs(mode - kIndexZeroLevel))
+        return mode;
+    std::uint64_t total = 0, up_to_valley = 0;
+    for (int v = 0; v < 256; ++v) {
+        total += histogram[static_cast<std::size_t>(v)];
+        if (v <= lower_valley_level)
+            up_to_valley += histogram[static_cast<std::size_t>(v)];
+    }
+    return 100 * up_to_valley >= total ? lower : mode;
+}
+
 int soil_noise_threshold(const Histogram& histogram, double sigmas)
 {
     if (std::all_of(histogram.begin(), histogram.end(), [](auto count) { return count == 0; }))
@@ -196,7 +235,7 @@ int soil_noise_threshold(const Histogram& histogram, double sigmas)
     // quantile of the lower side, which vegetation (above) does not reach: a
     // normal soil has 0.317 of its pixels below the mode more than one
     // sigma below it.
-    const int mode = histogram_mode(histogram);
+    const int mode = soil_mode(histogram);
     const auto smoothed = [&](int v) { return static_cast<double>(smoothed_count(histogram, v)); };
     double peak = mode;
     const double before = smoothed(mode - 1), at = smoothed(mode), after = smoothed(mode + 1);

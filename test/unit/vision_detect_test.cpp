@@ -394,6 +394,44 @@ TEST(Detect, SeparationCheckLeavesAFrameWithPlantsUnchanged)
     }
 }
 
+TEST(Detect, AFrameMostlyCoveredByLeavesKeepsItsLeaves)
+{
+    // Leaves drawn over half to 95 % of a soil frame. Above about three
+    // quarters, the leaves' level is the histogram's mode; taken for the
+    // soil's, it put the threshold above the leaves and the mask was empty.
+    for (const double target_cover : {0.5, 0.8, 0.9, 0.95}) {
+        SCOPED_TRACE(target_cover);
+        cv::Mat bgr = soil_frame({400, 300}, 7);
+        cv::Mat leaves = cv::Mat::zeros(bgr.size(), CV_8UC1);
+        cv::RNG rng(11);
+        while (cv::countNonZero(leaves) < target_cover * leaves.total()) {
+            const cv::Point2f centre(rng.uniform(0.f, 400.f), rng.uniform(0.f, 300.f));
+            cv::ellipse(leaves, cv::RotatedRect(centre, cv::Size2f(rng.uniform(20.f, 60.f), rng.uniform(8.f, 20.f)),
+                                                rng.uniform(0.f, 180.f)),
+                        255, cv::FILLED);
+        }
+        cv::Mat leaf_colour(bgr.size(), CV_8UC3, cv::Scalar(40, 150, 50));
+        cv::Mat noise(bgr.size(), CV_8UC3);
+        rng.fill(noise, cv::RNG::UNIFORM, 0, 20);
+        leaf_colour += noise;
+        leaf_colour.copyTo(bgr, leaves);
+        Params params;
+        params.closing_radius_px = 0;
+        Workspace ws(bgr.size(), params);
+        Detections d;
+        detect({.bgr = bgr}, params, ws, d);
+        ASSERT_EQ(d.status, DetectStatus::ok);
+        EXPECT_FALSE(d.stats.no_vegetation);
+        cv::Mat found;
+        unpack_mask(ws.vegetation(), found);
+        const double overlap = cv::countNonZero(found & leaves);
+        const double either = cv::countNonZero(found | leaves);
+        EXPECT_GT(overlap / either, 0.97) << "vegetation found " << cv::countNonZero(found) << " px of "
+                                          << cv::countNonZero(leaves);
+        EXPECT_FALSE(d.plants.empty());
+    }
+}
+
 TEST(Detect, ExternalMasksAreNeverVegetationFree)
 {
     const Detections d = detect({.mask = cv::Mat(48, 64, CV_8UC1, cv::Scalar(0))}, mask_params());

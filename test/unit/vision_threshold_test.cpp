@@ -418,3 +418,63 @@ TEST(Threshold, AboveSoilKeepsOtsuWhereItSeparatesAndRisesAboveTheSoilWhereItDoe
     EXPECT_EQ(above_soil_threshold(dense, 5), otsu_threshold(dense));
     EXPECT_EQ(auto_threshold(dense, ThresholdMethod::above_soil, 5), above_soil_threshold(dense, 5));
 }
+
+namespace {
+
+struct Mode {
+    double level, sigma, fraction;
+};
+
+// A histogram of a million pixels drawn from Gaussian modes.
+Histogram mixture(std::initializer_list<Mode> modes)
+{
+    Histogram h{};
+    for (int v = 0; v < 256; ++v) {
+        double n = 0;
+        for (const Mode& m : modes) {
+            const double z = (v - m.level) / m.sigma;
+            n += m.fraction * 1e6 * std::exp(-0.5 * z * z) / (m.sigma * std::sqrt(2 * M_PI));
+        }
+        h[static_cast<std::size_t>(v)] = static_cast<std::uint32_t>(std::lround(n));
+    }
+    return h;
+}
+
+}  // namespace
+
+TEST(Threshold, UnderMostlyLeavesTheSoilIsTheLowerModeNearZero)
+{
+    // Leaves over 90 % of the frame: their level is the histogram's mode,
+    // and the soil a lower mode at the index's zero.
+    for (const double leaves : {0.8, 0.9, 0.97}) {
+        SCOPED_TRACE(leaves);
+        const Histogram h = mixture({{128, 2, 1 - leaves}, {200, 8, leaves}});
+        ASSERT_NEAR(histogram_mode(h), 200, 1);  // what the soil was taken for
+        EXPECT_EQ(soil_mode(h), 128);
+        EXPECT_NEAR(soil_noise_threshold(h, 5), 138, 1);
+        const int t = above_soil_threshold(h, 5);
+        EXPECT_GT(t, 138);
+        EXPECT_LT(t, 180);
+        EXPECT_GT(class_separation(h, t), 5 * Params{}.min_class_separation);
+    }
+    // A carrot-like index: soil just below zero, leaves 25 levels above it.
+    EXPECT_EQ(soil_mode(mixture({{125, 3, 0.2}, {150, 4, 0.8}})), 125);
+}
+
+TEST(Threshold, ALowerModeIsSoilOnlyWhenItIsNearerZeroFarEnoughBelowAndNotAFewPixels)
+{
+    // Soil with a red patch (clay, a painted part) below it: the patch is
+    // farther from zero than the soil, which stays the soil.
+    EXPECT_EQ(soil_mode(mixture({{100, 4, 0.3}, {127, 3, 0.7}})), 127);
+    // Soil with a green cast over a dark border (dark pixels sit at zero):
+    // 7 levels is no leaf's separation from soil.
+    EXPECT_EQ(soil_mode(mixture({{128, 0.7, 0.2}, {135, 2, 0.8}})), 135);
+    // Leaves over the whole frame but for 0.5 %: too few pixels to be the soil.
+    EXPECT_EQ(soil_mode(mixture({{128, 2, 0.005}, {200, 8, 0.995}})), 200);
+    // One mode: itself.
+    EXPECT_EQ(soil_mode(mixture({{200, 8, 1.0}})), 200);
+    EXPECT_EQ(soil_mode(Histogram{}), 0);
+    // A shoulder below the leaves' mode, with no valley: no second mode.
+    EXPECT_EQ(soil_mode(mixture({{185, 8, 0.4}, {200, 8, 0.6}})), histogram_mode(mixture({{185, 8, 0.4}, {200, 8, 0.6}})));
+}
+

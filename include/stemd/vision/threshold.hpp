@@ -39,8 +39,7 @@ int triangle_threshold(const Histogram& histogram);
 // threshold into the smaller class when vegetation covers little of the
 // frame (on CWFID: mean IoU 0.912 against 0.867 for Otsu).
 int min_error_threshold(const Histogram& histogram);
-// The upper edge of the soil's own spread: the histogram's mode (the soil,
-// as long as vegetation covers less of the frame than soil) plus `sigmas`
+// The upper edge of the soil's own spread: soil_mode plus `sigmas`
 // standard deviations, measured on the mode's lower side only, which
 // vegetation (above) does not reach. Valid for any small vegetation cover,
 // where Otsu and min_error split the soil itself. Mode and sigma are read
@@ -48,10 +47,28 @@ int min_error_threshold(const Histogram& histogram);
 // as a soil's spread is often only a level or two.
 int soil_noise_threshold(const Histogram& histogram, double sigmas);
 
-// The soil's index level: the mode of the histogram smoothed over three
-// levels, so that a quantisation comb does not pick a spike (the soil
-// covers more of the frame than any leaf level does). 0 when empty.
+// The mode of the histogram smoothed over three levels, so that a
+// quantisation comb does not pick a spike. 0 when empty.
 int histogram_mode(const Histogram& histogram);
+
+// Every index here maps its zero (a grey surface; NIR equal to red) to
+// this level, and vegetation above it.
+inline constexpr int kIndexZeroLevel = 128;
+// The soil's index level. Usually the mode: soil covers more of a field
+// frame than any one leaf level does. When vegetation covers most of it
+// (over about three quarters on CWFID-like frames), the mode is a leaf
+// level and the soil is a lower mode. So the soil is a lower peak instead
+// when
+// - a valley lies between it and the mode (at most half its height), so it
+//   is a mode of its own and not the mode's shoulder;
+// - the levels up to that valley hold at least 1 % of the pixels;
+// - the mode lies at least 12 levels above it (a leaf's separation from
+//   soil);
+// - and it lies nearer kIndexZeroLevel than the mode: soil is grey to
+//   brown, a leaf strongly green (or bright in NIR). A red or dark patch
+//   below the soil is farther from zero than the soil and stays out.
+// 0 when empty.
+int soil_mode(const Histogram& histogram);
 // Otsu where it separates two classes, never inside the soil's spread.
 int above_soil_threshold(const Histogram& histogram, double sigmas);
 // `soil_sigmas` is used by above_soil only.
