@@ -5,6 +5,7 @@
 #include <cfloat>
 #include <cmath>
 #include <cstring>
+#include <optional>
 
 #include <opencv2/core.hpp>
 
@@ -190,36 +191,47 @@ int histogram_mode(const Histogram& histogram)
 // under leaves.
 constexpr int kMinLeafAboveSoilLevels = 12;
 
-int soil_mode(const Histogram& histogram)
+std::optional<SoilUnderLeaves> soil_under_leaves(const Histogram& histogram)
 {
     const int mode = histogram_mode(histogram);
     // Below the mode, downwards: the valley so far, and the highest level
-    // that rises to at least twice it (a peak of its own).
+    // that rises above it by a fifth of its own count and by three times
+    // its counting noise (a Poisson count's sigma is its square root): a
+    // peak of its own, not a dip in a leaf level's noisy lower tail.
     std::uint64_t valley = smoothed_count(histogram, mode);
-    int valley_level = mode, lower = -1, lower_valley_level = mode;
+    int valley_level = mode;
     std::uint64_t lower_count = 0;
+    SoilUnderLeaves found{-1, mode};
     for (int v = mode - 1; v >= 0; --v) {
         const std::uint64_t count = smoothed_count(histogram, v);
         if (count < valley) {
             valley = count;
             valley_level = v;
         }
-        if (count >= 2 * valley && count > lower_count) {
-            lower = v;
+        const double rise = static_cast<double>(count) - static_cast<double>(valley);
+        if (5 * valley <= 4 * count && rise * rise >= 9.0 * static_cast<double>(count) && count > lower_count) {
+            found = {v, valley_level};
             lower_count = count;
-            lower_valley_level = valley_level;
         }
     }
-    if (lower < 0 || mode - lower < kMinLeafAboveSoilLevels ||
-        std::abs(lower - kIndexZeroLevel) >= std::abs(mode - kIndexZeroLevel))
-        return mode;
+    if (found.soil_level < 0 || mode - found.soil_level < kMinLeafAboveSoilLevels ||
+        std::abs(found.soil_level - kIndexZeroLevel) >= std::abs(mode - kIndexZeroLevel))
+        return std::nullopt;
     std::uint64_t total = 0, up_to_valley = 0;
     for (int v = 0; v < 256; ++v) {
         total += histogram[static_cast<std::size_t>(v)];
-        if (v <= lower_valley_level)
+        if (v <= found.valley_level)
             up_to_valley += histogram[static_cast<std::size_t>(v)];
     }
-    return 100 * up_to_valley >= total ? lower : mode;
+    if (100 * up_to_valley < total)
+        return std::nullopt;
+    return found;
+}
+
+int soil_mode(const Histogram& histogram)
+{
+    const auto under = soil_under_leaves(histogram);
+    return under ? under->soil_level : histogram_mode(histogram);
 }
 
 int soil_noise_threshold(const Histogram& histogram, double sigmas)
@@ -261,6 +273,12 @@ int soil_noise_threshold(const Histogram& histogram, double sigmas)
 
 int above_soil_threshold(const Histogram& histogram, double sigmas)
 {
+    // Leaves as the mode: Otsu would split them, as it splits the soil
+    // when leaves are few. The soil between dense leaves is shaded and
+    // mixed, so its spread is wide; the valley between the two modes,
+    // where the two classes' densities cross, is the threshold.
+    if (const auto under = soil_under_leaves(histogram))
+        return under->valley_level;
     return std::max(otsu_threshold(histogram), soil_noise_threshold(histogram, sigmas));
 }
 

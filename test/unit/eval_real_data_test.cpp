@@ -492,6 +492,85 @@ TEST(RealFrames, CarrotMaskIouStaysAboveTheFloor)
     EXPECT_GE(iou, 0.85);
 }
 
+namespace {
+
+struct MaskedFrame {
+    cv::Mat bgr;
+    cv::Mat truth;  // 255 = vegetation
+};
+
+// A set's frames with their human masks: cwfid-train (images/, masks/ with 0
+// = vegetation) or a recording directory with a mask column (carrot-dev).
+std::vector<MaskedFrame> masked_frames(const std::string& set)
+{
+    std::vector<MaskedFrame> frames;
+    const fs::path dir = real_data_dir() / set;
+    if (set == "cwfid-train") {
+        std::vector<fs::path> images;
+        for (const auto& entry : fs::directory_iterator(dir / "images"))
+            images.push_back(entry.path());
+        std::sort(images.begin(), images.end());
+        for (const fs::path& image : images) {
+            const std::string name = image.filename().string();
+            const auto cut = name.find("_image.png");
+            if (cut != std::string::npos)
+                frames.push_back({read(image, cv::IMREAD_COLOR),
+                                  read(dir / "masks" / (name.substr(0, cut) + "_mask.png"), cv::IMREAD_GRAYSCALE) == 0});
+        }
+        return frames;
+    }
+    std::string error;
+    const auto recording = io::read_recording(dir, error);
+    EXPECT_TRUE(recording) << error;
+    if (recording)
+        for (const io::RecordingFrame& frame : recording->frames)
+            frames.push_back({read(recording->resolve(frame.rgb), cv::IMREAD_COLOR),
+                              read(recording->resolve(frame.mask), cv::IMREAD_GRAYSCALE) != 0});
+    return frames;
+}
+
+}  // namespace
+
+TEST(RealFrames, WindowsMostlyCoveredByLeavesKeepTheirLeaves)
+{
+    // A camera closer to the ground, or a patch of dense weeds, sees leaves
+    // over most of its view. Windows of 160 x 160 px cut from the real
+    // frames on a grid, where the human mask covers half or more: the
+    // leaves' index level is then often the histogram's mode, and taken
+    // for the soil's, it left those windows with an empty mask (mean IoU
+    // 0.41 on CWFID's 58 such windows, 0.76 on carrot-dev's 52). A floor
+    // against that; the whole frames' goal is 0.90.
+    REQUIRE_REAL_SET("cwfid-train");
+    REQUIRE_REAL_SET("carrot-dev");
+    struct Set {
+        std::string name;
+        std::string gsd;
+    };
+    for (const Set& set : {Set{"cwfid-train", "0.11"}, Set{"carrot-dev", "0.25"}}) {
+        SCOPED_TRACE(set.name);
+        const vision::Params params = shipped_params({"camera.gsd_mm_per_px=" + set.gsd});
+        constexpr int kWindowPx = 160;
+        double sum = 0;
+        int windows = 0;
+        for (const MaskedFrame& frame : masked_frames(set.name)) {
+            for (int y = 0; y + kWindowPx <= frame.bgr.rows; y += kWindowPx) {
+                for (int x = 0; x + kWindowPx <= frame.bgr.cols; x += kWindowPx) {
+                    const cv::Rect window(x, y, kWindowPx, kWindowPx);
+                    const cv::Mat truth = frame.truth(window).clone();
+                    if (2 * cv::countNonZero(truth) < kWindowPx * kWindowPx)
+                        continue;
+                    const double iou = frame_iou(frame.bgr(window).clone(), truth, params);
+                    EXPECT_GT(iou, 0.5) << "window at " << x << ", " << y;
+                    sum += iou;
+                    ++windows;
+                }
+            }
+        }
+        ASSERT_GE(windows, 40);
+        EXPECT_GE(sum / windows, 0.85) << windows << " windows";
+    }
+}
+
 TEST(RealFrames, CarrotLeafColourTestCostsNothingUnderAColourCast)
 {
     // Daylight changes colour (evening sun, shade, cloud), and a camera's

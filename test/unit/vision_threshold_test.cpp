@@ -452,8 +452,17 @@ TEST(Threshold, UnderMostlyLeavesTheSoilIsTheLowerModeNearZero)
         ASSERT_NEAR(histogram_mode(h), 200, 1);  // what the soil was taken for
         EXPECT_EQ(soil_mode(h), 128);
         EXPECT_NEAR(soil_noise_threshold(h, 5), 138, 1);
+        // The threshold is the valley between the two modes: Otsu would
+        // split the leaves, as it splits the soil when leaves are few.
         const int t = above_soil_threshold(h, 5);
-        EXPECT_GT(t, 138);
+        const auto under = soil_under_leaves(h);
+        ASSERT_TRUE(under);
+        EXPECT_EQ(t, under->valley_level);
+        for (int v = 129; v < 200; ++v)
+            EXPECT_GE(h[static_cast<std::size_t>(v)] + h[static_cast<std::size_t>(v - 1)] + h[static_cast<std::size_t>(v + 1)],
+                      h[static_cast<std::size_t>(t)] + h[static_cast<std::size_t>(t - 1)] + h[static_cast<std::size_t>(t + 1)])
+                << "level " << v;
+        EXPECT_GT(t, 135);
         EXPECT_LT(t, 180);
         EXPECT_GT(class_separation(h, t), 5 * Params{}.min_class_separation);
     }
@@ -474,7 +483,30 @@ TEST(Threshold, ALowerModeIsSoilOnlyWhenItIsNearerZeroFarEnoughBelowAndNotAFewPi
     // One mode: itself.
     EXPECT_EQ(soil_mode(mixture({{200, 8, 1.0}})), 200);
     EXPECT_EQ(soil_mode(Histogram{}), 0);
+    // Where the soil is the mode, above_soil is what it was: Otsu, never
+    // inside the soil's spread.
+    const Histogram sparse = mixture({{127, 3, 0.95}, {190, 8, 0.05}});
+    EXPECT_FALSE(soil_under_leaves(sparse));
+    EXPECT_EQ(above_soil_threshold(sparse, 5), std::max(otsu_threshold(sparse), soil_noise_threshold(sparse, 5)));
     // A shoulder below the leaves' mode, with no valley: no second mode.
     EXPECT_EQ(soil_mode(mixture({{185, 8, 0.4}, {200, 8, 0.6}})), histogram_mode(mixture({{185, 8, 0.4}, {200, 8, 0.6}})));
+}
+
+TEST(Threshold, ALeafLevelsNoisyLowerTailIsNoSoil)
+{
+    // Leaves filling a small window, with a long lower tail (shaded and
+    // mixed pixels), counted from random pixels: the counts dip and rise
+    // by their counting noise, which must not make a peak of their own.
+    for (std::uint64_t seed = 1; seed <= 50; ++seed) {
+        cv::RNG rng(seed);
+        cv::Mat window(160, 160, CV_8UC1);
+        for (int y = 0; y < window.rows; ++y)
+            for (int x = 0; x < window.cols; ++x)
+                window.at<std::uint8_t>(y, x) = cv::saturate_cast<std::uint8_t>(
+                    rng.uniform(0, 10) < 3 ? 195 - std::abs(rng.gaussian(30)) : 200 + rng.gaussian(8));
+        Histogram h{};
+        compute_histogram(window, h);
+        EXPECT_FALSE(soil_under_leaves(h)) << "seed " << seed << ": soil at " << soil_under_leaves(h)->soil_level;
+    }
 }
 

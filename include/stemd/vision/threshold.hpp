@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 
 #include <opencv2/core/mat.hpp>
 
@@ -56,11 +57,12 @@ int histogram_mode(const Histogram& histogram);
 inline constexpr int kIndexZeroLevel = 128;
 // The soil's index level. Usually the mode: soil covers more of a field
 // frame than any one leaf level does. When vegetation covers most of it
-// (over about three quarters on CWFID-like frames), the mode is a leaf
-// level and the soil is a lower mode. So the soil is a lower peak instead
+// (from about half of a real frame's window, three quarters of a
+// synthetic frame), the mode is a leaf level and the soil is a lower mode. So the soil is a lower peak instead
 // when
-// - a valley lies between it and the mode (at most half its height), so it
-//   is a mode of its own and not the mode's shoulder;
+// - it rises above the valley between it and the mode by a fifth of its
+//   count and by three times its counting noise, so it is a mode of its
+//   own, not the mode's shoulder or a dip in its noisy tail;
 // - the levels up to that valley hold at least 1 % of the pixels;
 // - the mode lies at least 12 levels above it (a leaf's separation from
 //   soil);
@@ -69,7 +71,18 @@ inline constexpr int kIndexZeroLevel = 128;
 //   below the soil is farther from zero than the soil and stays out.
 // 0 when empty.
 int soil_mode(const Histogram& histogram);
+// That lower peak, and the lowest level between it and the mode (the
+// first from the mode when several are equal): nullopt when the soil is
+// the mode.
+struct SoilUnderLeaves {
+    int soil_level;
+    int valley_level;
+};
+std::optional<SoilUnderLeaves> soil_under_leaves(const Histogram& histogram);
 // Otsu where it separates two classes, never inside the soil's spread.
+// Under mostly leaves (soil_under_leaves), the valley between the soil
+// and the leaves instead: Otsu splits the leaves then, and the soil
+// between dense leaves is shaded and mixed, too wide for a bar of sigmas.
 int above_soil_threshold(const Histogram& histogram, double sigmas);
 // `soil_sigmas` is used by above_soil only.
 int auto_threshold(const Histogram& histogram, ThresholdMethod method, double soil_sigmas = 5.0);
