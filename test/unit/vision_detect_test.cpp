@@ -415,20 +415,31 @@ TEST(Detect, AFrameMostlyCoveredByLeavesKeepsItsLeaves)
         rng.fill(noise, cv::RNG::UNIFORM, 0, 20);
         leaf_colour += noise;
         leaf_colour.copyTo(bgr, leaves);
-        Params params;
-        params.closing_radius_px = 0;
-        Workspace ws(bgr.size(), params);
-        Detections d;
-        detect({.bgr = bgr}, params, ws, d);
-        ASSERT_EQ(d.status, DetectStatus::ok);
-        EXPECT_FALSE(d.stats.no_vegetation);
-        cv::Mat found;
-        unpack_mask(ws.vegetation(), found);
-        const double overlap = cv::countNonZero(found & leaves);
-        const double either = cv::countNonZero(found | leaves);
-        EXPECT_GT(overlap / either, 0.97) << "vegetation found " << cv::countNonZero(found) << " px of "
-                                          << cv::countNonZero(leaves);
-        EXPECT_FALSE(d.plants.empty());
+        // NIR: soil a little brighter than in red (NDVI about 0.1), leaves
+        // far brighter (about 0.6).
+        cv::Mat nir(bgr.size(), CV_8UC1);
+        rng.fill(nir, cv::RNG::UNIFORM, 130, 150);
+        cv::Mat leaf_nir(bgr.size(), CV_8UC1);
+        rng.fill(leaf_nir, cv::RNG::UNIFORM, 180, 220);
+        leaf_nir.copyTo(nir, leaves);
+        for (const Segmentation method : {Segmentation::chromatic_exg, Segmentation::exg_and_ndvi}) {
+            SCOPED_TRACE(std::string(to_string(method)));
+            Params params;
+            params.segmentation = method;
+            params.closing_radius_px = 0;
+            Workspace ws(bgr.size(), params);
+            Detections d;
+            detect({.bgr = bgr, .nir = method == Segmentation::exg_and_ndvi ? nir : cv::Mat()}, params, ws, d);
+            ASSERT_EQ(d.status, DetectStatus::ok);
+            EXPECT_FALSE(d.stats.no_vegetation);
+            cv::Mat found;
+            unpack_mask(ws.vegetation(), found);
+            const double overlap = cv::countNonZero(found & leaves);
+            const double either = cv::countNonZero(found | leaves);
+            EXPECT_GT(overlap / either, 0.97) << "vegetation found " << cv::countNonZero(found) << " px of "
+                                              << cv::countNonZero(leaves);
+            EXPECT_FALSE(d.plants.empty());
+        }
     }
 }
 
