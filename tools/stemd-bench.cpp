@@ -1,7 +1,7 @@
 // stemd-bench: per-stage and whole-pipeline timings on synthetic
 // 1296x966 frames, one thread, with one cv::cvtColor BGR->GRAY pass over the
 // same frames as a yardstick of this machine's speed.
-//   stemd-bench [--json] [--preset early|late|dense|seedling] [--frames N] [--radius M] [--edge-radius R]
+//   stemd-bench [--json] [--preset early|late|dense|seedling|canopy] [--frames N] [--radius M] [--edge-radius R]
 //               [--sparse-index 0|1] [benchmark flags]
 // (defaults: late, 8 frames, the pipeline's default closing radius)
 // Each repetition is one frame; medians and p90 are over repetitions.
@@ -315,10 +315,10 @@ int main(int argc, char** argv)
     CLI::App app{"stemd-bench: per-stage and whole-pipeline timings on synthetic 1296x966 frames; other arguments "
                  "go to Google Benchmark (--benchmark_filter=REGEX, ...)"};
     app.add_flag("--json", json, "one line of JSON: medians and p90 of every stage");
-    app.add_option("--preset", preset_name, "early, late, dense or seedling")
+    app.add_option("--preset", preset_name, "early, late, dense, seedling or canopy")
         ->check(CLI::Validator(
             [](std::string& name) {
-                return synth::parse_preset(name) ? std::string() : "'" + name + "' is not early, late, dense or seedling";
+                return synth::parse_preset(name) ? std::string() : "'" + name + "' is not early, late, dense, seedling or canopy";
             },
             "PRESET"));
     const auto positive = tools::value_check<int>("a positive integer", [](int n) { return n > 0; });

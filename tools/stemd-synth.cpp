@@ -41,7 +41,7 @@ constexpr int kWriteError = 1;
 constexpr int kMaxFrames = 1000000;   // file names have six digits
 
 const char* const kUsage =
-    "usage: stemd-synth --out DIR [--preset early|late|dense|seedling] [--frames N] [--seed S]\n"
+    "usage: stemd-synth --out DIR [--preset early|late|dense|seedling|canopy] [--frames N] [--seed S]\n"
     "                   [--fragment F] [--width W] [--height H] [--gsd-mm-per-px G] [--fps FPS]\n"
     "       stemd-synth --strip --out DIR [--length-mm L] [--speed-kmh V] [--fps FPS]\n"
     "                   [--preset P] [--seed S] [--fragment F] [--width W] [--height H] [--gsd-mm-per-px G]\n"
@@ -49,7 +49,9 @@ const char* const kUsage =
     "  --preset          early (small crops, tiny weeds), late (default: medium crops),\n"
     "                    dense (many crops, weeds, grass, fragmented masks),\n"
     "                    seedling (~1 % vegetation on dark cloddy soil, a real camera's\n"
-    "                    exposure, colour cast, vignetting, gain noise and colour fringes)\n"
+    "                    exposure, colour cast, vignetting, gain noise and colour fringes),\n"
+    "                    canopy (large plants overlapping, leaves over most of the soil,\n"
+    "                    the same real camera)\n"
     "  --frames          number of frames, 1..1000000 (default 10)\n"
     "  --seed            unsigned 64-bit seed (default 1); same seed, same bytes\n"
     "  --fragment        mask fragmentation 0..1 (default: the preset's)\n"
@@ -94,7 +96,7 @@ std::optional<int> parse_args(int argc, char** argv, Args& args)
     app.add_option_function<std::string>("--preset", [&](const std::string& name) { o.preset = *synth::parse_preset(name); })
         ->check(CLI::Validator(
             [](std::string& name) {
-                return synth::parse_preset(name) ? std::string() : "'" + name + "' is not early, late, dense or seedling";
+                return synth::parse_preset(name) ? std::string() : "'" + name + "' is not early, late, dense, seedling or canopy";
             },
             "PRESET"));
     CLI::Option* const frames = app.add_option("--frames", args.frames)

@@ -1,7 +1,7 @@
 // Synthetic field frames. Outline of one frame:
 //   1. soil (soil.cpp): multi-scale value noise, clods and stones (colour + NIR);
 //   2. layout (layout.cpp): plants drawn as parameters (plant.cpp), placed
-//      without overlap;
+//      without overlap (but for the canopy preset);
 //   3. plants (plant_render.cpp): each leaf (and crown, grass blade) is one
 //      anti-aliased layer composited over the image, with its hard fill
 //      going into the mask; fragmentation cuts gaps and holes out of both;

@@ -114,11 +114,11 @@ Plant make_grass_tuft(const PlantClassSpec& spec, double px_per_mm, Rng& rng)
 namespace {
 
 // Random stem positions inside the image, keeping a gap to every placed
-// plant; after every 50 failures the plant shrinks by 10 %. Stems stay
+// plant (or, with spec.overlap, letting their extents overlap that much); after every 50 failures the plant shrinks by 10 %. Stems stay
 // inside the image (so every plant is in the ground truth) while leaves may
 // leave it.
 bool place_plant(Plant& plant, const std::vector<Plant>& placed, const std::vector<double>& placed_extent_px,
-                 cv::Size size, double gap_px, Rng& rng, double& extent_px)
+                 cv::Size size, double gap_px, double overlap, Rng& rng, double& extent_px)
 {
     constexpr int kAttempts = 500;
     extent_px = plant_extent_px(plant);
@@ -127,7 +127,7 @@ bool place_plant(Plant& plant, const std::vector<Plant>& placed, const std::vect
         bool free = true;
         for (std::size_t i = 0; i < placed.size() && free; ++i) {
             const cv::Point2d d = stem - placed[i].stem_px;
-            free = std::hypot(d.x, d.y) >= extent_px + placed_extent_px[i] + gap_px;
+            free = std::hypot(d.x, d.y) >= (extent_px + placed_extent_px[i]) * (1 - overlap) + gap_px;
         }
         if (free) {
             plant.stem_px = stem;
@@ -157,7 +157,7 @@ std::vector<Plant> make_layout(const PresetSpec& spec, cv::Size size, double px_
                       : i < crops + weeds ? make_rosette(PlantClass::Weed, spec.weed, px_per_mm, rng)
                                           : make_grass_tuft(spec.grass, px_per_mm, rng);
         double extent_px = 0;
-        if (place_plant(plant, plants, extents_px, size, gap_px, rng, extent_px)) {
+        if (place_plant(plant, plants, extents_px, size, gap_px, spec.overlap, rng, extent_px)) {
             plants.push_back(std::move(plant));
             extents_px.push_back(extent_px);
         }

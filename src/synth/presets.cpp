@@ -20,6 +20,15 @@ PresetSpec preset_spec(Preset preset)
                 .clods_per_m2 = 1500,
                 .stones_per_m2 = 120,
                 .real_camera = true};
+    case Preset::canopy:
+        return {.crop = {{22, 30}, {70, 110}, {6, 9}},
+                .weed = {{60, 90}, {15, 35}, {3, 6}},
+                .grass = {},
+                .fragmentation = 0,
+                .clods_per_m2 = 800,
+                .stones_per_m2 = 120,
+                .real_camera = true,
+                .overlap = 0.8};
     case Preset::dense:
         break;
     }
@@ -32,7 +41,8 @@ PresetSpec preset_spec(Preset preset)
 namespace {
 
 constexpr base::EnumName<Preset> kPresets[]{
-    {Preset::early, "early"}, {Preset::late, "late"}, {Preset::dense, "dense"}, {Preset::seedling, "seedling"}};
+    {Preset::early, "early"}, {Preset::late, "late"}, {Preset::dense, "dense"}, {Preset::seedling, "seedling"},
+    {Preset::canopy, "canopy"}};
 
 }  // namespace
 

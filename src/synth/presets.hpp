@@ -23,6 +23,10 @@ struct PresetSpec {
     double clods_per_m2 = 500;
     double stones_per_m2 = 250;
     bool real_camera = false;     // exposure, colour cast, vignetting, fringes, gain noise
+    // How far two plants' extents may overlap, as a share of their sum: 0
+    // keeps a gap between them, 0.5 lets stems come to half their summed
+    // extents, so leaves lie over leaves.
+    double overlap = 0;
 };
 
 // Counts are per frame (the paper's field of view is ~428 x 319 mm); plants

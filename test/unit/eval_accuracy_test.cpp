@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <memory>
 
+#include <opencv2/core.hpp>
+
 #include "stemd/eval/eval.hpp"
 #include "stemd/synth/synth.hpp"
 #include "stemd/vision/detect.hpp"
@@ -141,4 +143,30 @@ TEST(Accuracy, SegmentationOfLateFrames)
         mean_iou += iou->iou / static_cast<double>(f.frames.size());
     }
     EXPECT_GE(mean_iou, 0.85);
+}
+
+TEST(Accuracy, SegmentationUnderAClosedCanopy)
+{
+    // Leaves over most of the view, through a real camera: each frame's
+    // mask must hold its leaves. With the soil taken to be the histogram's
+    // mode, a frame whose leaves outnumber its soil lost all of them.
+    const Frames f = make_frames(synth::Preset::canopy, 6);
+    for (const bool with_nir : {false, true}) {
+        SCOPED_TRACE(with_nir ? "RGB+NIR (auto: exg_and_ndvi)" : "RGB (auto: chromatic_exg)");
+        vision::Params params;
+        params.segmentation = with_nir ? vision::Segmentation::exg_and_ndvi : vision::Segmentation::chromatic_exg;
+        vision::Workspace ws(f.frames.front().bgr.size(), params);
+        auto detections = std::make_unique<vision::Detections>();
+        for (std::size_t i = 0; i < f.frames.size(); ++i) {
+            const synth::Frame& frame = f.frames[i];
+            EXPECT_GE(cv::countNonZero(frame.mask), frame.mask.total() / 2) << "frame " << i << " is no canopy";
+            vision::detect({.bgr = frame.bgr, .nir = with_nir ? frame.nir : cv::Mat()}, params, ws, *detections);
+            cv::Mat vegetation;
+            vision::unpack_mask(ws.vegetation(), vegetation);
+            std::string error;
+            const auto iou = eval::mask_iou(vegetation, frame.mask, error);
+            ASSERT_TRUE(iou.has_value()) << error;
+            EXPECT_GE(iou->iou, 0.90) << "frame " << i;
+        }
+    }
 }

@@ -79,7 +79,7 @@ constexpr PresetRanges kRanges[] = {
 
 TEST(SynthPreset, ParseAndName)
 {
-    for (const Preset p : {Preset::early, Preset::late, Preset::dense, Preset::seedling})
+    for (const Preset p : {Preset::early, Preset::late, Preset::dense, Preset::seedling, Preset::canopy})
         EXPECT_EQ(parse_preset(to_string(p)), p);
     EXPECT_EQ(to_string(Preset::dense), "dense");
     EXPECT_FALSE(parse_preset("Late").has_value());
@@ -111,7 +111,7 @@ TEST(SynthDeterminism, SeedPresetAndIndexChangeTheFrame)
 
 TEST(SynthFrame, SizesAndTypesFollowOptions)
 {
-    for (const Preset p : {Preset::early, Preset::late, Preset::dense, Preset::seedling}) {
+    for (const Preset p : {Preset::early, Preset::late, Preset::dense, Preset::seedling, Preset::canopy}) {
         Options options;
         options.preset = p;
         options.width_px = 320;
@@ -332,3 +332,18 @@ TEST(SynthSeedling, SparseVegetationOnDarkSoilThroughADullCamera)
     EXPECT_LT(soil_seedling, 0.8 * soil_late);
     EXPECT_TRUE(same_bytes(make(Preset::seedling, 7, 2).bgr, make(Preset::seedling, 7, 2).bgr));
 }
+
+TEST(SynthPreset, CanopyCoversMostOfTheViewAndLeavesSomeSoil)
+{
+    // The canopy preset is there to show what a frame mostly covered by
+    // leaves does to the pipeline: most of every frame is vegetation, from
+    // many plants, and some soil stays in view.
+    for (int i = 0; i < 4; ++i) {
+        const Frame f = make(Preset::canopy, 7, i);
+        const double cover = cv::countNonZero(f.mask) / static_cast<double>(f.mask.total());
+        EXPECT_GE(cover, 0.6) << "frame " << i;
+        EXPECT_LT(cover, 0.98) << "frame " << i << ": some soil stays in view";
+        EXPECT_GE(f.stems.size(), 30u) << "frame " << i;
+    }
+}
+

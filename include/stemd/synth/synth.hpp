@@ -29,7 +29,10 @@ namespace stemd::synth {
 // 1 % vegetation on dark, cloddy soil with bright clods, seen by a camera
 // with an exposure and a colour cast of its own, vignetting, gain noise and
 // colour fringes (its red and blue planes one pixel off the green one).
-enum class Preset { early, late, dense, seedling };
+// canopy: a field where the leaves have closed over the soil (late crops,
+// a dense weed patch): large plants overlapping, vegetation over most of
+// the view, through the same real camera.
+enum class Preset { early, late, dense, seedling, canopy };
 
 std::optional<Preset> parse_preset(std::string_view name);
 std::string_view to_string(Preset preset);
