@@ -114,9 +114,9 @@ Plant make_grass_tuft(const PlantClassSpec& spec, double px_per_mm, Rng& rng)
 namespace {
 
 // Random stem positions inside the image, keeping a gap to every placed
-// plant (or, with spec.overlap, letting their extents overlap that much); after every 50 failures the plant shrinks by 10 %. Stems stay
-// inside the image (so every plant is in the ground truth) while leaves may
-// leave it.
+// plant (or, with spec.overlap, letting their extents overlap that much);
+// after every 50 failures the plant shrinks by 10 %. Stems stay inside the
+// image (so every plant is in the ground truth) while leaves may leave it.
 bool place_plant(Plant& plant, const std::vector<Plant>& placed, const std::vector<double>& placed_extent_px,
                  cv::Size size, double gap_px, double overlap, Rng& rng, double& extent_px)
 {

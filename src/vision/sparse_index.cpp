@@ -183,14 +183,14 @@ int sparse_smoothed_index(const cv::Mat& bgr, RgbIndex kind, const SparseLevel& 
     // 1. The sampled rows, smoothed, and their histogram.
     const Histogram sampled = sampled_rows(tiles, s.raw_row_.data(), s.row_sums_.data());
     const bool any_sample = height > 0 && width > 0;
+    s.soil_ = soil_mode(sampled);
     if (any_sample) {
         // One soil sigma (at least one level) below the sampled threshold.
-        const int sigma = std::max(soil_noise_threshold(sampled, 1.0) - soil_mode(sampled), 1);
+        const int sigma = std::max(soil_noise_threshold(sampled, 1.0) - s.soil_, 1);
         s.level_ = std::max(auto_threshold(sampled, level.method, level.soil_sigmas) - sigma, 0);
     } else {
         s.level_ = -1;
     }
-    s.soil_ = soil_mode(sampled);
 
     // 2. Tiles where a sampled row rises above the level, and what they reach.
     if (!any_sample) {

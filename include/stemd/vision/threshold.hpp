@@ -58,8 +58,8 @@ inline constexpr int kIndexZeroLevel = 128;
 // The soil's index level. Usually the mode: soil covers more of a field
 // frame than any one leaf level does. When vegetation covers most of it
 // (from about half of a real frame's window, three quarters of a
-// synthetic frame), the mode is a leaf level and the soil is a lower mode. So the soil is a lower peak instead
-// when
+// synthetic frame), the mode is a leaf level and the soil is a lower
+// mode. So the soil is a lower peak instead when
 // - it rises above the valley between it and the mode by a fifth of its
 //   count and by three times its counting noise, so it is a mode of its
 //   own, not the mode's shoulder or a dip in its noisy tail;
