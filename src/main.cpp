@@ -294,7 +294,8 @@ int run(int argc, char** argv, Phase& phase)
                   classifier->info().recordings.empty() ? std::string("?") : classifier->info().recordings.front(),
                   classifier->info().gsd_mm_per_px, vision::channels_name(classifier->info().nir));
         daemon->set_class_provider(std::make_unique<runtime::ModelClassProvider>(
-            std::move(*classifier), daemon_config.frame_size, daemon_config.vision, daemon_config.classify));
+            std::move(*classifier), daemon_config.frame_size, daemon_config.vision,
+            runtime::model_class_params(daemon_config.classify, settings.camera.mount.forward)));
     } else if (provider == ClassProviderChoice::socket) {
         daemon->set_class_provider(std::make_unique<runtime::SocketClassProvider>(
             daemon_config.classify.socket, daemon_config.frame_size, daemon_config.classify.provider_timeout_ms));

@@ -130,6 +130,8 @@ int main(int argc, char** argv)
     std::string error;
     vision::Params params = config.settings().daemon.vision;
     const runtime::ClassifyConfig& classify = config.settings().daemon.classify;
+    const vision::ModelClassParams class_params =
+        runtime::model_class_params(classify, config.settings().camera.mount.forward);
     std::vector<tools::FrameJob> jobs;
     if (!tools::collect_frames(args.inputs, params.segmentation, jobs, error)) {
         std::cerr << "stemd-detect: " << error << "\n";
@@ -194,6 +196,7 @@ int main(int argc, char** argv)
     std::vector<double> tiles_computed_pct;   // per frame on the sparse index
     int skipped = 0, plants_total = 0, stemless_total = 0;
     long long over_capacity_total = 0;   // plants beyond the per-frame capacity: found, not reported
+    std::size_t cells_over_budget_total = 0;   // vegetated cells left unclassified by classify.max_cells
     tools::LoadedFrame frame;
     for (const tools::FrameJob& job : jobs) {
         if (!tools::load_frame(job, params.segmentation, !args.overlay_dir.empty() || model.has_value(), frame, error)) {
@@ -227,14 +230,10 @@ int main(int argc, char** argv)
             }
             const std::int64_t t0 = base::monotonic_ns(), cpu0 = thread_cpu_ns();
             const vision::FrameView view{.bgr = bgr, .nir = frame.nir, .mask = mask};
-            vision::plant_features(view, params, *workspace, d, *classify_workspace);
-            vision::cell_features(view, params, *workspace, d, *classify_workspace, *cell_workspace);
-            vision::classify_cells(*model, *cell_workspace);
-            vision::classify_plants(*model, *classify_workspace, *cell_workspace, d.plants.size(),
-                                    classify.min_confidence, classify.weed_confidence, weed_probability, plant_class);
-            if (classify.weed_parts)
-                vision::add_weed_parts(*cell_workspace, runtime::weed_target_params(classify), *detections, plant_class,
-                                       weed_probability);
+            cells_over_budget_total +=
+                vision::classify_frame(*model, class_params, view, params, *workspace, *detections,
+                                       *classify_workspace, *cell_workspace, weed_probability, plant_class)
+                    .cells_over_budget;
             classify_ms.push_back(static_cast<double>(base::monotonic_ns() - t0) / 1e6);
             classify_cpu_ms.push_back(static_cast<double>(thread_cpu_ns() - cpu0) / 1e6);
         }
@@ -339,6 +338,9 @@ int main(int argc, char** argv)
     report << jobs.size() - skipped << " frames, " << plants_total << " stems, " << stemless_total
            << " stemless plants, " << over_capacity_total << " plants over capacity (" << vision::kMaxPlants
            << " a frame)";
+    if (cells_over_budget_total > 0)
+        report << ", " << cells_over_budget_total << " vegetated cells left unclassified (classify.max_cells "
+               << classify.max_cells << ")";
     if (skipped)
         report << ", " << skipped << " frames skipped";
     report << "\n";

@@ -515,6 +515,8 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
     s.weed_parts = classes.weed_parts.load(std::memory_order_relaxed);
     s.stemless_weeds = classes.stemless_weeds.load(std::memory_order_relaxed);
     s.weed_cover = classes.weed_cover.load(std::memory_order_relaxed);
+    s.cells_over_budget = classes.cells_over_budget.load(std::memory_order_relaxed);
+    s.frames_over_budget = classes.frames_over_budget.load(std::memory_order_relaxed);
     s.source_timeouts = source.timeouts;
     s.source_errors = source.errors;
     s.source_reopens = source.reopens;

@@ -88,13 +88,16 @@ std::string class_socket(const StatusSnapshot& now, const StatusSnapshot& before
                        now.class_bad_messages - before.class_bad_messages, now.class_peers - before.class_peers);
 }
 
-// The in-box model's weed targets beyond each plant's own stem.
+// The in-box model's weed targets beyond each plant's own stem, and the
+// vegetated cells its budget (classify.max_cells) left unclassified.
 std::string class_model(const StatusSnapshot& now, const StatusSnapshot& before)
 {
     if (!now.class_model)
         return "";
-    return fmt::format(" | weed targets: parts {}, stemless {}, cover {}", now.weed_parts - before.weed_parts,
-                       now.stemless_weeds - before.stemless_weeds, now.weed_cover - before.weed_cover);
+    return fmt::format(" | weed targets: parts {}, stemless {}, cover {} | cells over budget {} in {} frames",
+                       now.weed_parts - before.weed_parts, now.stemless_weeds - before.stemless_weeds,
+                       now.weed_cover - before.weed_cover, now.cells_over_budget - before.cells_over_budget,
+                       now.frames_over_budget - before.frames_over_budget);
 }
 
 std::string durations(const StatusSnapshot& s)

@@ -210,6 +210,9 @@ CellWorkspace::CellWorkspace(cv::Size frame_size, double gsd_mm_per_px, double c
     context_.resize(n);
     context_rows_.resize(n * kContextFeatureCount);
     context_scratch_ = CellContextScratch(grid_);
+    budgeted_.resize(n);
+    in_budget_.resize(n);
+    edge_steps_.resize(static_cast<std::size_t>(std::max(grid_.width, grid_.height)));
     in_part_.resize(n);
     part_stack_.resize(n);
     cover_d2_.resize(n);
@@ -461,16 +464,67 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
     }
 }
 
-void classify_cells(const PlantClassifier& model, CellWorkspace& ws)
+namespace {
+
+// The vegetated cells within the budget, in grid order, into ws.budgeted_:
+// every cell fewer steps from the exit edge than the step where the budget
+// runs out, then that step's cells in grid order while it lasts.
+std::span<const std::uint32_t> cells_in_budget(std::span<const std::uint32_t> vegetated, const CellBudget& budget,
+                                               cv::Size grid, std::vector<std::uint32_t>& steps,
+                                               std::vector<std::uint32_t>& budgeted)
+{
+    const auto gw = static_cast<std::uint32_t>(grid.width), gh = static_cast<std::uint32_t>(grid.height);
+    const auto step = [&](std::uint32_t c) {
+        const std::uint32_t gx = c % gw, gy = c / gw;
+        switch (budget.exit_edge) {
+        case ExitEdge::bottom: return gh - 1 - gy;
+        case ExitEdge::top: return gy;
+        case ExitEdge::right: return gw - 1 - gx;
+        case ExitEdge::left: return gx;
+        }
+        return gy;
+    };
+    std::fill(steps.begin(), steps.end(), 0u);
+    for (const std::uint32_t c : vegetated)
+        ++steps[step(c)];
+    // The first step the budget cannot take whole, and what is left for it.
+    std::uint32_t last = 0;
+    std::size_t left = budget.max_cells;
+    while (last < steps.size() && steps[last] <= left)
+        left -= steps[last++];
+    std::size_t count = 0;
+    for (const std::uint32_t c : vegetated) {
+        const std::uint32_t s = step(c);
+        if (s < last || (s == last && left > 0)) {
+            if (s == last)
+                --left;
+            budgeted[count++] = c;
+        }
+    }
+    return {budgeted.data(), count};
+}
+
+}  // namespace
+
+std::size_t classify_cells(const PlantClassifier& model, CellWorkspace& ws, const CellBudget& budget)
 {
     if (!model.has_cells())
-        return;   // every cell stays Unknown
+        return 0;   // every cell stays Unknown
+    const auto cells = ws.vegetated().size() > budget.max_cells
+                           ? cells_in_budget(ws.vegetated(), budget, ws.grid_, ws.edge_steps_, ws.budgeted_)
+                           : ws.vegetated();
+    for (const std::uint32_t c : ws.vegetated()) {
+        ws.in_budget_[c] = 0;
+        ws.class_[c] = PlantClass::Unknown;
+        ws.probability_[c] = 0;
+    }
+    for (const std::uint32_t c : cells)
+        ws.in_budget_[c] = 1;
     // The forest's probability of each cell, then its mean over the 3x3
     // cells around it weighed by their vegetation: neighbouring cells are
     // mostly the same plant, and one cell's features are noisy.
     // Each cell's features go first into its row of the second stage, back
     // to back: both forests walk rows at constant offsets from one pointer.
-    const auto cells = ws.vegetated();
     constexpr std::size_t kStride = kContextFeatureCount;
     float* const rows = ws.context_rows_.data();
     for (std::size_t k = 0; k < cells.size(); ++k) {
@@ -501,13 +555,13 @@ void classify_cells(const PlantClassifier& model, CellWorkspace& ws)
     const int gw = ws.grid_.width, gh = ws.grid_.height;
     const int radius = kCellSmoothRadius;
     const auto bar = static_cast<float>(model.info().map_weed_bar);
-    for (const std::uint32_t i : ws.vegetated()) {
+    for (const std::uint32_t i : cells) {
         const int gx = static_cast<int>(i % static_cast<std::uint32_t>(gw)), gy = static_cast<int>(i / static_cast<std::uint32_t>(gw));
         float sum = 0, weight = 0;
         for (int y = std::max(gy - radius, 0); y <= std::min(gy + radius, gh - 1); ++y)
             for (int x = std::max(gx - radius, 0); x <= std::min(gx + radius, gw - 1); ++x) {
                 const std::size_t j = static_cast<std::size_t>(y) * static_cast<std::size_t>(gw) + static_cast<std::size_t>(x);
-                if (ws.sums_[j].sampled_px == 0)
+                if (ws.sums_[j].sampled_px == 0 || !ws.in_budget_[j])
                     continue;
                 const float w = ws.rows_[j][c_fill];
                 sum += w * ws.raw_[j];
@@ -517,6 +571,7 @@ void classify_cells(const PlantClassifier& model, CellWorkspace& ws)
         ws.probability_[i] = p;
         ws.class_[i] = p >= bar ? PlantClass::Weed : PlantClass::Crop;
     }
+    return ws.vegetated().size() - cells.size();
 }
 
 void cell_class_map(const Workspace& dws, const CellWorkspace& ws, cv::Mat& out)
@@ -541,17 +596,22 @@ void plant_probabilities_from_cells(const CellWorkspace& ws, std::size_t plants,
     // Weighted sums in the output, the weights in the sign-free second pass:
     // a plant's weight is at most the frame's pixels, exact in float.
     std::array<float, kMaxPlants> weight{};
+    std::array<bool, kMaxPlants> seen_in_part{};
     std::fill(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(count), 0.0f);
     for (const std::uint32_t i : ws.vegetated()) {
         const std::uint16_t id = ws.plant(i);
         if (id == 0 || id > count)
             continue;
+        if (ws.cell_class(i) == PlantClass::Unknown) {
+            seen_in_part[id - 1u] = true;
+            continue;
+        }
         const auto w = ws.row(i)[c_fill];
         out[id - 1u] += w * ws.weed_probability(i);
         weight[id - 1u] += w;
     }
     for (std::size_t p = 0; p < count; ++p)
-        out[p] = weight[p] > 0 ? out[p] / weight[p] : -1.0f;
+        out[p] = weight[p] > 0 && !seen_in_part[p] ? out[p] / weight[p] : -1.0f;
 }
 
 }  // namespace stemd::vision
@@ -601,15 +661,15 @@ WeedTargetCounts add_weed_parts(CellWorkspace& ws, const WeedTargetParams& param
             static_cast<float>(std::min(cell_centre(static_cast<int>(c / static_cast<std::uint32_t>(gw))),
                                         ws.frame_size_.height - 1.0)));
     };
-    // Whether every classified cell whose square comes within clearance_px
-    // of `at` is weed.
+    // Whether every vegetated cell whose square comes within clearance_px
+    // of `at` is weed (one the budget left out is not known to be).
     const auto clear_at = [&](cv::Point2f at) {
         const int reach = static_cast<int>(std::ceil(clearance_px / cell_px)) + 1;
         const int cx = static_cast<int>(at.x + 0.5f) / cell_px, cy = static_cast<int>(at.y + 0.5f) / cell_px;
         for (int ny = std::max(cy - reach, 0); ny <= std::min(cy + reach, gh - 1); ++ny)
             for (int nx = std::max(cx - reach, 0); nx <= std::min(cx + reach, gw - 1); ++nx) {
                 const std::size_t n = static_cast<std::size_t>(ny) * static_cast<std::size_t>(gw) + static_cast<std::size_t>(nx);
-                if (!classified(n) || weed_cell(n))
+                if (ws.sums_[n].sampled_px == 0 || weed_cell(n))
                     continue;
                 // Distance to the cell's square (pixel edges at -0.5).
                 const double left = nx * cell_px - 0.5, top_edge = ny * cell_px - 0.5;
@@ -771,6 +831,32 @@ WeedTargetCounts add_weed_parts(CellWorkspace& ws, const WeedTargetParams& param
     for (std::size_t p = 0; p < weeds; ++p)
         if (classes[p] == PlantClass::Weed && det.plants[p].has_stem)
             cover(start[p + 1], start[p + 2], det.plants[p].stem);
+    return counts;
+}
+
+}  // namespace stemd::vision
+
+namespace stemd::vision {
+
+ModelClassCounts classify_frame(const PlantClassifier& model, const ModelClassParams& params, const FrameView& frame,
+                                const Params& detect_params, const Workspace& detect_workspace, Detections& det,
+                                ClassifyWorkspace& plants, CellWorkspace& cells, std::span<float> probabilities,
+                                std::span<PlantClass> classes)
+{
+    ModelClassCounts counts;
+    const std::size_t count = std::min({det.plants.size(), probabilities.size(), classes.size()});
+    std::fill_n(classes.begin(), count, PlantClass::Unknown);
+    std::fill_n(probabilities.begin(), count, -1.0f);
+    plant_features(frame, detect_params, detect_workspace, det, plants);
+    cell_features(frame, detect_params, detect_workspace, det, plants, cells);
+    counts.cells_over_budget = classify_cells(model, cells, params.budget);
+    if (plants.features().size() != det.plants.size())
+        return counts;
+    classify_plants(model, plants, cells, count, params.decision.min_confidence, params.decision.weed_confidence,
+                    probabilities, classes);
+    // Weeds grown into a crop get targets of their own.
+    if (params.weed_parts)
+        counts.weed_targets = add_weed_parts(cells, params.decision, det, classes, probabilities);
     return counts;
 }
 

@@ -131,7 +131,8 @@ TEST(Status, GnssQualityIsShownAndAnEstimateOverTheMaximumIsNamed)
 }
 
 // With the in-box model, the weed targets it added beside the plants'
-// stems, by kind: the line the interval's, the summary the whole run's.
+// stems, by kind, and the cells its budget left unclassified: the line the
+// interval's, the summary the whole run's.
 TEST(Status, TheModelsWeedTargetsAreShownByKind)
 {
     StatusSnapshot before = with_actuation();
@@ -140,13 +141,17 @@ TEST(Status, TheModelsWeedTargetsAreShownByKind)
     before.weed_parts = 3;
     before.stemless_weeds = 1;
     before.weed_cover = 10;
+    before.cells_over_budget = 500;
+    before.frames_over_budget = 2;
     StatusSnapshot now = before;
     now.t_ns = 2'000'000'000;
     now.weed_parts = 5;
     now.stemless_weeds = 4;
     now.weed_cover = 17;
-    expect_interval_and_total(now, before, "weed targets: parts 2, stemless 3, cover 7",
-                              "weed targets: parts 5, stemless 4, cover 17");
+    now.cells_over_budget = 800;
+    now.frames_over_budget = 3;
+    expect_interval_and_total(now, before, "weed targets: parts 2, stemless 3, cover 7 | cells over budget 300 in 1 frames",
+                              "weed targets: parts 5, stemless 4, cover 17 | cells over budget 800 in 3 frames");
     now.class_model = false;
     EXPECT_EQ(format_status(now, before).find("weed targets"), std::string::npos) << "another provider adds none";
 }

@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <random>
 
@@ -890,4 +891,118 @@ TEST(WeedParts, AWeedWiderThanTheCoverRadiusGetsTargetsUntilEveryClearWeedCellIs
     const WeedTargetCounts parts = add_weed_parts(frame.cells, targets(clearance_mm, cover_mm, 64), part, classes, p);
     EXPECT_EQ(parts.parts, 1u);
     EXPECT_EQ(parts.cover, 0u);
+}
+
+// Steps of a cell of `cells` from `edge` (0 on the edge's row or column).
+int steps_from(const CellWorkspace& cells, std::uint32_t c, ExitEdge edge)
+{
+    const int gw = cells.grid().width, gh = cells.grid().height;
+    const int gx = static_cast<int>(c) % gw, gy = static_cast<int>(c) / gw;
+    switch (edge) {
+    case ExitEdge::bottom: return gh - 1 - gy;
+    case ExitEdge::top: return gy;
+    case ExitEdge::right: return gw - 1 - gx;
+    case ExitEdge::left: return gx;
+    }
+    return -1;
+}
+
+TEST(CellBudget, OverTheBudgetOnlyTheCellsNearestTheExitEdgeAreClassified)
+{
+    UnsurePair pair;
+    auto& [crop_centre, weed_centre, params, model, truth, frame, p, classes] = pair;
+    const std::size_t vegetated = frame.cells.vegetated().size();
+    ASSERT_GT(vegetated, 40u);
+    // Within the budget (and at exactly its size) nothing changes.
+    std::vector<float> unlimited;
+    for (const std::uint32_t c : frame.cells.vegetated())
+        unlimited.push_back(frame.cells.weed_probability(c));
+    for (const std::size_t budget : {vegetated, vegetated + 1}) {
+        EXPECT_EQ(classify_cells(model, frame.cells, {.max_cells = budget, .exit_edge = ExitEdge::left}), 0u);
+        for (std::size_t k = 0; k < vegetated; ++k) {
+            EXPECT_EQ(frame.cells.weed_probability(frame.cells.vegetated()[k]), unlimited[k]);
+            EXPECT_NE(frame.cells.cell_class(frame.cells.vegetated()[k]), PlantClass::Unknown);
+        }
+    }
+    // Over it: exactly the budget is classified, and no cell left out lies
+    // nearer the exit edge than a classified one.
+    const std::size_t budget = vegetated / 3;
+    for (const ExitEdge edge : {ExitEdge::bottom, ExitEdge::top, ExitEdge::right, ExitEdge::left}) {
+        SCOPED_TRACE(static_cast<int>(edge));
+        EXPECT_EQ(classify_cells(model, frame.cells, {.max_cells = budget, .exit_edge = edge}), vegetated - budget);
+        std::size_t classified = 0;
+        int farthest_classified = -1, nearest_left_out = std::numeric_limits<int>::max();
+        for (const std::uint32_t c : frame.cells.vegetated()) {
+            const int steps = steps_from(frame.cells, c, edge);
+            if (frame.cells.cell_class(c) == PlantClass::Unknown) {
+                EXPECT_EQ(frame.cells.weed_probability(c), 0.0f);
+                nearest_left_out = std::min(nearest_left_out, steps);
+            } else {
+                ++classified;
+                farthest_classified = std::max(farthest_classified, steps);
+            }
+        }
+        EXPECT_EQ(classified, budget);
+        EXPECT_LE(farthest_classified, nearest_left_out);
+        // The class map leaves the cells left out at 0.
+        cv::Mat map;
+        cell_class_map(frame.ws, frame.cells, map);
+        for (int y = 0; y < map.rows; ++y)
+            for (int x = 0; x < map.cols; ++x) {
+                if (frame.ws.vegetation().get(x, y) &&
+                    frame.cells.cell_class(frame.cells.cell_of(x, y)) == PlantClass::Unknown) {
+                    ASSERT_EQ(map.at<std::uint8_t>(y, x), 0) << x << "," << y;
+                }
+            }
+    }
+}
+
+TEST(CellBudget, APlantSeenInPartIsUnknownAndItsWeedPartsStayClearOfTheCellsLeftOut)
+{
+    UnsurePair pair;
+    auto& [crop_centre, weed_centre, params, model, truth, frame, p, classes] = pair;
+    ASSERT_EQ(frame.det.plants.size(), 1u);
+    // Plants leave by the right: a budget of the cells from the weed's
+    // centre rightwards classifies the weed's right half only.
+    const int first_column = weed_centre.x / frame.cells.cell_px();
+    std::size_t budget = 0;
+    for (const std::uint32_t c : frame.cells.vegetated())
+        budget += static_cast<int>(c) % frame.cells.grid().width >= first_column ? 1 : 0;
+    ASSERT_GT(budget, 10u);
+    ASSERT_GT(classify_cells(model, frame.cells, {.max_cells = budget, .exit_edge = ExitEdge::right}), budget);
+
+    // What it saw is weed, but it saw only a part: the plant is not judged.
+    float share = 0, weight = 0;
+    for (const std::uint32_t c : frame.cells.vegetated())
+        if (frame.cells.cell_class(c) != PlantClass::Unknown) {
+            share += frame.cells.row(c)[c_fill] * frame.cells.weed_probability(c);
+            weight += frame.cells.row(c)[c_fill];
+        }
+    ASSERT_GE(share / weight, 0.85f) << "the cells seen would call the whole plant weed";
+    classify_plants(model, frame.cws, frame.cells, 1, 0.6, 0.85, p, classes);
+    EXPECT_EQ(p[0], -1.0f);
+    EXPECT_EQ(classes[0], PlantClass::Unknown);
+
+    // Its weed cells still get a target, but none within the clearance of
+    // a cell left out: that cell may be crop. The clearance is wider than
+    // the distance from the weed cells' centre to the cells left out, so
+    // the target moves away from them.
+    const double clearance_px = 25;
+    Detections det = frame.det;
+    const std::size_t added =
+        add_weed_parts(frame.cells, targets(clearance_px * params.gsd_mm_per_px), det, classes, p).total();
+    ASSERT_GE(added, 1u);
+    const int cell_px = frame.cells.cell_px(), gw = frame.cells.grid().width;
+    for (std::size_t i = 1; i < det.plants.size(); ++i) {
+        const cv::Point2f at = det.plants[i].stem;
+        EXPECT_LT(cv::norm(at - cv::Point2f(weed_centre)), UnsurePair::radius) << "on the weed";
+        for (const std::uint32_t c : frame.cells.vegetated()) {
+            if (frame.cells.cell_class(c) != PlantClass::Unknown)
+                continue;
+            const double left = static_cast<int>(c) % gw * cell_px - 0.5, top = static_cast<int>(c) / gw * cell_px - 0.5;
+            const double dx = std::max({left - at.x, 0.0, at.x - (left + cell_px)});
+            const double dy = std::max({top - at.y, 0.0, at.y - (top + cell_px)});
+            EXPECT_GT(dx * dx + dy * dy, clearance_px * clearance_px) << "cell " << c << " left out, near the target";
+        }
+    }
 }

@@ -38,6 +38,8 @@ struct ClassCounters {
     std::atomic<std::uint64_t> weed_parts{0};     // weed targets from a crop/unknown plant's weed cells (model)
     std::atomic<std::uint64_t> stemless_weeds{0}; // weed targets from a stemless weed plant's cells (model)
     std::atomic<std::uint64_t> weed_cover{0};     // further targets on weeds wider than weed_cover_radius_mm (model)
+    std::atomic<std::uint64_t> cells_over_budget{0};   // vegetated cells left unclassified by classify.max_cells (model)
+    std::atomic<std::uint64_t> frames_over_budget{0};  // frames with any (model)
     std::atomic<std::uint64_t> timeouts{0};       // frames whose class map did not come in time (plants unknown)
     std::atomic<std::uint64_t> maps{0};           // class maps received (socket)
     std::atomic<std::uint64_t> bad_messages{0};   // malformed messages, dropped (socket)
@@ -82,7 +84,7 @@ using vision::plant_classes_from_map;
 class ModelClassProvider final : public ClassProvider {
 public:
     ModelClassProvider(vision::PlantClassifier model, cv::Size frame_size, const vision::Params& params,
-                       const ClassifyConfig& config);
+                       const vision::ModelClassParams& class_params);
     std::string_view name() const override { return "model"; }
     void classify(const drivers::Frame& frame, const vision::Params& params, const vision::Workspace& workspace,
                   FrameResult& result) override;
@@ -92,7 +94,7 @@ private:
     vision::ClassifyWorkspace workspace_;
     vision::CellWorkspace cells_;
     std::array<float, vision::kMaxPlants> probabilities_{};
-    ClassifyConfig config_;
+    vision::ModelClassParams params_;
 };
 
 // A replayed recording's class column.

@@ -9,6 +9,7 @@
 #include <opencv2/core/types.hpp>
 
 #include "stemd/base/enum_names.hpp"
+#include "stemd/geometry/camera_model.hpp"
 #include "stemd/runtime/web_config.hpp"
 #include "stemd/vision/cells.hpp"
 #include "stemd/vision/types.hpp"
@@ -51,16 +52,31 @@ struct ClassifyConfig {
     double weed_part_clearance_mm = 3;    // no crop or unknown vegetation this near a weed part's target
     double weed_cover_radius_mm = 0;      // a wider weed gets further targets; 0: one per weed
     unsigned max_targets_per_weed = 16;   // with weed_cover_radius_mm, the first included
+    std::size_t max_cells = 4096;         // vegetated cells classified per frame, those nearest the exit edge first
 };
 
-// add_weed_parts()'s settings from classify.*.
-inline vision::WeedTargetParams weed_target_params(const ClassifyConfig& config)
+// The image edge plants leave the view by, from the direction of travel.
+inline vision::ExitEdge exit_edge(geometry::Forward forward)
 {
-    return {.min_confidence = config.min_confidence,
-            .weed_confidence = config.weed_confidence,
-            .clearance_mm = config.weed_part_clearance_mm,
-            .cover_radius_mm = config.weed_cover_radius_mm,
-            .max_targets_per_weed = config.max_targets_per_weed};
+    switch (forward) {
+    case geometry::Forward::up: return vision::ExitEdge::bottom;
+    case geometry::Forward::down: return vision::ExitEdge::top;
+    case geometry::Forward::left: return vision::ExitEdge::right;
+    case geometry::Forward::right: return vision::ExitEdge::left;
+    }
+    return vision::ExitEdge::bottom;
+}
+
+// vision::classify_frame()'s settings from classify.* and camera.forward.
+inline vision::ModelClassParams model_class_params(const ClassifyConfig& config, geometry::Forward forward)
+{
+    return {.decision = {.min_confidence = config.min_confidence,
+                         .weed_confidence = config.weed_confidence,
+                         .clearance_mm = config.weed_part_clearance_mm,
+                         .cover_radius_mm = config.weed_cover_radius_mm,
+                         .max_targets_per_weed = config.max_targets_per_weed},
+            .weed_parts = config.weed_parts,
+            .budget = {.max_cells = config.max_cells, .exit_edge = exit_edge(forward)}};
 }
 
 struct DaemonConfig {

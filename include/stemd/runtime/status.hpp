@@ -74,6 +74,8 @@ struct StatusSnapshot {
     // (vision::add_weed_parts), by kind.
     bool class_model = false;
     std::uint64_t weed_parts = 0, stemless_weeds = 0, weed_cover = 0;
+    // Vegetated cells classify.max_cells left unclassified, and the frames.
+    std::uint64_t cells_over_budget = 0, frames_over_budget = 0;
     // The source's own: waits without a frame, failures (a camera unplugged),
     // successful reopens after one.
     std::uint64_t source_timeouts = 0, source_errors = 0, source_reopens = 0;

@@ -11,6 +11,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -136,6 +137,21 @@ private:
 // first-stage probabilities) and the frame path (classify_cells()).
 void cell_context(const CellContextInput& input, CellContextScratch& scratch, std::span<CellContext> out);
 
+// The image edge plants leave the view by: the one opposite the direction
+// of travel (camera.forward up: plants move down the image and leave at the
+// bottom).
+enum class ExitEdge : std::uint8_t { bottom, top, right, left };
+
+// How many vegetated cells classify_cells() classifies in one frame. Its
+// time grows with them, up to every cell of the grid under a closed canopy;
+// the budget bounds it. Over the budget, the cells nearest the exit edge go
+// first: their plants reach the tool next and are not seen again, while
+// the others come back in the next frames, nearer that edge.
+struct CellBudget {
+    std::size_t max_cells = std::numeric_limits<std::size_t>::max();
+    ExitEdge exit_edge = ExitEdge::bottom;
+};
+
 // Everything the cells need per frame, allocated once for a frame size, GSD
 // and cell size; cell_features() and what follows allocate nothing.
 struct WeedTargetParams;
@@ -163,14 +179,15 @@ public:
     std::uint16_t plant(std::size_t cell) const { return plant_[cell]; }
 
     // After classify_cells(): each cell's weed probability and class
-    // (Unknown, also for cells without vegetation).
+    // (Unknown for cells without vegetation, and for vegetated cells the
+    // budget left out, whose probability is 0).
     float weed_probability(std::size_t cell) const { return probability_[cell]; }
     PlantClass cell_class(std::size_t cell) const { return class_[cell]; }
 
 private:
     friend void cell_features(const FrameView&, const Params&, const Workspace&, const Detections&,
                               const ClassifyWorkspace&, CellWorkspace&);
-    friend void classify_cells(const PlantClassifier&, CellWorkspace&);
+    friend std::size_t classify_cells(const PlantClassifier&, CellWorkspace&, const CellBudget&);
     friend WeedTargetCounts add_weed_parts(CellWorkspace&, const WeedTargetParams&, Detections&,
                                            std::span<PlantClass>, std::span<float>);
     struct Sums {
@@ -193,6 +210,12 @@ private:
     std::vector<std::uint16_t> plant_;
     std::vector<std::uint32_t> vegetated_;
     std::size_t vegetated_count_ = 0;
+    // classify_cells(): the vegetated cells within the budget (grid order),
+    // a flag per cell for them, and the vegetated cells per step from the
+    // exit edge.
+    std::vector<std::uint32_t> budgeted_;
+    std::vector<std::uint8_t> in_budget_;
+    std::vector<std::uint32_t> edge_steps_;
     std::vector<float> probability_, raw_;
     std::vector<PlantClass> class_;
     // The context stage's inputs and output, one entry per vegetated cell.
@@ -222,8 +245,12 @@ void cell_features(const FrameView& frame, const Params& params, const Workspace
 // map_weed_bar or above, crop below. The map describes the scene; whether
 // a plant is treated is decided per plant (classify_plants(), with the
 // asymmetric decide_class()). Every cell Unknown when the model has no
-// cell forest.
-void classify_cells(const PlantClassifier& model, CellWorkspace& workspace);
+// cell forest. With more vegetated cells than budget.max_cells, only the
+// budget's cells nearest budget.exit_edge are classified (whole steps from
+// the edge, then the next step's cells in grid order), as if the others
+// held no vegetation; the others stay Unknown. Returns how many vegetated
+// cells the budget left out.
+std::size_t classify_cells(const PlantClassifier& model, CellWorkspace& workspace, const CellBudget& budget = {});
 
 // The class map from the cells: each vegetation pixel gets its cell's class
 // (0 soil, 1 crop, 2 weed; cells without a class 0). `out` CV_8UC1 of the
@@ -232,7 +259,8 @@ void cell_class_map(const Workspace& detect_workspace, const CellWorkspace& work
 
 // Each plant's weed probability from its cells: the mean of their
 // probabilities weighted by the plant's sampled vegetation in each; -1 for
-// a plant with no classified cell.
+// a plant with no classified cell, or with a vegetated cell the budget left
+// out (a plant seen in part is not judged).
 void plant_probabilities_from_cells(const CellWorkspace& workspace, std::size_t plants,
                                     std::span<float> out);
 
@@ -248,7 +276,7 @@ void classify_plants(const PlantClassifier& model, const ClassifyWorkspace& plan
 struct WeedTargetParams {
     double min_confidence = 0.6;    // decide_class()'s bars, per cell
     double weed_confidence = 0.85;
-    double clearance_mm = 3;        // no classified cell that is not weed this near a target
+    double clearance_mm = 3;        // no vegetated cell that is not weed this near a target
     // A weed wider than a strike's reach: further targets until every clear
     // weed cell of it lies within this of one; 0, one target per weed.
     double cover_radius_mm = 0;
@@ -267,8 +295,9 @@ struct WeedTargetCounts {
 // one blob with it, and that blob's one stem is not on the weed; its cells
 // still tell it apart. Each 8-connected group of a crop or unknown plant's
 // cells that decide_class() calls weed becomes a plant of its own in `det`,
-// classed weed. Its stem is where no classified cell that is not weed lies
-// within `clearance_mm`, so what a tool strikes there is weed, not crop:
+// classed weed. Its stem is where no vegetated cell that is not weed (a
+// cell the budget left out is not) lies within `clearance_mm`, so what a
+// tool strikes there is weed, not crop:
 // the group's vegetation-weighted centre (the centre of mass, a small
 // plant's stem) when that is clear, else the centre of the group's cell
 // nearest to it that is clear (Plant::centre_of_mass keeps the group's
@@ -290,5 +319,29 @@ struct WeedTargetCounts {
 // Allocates nothing.
 WeedTargetCounts add_weed_parts(CellWorkspace& cells, const WeedTargetParams& params, Detections& det,
                                 std::span<PlantClass> classes, std::span<float> probabilities);
+
+// How a frame's plants get their classes from a model with a cell forest.
+struct ModelClassParams {
+    WeedTargetParams decision;   // its min_confidence and weed_confidence decide each plant too
+    bool weed_parts = true;      // add_weed_parts() after the plants' classes
+    CellBudget budget;
+};
+
+// What classify_frame() left out and added.
+struct ModelClassCounts {
+    std::size_t cells_over_budget = 0;   // vegetated cells left unclassified by the budget
+    WeedTargetCounts weed_targets;
+};
+
+// One frame's classes from `model`, after detect(): plant_features(),
+// cell_features(), classify_cells(), classify_plants() and, with
+// params.weed_parts, add_weed_parts(). `classes` and `probabilities` (at
+// least kMaxPlants each) get an entry per plant of `det`, Unknown and -1
+// when the plants' features cannot be computed (a frame without its bgr
+// image). The daemon's in-box provider and stemd-detect both run this.
+ModelClassCounts classify_frame(const PlantClassifier& model, const ModelClassParams& params, const FrameView& frame,
+                                const Params& detect_params, const Workspace& detect_workspace, Detections& det,
+                                ClassifyWorkspace& plants, CellWorkspace& cells, std::span<float> probabilities,
+                                std::span<PlantClass> classes);
 
 }  // namespace stemd::vision
