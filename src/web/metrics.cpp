@@ -97,6 +97,18 @@ Metrics collect_metrics(runtime::Daemon& daemon)
     m.corrupt = s.corrupt;
     m.bad_size = s.bad_size;
     m.failed = s.failed;
+    m.bad_class = s.bad_class;
+    m.class_model = s.class_model;
+    m.weed_parts = s.weed_parts;
+    m.stemless_weeds = s.stemless_weeds;
+    m.weed_cover = s.weed_cover;
+    m.cells_over_budget = s.cells_over_budget;
+    m.frames_over_budget = s.frames_over_budget;
+    m.class_socket = s.class_socket;
+    m.class_maps = s.class_maps;
+    m.class_timeouts = s.class_timeouts;
+    m.class_bad_messages = s.class_bad_messages;
+    m.class_peers = s.class_peers;
     m.capture_to_result = histogram_of(c.actuator.latency);
     m.pipeline = histogram_of(c.processing.pipeline);
     m.cycle_capture = histogram_of(c.capture.cycle);
@@ -140,6 +152,24 @@ std::string format_metrics(const Metrics& m)
         t.counters("bus_errors_total", "CAN frames the bus failed, by frame.", "frame",
                    {{"target", m.bus_error}, {"heartbeat", m.heartbeat_errors}});
         t.counter("no_odometry_frames_total", "Frames not actuated: no usable odometer reading.", m.no_odometry);
+    }
+    t.counter("bad_class_plants_total", "Plants whose class-map window held values above 2 (taken as unknown).",
+              m.bad_class);
+    if (m.class_model) {
+        t.counters("weed_targets_total", "Weed targets the in-box model added beside the plants' own stems, by kind.",
+                   "kind", {{"part", m.weed_parts}, {"stemless", m.stemless_weeds}, {"cover", m.weed_cover}});
+        t.counter("classifier_cells_over_budget_total",
+                  "Vegetated cells classify.max_cells left unclassified (their plants unknown).", m.cells_over_budget);
+        t.counter("classifier_frames_over_budget_total", "Frames with cells over classify.max_cells.",
+                  m.frames_over_budget);
+    }
+    if (m.class_socket) {
+        t.counter("class_maps_total", "Class maps received from the external provider.", m.class_maps);
+        t.counter("class_timeouts_total", "Frames whose class map came too late or never (plants unknown).",
+                  m.class_timeouts);
+        t.counter("class_bad_messages_total", "Malformed messages from the external provider, dropped.",
+                  m.class_bad_messages);
+        t.counter("class_peers_total", "Connections the class socket accepted.", m.class_peers);
     }
     t.family("capture_to_result_seconds", "histogram", "Capture (exposure) to the result at the actuator.");
     t.histogram("capture_to_result_seconds", "", m.capture_to_result);

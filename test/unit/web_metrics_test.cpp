@@ -53,6 +53,15 @@ std::vector<Sample> parse(const std::string& text, std::map<std::string, std::st
     return out;
 }
 
+// The samples of parse(), each by "name{labels}".
+std::map<std::string, double> by_key(const std::vector<Sample>& samples)
+{
+    std::map<std::string, double> out;
+    for (const Sample& s : samples)
+        out[s.name + "{" + s.labels + "}"] = s.value;
+    return out;
+}
+
 }  // namespace
 
 TEST(WebMetrics, HistogramOfCountsWholeBucketsBelowEachBound)
@@ -94,13 +103,11 @@ TEST(WebMetrics, TextFormatParsesAndHistogramsAreConsistent)
     EXPECT_EQ(types.at("stemd_frames_in_total"), "counter");
     EXPECT_EQ(types.at("stemd_capture_to_result_seconds"), "histogram");
     EXPECT_EQ(types.at("stemd_thread_cycle_seconds"), "histogram");
-    std::map<std::string, double> by_key;
-    for (const Sample& s : samples)
-        by_key[s.name + "{" + s.labels + "}"] = s.value;
-    EXPECT_EQ(by_key.at("stemd_frames_in_total{}"), 100);
-    EXPECT_EQ(by_key.at("stemd_frames_dropped_total{cause=\"ring_full\"}"), 2);
-    EXPECT_EQ(by_key.at("stemd_targets_total{outcome=\"sent\"}"), 7);
-    EXPECT_EQ(by_key.at("stemd_deadline_misses_total{}"), 2);
+    const std::map<std::string, double> value = by_key(samples);
+    EXPECT_EQ(value.at("stemd_frames_in_total{}"), 100);
+    EXPECT_EQ(value.at("stemd_frames_dropped_total{cause=\"ring_full\"}"), 2);
+    EXPECT_EQ(value.at("stemd_targets_total{outcome=\"sent\"}"), 7);
+    EXPECT_EQ(value.at("stemd_deadline_misses_total{}"), 2);
     // Each histogram series: cumulative, +Inf = _count.
     for (const std::string& series : {std::string("stemd_capture_to_result_seconds_bucket{"),
                                       std::string("stemd_thread_cycle_seconds_bucket{thread=\"processing\",")}) {
@@ -117,9 +124,9 @@ TEST(WebMetrics, TextFormatParsesAndHistogramsAreConsistent)
         EXPECT_EQ(buckets, static_cast<int>(web::kBucketUpperNs.size()) + 1) << series;
         EXPECT_EQ(previous, 50) << series << ": +Inf";
     }
-    EXPECT_EQ(by_key.at("stemd_capture_to_result_seconds_count{}"), 50);
-    EXPECT_NEAR(by_key.at("stemd_capture_to_result_seconds_sum{}"), 0.2e-3 * 50 * 51 / 2, 1e-9);
-    EXPECT_EQ(by_key.at("stemd_capture_to_result_seconds_bucket{le=\"0.005\"}"), 24) << "the durations below 5 ms: 0.2 .. 4.8 ms";
+    EXPECT_EQ(value.at("stemd_capture_to_result_seconds_count{}"), 50);
+    EXPECT_NEAR(value.at("stemd_capture_to_result_seconds_sum{}"), 0.2e-3 * 50 * 51 / 2, 1e-9);
+    EXPECT_EQ(value.at("stemd_capture_to_result_seconds_bucket{le=\"0.005\"}"), 24) << "the durations below 5 ms: 0.2 .. 4.8 ms";
 }
 
 TEST(WebMetrics, ActuationSeriesOnlyWithActuation)
@@ -130,4 +137,48 @@ TEST(WebMetrics, ActuationSeriesOnlyWithActuation)
     EXPECT_EQ(text.find("stemd_capture_to_send_seconds"), std::string::npos);
     m.actuation = true;
     EXPECT_NE(web::format_metrics(m).find("stemd_capture_to_send_seconds_bucket{le=\"+Inf\"} 0"), std::string::npos);
+}
+
+TEST(WebMetrics, ClassProviderSeriesOnlyWithTheirProvider)
+{
+    web::Metrics m;
+    m.bad_class = 3;
+    std::string text = web::format_metrics(m);
+    EXPECT_NE(text.find("stemd_bad_class_plants_total 3\n"), std::string::npos) << text;
+    EXPECT_EQ(text.find("stemd_weed_targets_total"), std::string::npos);
+    EXPECT_EQ(text.find("stemd_classifier_cells_over_budget_total"), std::string::npos);
+    EXPECT_EQ(text.find("stemd_class_timeouts_total"), std::string::npos);
+
+    m.class_model = true;
+    m.weed_parts = 4;
+    m.stemless_weeds = 5;
+    m.weed_cover = 6;
+    m.cells_over_budget = 700;
+    m.frames_over_budget = 2;
+    std::map<std::string, std::string> types;
+    std::string error;
+    std::map<std::string, double> value = by_key(parse(web::format_metrics(m), types, error));
+    EXPECT_EQ(error, "");
+    EXPECT_EQ(types.at("stemd_weed_targets_total"), "counter");
+    EXPECT_EQ(value.at("stemd_weed_targets_total{kind=\"part\"}"), 4);
+    EXPECT_EQ(value.at("stemd_weed_targets_total{kind=\"stemless\"}"), 5);
+    EXPECT_EQ(value.at("stemd_weed_targets_total{kind=\"cover\"}"), 6);
+    EXPECT_EQ(value.at("stemd_classifier_cells_over_budget_total{}"), 700);
+    EXPECT_EQ(value.at("stemd_classifier_frames_over_budget_total{}"), 2);
+    EXPECT_EQ(value.count("stemd_class_maps_total{}"), 0u);
+
+    m.class_model = false;
+    m.class_socket = true;
+    m.class_maps = 90;
+    m.class_timeouts = 7;
+    m.class_bad_messages = 1;
+    m.class_peers = 2;
+    types.clear();
+    value = by_key(parse(web::format_metrics(m), types, error));
+    EXPECT_EQ(error, "");
+    EXPECT_EQ(value.at("stemd_class_maps_total{}"), 90);
+    EXPECT_EQ(value.at("stemd_class_timeouts_total{}"), 7);
+    EXPECT_EQ(value.at("stemd_class_bad_messages_total{}"), 1);
+    EXPECT_EQ(value.at("stemd_class_peers_total{}"), 2);
+    EXPECT_EQ(value.count("stemd_weed_targets_total{kind=\"part\"}"), 0u);
 }

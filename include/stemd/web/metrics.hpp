@@ -41,6 +41,15 @@ struct Metrics {
     bool actuation = false;   // the actuation's series are written only with it
     std::uint64_t targets = 0, sent = 0, policy = 0, no_tool = 0, disabled = 0, deadline_miss = 0,
                   bus_deadline = 0, bus_error = 0, heartbeat_errors = 0, no_odometry = 0;
+    // Plants' classes: class-map windows with values above 2 (any provider);
+    // the in-box model's weed targets beside the plants' stems and the cells
+    // its budget left out; the socket provider's maps, late maps, bad
+    // messages and peers. Each group is written only with its provider.
+    std::uint64_t bad_class = 0;
+    bool class_model = false;
+    std::uint64_t weed_parts = 0, stemless_weeds = 0, weed_cover = 0, cells_over_budget = 0, frames_over_budget = 0;
+    bool class_socket = false;
+    std::uint64_t class_maps = 0, class_timeouts = 0, class_bad_messages = 0, class_peers = 0;
     Histogram capture_to_result, capture_to_send, pipeline;
     Histogram cycle_capture, cycle_processing, cycle_actuator;
     // The live view.
