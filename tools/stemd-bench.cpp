@@ -86,7 +86,8 @@ void bench_classify(benchmark::State& state)
         const std::int64_t cpu_plants = thread_cpu_ns();
         vision::cell_features(view, s.params, *s.workspace, s.detections, *c.workspace, *c.cells);
         const std::int64_t cpu_cells = thread_cpu_ns();
-        // The daemon's default budget (classify.max_cells), camera.forward up.
+        // The daemon's default budget (classify.max_cells), camera.forward up
+        // (the cells nearest the top first).
         over_budget = vision::classify_cells(*c.model, *c.cells, {.max_cells = decision.max_cells});
         const std::int64_t cpu_forests = thread_cpu_ns();
         vision::classify_plants(*c.model, *c.workspace, *c.cells, s.detections.plants.size(), decision.min_confidence,

@@ -264,7 +264,7 @@ constexpr std::array kSchema{
     int_key<STEMD_KEY(daemon.classify.max_targets_per_weed)>("classify.max_targets_per_weed", "count", 1, 64, "16",
         "classify.weed_cover_radius_mm: at most this many targets on one weed plant (on each group of a stemless one), its first included"),
     int_key<STEMD_KEY(daemon.classify.max_cells)>("classify.max_cells", "cells", 1, 10000000, "4096",
-        "with a model: at most this many vegetated cells are classified in a frame, bounding the classifier's time (it grows with the vegetation, to every cell under a closed canopy); beyond it the cells nearest the image edge plants leave by (opposite camera.forward) go first, the others stay unclassified, and a plant with any of them is unknown (counted in the status line)"),
+        "with a model: at most this many vegetated cells are classified in a frame, bounding the classifier's time (it grows with the vegetation, to every cell under a closed canopy); beyond it the cells nearest the image edge plants enter by (camera.forward) go first, as the tracker fixes a plant's class on its first sightings; the others stay unclassified, and a plant with any of them is unknown (counted in the status line)"),
 
     // The daemon (stemd): frame source, rings, threads, status, logging.
     choice_key<STEMD_KEY(daemon.source_kind)>("source.kind", "replay", "replay|v4l2|libcamera",

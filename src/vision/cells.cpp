@@ -467,7 +467,7 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
 namespace {
 
 // The vegetated cells within the budget, in grid order, into ws.budgeted_:
-// every cell fewer steps from the exit edge than the step where the budget
+// every cell fewer steps from the first edge than the step where the budget
 // runs out, then that step's cells in grid order while it lasts.
 std::span<const std::uint32_t> cells_in_budget(std::span<const std::uint32_t> vegetated, const CellBudget& budget,
                                                cv::Size grid, std::vector<std::uint32_t>& steps,
@@ -476,11 +476,11 @@ std::span<const std::uint32_t> cells_in_budget(std::span<const std::uint32_t> ve
     const auto gw = static_cast<std::uint32_t>(grid.width), gh = static_cast<std::uint32_t>(grid.height);
     const auto step = [&](std::uint32_t c) {
         const std::uint32_t gx = c % gw, gy = c / gw;
-        switch (budget.exit_edge) {
-        case ExitEdge::bottom: return gh - 1 - gy;
-        case ExitEdge::top: return gy;
-        case ExitEdge::right: return gw - 1 - gx;
-        case ExitEdge::left: return gx;
+        switch (budget.first_edge) {
+        case ImageEdge::top: return gy;
+        case ImageEdge::bottom: return gh - 1 - gy;
+        case ImageEdge::left: return gx;
+        case ImageEdge::right: return gw - 1 - gx;
         }
         return gy;
     };

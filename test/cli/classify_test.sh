@@ -70,6 +70,17 @@ frames=$(($(wc -l <"$tmp/rec/frames.csv") - 1))
 awk -F, 'NR > 1 && $10 != "unknown" && ($11 == "" || !($11 == 1 || $11 == 0)) { bad = 1 } END { exit bad }' "$tmp/sure.csv" \
   || fail "a plant below certainty was classed"
 
+# A budget of one cell a frame: the report counts the cells left out, and
+# only a plant the one cell holds whole can be classed (with at most one
+# weed target from that cell): every other plant is unknown.
+"$tools/stemd-detect" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --set classify.model="$tmp/model.yaml" \
+  --set classify.max_cells=1 --csv "$tmp/budget.csv" "$tmp/rec" 2>"$tmp/budget.txt" >"$tmp/budget.out" || fail "max_cells 1 run"
+grep -q "[0-9]* vegetated cells left unclassified (classify.max_cells 1)" "$tmp/budget.out" "$tmp/budget.txt" ||
+  fail "no count of the cells left out: $(tail -2 "$tmp/budget.out")"
+classed=$(awk -F, 'NR > 1 && $10 != "unknown"' "$tmp/budget.csv" | wc -l)
+[ "$classed" -le $((2 * frames)) ] || fail "$classed plants classed with one cell a frame over $frames frames"
+[ "$(awk -F, 'NR > 1 && $10 == "unknown"' "$tmp/budget.csv" | wc -l)" -gt 0 ] || fail "no plant unknown with one cell a frame"
+
 # Refusals, each naming the model file.
 set +e
 "$tools/stemd-detect" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --set classify.model="$tmp/model.yaml" \

@@ -45,18 +45,25 @@ sent_one=$(grep -c '"reason":"sent"' "$tmp/map.jsonl" || true)
 sent_cover=$(grep -c '"reason":"sent"' "$tmp/cover.jsonl" || true)
 [ "$sent_cover" -gt "$sent_one" ] || fail "no more targets sent with cover ($sent_cover) than without ($sent_one)"
 
-# A budget of a few cells a frame: the classifier leaves the rest out,
-# counted in the summary, and what it could not see in whole is unknown and
-# never commanded. Without it (the default) no frame of the strip is over.
+# A budget of 100 cells a frame, below most frames' vegetated cells: the
+# classifier leaves the rest out, counted in the summary, and what it could
+# not see in whole is unknown and never commanded. The cells nearest the
+# edge plants enter by go first, and the tracker fixes a plant's class on
+# its first sightings there, so most weeds are still treated (the cells
+# nearest the exit edge first treat about a quarter of them). Without a
+# budget (the default) no frame of the strip is over.
 grep -q "total: .*cells over budget 0 in 0 frames" "$tmp/err" || fail "cells over the default budget: $(grep total: "$tmp/err")"
 "$stemd" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --set classify.model="$tmp/model.yaml" \
-  --set classify.max_cells=20 --replay "$tmp/strip" --once --can-log "$tmp/budget.log" \
-  --map "$tmp/budget.jsonl" 2>"$tmp/budget.err" || fail "stemd (max_cells 20) exited $?: $(tail -5 "$tmp/budget.err")"
+  --set classify.max_cells=100 --replay "$tmp/strip" --once --can-log "$tmp/budget.log" \
+  --map "$tmp/budget.jsonl" 2>"$tmp/budget.err" || fail "stemd (max_cells 100) exited $?: $(tail -5 "$tmp/budget.err")"
 over=$(sed -n 's/.*total: .*cells over budget \([0-9]*\) in [0-9]* frames.*/\1/p' "$tmp/budget.err")
-[ -n "$over" ] && [ "$over" -gt 0 ] || fail "no cell over a budget of 20: $(grep total: "$tmp/budget.err")"
+[ -n "$over" ] && [ "$over" -gt 0 ] || fail "no cell over a budget of 100: $(grep total: "$tmp/budget.err")"
 if grep '"reason":"sent"' "$tmp/budget.jsonl" | grep -vq '"class":"weed"'; then fail "a plant that is no weed was sent (budget)"; fi
-sent_budget=$(grep -c '"reason":"sent"' "$tmp/budget.jsonl" || true)
-[ "$sent_budget" -lt "$sent_one" ] || fail "as many targets sent with a budget of 20 cells ($sent_budget) as without ($sent_one)"
+"$tools/stemd-eval" --targets "$tmp/strip/plants.csv" "$tmp/budget.log" --config "$src/config/stemd.yaml" --treat weeds \
+  --tol-mm 5 >"$tmp/budget.score" 2>&1 || true
+matched_budget=$(sed -n 's/^matched *\([0-9]*\) plants.*/\1/p' "$tmp/budget.score")
+[ -n "$matched_budget" ] && [ $((4 * matched_budget)) -ge $((3 * matched)) ] ||
+  fail "a budget of 100 cells treated ${matched_budget:-no} weeds, under three quarters of $matched: $(cat "$tmp/budget.score")"
 
 # Only certainty counts: below a weed probability of 1 a plant is unknown,
 # and no unknown plant is commanded under auto.
@@ -75,4 +82,4 @@ rc=$?
 set -e
 [ $rc -eq 2 ] || fail "a model of another GSD: exit $rc"
 grep -q "$tmp/model.yaml.*gsd" "$tmp/gsd.err" || fail "GSD refusal: $(cat "$tmp/gsd.err")"
-echo "PASS: $matched weeds treated, no crop commanded; $cover further targets on wide weeds; $over cells over a budget of 20"
+echo "PASS: $matched weeds treated, no crop commanded; $cover further targets on wide weeds; $matched_budget with a budget of 100 cells ($over cells left out)"

@@ -136,9 +136,9 @@ TEST(RealTime, ClassifierAllocatesNothingOnceWarm)
     for (int round = 0; round < 2; ++round) {   // the second frame reuses what the first left
         before = stemd::test::allocations();
         cell_features(frame, params, *ws, *out, *cws, *cells);
-        // Over a budget too: the cells nearest the exit edge are picked in
+        // Over a budget too: the cells nearest the first edge are picked in
         // the workspace's own buffers.
-        EXPECT_GT(classify_cells(*cell_model, *cells, {.max_cells = 50, .exit_edge = ExitEdge::right}), 0u);
+        EXPECT_GT(classify_cells(*cell_model, *cells, {.max_cells = 50, .first_edge = ImageEdge::right}), 0u);
         classify_cells(*cell_model, *cells);
         cell_class_map(*ws, *cells, map);
         classify_plants(*cell_model, *cws, *cells, out->plants.size(), 0.6, 0.85, probabilities, classes);

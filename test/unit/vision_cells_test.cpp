@@ -894,20 +894,20 @@ TEST(WeedParts, AWeedWiderThanTheCoverRadiusGetsTargetsUntilEveryClearWeedCellIs
 }
 
 // Steps of a cell of `cells` from `edge` (0 on the edge's row or column).
-int steps_from(const CellWorkspace& cells, std::uint32_t c, ExitEdge edge)
+int steps_from(const CellWorkspace& cells, std::uint32_t c, ImageEdge edge)
 {
     const int gw = cells.grid().width, gh = cells.grid().height;
     const int gx = static_cast<int>(c) % gw, gy = static_cast<int>(c) / gw;
     switch (edge) {
-    case ExitEdge::bottom: return gh - 1 - gy;
-    case ExitEdge::top: return gy;
-    case ExitEdge::right: return gw - 1 - gx;
-    case ExitEdge::left: return gx;
+    case ImageEdge::top: return gy;
+    case ImageEdge::bottom: return gh - 1 - gy;
+    case ImageEdge::left: return gx;
+    case ImageEdge::right: return gw - 1 - gx;
     }
     return -1;
 }
 
-TEST(CellBudget, OverTheBudgetOnlyTheCellsNearestTheExitEdgeAreClassified)
+TEST(CellBudget, OverTheBudgetOnlyTheCellsNearestTheFirstEdgeAreClassified)
 {
     UnsurePair pair;
     auto& [crop_centre, weed_centre, params, model, truth, frame, p, classes] = pair;
@@ -918,18 +918,18 @@ TEST(CellBudget, OverTheBudgetOnlyTheCellsNearestTheExitEdgeAreClassified)
     for (const std::uint32_t c : frame.cells.vegetated())
         unlimited.push_back(frame.cells.weed_probability(c));
     for (const std::size_t budget : {vegetated, vegetated + 1}) {
-        EXPECT_EQ(classify_cells(model, frame.cells, {.max_cells = budget, .exit_edge = ExitEdge::left}), 0u);
+        EXPECT_EQ(classify_cells(model, frame.cells, {.max_cells = budget, .first_edge = ImageEdge::left}), 0u);
         for (std::size_t k = 0; k < vegetated; ++k) {
             EXPECT_EQ(frame.cells.weed_probability(frame.cells.vegetated()[k]), unlimited[k]);
             EXPECT_NE(frame.cells.cell_class(frame.cells.vegetated()[k]), PlantClass::Unknown);
         }
     }
     // Over it: exactly the budget is classified, and no cell left out lies
-    // nearer the exit edge than a classified one.
+    // nearer the first edge than a classified one.
     const std::size_t budget = vegetated / 3;
-    for (const ExitEdge edge : {ExitEdge::bottom, ExitEdge::top, ExitEdge::right, ExitEdge::left}) {
+    for (const ImageEdge edge : {ImageEdge::top, ImageEdge::bottom, ImageEdge::left, ImageEdge::right}) {
         SCOPED_TRACE(static_cast<int>(edge));
-        EXPECT_EQ(classify_cells(model, frame.cells, {.max_cells = budget, .exit_edge = edge}), vegetated - budget);
+        EXPECT_EQ(classify_cells(model, frame.cells, {.max_cells = budget, .first_edge = edge}), vegetated - budget);
         std::size_t classified = 0;
         int farthest_classified = -1, nearest_left_out = std::numeric_limits<int>::max();
         for (const std::uint32_t c : frame.cells.vegetated()) {
@@ -962,14 +962,14 @@ TEST(CellBudget, APlantSeenInPartIsUnknownAndItsWeedPartsStayClearOfTheCellsLeft
     UnsurePair pair;
     auto& [crop_centre, weed_centre, params, model, truth, frame, p, classes] = pair;
     ASSERT_EQ(frame.det.plants.size(), 1u);
-    // Plants leave by the right: a budget of the cells from the weed's
+    // From the right edge: a budget of the cells from the weed's
     // centre rightwards classifies the weed's right half only.
     const int first_column = weed_centre.x / frame.cells.cell_px();
     std::size_t budget = 0;
     for (const std::uint32_t c : frame.cells.vegetated())
         budget += static_cast<int>(c) % frame.cells.grid().width >= first_column ? 1 : 0;
     ASSERT_GT(budget, 10u);
-    ASSERT_GT(classify_cells(model, frame.cells, {.max_cells = budget, .exit_edge = ExitEdge::right}), budget);
+    ASSERT_GT(classify_cells(model, frame.cells, {.max_cells = budget, .first_edge = ImageEdge::right}), budget);
 
     // What it saw is weed, but it saw only a part: the plant is not judged.
     float share = 0, weight = 0;

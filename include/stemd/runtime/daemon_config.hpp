@@ -52,19 +52,20 @@ struct ClassifyConfig {
     double weed_part_clearance_mm = 3;    // no crop or unknown vegetation this near a weed part's target
     double weed_cover_radius_mm = 0;      // a wider weed gets further targets; 0: one per weed
     unsigned max_targets_per_weed = 16;   // with weed_cover_radius_mm, the first included
-    std::size_t max_cells = 4096;         // vegetated cells classified per frame, those nearest the exit edge first
+    std::size_t max_cells = 4096;         // vegetated cells classified per frame, those nearest the entry edge first
 };
 
-// The image edge plants leave the view by, from the direction of travel.
-inline vision::ExitEdge exit_edge(geometry::Forward forward)
+// The image edge plants enter the view by: the one the direction of travel
+// points to (camera.forward up: they come in at the top).
+inline vision::ImageEdge entry_edge(geometry::Forward forward)
 {
     switch (forward) {
-    case geometry::Forward::up: return vision::ExitEdge::bottom;
-    case geometry::Forward::down: return vision::ExitEdge::top;
-    case geometry::Forward::left: return vision::ExitEdge::right;
-    case geometry::Forward::right: return vision::ExitEdge::left;
+    case geometry::Forward::up: return vision::ImageEdge::top;
+    case geometry::Forward::down: return vision::ImageEdge::bottom;
+    case geometry::Forward::left: return vision::ImageEdge::left;
+    case geometry::Forward::right: return vision::ImageEdge::right;
     }
-    return vision::ExitEdge::bottom;
+    return vision::ImageEdge::top;
 }
 
 // vision::classify_frame()'s settings from classify.* and camera.forward.
@@ -76,7 +77,7 @@ inline vision::ModelClassParams model_class_params(const ClassifyConfig& config,
                          .cover_radius_mm = config.weed_cover_radius_mm,
                          .max_targets_per_weed = config.max_targets_per_weed},
             .weed_parts = config.weed_parts,
-            .budget = {.max_cells = config.max_cells, .exit_edge = exit_edge(forward)}};
+            .budget = {.max_cells = config.max_cells, .first_edge = entry_edge(forward)}};
 }
 
 struct DaemonConfig {

@@ -137,19 +137,18 @@ private:
 // first-stage probabilities) and the frame path (classify_cells()).
 void cell_context(const CellContextInput& input, CellContextScratch& scratch, std::span<CellContext> out);
 
-// The image edge plants leave the view by: the one opposite the direction
-// of travel (camera.forward up: plants move down the image and leave at the
-// bottom).
-enum class ExitEdge : std::uint8_t { bottom, top, right, left };
+enum class ImageEdge : std::uint8_t { top, bottom, left, right };
 
 // How many vegetated cells classify_cells() classifies in one frame. Its
 // time grows with them, up to every cell of the grid under a closed canopy;
-// the budget bounds it. Over the budget, the cells nearest the exit edge go
-// first: their plants reach the tool next and are not seen again, while
-// the others come back in the next frames, nearer that edge.
+// the budget bounds it. Over the budget, the cells nearest `first_edge` go
+// first. The daemon puts there the edge plants enter the view by: its
+// tracker fixes a target's class when it confirms the target, a few frames
+// after the plant came into view, so the cells nearer the exit belong to
+// plants already confirmed.
 struct CellBudget {
     std::size_t max_cells = std::numeric_limits<std::size_t>::max();
-    ExitEdge exit_edge = ExitEdge::bottom;
+    ImageEdge first_edge = ImageEdge::top;
 };
 
 // Everything the cells need per frame, allocated once for a frame size, GSD
@@ -212,7 +211,7 @@ private:
     std::size_t vegetated_count_ = 0;
     // classify_cells(): the vegetated cells within the budget (grid order),
     // a flag per cell for them, and the vegetated cells per step from the
-    // exit edge.
+    // budget's first edge.
     std::vector<std::uint32_t> budgeted_;
     std::vector<std::uint8_t> in_budget_;
     std::vector<std::uint32_t> edge_steps_;
@@ -246,7 +245,7 @@ void cell_features(const FrameView& frame, const Params& params, const Workspace
 // a plant is treated is decided per plant (classify_plants(), with the
 // asymmetric decide_class()). Every cell Unknown when the model has no
 // cell forest. With more vegetated cells than budget.max_cells, only the
-// budget's cells nearest budget.exit_edge are classified (whole steps from
+// budget's cells nearest budget.first_edge are classified (whole steps from
 // the edge, then the next step's cells in grid order), as if the others
 // held no vegetation; the others stay Unknown. Returns how many vegetated
 // cells the budget left out.
