@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # /metrics of a running stemd parses as Prometheus text format 0.0.4 with the
 # reference parser (Debian python3-prometheus-client), every family the
-# README names is there, and the histograms are whole (+Inf = _count).
+# README names is there, and the histograms are whole (+Inf = _count); with
+# the in-box model, its weed targets and the cells over classify.max_cells.
 #   metrics.sh STEMD TOOLS_DIR SOURCE_DIR
 . "$(dirname "$0")/common.sh" "$@"
 /usr/bin/python3 -c "import prometheus_client.parser" 2>/dev/null \
@@ -43,5 +44,41 @@ for name in ("stemd_capture_to_result_seconds", "stemd_pipeline_seconds"):
     if buckets != sorted(buckets) or buckets[-1] != count or count <= 0:
         sys.exit(f"{name}: buckets {buckets}, count {count}")
 print(f"metrics: {len(families)} families parse")
+PY
+
+# With the in-box model and a budget of 20 cells a frame: the model's
+# series, with cells over the budget counted, and no socket series.
+kill "$stemd_pid" && wait "$stemd_pid" 2>/dev/null || true
+stemd_pid=""
+"$tools/stemd-synth" --strip --out "$tmp/train" --preset early --seed 6 --fragment 0 --length-mm 1500 \
+  --fps 15 --speed-kmh 2.5 >/dev/null
+"$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg \
+  --folds 3 --trees 30 --cell-trees 10 --cell-samples 6000 "$tmp/train" >"$tmp/train.txt" 2>&1 ||
+  fail "stemd-train exited $?: $(tail -3 "$tmp/train.txt")"
+start_stemd "$tmp/model.err" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg \
+  --set classify.model="$tmp/model.yaml" --set classify.max_cells=20 --replay "$tmp/train" --can-log "$tmp/model.log" \
+  --set web.listen=127.0.0.1:0
+for _ in $(seq 300); do
+  fetch /metrics "$tmp/model.metrics"
+  grep -q '^stemd_classifier_cells_over_budget_total [1-9]' "$tmp/model.metrics" && break
+  sleep 0.2
+done
+/usr/bin/python3 - "$tmp/model.metrics" <<'PY' || fail "metrics with a model: $(grep -E 'weed_targets|classifier|class_' "$tmp/model.metrics")"
+import sys
+from prometheus_client.parser import text_string_to_metric_families
+families = {f.name: f for f in text_string_to_metric_families(open(sys.argv[1]).read())}
+for name in ("stemd_weed_targets", "stemd_classifier_cells_over_budget", "stemd_classifier_frames_over_budget",
+             "stemd_bad_class_plants"):
+    if name not in families or families[name].type != "counter":
+        sys.exit(f"missing or mistyped: {name}")
+kinds = {s.labels["kind"] for s in families["stemd_weed_targets"].samples}
+if kinds != {"part", "stemless", "cover"}:
+    sys.exit(f"weed target kinds: {kinds}")
+over = [s.value for s in families["stemd_classifier_cells_over_budget"].samples if s.name.endswith("_total")]
+frames = [s.value for s in families["stemd_classifier_frames_over_budget"].samples if s.name.endswith("_total")]
+if not over or over[0] <= 0 or not frames or frames[0] <= 0:
+    sys.exit(f"cells over a budget of 20: {over} in {frames} frames")
+if "stemd_class_maps" in families:
+    sys.exit("socket series without a socket provider")
 PY
 echo "metrics: ok"
