@@ -8,15 +8,21 @@
 /usr/bin/python3 -c "import prometheus_client.parser" 2>/dev/null \
   || { echo "SKIP: python3-prometheus-client (the reference parser) is not installed"; exit 77; }
 
+# fetch_until FILE PATTERN: /metrics into FILE until a line matches PATTERN
+# (at most 60 s; the checks after it then say what is missing).
+fetch_until() {
+  for _ in $(seq 300); do
+    fetch /metrics "$1"
+    grep -q "$2" "$1" && break
+    sleep 0.2
+  done
+}
+
 "$tools/stemd-synth" --out "$tmp/rec" --preset late --frames 10 --fps 10 >/dev/null
 start_stemd "$tmp/err" --config "$src/config/stemd.yaml" --replay "$tmp/rec" --can-log "$tmp/can.log" \
   --set web.listen=127.0.0.1:0
 # Wait until frames went through, so the histograms have counts.
-for _ in $(seq 300); do
-  fetch /metrics "$tmp/metrics"
-  grep -q '^stemd_frames_out_total [1-9]' "$tmp/metrics" && break
-  sleep 0.2
-done
+fetch_until "$tmp/metrics" '^stemd_frames_out_total [1-9]'
 /usr/bin/python3 - "$tmp/metrics" <<'PY' || fail "metrics check"
 import sys
 from prometheus_client.parser import text_string_to_metric_families
@@ -58,11 +64,7 @@ stemd_pid=""
 start_stemd "$tmp/model.err" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg \
   --set classify.model="$tmp/model.yaml" --set classify.max_cells=20 --replay "$tmp/train" --can-log "$tmp/model.log" \
   --set web.listen=127.0.0.1:0
-for _ in $(seq 300); do
-  fetch /metrics "$tmp/model.metrics"
-  grep -q '^stemd_classifier_cells_over_budget_total [1-9]' "$tmp/model.metrics" && break
-  sleep 0.2
-done
+fetch_until "$tmp/model.metrics" '^stemd_classifier_cells_over_budget_total [1-9]'
 /usr/bin/python3 - "$tmp/model.metrics" <<'PY' || fail "metrics with a model: $(grep -E 'weed_targets|classifier|class_' "$tmp/model.metrics")"
 import sys
 from prometheus_client.parser import text_string_to_metric_families
