@@ -83,4 +83,47 @@ if not over or over[0] <= 0 or not frames or frames[0] <= 0:
 if "stemd_class_maps" in families:
     sys.exit("socket series without a socket provider")
 PY
+
+# With the socket provider and a peer that serves each frame's class map
+# from the recording (whose frames.csv then loses its class column): the
+# socket's series, maps and the peer counted, and no model series.
+peer=${4:-}
+if [ -z "$peer" ]; then
+  echo "metrics: ok (the socket provider's series not checked: no class peer given)"
+  exit 0
+fi
+kill "$stemd_pid" && wait "$stemd_pid" 2>/dev/null || true
+stemd_pid=""
+awk -F, -v OFS=, '{ NF = 5; print }' "$tmp/train/frames.csv" >"$tmp/frames.csv"
+mv "$tmp/frames.csv" "$tmp/train/frames.csv"
+sock=$tmp/classes.sock
+"$peer" "$sock" "$tmp/train" serve >"$tmp/peer.out" 2>&1 &
+peer_pid=$!
+start_stemd "$tmp/socket.err" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg \
+  --set classify.provider=socket --set classify.socket="$sock" --replay "$tmp/train" --can-log "$tmp/socket.log" \
+  --set web.listen=127.0.0.1:0
+fetch_until "$tmp/socket.metrics" '^stemd_class_maps_total [1-9]'
+/usr/bin/python3 - "$tmp/socket.metrics" <<'PY' || fail "metrics with the socket provider: $(grep -E 'class_|classifier' "$tmp/socket.metrics")"
+import sys
+from prometheus_client.parser import text_string_to_metric_families
+families = {f.name: f for f in text_string_to_metric_families(open(sys.argv[1]).read())}
+def total(name):
+    if name not in families or families[name].type != "counter":
+        sys.exit(f"missing or mistyped: {name}")
+    values = [s.value for s in families[name].samples if s.name.endswith("_total")]
+    if len(values) != 1:
+        sys.exit(f"{name}: {len(values)} samples")
+    return values[0]
+maps, peers = total("stemd_class_maps"), total("stemd_class_peers")
+total("stemd_class_timeouts")
+bad = total("stemd_class_bad_messages")
+if maps <= 0 or peers != 1 or bad != 0:
+    sys.exit(f"{maps} maps from {peers} peers with {bad} bad messages: one well-behaved peer served")
+for name in ("stemd_classifier_cells_over_budget", "stemd_weed_targets"):
+    if name in families:
+        sys.exit(f"model series without a model: {name}")
+PY
+kill "$stemd_pid" && wait "$stemd_pid" 2>/dev/null || true
+stemd_pid=""
+wait "$peer_pid" || fail "the peer exited $?: $(cat "$tmp/peer.out")"
 echo "metrics: ok"
