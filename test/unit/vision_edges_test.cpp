@@ -1,3 +1,6 @@
+#include <algorithm>
+#include <cmath>
+
 #include <gtest/gtest.h>
 
 #include <opencv2/core.hpp>
@@ -105,4 +108,76 @@ TEST(MixedEdges, SoilLevelIsTheHistogramMode)
     h[101] = 55;
     h[200] = 100;  // one level of leaf, narrower than the soil's three
     EXPECT_EQ(histogram_mode(h), 100);
+}
+
+// The rule as the header states it, pixel by pixel: a pixel outside the
+// plant and above the floor joins when the plant pixels of its window are
+// at least a quarter of the window and its index is above the halfway
+// point between the soil and their mean.
+namespace {
+
+BitMask extend_by_definition(const cv::Mat& index, const BitMask& plant, int floor, int r)
+{
+    BitMask out = plant;
+    const long min_plant_px = static_cast<long>(2 * r + 1) * (2 * r + 1) / 4;
+    for (int y = 0; y < index.rows; ++y)
+        for (int x = 0; x < index.cols; ++x) {
+            const int v = index.at<std::uint8_t>(y, x);
+            if (plant.get(x, y) || v <= floor)
+                continue;
+            long n = 0, s = 0;
+            for (int yy = std::max(y - r, 0); yy <= std::min(y + r, index.rows - 1); ++yy)
+                for (int xx = std::max(x - r, 0); xx <= std::min(x + r, index.cols - 1); ++xx)
+                    if (plant.get(xx, yy)) {
+                        ++n;
+                        s += index.at<std::uint8_t>(yy, xx);
+                    }
+            if (n >= min_plant_px && 2 * n * v > n * kSoil + s)
+                out.set(x, y);
+        }
+    return out;
+}
+
+}  // namespace
+
+// Sliding column sums against the definition: rows with a few candidates
+// and rows with many, widths off the 64-pixel words, radii 1 to 9, floors
+// above and under the soil's noise, the same bits.
+TEST(MixedEdges, EqualsTheRulePixelByPixelOnRandomFrames)
+{
+    cv::RNG rng(20261206);
+    int joined = 0;
+    for (int trial = 0; trial < 40; ++trial) {
+        const int width = 70 + static_cast<int>(rng.uniform(0, 200));
+        const int height = 20 + static_cast<int>(rng.uniform(0, 40));
+        const int r = 1 + trial % 9;
+        cv::Mat index(height, width, CV_8UC1);
+        rng.fill(index, cv::RNG::UNIFORM, kSoil - 20, kSoil + 20);
+        // Leaves: discs of leaf index with mixed pixels around them.
+        const int leaves = 1 + static_cast<int>(rng.uniform(0, 12));
+        for (int k = 0; k < leaves; ++k) {
+            const cv::Point c(rng.uniform(0, width), rng.uniform(0, height));
+            const int radius = rng.uniform(2, 14);
+            for (int y = std::max(c.y - radius - 3, 0); y < std::min(c.y + radius + 4, height); ++y)
+                for (int x = std::max(c.x - radius - 3, 0); x < std::min(c.x + radius + 4, width); ++x) {
+                    const double d = std::hypot(x - c.x, y - c.y) - radius;
+                    std::uint8_t& v = index.at<std::uint8_t>(y, x);
+                    if (d <= 0)
+                        v = static_cast<std::uint8_t>(kLeaf - rng.uniform(0, 20));
+                    else if (d < 3)
+                        v = std::max(v, static_cast<std::uint8_t>(kLeaf - (kLeaf - kSoil) * d / 3 + rng.uniform(-15, 15)));
+                }
+        }
+        const BitMask plant = above(index, 170);
+        // A floor under the soil's noise makes every soil pixel a candidate.
+        const int floor = kSoil - 25 + static_cast<int>(rng.uniform(0, 55));
+        const BitMask got = extend(index, plant, floor, r);
+        const BitMask want = extend_by_definition(index, plant, floor, r);
+        for (int y = 0; y < height; ++y)
+            for (int x = 0; x < width; ++x) {
+                ASSERT_EQ(got.get(x, y), want.get(x, y)) << "trial " << trial << " at (" << x << ", " << y << ")";
+                joined += want.get(x, y) && !plant.get(x, y);
+            }
+    }
+    EXPECT_GT(joined, 1000);   // the frames exercise the rule, not only the plant
 }
