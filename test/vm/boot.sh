@@ -49,8 +49,8 @@ boots=(
 # So does a soft lockup in any boot (the emulated guest's CPUs stuck in its
 # own kernel, which then panics: tools/vm/run.sh), kept as
 # console-NAME-lockup.log. Seen once in CI, on 2026-12-06: both vCPUs of the
-# watchdog boot spun in the kernel for ten minutes under TCG on a loaded
-# host, in systemd and systemctl. A second lockup stands. Before a second
+# watchdog boot spun in the kernel for ten minutes under TCG, in systemd and
+# systemctl, with vm.boot running alone. A second lockup stands. Before a second
 # boot, the first one's per-check results go, so that none can answer for it.
 oops='general protection fault|Oops: |BUG: |kernel BUG at'
 lockup='BUG: soft lockup'

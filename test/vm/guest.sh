@@ -789,9 +789,10 @@ UNIT
     sd journalctl -u stemd.service --no-pager > "/host$out/watchdog-journal.log" 2>&1
     # SIGKILL to the namespace's PID 1 ends every process in it, and the
     # kernel drops its mounts with the namespace. An orderly container
-    # poweroff (SIGRTMIN+4) unmounts the 9p shares one by one, and there the
-    # emulated guest once locked up both vCPUs (systemd and its poweroff
-    # systemctl, stuck 600 s): it tests systemd, not stemd.
+    # poweroff (SIGRTMIN+4) unmounts the 9p shares one by one and stops
+    # every unit: it tests systemd, not stemd, and by its timing that is
+    # where the emulated guest once locked up both vCPUs (in systemd and
+    # systemctl, for ten minutes).
     p=$(sd_pid)
     [ -z "$p" ] || kill -KILL $p
     within 60 sh -c '[ -z "$(ps -o args | grep "^/lib/systemd/systemd --unit=stemd-vm.target")" ]' ||
