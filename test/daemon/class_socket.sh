@@ -14,9 +14,7 @@ stemd=$1 tools=$2 src=$3 peer=$4
 . "$(dirname "$0")/../support/script.sh"
 
 synth_strip "$tmp/strip" 1500
-head -1 "$tmp/strip/frames.csv" | grep -q '^t_ns,rgb,nir,mask,odom_mm,class$' || fail "unexpected strip columns"
-awk -F, -v OFS=, '{ NF = 5; print }' "$tmp/strip/frames.csv" >"$tmp/frames.csv"
-mv "$tmp/frames.csv" "$tmp/strip/frames.csv"
+drop_class_column "$tmp/strip"
 frames=$(($(wc -l <"$tmp/strip/frames.csv") - 1))
 sock="$tmp/classes.sock"
 

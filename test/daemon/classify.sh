@@ -19,10 +19,7 @@ synth_strip "$tmp/strip" 2000
 "$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg \
   --folds 3 --trees 30 "${small_forests[@]}" "$tmp/train" >"$tmp/train.txt" 2>&1 ||
   fail "stemd-train exited $?: $(cat "$tmp/train.txt")"
-# The replayed strip without its class column (t_ns,rgb,nir,mask,odom_mm).
-head -1 "$tmp/strip/frames.csv" | grep -q '^t_ns,rgb,nir,mask,odom_mm,class$' || fail "unexpected strip columns"
-awk -F, -v OFS=, '{ NF = 5; print }' "$tmp/strip/frames.csv" >"$tmp/frames.csv"
-mv "$tmp/frames.csv" "$tmp/strip/frames.csv"
+drop_class_column "$tmp/strip"
 
 "$stemd" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --set classify.model="$tmp/model.yaml" --replay "$tmp/strip" --once \
   --can-log "$tmp/can.log" --map "$tmp/map.jsonl" 2>"$tmp/err" || fail "stemd exited $?: $(tail -5 "$tmp/err")"

@@ -8,6 +8,7 @@ pid=
 trap 'kill -KILL $pid 2>/dev/null || true; rm -rf "$tmp"' EXIT
 fail() { echo "FAIL: $*" >&2; exit 1; }
 support_dir=$(dirname "${BASH_SOURCE[0]}")
+. "$support_dir/recording.sh"
 
 # synth_strip DIR LENGTH_MM [SEED]: a moving field strip at 15 fps and
 # 2.5 km/h (the same 4.6 mm per frame as 30 fps at 5 km/h), early preset,

@@ -9,6 +9,13 @@ tmp=$(mktemp -d)
 stemd_pid=""
 trap '[ -z "$stemd_pid" ] || kill "$stemd_pid" 2>/dev/null || true; rm -rf "$tmp"' EXIT
 fail() { echo "FAIL: $*" >&2; exit 1; }
+. "$(dirname "${BASH_SOURCE[0]}")/../support/recording.sh"
+
+# stop_stemd: the stemd start_stemd started, stopped and waited for.
+stop_stemd() {
+  [ -z "$stemd_pid" ] || { kill "$stemd_pid" && wait "$stemd_pid" 2>/dev/null || true; }
+  stemd_pid=""
+}
 
 # Start stemd with the view on a free port (web.listen port 0: the kernel
 # picks one, the log names it) and wait for it.

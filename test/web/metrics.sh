@@ -54,8 +54,7 @@ PY
 
 # With the in-box model and a budget of 20 cells a frame: the model's
 # series, with cells over the budget counted, and no socket series.
-kill "$stemd_pid" && wait "$stemd_pid" 2>/dev/null || true
-stemd_pid=""
+stop_stemd
 "$tools/stemd-synth" --strip --out "$tmp/train" --preset early --seed 6 --fragment 0 --length-mm 1500 \
   --fps 15 --speed-kmh 2.5 >/dev/null
 "$tools/stemd-train" --out "$tmp/model.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg \
@@ -92,10 +91,8 @@ if [ -z "$peer" ]; then
   echo "metrics: ok (the socket provider's series not checked: no class peer given)"
   exit 0
 fi
-kill "$stemd_pid" && wait "$stemd_pid" 2>/dev/null || true
-stemd_pid=""
-awk -F, -v OFS=, '{ NF = 5; print }' "$tmp/train/frames.csv" >"$tmp/frames.csv"
-mv "$tmp/frames.csv" "$tmp/train/frames.csv"
+stop_stemd
+drop_class_column "$tmp/train"
 sock=$tmp/classes.sock
 "$peer" "$sock" "$tmp/train" serve >"$tmp/peer.out" 2>&1 &
 peer_pid=$!
@@ -123,7 +120,6 @@ for name in ("stemd_classifier_cells_over_budget", "stemd_weed_targets"):
     if name in families:
         sys.exit(f"model series without a model: {name}")
 PY
-kill "$stemd_pid" && wait "$stemd_pid" 2>/dev/null || true
-stemd_pid=""
+stop_stemd
 wait "$peer_pid" || fail "the peer exited $?: $(cat "$tmp/peer.out")"
 echo "metrics: ok"
