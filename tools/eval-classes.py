@@ -20,7 +20,8 @@ region of one class in the class image on a recording with a class column,
 of at least 10 mm² (carrot-dev: touching plants of one class are one
 plant there).
 
-  tools/eval-classes.py [--data DIR] [--out DIR] [--folds N] [--reuse-models] [--set K=V]... [--tools DIR]
+  tools/eval-classes.py [--data DIR] [--out DIR] [--folds N] [--seed N] [--only SET] [--reuse-models]
+                        [--set K=V]... [--tools DIR]
 
 Needs python3-opencv, python3-numpy and python3-yaml (Debian), and the
 Release tools. A measurement, not part of stemd: the per-plant figures in
@@ -129,7 +130,7 @@ def score(rows, stems_by_image, plants_of, inside):
     return counts
 
 
-def evaluate(name, recording, gsd, folds, tools, out, plants_of, inside, reuse_models, detect_sets):
+def evaluate(name, recording, gsd, folds, tools, out, plants_of, inside, reuse_models, detect_sets, train_args):
     rows = read_recording(recording)
     config = ["--config", os.path.join(HERE, "..", "config", "stemd.yaml"),
               "--set", f"camera.gsd_mm_per_px={gsd}"]
@@ -141,7 +142,7 @@ def evaluate(name, recording, gsd, folds, tools, out, plants_of, inside, reuse_m
         write_recording(os.path.join(fold, "test"), held_out)
         model = os.path.join(fold, "model.yaml")
         if not (reuse_models and os.path.isfile(model)):
-            run([os.path.join(tools, "stemd-train"), "--out", model, *config, os.path.join(fold, "train")],
+            run([os.path.join(tools, "stemd-train"), "--out", model, *train_args, *config, os.path.join(fold, "train")],
                 os.path.join(fold, "train.log"))
         run([os.path.join(tools, "stemd-detect"), *config, *detect_sets, "--set", f"classify.model={model}",
              "--csv", os.path.join(fold, "classes.csv"), os.path.join(fold, "test")],
@@ -172,7 +173,12 @@ def main():
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="a configuration override for the runs with a model, e.g. classify.weed_confidence=0.75")
     parser.add_argument("--tools", default=os.path.join(HERE, "..", "build", "release", "tools"))
+    parser.add_argument("--seed", type=int,
+                        help="stemd-train's seed for the forests (default: its own): a forest's random draws "
+                             "move these counts, so compare changes over several seeds")
+    parser.add_argument("--only", choices=["cwfid-train", "carrot-dev"], help="evaluate one set only")
     args = parser.parse_args()
+    train_args = ["--seed", str(args.seed)] if args.seed is not None else []
     data = os.path.abspath(args.data)
     detect_sets = [a for kv in args.set for a in ("--set", kv)]
     out = os.path.abspath(args.out)
@@ -181,16 +187,17 @@ def main():
         return 77
 
     cwfid = os.path.join(data, "cwfid-train")
-    if os.path.isdir(os.path.join(cwfid, "annotations")):
+    if args.only in (None, "cwfid-train") and os.path.isdir(os.path.join(cwfid, "annotations")):
         recording = os.path.join(out, "cwfid-recording")
         env = dict(os.environ, STEMD_CLASSMAP=os.path.join(args.tools, "stemd-classmap"))
         subprocess.run([os.path.join(HERE, "cwfid-recording.sh"), cwfid, recording], check=True,
                        stdout=subprocess.DEVNULL, env=env)
         evaluate("cwfid-train", recording, 0.11, args.folds, args.tools, out,
                  lambda row: cwfid_plants(cwfid, row["rgb"]),
-                 lambda plant, x, y: inside_polygon(plant[1], x, y), args.reuse_models, detect_sets)
+                 lambda plant, x, y: inside_polygon(plant[1], x, y), args.reuse_models, detect_sets,
+                 train_args)
     carrot = os.path.join(data, "carrot-dev")
-    if os.path.isfile(os.path.join(carrot, "frames.csv")):
+    if args.only in (None, "carrot-dev") and os.path.isfile(os.path.join(carrot, "frames.csv")):
         cache = {}
 
         def carrot_plants(row):
@@ -205,7 +212,8 @@ def main():
             return 0 <= yi < labels.shape[0] and 0 <= xi < labels.shape[1] and labels[yi, xi] == plant[2]
 
         evaluate("carrot-dev", carrot, 0.25, args.folds, args.tools, out, carrot_plants, inside_region,
-                 args.reuse_models, detect_sets)
+                 args.reuse_models, detect_sets,
+                 train_args)
     return 0
 
 

@@ -22,34 +22,61 @@ namespace {
     return total;
 }
 
-[[gnu::always_inline]] inline long count_range(const std::uint64_t* row, int x0, int x1)
+// The words and edge masks of a row's pixels [x0, x1), x0 < x1: worked out
+// once where several rows are counted over the same pixels.
+struct RangeMasks {
+    int w0, w1;
+    std::uint64_t first, last;
+    RangeMasks(int x0, int x1)
+        : w0(x0 >> 6), w1((x1 - 1) >> 6), first(~std::uint64_t{0} << (x0 & 63)),
+          last((x1 & 63) != 0 ? ~std::uint64_t{0} >> (64 - (x1 & 63)) : ~std::uint64_t{0})
+    {
+    }
+};
+
+[[gnu::always_inline]] inline long count_masked(const std::uint64_t* row, const RangeMasks& m)
 {
-    if (x1 <= x0)
-        return 0;
-    const int w0 = x0 >> 6, w1 = (x1 - 1) >> 6;
-    const std::uint64_t first = ~std::uint64_t{0} << (x0 & 63);
-    const std::uint64_t last = (x1 & 63) != 0 ? ~std::uint64_t{0} >> (64 - (x1 & 63)) : ~std::uint64_t{0};
-    if (w0 == w1)
-        return __builtin_popcountll(row[w0] & first & last);
-    long n = __builtin_popcountll(row[w0] & first) + __builtin_popcountll(row[w1] & last);
-    for (int w = w0 + 1; w < w1; ++w)
+    if (m.w0 == m.w1)
+        return __builtin_popcountll(row[m.w0] & m.first & m.last);
+    long n = __builtin_popcountll(row[m.w0] & m.first) + __builtin_popcountll(row[m.w1] & m.last);
+    for (int w = m.w0 + 1; w < m.w1; ++w)
         n += __builtin_popcountll(row[w]);
     return n;
 }
 
-// Only the spans that meet a nonzero word are counted: on a sparse row that
-// is a few of them, not all.
-[[gnu::always_inline]] inline void add_spans(const std::uint64_t* row, int width_px, int span_px, int* counts)
+[[gnu::always_inline]] inline long count_range(const std::uint64_t* row, int x0, int x1)
+{
+    return x1 <= x0 ? 0 : count_masked(row, RangeMasks(x0, x1));
+}
+
+[[gnu::always_inline]] inline bool any_masked(const std::uint64_t* row, const RangeMasks& m)
+{
+    if (m.w0 == m.w1)
+        return (row[m.w0] & m.first & m.last) != 0;
+    if ((row[m.w0] & m.first) != 0 || (row[m.w1] & m.last) != 0)
+        return true;
+    for (int w = m.w0 + 1; w < m.w1; ++w)
+        if (row[w] != 0)
+            return true;
+    return false;
+}
+
+[[gnu::always_inline]] inline void add_gated_spans(const GatedSpanRows& rows, int width_px, int span_px,
+                                                   int* counts, int* pair_counts)
 {
     const int words = (width_px + 63) / 64;
-    int next_span = 0;   // spans before it are counted
+    int next_span = 0;
     for (int w = 0; w < words; ++w) {
-        if (row[w] == 0)
+        if (rows.gate[w] == 0)
             continue;
         const int last_span = std::min(w * 64 + 63, width_px - 1) / span_px;
         for (int c = std::max(w * 64 / span_px, next_span); c <= last_span; ++c) {
             const int x0 = c * span_px;
-            counts[c] += static_cast<int>(count_range(row, x0, std::min(x0 + span_px, width_px)));
+            const RangeMasks m(x0, std::min(x0 + span_px, width_px));
+            if (!any_masked(rows.gate, m))
+                continue;
+            counts[c] += static_cast<int>(count_masked(rows.counted, m));
+            pair_counts[c] += static_cast<int>(count_masked(rows.pair[0], m) + count_masked(rows.pair[1], m));
         }
         next_span = last_span + 1;
     }
@@ -57,15 +84,15 @@ namespace {
 
 long count_bits_portable(const std::uint64_t* words, std::size_t n) { return count_words(words, n); }
 long count_range_portable(const std::uint64_t* row, int x0, int x1) { return count_range(row, x0, x1); }
-void add_spans_portable(const std::uint64_t* row, int width_px, int span_px, int* counts)
+void add_gated_spans_portable(const GatedSpanRows& rows, int width_px, int span_px, int* counts, int* pair_counts)
 {
-    add_spans(row, width_px, span_px, counts);
+    add_gated_spans(rows, width_px, span_px, counts, pair_counts);
 }
 
 struct Counters {
     long (*words)(const std::uint64_t*, std::size_t);
     long (*range)(const std::uint64_t*, int, int);
-    void (*spans)(const std::uint64_t*, int, int, int*);
+    void (*gated_spans)(const GatedSpanRows&, int, int, int*, int*);
 };
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
@@ -77,10 +104,10 @@ __attribute__((target("popcnt"))) long count_range_popcnt(const std::uint64_t* r
 {
     return count_range(row, x0, x1);
 }
-__attribute__((target("popcnt"))) void add_spans_popcnt(const std::uint64_t* row, int width_px, int span_px,
-                                                         int* counts)
+__attribute__((target("popcnt"))) void add_gated_spans_popcnt(const GatedSpanRows& rows, int width_px, int span_px,
+                                                               int* counts, int* pair_counts)
 {
-    add_spans(row, width_px, span_px, counts);
+    add_gated_spans(rows, width_px, span_px, counts, pair_counts);
 }
 #endif
 
@@ -89,15 +116,15 @@ Counters pick_counters()
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
     __builtin_cpu_init();
     if (__builtin_cpu_supports("popcnt"))
-        return {count_bits_popcnt, count_range_popcnt, add_spans_popcnt};
+        return {count_bits_popcnt, count_range_popcnt, add_gated_spans_popcnt};
 #endif
-    return {count_bits_portable, count_range_portable, add_spans_portable};
+    return {count_bits_portable, count_range_portable, add_gated_spans_portable};
 }
 
 // Constant-initialised to the portable loops, so a caller that runs before
 // this file's dynamic initialisation still counts correctly; replaced once
 // at start, never on the frame path.
-Counters counters = {count_bits_portable, count_range_portable, add_spans_portable};
+Counters counters = {count_bits_portable, count_range_portable, add_gated_spans_portable};
 [[maybe_unused]] const bool counters_picked = (counters = pick_counters(), true);
 
 }  // namespace
@@ -112,10 +139,10 @@ long count_bits_in_range(const std::uint64_t* row, int x0, int x1)
     return counters.range(row, x0, x1);
 }
 
-void add_span_bit_counts(const std::uint64_t* row, int width_px, int span_px, int* counts)
+void add_gated_span_bit_counts(const GatedSpanRows& rows, int width_px, int span_px, int* counts, int* pair_counts)
 {
     if (span_px > 0)
-        counters.spans(row, width_px, span_px, counts);
+        counters.gated_spans(rows, width_px, span_px, counts, pair_counts);
 }
 
 void BitMask::reset(int width_px, int height_px)

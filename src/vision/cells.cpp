@@ -187,7 +187,8 @@ CellWorkspace::CellWorkspace(cv::Size frame_size, double gsd_mm_per_px, double c
         cell_x_[static_cast<std::size_t>(x)] = static_cast<std::uint16_t>(x / cell_px_);
     transitions_.resize(static_cast<std::size_t>((width + 63) / 64) + 1);
     vertical_.resize(transitions_.size());
-    row_counts_.resize(3 * static_cast<std::size_t>(grid_.width));
+    either_.resize(transitions_.size());
+    row_counts_.resize(2 * static_cast<std::size_t>(grid_.width));
     sums_.resize(n);
     const std::size_t integral = static_cast<std::size_t>(grid_.width + 1) * static_cast<std::size_t>(grid_.height + 1);
     for (auto* v : {&integral_fill_, &integral_px_, &integral_g_, &integral_r_, &integral_n_})
@@ -248,14 +249,16 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
         const std::uint64_t* vrow = vegetation.row(y);
         const std::uint64_t* below = vegetation.row(y + 1);
         std::uint64_t any = 0;
-        for (int w = 0; w < words; ++w)
-            any |= vrow[w] | below[w];
+        for (int w = 0; w < words; ++w) {
+            ws.either_[static_cast<std::size_t>(w)] = vrow[w] | below[w];
+            any |= ws.either_[static_cast<std::size_t>(w)];
+        }
         if (any == 0)
             continue;   // soil only: nothing to count
         // Boundaries: a pixel differing from its right neighbour, or from
-        // the one below. Per cell: the row's vegetation, the row below's (a
-        // cell with neither takes no boundary, not even its right edge's),
-        // and the two boundary counts, one counting call per row each.
+        // the one below. Per cell: the row's vegetation and, where either
+        // row has some (a cell with neither takes no boundary, not even its
+        // right edge's), the two boundary counts, in one counting call.
         for (int w = 0; w < words; ++w) {
             const std::uint64_t next = w + 1 < words ? vrow[w + 1] : 0;
             const std::uint64_t right = (vrow[w] >> 1) | (next << 63);
@@ -265,28 +268,24 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
             ws.transitions_[static_cast<std::size_t>(w)] = edge;
             ws.vertical_[static_cast<std::size_t>(w)] = vrow[w] ^ below[w];
         }
-        std::fill(ws.row_counts_.begin(), ws.row_counts_.end(), 0);
         const std::size_t gw = static_cast<std::size_t>(grid.width);
         int* const row_vegetation = ws.row_counts_.data();
-        int* const below_vegetation = row_vegetation + gw;
-        int* const row_boundary = below_vegetation + gw;
-        add_span_bit_counts(vrow, width, cell_px, row_vegetation);
-        add_span_bit_counts(below, width, cell_px, below_vegetation);
-        add_span_bit_counts(ws.transitions_.data(), width, cell_px, row_boundary);
-        add_span_bit_counts(ws.vertical_.data(), width, cell_px, row_boundary);
+        int* const row_boundary = row_vegetation + gw;
+        std::fill(row_vegetation, row_boundary + gw, 0);
+        add_gated_span_bit_counts({ws.either_.data(), vrow, {ws.transitions_.data(), ws.vertical_.data()}}, width,
+                                  cell_px, row_vegetation, row_boundary);
         const std::size_t grid_row = static_cast<std::size_t>(y / cell_px) * gw;
         // Only cells that meet vegetation in either row can count anything.
         std::size_t next_cell = 0;
         for (int w = 0; w < words; ++w) {
-            if ((vrow[w] | below[w]) == 0)
+            if (ws.either_[static_cast<std::size_t>(w)] == 0)
                 continue;
             const std::size_t last_cell = ws.cell_x_[static_cast<std::size_t>(std::min(w * 64 + 63, width - 1))];
             for (std::size_t cx = std::max<std::size_t>(ws.cell_x_[static_cast<std::size_t>(w * 64)], next_cell);
                  cx <= last_cell; ++cx) {
                 CellWorkspace::Sums& s = ws.sums_[grid_row + cx];
                 s.vegetation_px += row_vegetation[cx];
-                if (row_vegetation[cx] != 0 || below_vegetation[cx] != 0)
-                    s.boundary += row_boundary[cx];
+                s.boundary += row_boundary[cx];
             }
             next_cell = last_cell + 1;
         }

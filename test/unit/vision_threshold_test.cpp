@@ -212,43 +212,55 @@ TEST(BitMask, NextBitFindsTheNextSetOrClearBitBeforeTheWidth)
 TEST(BitMask, RangeAndSpanCountsCountEverySetBitOfTheirPixels)
 {
     // Rows of 1 to 3 words, the last one partial or whole, with zero, full
-    // and random words; every range and span size up to past the row.
+    // and random words; every range and span size up to past the row. The
+    // span counts take four such rows: a gate, a counted row and a pair.
     cv::RNG rng(12);
     for (const int width : {1, 63, 64, 65, 150, 192}) {
         const int words = (width + 63) / 64;
         for (int trial = 0; trial < 6; ++trial) {
-            std::vector<std::uint64_t> row(static_cast<std::size_t>(words));
-            for (int w = 0; w < words; ++w) {
-                const std::uint64_t random = (static_cast<std::uint64_t>(rng.next()) << 32) | rng.next();
-                const std::uint64_t kinds[] = {0, ~std::uint64_t{0}, random, random & (random >> 3)};
-                row[static_cast<std::size_t>(w)] = kinds[(trial + w) % 4];
-            }
-            if (width % 64 != 0)
-                row.back() &= (std::uint64_t{1} << (width % 64)) - 1;   // past the width: clear, as BitMask keeps it
-            auto bit = [&](int x) { return static_cast<int>((row[static_cast<std::size_t>(x >> 6)] >> (x & 63)) & 1); };
-            for (int x0 = 0; x0 <= width; ++x0)
-                for (int x1 = x0 - 1; x1 <= width; ++x1) {
-                    long expected = 0;
-                    for (int x = x0; x < x1; ++x)
-                        expected += bit(x);
-                    ASSERT_EQ(count_bits_in_range(row.data(), x0, x1), expected) << width << ": " << x0 << ".." << x1;
+            std::array<std::vector<std::uint64_t>, 4> rows;   // counted, gate, pair
+            for (std::size_t r = 0; r < rows.size(); ++r) {
+                rows[r].resize(static_cast<std::size_t>(words));
+                for (int w = 0; w < words; ++w) {
+                    const std::uint64_t random = (static_cast<std::uint64_t>(rng.next()) << 32) | rng.next();
+                    const std::uint64_t kinds[] = {0, ~std::uint64_t{0}, random, random & (random >> 3)};
+                    rows[r][static_cast<std::size_t>(w)] = kinds[(trial + w + static_cast<int>(r)) % 4];
                 }
+                if (width % 64 != 0)
+                    rows[r].back() &= (std::uint64_t{1} << (width % 64)) - 1;   // past the width: clear, as BitMask keeps it
+            }
+            const std::vector<std::uint64_t>& row = rows[0];
+            auto bits = [&](std::size_t r, int x0, int x1) {
+                int n = 0;
+                for (int x = x0; x < x1; ++x)
+                    n += static_cast<int>((rows[r][static_cast<std::size_t>(x >> 6)] >> (x & 63)) & 1);
+                return n;
+            };
+            for (int x0 = 0; x0 <= width; ++x0)
+                for (int x1 = x0 - 1; x1 <= width; ++x1)
+                    ASSERT_EQ(count_bits_in_range(row.data(), x0, x1), x1 > x0 ? bits(0, x0, x1) : 0)
+                        << width << ": " << x0 << ".." << x1;
             for (int span = 1; span <= width + 1; ++span) {
                 const int spans = (width + span - 1) / span;
-                std::vector<int> counts(static_cast<std::size_t>(spans) + 1, 7);   // added to, one guard past the end
-                add_span_bit_counts(row.data(), width, span, counts.data());
+                // Added to, with one guard past the end.
+                std::vector<int> counts(static_cast<std::size_t>(spans) + 1, 7), pair(counts.size(), 9);
+                add_gated_span_bit_counts({rows[1].data(), row.data(), {rows[2].data(), rows[3].data()}}, width, span,
+                                          counts.data(), pair.data());
                 for (int c = 0; c < spans; ++c) {
-                    int expected = 7;
-                    for (int x = c * span; x < std::min((c + 1) * span, width); ++x)
-                        expected += bit(x);
-                    ASSERT_EQ(counts[static_cast<std::size_t>(c)], expected) << width << ": span " << span << " #" << c;
+                    const int x0 = c * span, x1 = std::min((c + 1) * span, width);
+                    const bool gated = bits(1, x0, x1) > 0;
+                    ASSERT_EQ(counts[static_cast<std::size_t>(c)], 7 + (gated ? bits(0, x0, x1) : 0))
+                        << width << ": span " << span << " #" << c;
+                    ASSERT_EQ(pair[static_cast<std::size_t>(c)], 9 + (gated ? bits(2, x0, x1) + bits(3, x0, x1) : 0))
+                        << width << ": span " << span << " #" << c;
                 }
                 ASSERT_EQ(counts.back(), 7) << width << ": span " << span << " wrote past its last span";
+                ASSERT_EQ(pair.back(), 9) << width << ": span " << span << " wrote past its last span";
             }
         }
     }
     int untouched = 5;
-    add_span_bit_counts(nullptr, 64, 0, &untouched);
+    add_gated_span_bit_counts({nullptr, nullptr, {nullptr, nullptr}}, 64, 0, &untouched, &untouched);
     EXPECT_EQ(untouched, 5);
 }
 

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cstdint>
 #include <vector>
@@ -102,11 +103,20 @@ private:
 long count_bits(const std::uint64_t* words, std::size_t n);
 // The set bits of a row's pixels [x0, x1) (0 when x1 <= x0), counted alike.
 long count_bits_in_range(const std::uint64_t* row, int x0, int x1);
-// Adds to counts[c] the set bits of the row's pixels [c * span_px,
-// min((c + 1) * span_px, width_px)), for every span that starts inside the
-// row (ceil(width_px / span_px) of them): a grid's per-cell counts for one
-// row in one call, counted alike. Nothing when span_px < 1.
-void add_span_bit_counts(const std::uint64_t* row, int width_px, int span_px, int* counts);
+// Rows of one width for add_gated_span_bit_counts().
+struct GatedSpanRows {
+    const std::uint64_t* gate;
+    const std::uint64_t* counted;
+    std::array<const std::uint64_t*, 2> pair;
+};
+// A grid's per-cell counts for one row in one pass, counted alike: for
+// every span of pixels [c * span_px, min((c + 1) * span_px, width_px))
+// (ceil(width_px / span_px) of them) in which `gate` has a set bit, adds
+// the set bits of `counted` there to counts[c] and those of both `pair`
+// rows to pair_counts[c]; other spans are left as they are (a cell's
+// vegetation, and its boundaries where either of two rows has some).
+// Nothing when span_px < 1.
+void add_gated_span_bit_counts(const GatedSpanRows& rows, int width_px, int span_px, int* counts, int* pair_counts);
 
 // An 8-bit mask to bits: a pixel is set when it is nonzero (or zero, for
 // masks that mark vegetation with 0). `out` is resized if needed.

@@ -200,8 +200,8 @@ private:
     int cell_px_ = 1;
     cv::Size grid_;
     std::vector<std::uint16_t> cell_x_;        // grid column of each frame column
-    std::vector<std::uint64_t> transitions_, vertical_;   // one row of bits each
-    std::vector<int> row_counts_;                        // one row's per-cell counts, three to a column
+    std::vector<std::uint64_t> transitions_, vertical_, either_;   // one row of bits each
+    std::vector<int> row_counts_;   // one row's per-cell counts, two to a column
     std::vector<Sums> sums_;
     std::vector<double> integral_fill_, integral_px_, integral_g_, integral_r_, integral_n_;
     std::vector<double> column_fill_, column_px_;
