@@ -30,7 +30,6 @@ constexpr std::array<std::string_view, kPlantFeatureCount> kFeatureNames{
 
 double sq(double v) { return v * v; }
 
-// Zeroes an image row by row: Mat::setTo allocates a scratch buffer.
 // A sampled row of the frame, with the rows above and below it for the
 // gradient.
 struct ColourRows {
@@ -90,6 +89,7 @@ void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, const f
         add(x, here);
 }
 
+// Zeroes an image row by row: Mat::setTo allocates a scratch buffer.
 void clear_rows(cv::Mat& image)
 {
     for (int y = 0; y < image.rows; ++y)
