@@ -3,6 +3,7 @@
 #include "stemd/base/whole_file.hpp"
 #include "stemd/vision/bitmask.hpp"
 #include "stemd/vision/cells.hpp"
+#include "stemd/vision/run_colour.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -29,65 +30,6 @@ constexpr std::array<std::string_view, kPlantFeatureCount> kFeatureNames{
 };
 
 double sq(double v) { return v * v; }
-
-// A sampled row of the frame, with the rows above and below it for the
-// gradient.
-struct ColourRows {
-    const cv::Vec3b* bgr;
-    const cv::Vec3b* up;
-    const cv::Vec3b* down;
-    const std::uint8_t* nir;   // null without a NIR plane
-    int width;
-};
-
-// Colour, brightness, texture and NDVI sums over the vegetation pixels of
-// one closed run of a sampled row, in pixel order.
-struct RunColour {
-    long brightness = 0, gradient = 0;
-    float r = 0, g = 0, b = 0, rr = 0, gg = 0, ndvi = 0, ndvi2 = 0;
-};
-
-// Adds pixels [x_start, x_stop) of `rows` to `c`. Along a run each pixel's
-// R+G+B is its right neighbour's left one: read once, not three times.
-// Built once with and once without NIR, so the pixel loop does not ask.
-template <bool kNir>
-void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, const float* reciprocal, RunColour& c)
-{
-    const cv::Vec3b* bgr = rows.bgr;
-    int left = brightness_sum(bgr[std::max(x_start - 1, 0)]), here = brightness_sum(bgr[x_start]);
-    const auto add = [&](int x, int right) {
-        const cv::Vec3b& p = bgr[x];
-        c.brightness += here;
-        // Reciprocals from a table: a division per pixel and channel
-        // would cost more than the rest of the pass.
-        const float inv = reciprocal[here];
-        const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
-        c.r += r;
-        c.g += g;
-        c.b += static_cast<float>(p[0]) * inv;
-        c.rr += r * r;
-        c.gg += g * g;
-        c.gradient += std::abs(right - left) + std::abs(brightness_sum(rows.down[x]) - brightness_sum(rows.up[x]));
-        if constexpr (kNir) {
-            const int nv = rows.nir[x], red = p[2];
-            const float ndvi = static_cast<float>(nv - red) * reciprocal[nv + red];
-            c.ndvi += ndvi;
-            c.ndvi2 += ndvi * ndvi;
-        }
-    };
-    // Every column but the frame's last has a right neighbour; the last
-    // one's is itself.
-    const int inner_stop = std::min(x_stop, rows.width - 1);
-    int x = x_start;
-    for (; x < inner_stop; ++x) {
-        const int right = brightness_sum(bgr[x + 1]);
-        add(x, right);
-        left = here;
-        here = right;
-    }
-    if (x < x_stop)
-        add(x, here);
-}
 
 // Zeroes an image row by row: Mat::setTo allocates a scratch buffer.
 void clear_rows(cv::Mat& image)
@@ -299,10 +241,7 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
         for (int x_start = sample_row ? next_bit(vrow, words, run_stop, run_start, true) : run_stop;
              x_start < run_stop;) {
             const int x_stop = next_bit(vrow, words, run_stop, x_start, false);   // one past the vegetation run
-            if (nir)
-                add_vegetation_run<true>(rows, x_start, x_stop, ws.reciprocal_.data(), c);
-            else
-                add_vegetation_run<false>(rows, x_start, x_stop, ws.reciprocal_.data(), c);
+            add_vegetation_run(rows, x_start, x_stop, ws.reciprocal_.data(), c);
             sampled_px += x_stop - x_start;
             x_start = next_bit(vrow, words, run_stop, x_stop, true);
         }

@@ -385,7 +385,9 @@ Function pick(Kernel kernel, Function baseline, Function ssse3)
 
 bool kernel_available(Kernel kernel)
 {
-    return kernel == Kernel::baseline || (kernel == Kernel::ssse3 && kSsse3);
+    // Asks the CPU, not kSsse3: other files pick their kernel during static
+    // initialisation, perhaps before this file's.
+    return kernel == Kernel::baseline || (kernel == Kernel::ssse3 && cpu_has_ssse3());
 }
 
 void ndvi(const cv::Mat& bgr, const cv::Mat& nir, cv::Mat& index_u8, Kernel kernel)

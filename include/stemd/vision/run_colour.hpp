@@ -1,0 +1,48 @@
+// The colour, brightness, texture and NDVI sums of a run of vegetation
+// pixels on one row: the inner loop of the plant features.
+#pragma once
+
+#include <cstdint>
+
+#include <opencv2/core/matx.hpp>
+
+#include "stemd/vision/index.hpp"
+
+namespace stemd::vision {
+
+// A row of the frame, with the rows above and below it for the gradient
+// (the row itself where the frame ends).
+struct ColourRows {
+    const cv::Vec3b* bgr;
+    const cv::Vec3b* up;
+    const cv::Vec3b* down;
+    const std::uint8_t* nir;   // null without a NIR plane
+    int width;
+};
+
+// Sums over pixels of a row, each added in pixel order: the float sums
+// are what a model was trained on, so their rounding must not depend on
+// how the loop is written.
+struct RunColour {
+    long brightness = 0;   // R + G + B
+    long gradient = 0;     // |s(x+1) - s(x-1)| + |s(below) - s(above)| of s = R + G + B
+    float r = 0, g = 0, b = 0, rr = 0, gg = 0;   // chromatic R/s, G/s, B/s and squares
+    float ndvi = 0, ndvi2 = 0;                   // (NIR - R) / (NIR + R) and square; 0 without NIR
+};
+
+// The table the scalar path divides by: reciprocal[i] = 1.0f / i for i in
+// [1, 765], reciprocal[0] = 0 (a black pixel has no chromaticity).
+inline constexpr int kColourReciprocals = 3 * 255 + 1;
+
+// Adds pixels [x_start, x_stop) of `rows` to `sums`, 0 <= x_start <= x_stop
+// <= rows.width; a pixel's left and right neighbours beyond the row are
+// the pixel itself. `reciprocal` is the table above. The kernels give the
+// same bits: the SSSE3 one divides where the baseline reads the table
+// (IEEE division rounds both alike) and adds its lanes to the float sums
+// one pixel after the other.
+void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, const float* reciprocal, RunColour& sums);
+// The same with the given implementation; `kernel` must be available.
+void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, const float* reciprocal, RunColour& sums,
+                        Kernel kernel);
+
+}  // namespace stemd::vision
