@@ -20,6 +20,7 @@ void SparseIndexScratch::reserve(int width_px, int height_px)
     state_.assign(tiles, 0);
     queue_.reserve(tiles);
     raw_row_.assign(static_cast<std::size_t>(height_), 0);
+    smoothed_row_.assign(static_cast<std::size_t>(height_), 0);
     row_sums_.assign(static_cast<std::size_t>(width_), 0);
     mask_span_.assign(static_cast<std::size_t>(height_), cv::Range(0, 0));
     computed_ = 0;
@@ -27,7 +28,7 @@ void SparseIndexScratch::reserve(int width_px, int height_px)
 
 std::size_t SparseIndexScratch::reserved_bytes() const
 {
-    return state_.capacity() + queue_.capacity() * sizeof(int) + raw_row_.capacity() +
+    return state_.capacity() + queue_.capacity() * sizeof(int) + raw_row_.capacity() + smoothed_row_.capacity() +
            row_sums_.capacity() * sizeof(std::uint16_t) + mask_span_.capacity() * sizeof(cv::Range);
 }
 
@@ -55,16 +56,30 @@ struct SparseTiles {
     // The raw index the smoothing of tiles [col_begin, col_end) of one tile
     // row reads (their rect and one pixel around it), then the smoothed
     // rect. Runs of neighbouring tiles share one pass: a tile is too narrow
-    // for the work per row to pay alone.
+    // for the work per row to pay alone. Rows already computed across the
+    // frame are not computed again (the same values): the sampled rows and
+    // those beside them, and a full-width run's rows, of which the first
+    // and last are read again by the tile rows above and below.
     void compute_run(int row, int col_begin, int col_end) const
     {
         const int x0 = col_begin * kSparseTilePx, x1 = std::min(col_end * kSparseTilePx, s.width_);
         const int y0 = row * kSparseTilePx, y1 = std::min(y0 + kSparseTilePx, s.height_);
         const int xa = std::max(x0 - 1, 0), xb = std::min(x1 + 1, s.width_);
-        for (int y = std::max(y0 - 1, 0); y <= std::min(y1, s.height_ - 1); ++y)
-            if (!s.raw_row_[static_cast<std::size_t>(y)])
+        const bool whole_rows = xa == 0 && xb == s.width_;
+        for (int y = std::max(y0 - 1, 0); y <= std::min(y1, s.height_ - 1); ++y) {
+            std::uint8_t& done = s.raw_row_[static_cast<std::size_t>(y)];
+            if (!done)
                 raw_span(y, xa, xb);
-        smooth_binomial3_rect(raw, cv::Rect(x0, y0, x1 - x0, y1 - y0), s.row_sums_.data(), index);
+            done = done || whole_rows;
+        }
+        for (int y = y0; y < y1;) {
+            int end = y;
+            while (end < y1 && !s.smoothed_row_[static_cast<std::size_t>(end)])
+                ++end;
+            if (end > y)
+                smooth_binomial3_rect(raw, cv::Rect(x0, y, x1 - x0, end - y), s.row_sums_.data(), index);
+            y = end + 1;   // past a row smoothed already
+        }
     }
 
     // Computes the queued tiles from `begin` on, run by run in raster order.
@@ -142,8 +157,10 @@ int sample_row(int band_start, int height)
 }
 
 // Step 1: every band's sampled row, smoothed from the raw index on it and
-// beside it (those raw rows flagged in raw_row_), and their histogram.
-Histogram sampled_rows(const SparseTiles& tiles, std::uint8_t* raw_row, std::uint16_t* row_sums)
+// beside it (those raw rows flagged in raw_row_; the smoothed rows in
+// smoothed_row unless it is null), and their histogram.
+Histogram sampled_rows(const SparseTiles& tiles, std::uint8_t* raw_row, std::uint16_t* row_sums,
+                       std::uint8_t* smoothed_row)
 {
     const int width = tiles.bgr.cols, height = tiles.bgr.rows;
     PartialHistograms partial;
@@ -155,6 +172,8 @@ Histogram sampled_rows(const SparseTiles& tiles, std::uint8_t* raw_row, std::uin
             raw_row[r] = 1;
         }
         smooth_binomial3_rect(tiles.raw, cv::Rect(0, y, width, 1), row_sums, tiles.index);
+        if (smoothed_row != nullptr)
+            smoothed_row[y] = 1;
         partial.add(tiles.index.ptr<std::uint8_t>(y), width);
     }
     Histogram sampled{};
@@ -176,12 +195,13 @@ int sparse_smoothed_index(const cv::Mat& bgr, RgbIndex kind, const SparseLevel& 
     s.mean_brightness_ = kind == RgbIndex::chromatic_exg ? chromatic_mean_brightness(bgr) : 0.0f;
     std::fill(s.state_.begin(), s.state_.end(), std::uint8_t{0});
     std::fill(s.raw_row_.begin(), s.raw_row_.end(), std::uint8_t{0});
+    std::fill(s.smoothed_row_.begin(), s.smoothed_row_.end(), std::uint8_t{0});
     s.queue_.clear();
     s.computed_ = 0;
     const SparseTiles tiles{bgr, s, raw_u8, index_u8};
 
     // 1. The sampled rows, smoothed, and their histogram.
-    const Histogram sampled = sampled_rows(tiles, s.raw_row_.data(), s.row_sums_.data());
+    const Histogram sampled = sampled_rows(tiles, s.raw_row_.data(), s.row_sums_.data(), s.smoothed_row_.data());
     const bool any_sample = height > 0 && width > 0;
     s.soil_ = soil_mode(sampled);
     if (any_sample) {
@@ -263,8 +283,10 @@ int sparse_smoothed_index(const cv::Mat& bgr, RgbIndex kind, const SparseLevel& 
             const auto band_rows = static_cast<std::uint32_t>(std::min(kSparseRowStep, height - band));
             partial.add(index_u8.ptr<std::uint8_t>(y) + r.x, r.width, band_rows);
         }
-        for (int y = r.y; y < r.y + r.height; ++y)
+        for (int y = r.y; y < r.y + r.height; ++y) {
             std::memset(index_u8.ptr<std::uint8_t>(y) + r.x, soil, static_cast<std::size_t>(r.width));
+            s.smoothed_row_[static_cast<std::size_t>(y)] = 0;   // complete_sparse_index smooths it again
+        }
     }
     partial.sum(histogram);
     return s.level_;
@@ -296,11 +318,14 @@ int keep_greener_than_soil(const cv::Mat& bgr, double sigmas, SparseIndexScratch
     s.kind_ = RgbIndex::chromatic_exg;
     s.mean_brightness_ = chromatic_mean_brightness(bgr);
     std::fill(s.raw_row_.begin(), s.raw_row_.end(), std::uint8_t{0});
+    // Its index is another image: no row of the tiles' index is known
+    // smoothed any more.
+    std::fill(s.smoothed_row_.begin(), s.smoothed_row_.end(), std::uint8_t{0});
     const SparseTiles tiles{bgr, s, raw_u8, index_u8};
 
     // 1. The soil's noise from the sampled rows, as the sparse index reads
     // it: the bar is a statistic of the soil, which every row shows alike.
-    const int bar = soil_noise_threshold(sampled_rows(tiles, s.raw_row_.data(), s.row_sums_.data()), sigmas);
+    const int bar = soil_noise_threshold(sampled_rows(tiles, s.raw_row_.data(), s.row_sums_.data(), nullptr), sigmas);
 
     // 2. Each row's set pixels, first to last.
     const int words = mask.words_per_row();

@@ -210,6 +210,28 @@ TEST(SparseIndex, VegetationInEveryTileGivesExactlyTheWholeFrameResult)
     }
 }
 
+TEST(SparseIndex, CompletingASparseIndexGivesTheWholeFrameResult)
+{
+    // A seedling in one tile (a few tiles computed), and a blade along a
+    // tile row (whole rows of tiles computed, their rows' raw index kept
+    // for the tile rows beside): completed, each is the whole frame's index.
+    cv::Mat seedling = soil_frame({320, 256}, 12);
+    cv::circle(seedling, {150, 100}, 6, kLeaf, cv::FILLED);
+    cv::Mat blade = soil_frame({640, 480}, 31);
+    cv::line(blade, {0, 199}, {639, 206}, kLeaf, 2);
+    for (const cv::Mat* bgr : {&seedling, &blade}) {
+        for (const RgbIndex kind : {RgbIndex::chromatic_exg, RgbIndex::exg}) {
+            const WholeFrame whole(*bgr, kind);
+            Sparse sparse(*bgr, kind);
+            ASSERT_LT(sparse.scratch.computed_tiles(), sparse.scratch.tiles()) << "the frame must leave soil tiles";
+            complete_sparse_index(*bgr, sparse.scratch, sparse.raw, sparse.index, sparse.histogram);
+            EXPECT_EQ(sparse.scratch.computed_tiles(), sparse.scratch.tiles());
+            EXPECT_EQ(cv::norm(whole.index, sparse.index, cv::NORM_INF), 0.0) << bgr->cols << " px wide";
+            EXPECT_EQ(whole.histogram, sparse.histogram);
+        }
+    }
+}
+
 TEST(SparseIndex, BareSoilComputesLittleAndCountsEveryPixel)
 {
     const cv::Mat bgr = soil_frame({640, 480}, 12);

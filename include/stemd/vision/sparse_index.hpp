@@ -80,6 +80,7 @@ private:
     std::vector<std::uint8_t> state_;        // per tile: 0 soil, 1 computed (or queued)
     std::vector<int> queue_;                 // tiles to compute
     std::vector<std::uint8_t> raw_row_;      // per row: raw index computed for the whole row
+    std::vector<std::uint8_t> smoothed_row_; // per row: the index holds the whole row smoothed
     std::vector<std::uint16_t> row_sums_;    // smoothing scratch, one per column
     std::vector<cv::Range> mask_span_;       // per row: first to one past the last set pixel of a mask
 };
