@@ -119,14 +119,35 @@ void extend_to_mixed_edges(const cv::Mat& index_u8, const BitMask& plant, int so
         const std::uint64_t* inside = plant.row(y);
         std::uint64_t* cand = candidates.row(y);
         std::uint64_t* row = out.row(y);
+        // The window [lo, hi] of the last candidate and its sums. Candidates
+        // come left to right and mostly in clusters along a leaf's edge, so
+        // the next window is the last one slid by a few columns: the
+        // columns it leaves and enters cost less than summing it afresh.
+        int lo = 0, hi = -1;
+        long n = 0, s = 0;
         visit_row_bits(
             0, candidates.words_per_row(), [&](int w) { return cand[w] & ~inside[w]; },
             [&](int x) {
-                long n = 0, s = 0;
-                for (int c = std::max(x - r, 0); c <= std::min(x + r, width - 1); ++c) {
-                    n += count[c];
-                    s += sum[c];
+                const int next_lo = std::max(x - r, 0), next_hi = std::min(x + r, width - 1);
+                if (2 * (next_lo - lo) < next_hi - next_lo + 1 && next_lo <= hi) {
+                    for (int c = lo; c < next_lo; ++c) {
+                        n -= count[c];
+                        s -= sum[c];
+                    }
+                    for (int c = hi + 1; c <= next_hi; ++c) {
+                        n += count[c];
+                        s += sum[c];
+                    }
+                } else {
+                    n = 0;
+                    s = 0;
+                    for (int c = next_lo; c <= next_hi; ++c) {
+                        n += count[c];
+                        s += sum[c];
+                    }
                 }
+                lo = next_lo;
+                hi = next_hi;
                 // index > soil + (s / n - soil) / 2, in integers.
                 if (n >= min_plant_px && 2 * n * index[x] > n * soil + s)
                     row[x >> 6] |= std::uint64_t{1} << (x & 63);
