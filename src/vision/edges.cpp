@@ -14,7 +14,7 @@ void EdgeScratch::reserve(int width_px, int height_px)
     const auto width = static_cast<std::size_t>(std::max(width_px, 0));
     count_.assign(width, 0);
     sum_.assign(width, 0);
-    row_mask_.assign(64, 0);  // one word of a row, unpacked
+    row_mask_.assign(128, 0);  // one word of two rows, unpacked
     candidates_.reset(std::max(width_px, 0), std::max(height_px, 0));
 }
 
@@ -33,36 +33,60 @@ constexpr std::array<std::uint64_t, 256> make_unpack_table()
 }
 constexpr std::array<std::uint64_t, 256> kUnpack = make_unpack_table();
 
-// Adds one plant row's pixels (and their index) to the column sums, or
-// takes them away, 64 columns at a time where the row has plant pixels:
-// branch-free inside a word, so the compiler vectorises it.
-void update_columns(const cv::Mat& index_u8, const BitMask& plant, int y, bool add, std::uint16_t* count,
-                    std::uint16_t* sum, std::uint8_t* word_mask)
+// Bit i of `bits` to byte i of `bytes`, 0 or 1.
+void unpack_word(std::uint64_t bits, std::uint8_t* bytes)
 {
-    const std::uint64_t* words = plant.row(y);
-    const std::uint8_t* index = index_u8.ptr<std::uint8_t>(y);
+    for (int k = 0; k < 8; ++k) {
+        const std::uint64_t eight = kUnpack[(bits >> (8 * k)) & 0xFFu];
+        std::memcpy(bytes + 8 * k, &eight, sizeof eight);
+    }
+}
+
+// Slides the column sums down a row: adds row `enter`'s plant pixels (and
+// their index) and takes away row `leave`'s, either -1 for none, in one
+// pass over the 64 columns of each word where either row has plant pixels:
+// branch-free inside a word, so the compiler vectorises it. The 16-bit sums
+// end where adding and taking away one after the other would.
+void slide_columns(const cv::Mat& index_u8, const BitMask& plant, int enter, int leave, std::uint16_t* count,
+                   std::uint16_t* sum, std::uint8_t* word_masks)
+{
+    const std::uint64_t* entering = enter >= 0 ? plant.row(enter) : nullptr;
+    const std::uint64_t* leaving = leave >= 0 ? plant.row(leave) : nullptr;
+    const std::uint8_t* enter_index = enter >= 0 ? index_u8.ptr<std::uint8_t>(enter) : nullptr;
+    const std::uint8_t* leave_index = leave >= 0 ? index_u8.ptr<std::uint8_t>(leave) : nullptr;
+    std::uint8_t* in_mask = word_masks;
+    std::uint8_t* out_mask = word_masks + 64;
     const int width = plant.width();
     for (int w = 0; w < plant.words_per_row(); ++w) {
-        const std::uint64_t bits = words[w];
-        if (bits == 0)
+        const std::uint64_t in = entering != nullptr ? entering[w] : 0;
+        const std::uint64_t out = leaving != nullptr ? leaving[w] : 0;
+        if ((in | out) == 0)
             continue;
-        for (int k = 0; k < 8; ++k) {
-            const std::uint64_t bytes = kUnpack[(bits >> (8 * k)) & 0xFFu];
-            std::memcpy(word_mask + 8 * k, &bytes, sizeof bytes);
-        }
         const int x0 = w * 64, n = std::min(64, width - x0);
         std::uint16_t* c = count + x0;
         std::uint16_t* s = sum + x0;
-        const std::uint8_t* v = index + x0;
-        if (add) {
+        if (out == 0) {
+            unpack_word(in, in_mask);
+            const std::uint8_t* v = enter_index + x0;
             for (int i = 0; i < n; ++i) {
-                c[i] = static_cast<std::uint16_t>(c[i] + word_mask[i]);
-                s[i] = static_cast<std::uint16_t>(s[i] + word_mask[i] * v[i]);
+                c[i] = static_cast<std::uint16_t>(c[i] + in_mask[i]);
+                s[i] = static_cast<std::uint16_t>(s[i] + in_mask[i] * v[i]);
+            }
+        } else if (in == 0) {
+            unpack_word(out, out_mask);
+            const std::uint8_t* v = leave_index + x0;
+            for (int i = 0; i < n; ++i) {
+                c[i] = static_cast<std::uint16_t>(c[i] - out_mask[i]);
+                s[i] = static_cast<std::uint16_t>(s[i] - out_mask[i] * v[i]);
             }
         } else {
+            unpack_word(in, in_mask);
+            unpack_word(out, out_mask);
+            const std::uint8_t* v_in = enter_index + x0;
+            const std::uint8_t* v_out = leave_index + x0;
             for (int i = 0; i < n; ++i) {
-                c[i] = static_cast<std::uint16_t>(c[i] - word_mask[i]);
-                s[i] = static_cast<std::uint16_t>(s[i] - word_mask[i] * v[i]);
+                c[i] = static_cast<std::uint16_t>(c[i] + in_mask[i] - out_mask[i]);
+                s[i] = static_cast<std::uint16_t>(s[i] + in_mask[i] * v_in[i] - out_mask[i] * v_out[i]);
             }
         }
     }
@@ -101,18 +125,16 @@ void extend_to_mixed_edges(const cv::Mat& index_u8, const BitMask& plant, int so
     // Column sums over rows [y - r, y + r], slid down one row at a time.
     long window_pixels = 0;
     for (int y = 0; y < std::min(r, height); ++y) {
-        update_columns(index_u8, plant, y, true, count, sum, row_mask);
+        slide_columns(index_u8, plant, y, -1, count, sum, row_mask);
         window_pixels += row_count(plant, y);
     }
     for (int y = 0; y < height; ++y) {
-        if (y + r < height) {
-            update_columns(index_u8, plant, y + r, true, count, sum, row_mask);
-            window_pixels += row_count(plant, y + r);
-        }
-        if (y - r - 1 >= 0) {
-            update_columns(index_u8, plant, y - r - 1, false, count, sum, row_mask);
-            window_pixels -= row_count(plant, y - r - 1);
-        }
+        const int enter = y + r < height ? y + r : -1, leave = y - r - 1;
+        slide_columns(index_u8, plant, enter, leave, count, sum, row_mask);
+        if (enter >= 0)
+            window_pixels += row_count(plant, enter);
+        if (leave >= 0)
+            window_pixels -= row_count(plant, leave);
         if (window_pixels < min_plant_px)
             continue;  // too little plant within reach of this row
         const std::uint8_t* index = index_u8.ptr<std::uint8_t>(y);

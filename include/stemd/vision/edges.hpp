@@ -27,7 +27,7 @@ private:
     friend void extend_to_mixed_edges(const cv::Mat&, const BitMask&, int, int, int, BitMask&, EdgeScratch&);
     std::vector<std::uint16_t> count_;    // per column: plant pixels in the window's rows (<= 101)
     std::vector<std::uint16_t> sum_;      // per column: their index sum (<= 101 * 255)
-    std::vector<std::uint8_t> row_mask_;  // 64 plant pixels as 0/1 bytes
+    std::vector<std::uint8_t> row_mask_;  // 64 plant pixels of two rows as 0/1 bytes
     BitMask candidates_;                  // index above the floor, outside the plant
 };
 

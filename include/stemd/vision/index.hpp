@@ -14,9 +14,10 @@
 
 namespace stemd::vision {
 
-// The implementations of the chromatic index, NDVI and the leaf-colour
-// test: the build's baseline (x86-64: SSE2, through OpenCV's universal
-// intrinsics) and, on x86-64 CPUs that have it, SSSE3, whose byte shuffle
+// The implementations of the chromatic index, NDVI, the leaf-colour test
+// and a plant's colour sums (vision/run_colour): the build's baseline
+// (x86-64: SSE2, through OpenCV's universal intrinsics) and, on x86-64
+// CPUs that have it, SSSE3, whose byte shuffle
 // picks a channel out of packed BGR in one instruction. The functions
 // without a Kernel argument run the best the CPU has, picked once at
 // start; the build itself stays at the baseline, as the robot's CPU is not
