@@ -1,6 +1,7 @@
 #include "stemd/vision/cells.hpp"
 
 #include "stemd/vision/bitmask.hpp"
+#include "stemd/vision/run_colour.hpp"
 #include "stemd/vision/stem.hpp"
 
 #include <algorithm>
@@ -217,9 +218,6 @@ CellWorkspace::CellWorkspace(cv::Size frame_size, double gsd_mm_per_px, double c
     in_part_.resize(n);
     part_stack_.resize(n);
     cover_d2_.resize(n);
-    reciprocal_[0] = 0;
-    for (std::size_t i = 1; i < reciprocal_.size(); ++i)
-        reciprocal_[i] = 1.0f / static_cast<float>(i);
 }
 
 void cell_features(const FrameView& frame, const Params& /*params*/, const Workspace& dws, const Detections& det,
@@ -302,7 +300,7 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
                 const cv::Vec3b& p = bgr[x];
                 const int sum = brightness_sum(p);
                 s.brightness += static_cast<float>(sum);
-                const float inv = ws.reciprocal_[static_cast<std::size_t>(sum)];
+                const float inv = kColourReciprocal[static_cast<std::size_t>(sum)];
                 const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
                 s.r += r;
                 s.g += g;
@@ -316,7 +314,7 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
                 s.sxy += gx * gy;
                 if (nir) {
                     const int nv = nir[x], red = p[2];
-                    const float ndvi = static_cast<float>(nv - red) * ws.reciprocal_[static_cast<std::size_t>(nv + red)];
+                    const float ndvi = static_cast<float>(nv - red) * kColourReciprocal[static_cast<std::size_t>(nv + red)];
                     s.ndvi += ndvi;
                     s.ndvi2 += ndvi * ndvi;
                 }

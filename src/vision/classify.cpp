@@ -127,9 +127,6 @@ ClassifyWorkspace::ClassifyWorkspace(cv::Size frame_size, const Params&)
     plant_index_.create(height, width, CV_16UC1);
     clear_rows(plant_index_);
     written_.assign(static_cast<std::size_t>(height), cv::Range(0, 0));
-    reciprocal_[0] = 0;   // a black pixel has no chromaticity: counted as 0
-    for (std::size_t i = 1; i < reciprocal_.size(); ++i)
-        reciprocal_[i] = 1.0f / static_cast<float>(i);
 }
 
 double sampled_frame_brightness(const cv::Mat& bgr)
@@ -241,7 +238,7 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
         for (int x_start = sample_row ? next_bit(vrow, words, run_stop, run_start, true) : run_stop;
              x_start < run_stop;) {
             const int x_stop = next_bit(vrow, words, run_stop, x_start, false);   // one past the vegetation run
-            add_vegetation_run(rows, x_start, x_stop, ws.reciprocal_.data(), c);
+            add_vegetation_run(rows, x_start, x_stop, c);
             sampled_px += x_stop - x_start;
             x_start = next_bit(vrow, words, run_stop, x_stop, true);
         }

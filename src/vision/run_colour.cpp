@@ -6,8 +6,6 @@
 
 #include <opencv2/core.hpp>
 
-#include "stemd/vision/classify.hpp"
-
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define STEMD_HAVE_SSSE3_KERNELS 1
 #include <tmmintrin.h>
@@ -21,7 +19,7 @@ namespace {
 // once, not three times. Built once with and once without NIR, so the
 // pixel loop does not ask.
 template <bool kNir>
-void add_run_baseline(const ColourRows& rows, int x_start, int x_stop, const float* reciprocal, RunColour& c)
+void add_run_baseline(const ColourRows& rows, int x_start, int x_stop, RunColour& c)
 {
     if (x_start >= x_stop)
         return;
@@ -30,9 +28,7 @@ void add_run_baseline(const ColourRows& rows, int x_start, int x_stop, const flo
     const auto add = [&](int x, int right) {
         const cv::Vec3b& p = bgr[x];
         c.brightness += here;
-        // Reciprocals from a table: a division per pixel and channel
-        // would cost more than the rest of the pass.
-        const float inv = reciprocal[here];
+        const float inv = kColourReciprocal[static_cast<std::size_t>(here)];
         const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
         c.r += r;
         c.g += g;
@@ -42,7 +38,7 @@ void add_run_baseline(const ColourRows& rows, int x_start, int x_stop, const flo
         c.gradient += std::abs(right - left) + std::abs(brightness_sum(rows.down[x]) - brightness_sum(rows.up[x]));
         if constexpr (kNir) {
             const int nv = rows.nir[x], red = p[2];
-            const float ndvi = static_cast<float>(nv - red) * reciprocal[nv + red];
+            const float ndvi = static_cast<float>(nv - red) * kColourReciprocal[static_cast<std::size_t>(nv + red)];
             c.ndvi += ndvi;
             c.ndvi2 += ndvi * ndvi;
         }
@@ -174,8 +170,7 @@ __attribute__((target("ssse3"))) inline void add_step(const ColourRows& rows, in
 }
 
 template <bool kNir>
-__attribute__((target("ssse3"))) void add_run_ssse3(const ColourRows& rows, int x_start, int x_stop,
-                                                     const float* reciprocal, RunColour& c)
+__attribute__((target("ssse3"))) void add_run_ssse3(const ColourRows& rows, int x_start, int x_stop, RunColour& c)
 {
     // A step at x adds pixels x..x+3 (or fewer, the run's last) and reads
     // the left neighbour x-1 and, 16 bytes from pixel x+4, the next step's
@@ -184,10 +179,10 @@ __attribute__((target("ssse3"))) void add_run_ssse3(const ColourRows& rows, int 
     int x = std::max(x_start, 1);
     const int last_step = rows.width - 10;
     if (x >= x_stop || x > last_step) {
-        add_run_baseline<kNir>(rows, x_start, x_stop, reciprocal, c);
+        add_run_baseline<kNir>(rows, x_start, x_stop, c);
         return;
     }
-    add_run_baseline<kNir>(rows, x_start, x, reciprocal, c);
+    add_run_baseline<kNir>(rows, x_start, x, c);
 
     Ssse3Run s;
     s.centre = four_pixels(rows.bgr + x);
@@ -219,48 +214,48 @@ __attribute__((target("ssse3"))) void add_run_ssse3(const ColourRows& rows, int 
     }
     c.brightness += lane_sum(s.brightness);
     c.gradient += lane_sum(s.gradient);
-    add_run_baseline<kNir>(rows, x, x_stop, reciprocal, c);
+    add_run_baseline<kNir>(rows, x, x_stop, c);
 }
 
 // Picked once at start, never on the frame path.
 const bool kSsse3 = kernel_available(Kernel::ssse3);
 #else
 template <bool kNir>
-void add_run_ssse3(const ColourRows& rows, int x_start, int x_stop, const float* reciprocal, RunColour& c)
+void add_run_ssse3(const ColourRows& rows, int x_start, int x_stop, RunColour& c)
 {
-    add_run_baseline<kNir>(rows, x_start, x_stop, reciprocal, c);
+    add_run_baseline<kNir>(rows, x_start, x_stop, c);
 }
 const bool kSsse3 = false;
 #endif
 
-void add_run(const ColourRows& rows, int x_start, int x_stop, const float* reciprocal, RunColour& sums, Kernel kernel)
+void add_run(const ColourRows& rows, int x_start, int x_stop, RunColour& sums, Kernel kernel)
 {
     if (kernel == Kernel::ssse3) {
         if (rows.nir != nullptr)
-            add_run_ssse3<true>(rows, x_start, x_stop, reciprocal, sums);
+            add_run_ssse3<true>(rows, x_start, x_stop, sums);
         else
-            add_run_ssse3<false>(rows, x_start, x_stop, reciprocal, sums);
+            add_run_ssse3<false>(rows, x_start, x_stop, sums);
     } else {
         if (rows.nir != nullptr)
-            add_run_baseline<true>(rows, x_start, x_stop, reciprocal, sums);
+            add_run_baseline<true>(rows, x_start, x_stop, sums);
         else
-            add_run_baseline<false>(rows, x_start, x_stop, reciprocal, sums);
+            add_run_baseline<false>(rows, x_start, x_stop, sums);
     }
 }
 
 }  // namespace
 
-void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, const float* reciprocal, RunColour& sums,
+void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, RunColour& sums,
                         Kernel kernel)
 {
     CV_Assert(kernel_available(kernel));
     CV_Assert(0 <= x_start && x_start <= x_stop && x_stop <= rows.width);
-    add_run(rows, x_start, x_stop, reciprocal, sums, kernel);
+    add_run(rows, x_start, x_stop, sums, kernel);
 }
 
-void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, const float* reciprocal, RunColour& sums)
+void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, RunColour& sums)
 {
-    add_run(rows, x_start, x_stop, reciprocal, sums, kSsse3 ? Kernel::ssse3 : Kernel::baseline);
+    add_run(rows, x_start, x_stop, sums, kSsse3 ? Kernel::ssse3 : Kernel::baseline);
 }
 
 }  // namespace stemd::vision

@@ -13,14 +13,6 @@
 namespace stemd::vision {
 namespace {
 
-std::array<float, kColourReciprocals> reciprocals()
-{
-    std::array<float, kColourReciprocals> table{};
-    for (int i = 1; i < kColourReciprocals; ++i)
-        table[static_cast<std::size_t>(i)] = 1.0f / static_cast<float>(i);
-    return table;
-}
-
 // Three rows and a NIR row, each its own allocation of exactly `width`
 // pixels, so that a sanitizer build catches a read past a row's end.
 struct Rows {
@@ -86,10 +78,20 @@ void expect_same_bits(const RunColour& a, const RunColour& b, const char* where)
             << where << " sum " << i << ": " << floats[i].first << " vs " << floats[i].second;
 }
 
+TEST(RunColour, TheReciprocalTableHoldsWhatDivisionGivesAtRunTime)
+{
+    // volatile: the divisions below run on this machine, not in the compiler.
+    volatile float one = 1.0f;
+    EXPECT_EQ(kColourReciprocal[0], 0.0f);
+    for (int i = 1; i < kColourReciprocals; ++i)
+        ASSERT_EQ(std::bit_cast<std::uint32_t>(kColourReciprocal[static_cast<std::size_t>(i)]),
+                  std::bit_cast<std::uint32_t>(one / static_cast<float>(i)))
+            << "1 / " << i;
+}
+
 TEST(RunColour, SumsFollowTheirDefinitionsWithTheRowEndsAsTheirOwnNeighbours)
 {
     cv::RNG rng(5);
-    const auto table = reciprocals();
     for (const int width : {1, 2, 5, 23}) {
         const Rows rows = random_rows(width, rng);
         for (const bool with_nir : {false, true}) {
@@ -123,7 +125,7 @@ TEST(RunColour, SumsFollowTheirDefinitionsWithTheRowEndsAsTheirOwnNeighbours)
                 if (!kernel_available(kernel))
                     continue;
                 RunColour c;
-                add_vegetation_run(rows.view(with_nir), 0, width, table.data(), c, kernel);
+                add_vegetation_run(rows.view(with_nir), 0, width, c, kernel);
                 EXPECT_EQ(c.brightness, brightness) << "width " << width;
                 EXPECT_EQ(c.gradient, gradient) << "width " << width;
                 EXPECT_NEAR(c.r, r, 1e-4) << "width " << width;
@@ -143,7 +145,6 @@ TEST(RunColour, KernelsGiveTheSameBitsForEveryRun)
     if (!kernel_available(Kernel::ssse3))
         GTEST_SKIP() << "this CPU lacks SSSE3: only the baseline runs here";
     cv::RNG rng(17);
-    const auto table = reciprocals();
     char where[96];
     // Every run of rows up to 40 pixels wide, around the four-pixel steps,
     // the step's look-ahead and the row's ends.
@@ -154,8 +155,8 @@ TEST(RunColour, KernelsGiveTheSameBitsForEveryRun)
                 for (int x_stop = x_start; x_stop <= width; ++x_stop) {
                     const RunColour earlier = earlier_runs(rng);
                     RunColour baseline = earlier, vector = earlier;
-                    add_vegetation_run(rows.view(with_nir), x_start, x_stop, table.data(), baseline, Kernel::baseline);
-                    add_vegetation_run(rows.view(with_nir), x_start, x_stop, table.data(), vector, Kernel::ssse3);
+                    add_vegetation_run(rows.view(with_nir), x_start, x_stop, baseline, Kernel::baseline);
+                    add_vegetation_run(rows.view(with_nir), x_start, x_stop, vector, Kernel::ssse3);
                     std::snprintf(where, sizeof where, "width %d, run [%d, %d), nir %d", width, x_start, x_stop,
                                   int{with_nir});
                     expect_same_bits(baseline, vector, where);
@@ -171,9 +172,8 @@ TEST(RunColour, KernelsGiveTheSameBitsForEveryRun)
         const bool with_nir = (k & 1) != 0;
         const RunColour earlier = earlier_runs(rng);
         RunColour baseline = earlier, vector = earlier;
-        add_vegetation_run(rows.view(with_nir), std::min(a, b), std::max(a, b), table.data(), baseline,
-                           Kernel::baseline);
-        add_vegetation_run(rows.view(with_nir), std::min(a, b), std::max(a, b), table.data(), vector, Kernel::ssse3);
+        add_vegetation_run(rows.view(with_nir), std::min(a, b), std::max(a, b), baseline, Kernel::baseline);
+        add_vegetation_run(rows.view(with_nir), std::min(a, b), std::max(a, b), vector, Kernel::ssse3);
         std::snprintf(where, sizeof where, "width %d, run [%d, %d), nir %d", width, std::min(a, b), std::max(a, b),
                       int{with_nir});
         expect_same_bits(baseline, vector, where);

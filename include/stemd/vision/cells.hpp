@@ -229,7 +229,6 @@ private:
     std::vector<std::uint8_t> in_part_;
     std::vector<std::uint32_t> part_stack_;
     std::vector<float> cover_d2_;
-    std::array<float, 3 * 255 + 1> reciprocal_{};
 };
 
 // The rows of every cell holding vegetation. `detect_workspace`,

@@ -116,7 +116,6 @@ private:
     std::array<FeatureRow, kMaxPlants> features_{};
     std::size_t plants_ = 0;
     float frame_brightness_ = 0;
-    std::array<float, 3 * 255 + 1> reciprocal_{};   // 1 / (R + G + B), also 1 / (NIR + R)
 };
 
 // The features of every plant `detections` holds. `detect_workspace` and
@@ -126,11 +125,6 @@ private:
 // present (NDVI features), else they are 0.
 void plant_features(const FrameView& frame, const Params& params, const Workspace& detect_workspace,
                     const Detections& detections, ClassifyWorkspace& workspace);
-
-// A pixel's R+G+B: the brightness that the colour features divide by and
-// the texture features differentiate, for the plant and the cell features
-// alike.
-inline int brightness_sum(const cv::Vec3b& bgr) { return bgr[0] + bgr[1] + bgr[2]; }
 
 // The frame's mean R+G+B over every 4th pixel of every 4th row (at least
 // 1): the classifier's brightness normaliser, as its models were trained.

@@ -2,6 +2,7 @@
 // pixels on one row: the inner loop of the plant features.
 #pragma once
 
+#include <array>
 #include <cstdint>
 
 #include <opencv2/core/matx.hpp>
@@ -30,19 +31,31 @@ struct RunColour {
     float ndvi = 0, ndvi2 = 0;                   // (NIR - R) / (NIR + R) and square; 0 without NIR
 };
 
-// The table the scalar path divides by: reciprocal[i] = 1.0f / i for i in
-// [1, 765], reciprocal[0] = 0 (a black pixel has no chromaticity).
+// A pixel's R+G+B: the brightness that the colour features divide by and
+// the texture features differentiate, for the plant and the cell features
+// alike.
+inline int brightness_sum(const cv::Vec3b& bgr) { return bgr[0] + bgr[1] + bgr[2]; }
+
+// What the scalar paths divide by: kColourReciprocal[i] = 1.0f / i for i
+// in [1, 765] (an R+G+B, or a NIR+R), and [0] = 0, since a black pixel has
+// no chromaticity. A division per pixel and channel would cost more than
+// the rest of a pass. The compiler rounds each entry as IEEE division
+// does at run time.
 inline constexpr int kColourReciprocals = 3 * 255 + 1;
+inline constexpr std::array<float, kColourReciprocals> kColourReciprocal = [] {
+    std::array<float, kColourReciprocals> table{};
+    for (int i = 1; i < kColourReciprocals; ++i)
+        table[static_cast<std::size_t>(i)] = 1.0f / static_cast<float>(i);
+    return table;
+}();
 
 // Adds pixels [x_start, x_stop) of `rows` to `sums`, 0 <= x_start <= x_stop
 // <= rows.width; a pixel's left and right neighbours beyond the row are
-// the pixel itself. `reciprocal` is the table above. The kernels give the
-// same bits: the SSSE3 one divides where the baseline reads the table
-// (IEEE division rounds both alike) and adds its lanes to the float sums
-// one pixel after the other.
-void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, const float* reciprocal, RunColour& sums);
+// the pixel itself. The kernels give the same bits: the SSSE3 one divides
+// where the baseline reads kColourReciprocal (IEEE division rounds both
+// alike) and adds its lanes to the float sums one pixel after the other.
+void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, RunColour& sums);
 // The same with the given implementation; `kernel` must be available.
-void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, const float* reciprocal, RunColour& sums,
-                        Kernel kernel);
+void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, RunColour& sums, Kernel kernel);
 
 }  // namespace stemd::vision
