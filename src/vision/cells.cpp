@@ -1,7 +1,6 @@
 #include "stemd/vision/cells.hpp"
 
 #include "stemd/vision/bitmask.hpp"
-#include "stemd/vision/run_colour.hpp"
 #include "stemd/vision/stem.hpp"
 
 #include <algorithm>
@@ -191,6 +190,7 @@ CellWorkspace::CellWorkspace(cv::Size frame_size, double gsd_mm_per_px, double c
     either_.resize(transitions_.size());
     row_counts_.resize(2 * static_cast<std::size_t>(grid_.width));
     sums_.resize(n);
+    samples_.resize(n);
     const std::size_t integral = static_cast<std::size_t>(grid_.width + 1) * static_cast<std::size_t>(grid_.height + 1);
     for (auto* v : {&integral_fill_, &integral_px_, &integral_g_, &integral_r_, &integral_n_})
         v->resize(integral);
@@ -237,12 +237,12 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
     const bool has_nir = !frame.nir.empty() && frame.nir.size() == ws.frame_size_ && frame.nir.type() == CV_8UC1;
     const auto features = plants.features();
     std::fill(ws.sums_.begin(), ws.sums_.end(), CellWorkspace::Sums{});
+    std::fill(ws.samples_.begin(), ws.samples_.end(), CellSamples{});
 
     // One pass over every other row (the features are means and ratios:
     // half the rows estimate them well). Vegetation and boundary counts by
     // bit counts per cell; colour, gradients and the plant vote on every
-    // fourth vegetation pixel of the row.
-    constexpr std::uint64_t kEveryFourth = 0x1111111111111111ull;
+    // fourth vegetation pixel of the row (add_cell_samples()).
     for (int y = 0; y + 1 < height; y += 2) {
         const std::uint64_t* vrow = vegetation.row(y);
         const std::uint64_t* below = vegetation.row(y + 1);
@@ -292,42 +292,8 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
         const auto* bgr_down = frame.bgr.ptr<cv::Vec3b>(y + 1);
         const std::uint8_t* nir = has_nir ? frame.nir.ptr<std::uint8_t>(y) : nullptr;
         const auto* index = plants.plant_index().ptr<std::uint16_t>(y);
-        visit_row_bits(
-            0, words, [&](int w) { return vrow[w] & kEveryFourth; },
-            [&](int x) {
-                CellWorkspace::Sums& s = ws.sums_[grid_row + ws.cell_x_[static_cast<std::size_t>(x)]];
-                ++s.sampled_px;
-                const cv::Vec3b& p = bgr[x];
-                const int sum = brightness_sum(p);
-                s.brightness += static_cast<float>(sum);
-                const float inv = kColourReciprocal[static_cast<std::size_t>(sum)];
-                const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
-                s.r += r;
-                s.g += g;
-                s.rr += r * r;
-                s.gg += g * g;
-                const auto gx = static_cast<float>(brightness_sum(bgr[std::min(x + 1, width - 1)]) - brightness_sum(bgr[std::max(x - 1, 0)]));
-                const auto gy = static_cast<float>(brightness_sum(bgr_down[x]) - brightness_sum(bgr_up[x]));
-                s.gradient += std::abs(gx) + std::abs(gy);
-                s.sxx += gx * gx;
-                s.syy += gy * gy;
-                s.sxy += gx * gy;
-                if (nir) {
-                    const int nv = nir[x], red = p[2];
-                    const float ndvi = static_cast<float>(nv - red) * kColourReciprocal[static_cast<std::size_t>(nv + red)];
-                    s.ndvi += ndvi;
-                    s.ndvi2 += ndvi * ndvi;
-                }
-                // Boyer-Moore majority vote: the plant most of the cell's
-                // pixels belong to, in constant memory.
-                const std::uint16_t id = index[x];
-                if (s.plant_count == 0) {
-                    s.plant_vote = id;
-                    s.plant_count = 1;
-                } else {
-                    s.plant_count = static_cast<std::uint16_t>(s.plant_count + (s.plant_vote == id ? 1 : -1));
-                }
-            });
+        add_cell_samples({bgr, bgr_up, bgr_down, nir, width}, vrow, ws.cell_x_.data(), index,
+                         ws.samples_.data() + grid_row);
     }
 
     // The frame's mean R+G+B as plant_features() measured it; a frame with
@@ -343,9 +309,10 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
     const int stride = grid.width + 1;
     fill_integrals<4>({&ws.integral_fill_, &ws.integral_g_, &ws.integral_r_, &ws.integral_n_}, grid,
                       [&](std::size_t i, int, int) {
-                          const CellWorkspace::Sums& s = ws.sums_[i];
-                          return std::array<double, 4>{static_cast<double>(s.vegetation_px), static_cast<double>(s.g),
-                                                       static_cast<double>(s.r), static_cast<double>(s.sampled_px)};
+                          const CellSamples& c = ws.samples_[i];
+                          return std::array<double, 4>{static_cast<double>(ws.sums_[i].vegetation_px),
+                                                       static_cast<double>(c.g), static_cast<double>(c.r),
+                                                       static_cast<double>(c.sampled_px)};
                       });
     double frame_fill = 0, frame_px = 0;
     for (int gx = 0; gx < grid.width; ++gx) {
@@ -388,12 +355,14 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
     }
     // The frame's vegetation as a whole.
     double veg_n = 0, veg_r = 0, veg_g = 0, veg_brightness = 0, veg_gradient = 0, veg_px = 0, veg_boundary = 0;
+    for (const CellSamples& c : ws.samples_) {
+        veg_n += c.sampled_px;
+        veg_r += c.r;
+        veg_g += c.g;
+        veg_brightness += c.brightness;
+        veg_gradient += c.gradient;
+    }
     for (const CellWorkspace::Sums& s : ws.sums_) {
-        veg_n += s.sampled_px;
-        veg_r += s.r;
-        veg_g += s.g;
-        veg_brightness += s.brightness;
-        veg_gradient += s.gradient;
         veg_px += s.vegetation_px;
         veg_boundary += s.boundary;
     }
@@ -408,26 +377,27 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
 
     for (std::size_t i = 0; i < n; ++i) {
         const CellWorkspace::Sums& s = ws.sums_[i];
-        if (s.sampled_px == 0)
+        const CellSamples& c = ws.samples_[i];
+        if (c.sampled_px == 0)
             continue;
         const int gx = static_cast<int>(i % static_cast<std::size_t>(grid.width));
         const int gy = static_cast<int>(i / static_cast<std::size_t>(grid.width));
         CellRow& f = ws.rows_[i];
-        const float count = static_cast<float>(s.sampled_px);
-        const float r = s.r / count, g = s.g / count;
-        const float brightness = s.brightness / count;
+        const float count = static_cast<float>(c.sampled_px);
+        const float r = c.r / count, g = c.g / count;
+        const float brightness = c.brightness / count;
         f[c_fill] = static_cast<float>(s.vegetation_px / std::max(sampled_cell_px(gx, gy, cell_px, ws.frame_size_), 1.0));
         f[c_r_mean] = r;
         f[c_g_mean] = g;
-        f[c_r_std] = std::sqrt(std::max(0.0f, s.rr / count - r * r));
-        f[c_g_std] = std::sqrt(std::max(0.0f, s.gg / count - g * g));
+        f[c_r_std] = std::sqrt(std::max(0.0f, c.rr / count - r * r));
+        f[c_g_std] = std::sqrt(std::max(0.0f, c.gg / count - g * g));
         f[c_brightness_rel] = static_cast<float>(brightness / frame_brightness);
-        f[c_texture] = s.gradient / count / std::max(brightness, 1.0f);
-        const float trace = s.sxx + s.syy;
-        f[c_coherence] = trace > 0 ? std::sqrt((s.sxx - s.syy) * (s.sxx - s.syy) + 4 * s.sxy * s.sxy) / trace : 0.0f;
-        f[c_orientation] = trace > 0 ? (s.sxx - s.syy) / trace : 0.0f;
-        f[c_ndvi_mean] = has_nir ? s.ndvi / count : 0.0f;
-        f[c_ndvi_std] = has_nir ? std::sqrt(std::max(0.0f, s.ndvi2 / count - f[c_ndvi_mean] * f[c_ndvi_mean])) : 0.0f;
+        f[c_texture] = c.gradient / count / std::max(brightness, 1.0f);
+        const float trace = c.sxx + c.syy;
+        f[c_coherence] = trace > 0 ? std::sqrt((c.sxx - c.syy) * (c.sxx - c.syy) + 4 * c.sxy * c.sxy) / trace : 0.0f;
+        f[c_orientation] = trace > 0 ? (c.sxx - c.syy) / trace : 0.0f;
+        f[c_ndvi_mean] = has_nir ? c.ndvi / count : 0.0f;
+        f[c_ndvi_std] = has_nir ? std::sqrt(std::max(0.0f, c.ndvi2 / count - f[c_ndvi_mean] * f[c_ndvi_mean])) : 0.0f;
         f[c_width_mm] = static_cast<float>(2.0 * s.vegetation_px / std::max(s.boundary, 1) * ws.gsd_);
         for (std::size_t k = 0; k < ring.size(); ++k) {
             const int x0 = std::max(gx - ring[k], 0), x1 = std::min(gx + ring[k], grid.width - 1);
@@ -444,7 +414,7 @@ void cell_features(const FrameView& frame, const Params& /*params*/, const Works
         f[c_band_density] = static_cast<float>(band_density(gx));
         f[c_row_offset_mm] = static_cast<float>(std::abs(gx - row_x) * ws.cell_mm_);
         f[c_lateral] = static_cast<float>((gx + 0.5) * cell_px / std::max(width, 1));
-        const std::uint16_t id = s.plant_vote;
+        const std::uint16_t id = c.plant_vote;
         const bool in_plant = id > 0 && id <= features.size() && id <= det.plants.size();
         f[c_in_plant] = in_plant ? 1.0f : 0.0f;
         ws.plant_[i] = in_plant ? id : 0;
@@ -558,7 +528,7 @@ std::size_t classify_cells(const PlantClassifier& model, CellWorkspace& ws, cons
         for (int y = std::max(gy - radius, 0); y <= std::min(gy + radius, gh - 1); ++y)
             for (int x = std::max(gx - radius, 0); x <= std::min(gx + radius, gw - 1); ++x) {
                 const std::size_t j = static_cast<std::size_t>(y) * static_cast<std::size_t>(gw) + static_cast<std::size_t>(x);
-                if (ws.sums_[j].sampled_px == 0 || !ws.in_budget_[j])
+                if (ws.samples_[j].sampled_px == 0 || !ws.in_budget_[j])
                     continue;
                 const float w = ws.rows_[j][c_fill];
                 sum += w * ws.raw_[j];
@@ -666,7 +636,7 @@ WeedTargetCounts add_weed_parts(CellWorkspace& ws, const WeedTargetParams& param
         for (int ny = std::max(cy - reach, 0); ny <= std::min(cy + reach, gh - 1); ++ny)
             for (int nx = std::max(cx - reach, 0); nx <= std::min(cx + reach, gw - 1); ++nx) {
                 const std::size_t n = static_cast<std::size_t>(ny) * static_cast<std::size_t>(gw) + static_cast<std::size_t>(nx);
-                if (ws.sums_[n].sampled_px == 0 || weed_cell(n))
+                if (ws.samples_[n].sampled_px == 0 || weed_cell(n))
                     continue;
                 // Distance to the cell's square (pixel edges at -0.5).
                 const double left = nx * cell_px - 0.5, top_edge = ny * cell_px - 0.5;

@@ -1,6 +1,8 @@
 #include "stemd/vision/run_colour.hpp"
 
 #include <algorithm>
+#include <bit>
+#include <cstddef>
 #include <cstdlib>
 #include <cstring>
 
@@ -55,6 +57,78 @@ void add_run_baseline(const ColourRows& rows, int x_start, int x_stop, RunColour
     }
     if (x < x_stop)
         add(x, here);
+}
+
+// The pixels add_cell_samples() takes: x % 4 == 0.
+constexpr std::uint64_t kEveryFourth = 0x1111111111111111ull;
+
+// Boyer-Moore majority vote: the plant most of the cell's samples belong
+// to, in constant memory.
+inline void vote(std::uint16_t plant, std::uint16_t& leader, std::uint16_t& count)
+{
+    if (count == 0) {
+        leader = plant;
+        count = 1;
+    } else {
+        count = static_cast<std::uint16_t>(count + (leader == plant ? 1 : -1));
+    }
+}
+
+// The samples with x in [x_start, x_stop). A cell's samples come one after
+// another along the row, so its sums stay in a local copy (registers)
+// until the next cell's sample, not a load and a store per sum and sample.
+template <bool kNir>
+void add_samples_baseline(const ColourRows& rows, const std::uint64_t* vegetation, int x_start, int x_stop,
+                          const std::uint16_t* cell_of, const std::uint16_t* plant_of, CellSamples* cells)
+{
+    if (x_start >= x_stop)
+        return;
+    const int width = rows.width;
+    const cv::Vec3b* bgr = rows.bgr;
+    std::size_t current = cell_of[x_start];
+    CellSamples s = cells[current];
+    for (int w = x_start >> 6; w <= (x_stop - 1) >> 6; ++w) {
+        const int base = w * 64;
+        std::uint64_t bits = vegetation[w] & kEveryFourth;
+        if (x_start > base)
+            bits &= ~std::uint64_t{0} << (x_start - base);
+        if (x_stop - base < 64)
+            bits &= (std::uint64_t{1} << (x_stop - base)) - 1;
+        for (; bits != 0; bits &= bits - 1) {
+            const int x = base + std::countr_zero(bits);
+            const std::size_t cell = cell_of[x];
+            if (cell != current) {
+                cells[current] = s;
+                current = cell;
+                s = cells[cell];
+            }
+            ++s.sampled_px;
+            const cv::Vec3b& p = bgr[x];
+            const int sum = brightness_sum(p);
+            s.brightness += static_cast<float>(sum);
+            const float inv = kColourReciprocal[static_cast<std::size_t>(sum)];
+            const float r = static_cast<float>(p[2]) * inv, g = static_cast<float>(p[1]) * inv;
+            s.r += r;
+            s.g += g;
+            s.rr += r * r;
+            s.gg += g * g;
+            const auto gx = static_cast<float>(brightness_sum(bgr[std::min(x + 1, width - 1)]) -
+                                               brightness_sum(bgr[std::max(x - 1, 0)]));
+            const auto gy = static_cast<float>(brightness_sum(rows.down[x]) - brightness_sum(rows.up[x]));
+            s.gradient += std::abs(gx) + std::abs(gy);
+            s.sxx += gx * gx;
+            s.syy += gy * gy;
+            s.sxy += gx * gy;
+            if constexpr (kNir) {
+                const int nv = rows.nir[x], red = p[2];
+                const float ndvi = static_cast<float>(nv - red) * kColourReciprocal[static_cast<std::size_t>(nv + red)];
+                s.ndvi += ndvi;
+                s.ndvi2 += ndvi * ndvi;
+            }
+            vote(plant_of[x], s.plant_vote, s.plant_count);
+        }
+    }
+    cells[current] = s;
 }
 
 #if defined(STEMD_HAVE_SSSE3_KERNELS)
@@ -217,6 +291,164 @@ __attribute__((target("ssse3"))) void add_run_ssse3(const ColourRows& rows, int 
     add_run_baseline<kNir>(rows, x, x_stop, c);
 }
 
+// The vector kernel reads r..gg and brightness..syy as one vector each.
+static_assert(offsetof(CellSamples, gg) == offsetof(CellSamples, r) + 3 * sizeof(float));
+static_assert(offsetof(CellSamples, syy) == offsetof(CellSamples, brightness) + 3 * sizeof(float));
+
+// The sums of the cell that add_cell_samples_ssse3 is adding to, in
+// vectors: (r, g, rr, gg), (brightness, gradient, sxx, syy) and
+// (sxy, ndvi, ndvi2, unused).
+struct Ssse3Cell {
+    CellSamples* cells;
+    std::size_t current;
+    __m128 colour, texture, rest;
+    int sampled_px;
+    std::uint16_t plant_vote, plant_count;
+};
+
+__attribute__((target("ssse3"))) inline void load_cell(Ssse3Cell& c, std::size_t cell)
+{
+    const CellSamples& s = c.cells[cell];
+    c.current = cell;
+    c.colour = _mm_loadu_ps(&s.r);
+    c.texture = _mm_loadu_ps(&s.brightness);
+    c.rest = _mm_setr_ps(s.sxy, s.ndvi, s.ndvi2, 0.0f);
+    c.sampled_px = s.sampled_px;
+    c.plant_vote = s.plant_vote;
+    c.plant_count = s.plant_count;
+}
+
+__attribute__((target("ssse3"))) inline void store_cell(const Ssse3Cell& c)
+{
+    CellSamples& s = c.cells[c.current];
+    _mm_storeu_ps(&s.r, c.colour);
+    _mm_storeu_ps(&s.brightness, c.texture);
+    alignas(16) float rest[4];
+    _mm_store_ps(rest, c.rest);
+    s.sxy = rest[0];
+    s.ndvi = rest[1];
+    s.ndvi2 = rest[2];
+    s.sampled_px = c.sampled_px;
+    s.plant_vote = c.plant_vote;
+    s.plant_count = c.plant_count;
+}
+
+// Pixels p[0], p[4], p[8] and p[12] as 32-bit lanes of bytes (B, G, R, 0);
+// reads 40 bytes.
+__attribute__((target("ssse3"))) inline __m128i every_fourth_pixel(const cv::Vec3b* p)
+{
+    const auto* bytes = reinterpret_cast<const std::uint8_t*>(p);
+    const __m128i first = _mm_loadu_si128(reinterpret_cast<const __m128i*>(bytes));        // pixels 0 and 4
+    const __m128i second = _mm_loadu_si128(reinterpret_cast<const __m128i*>(bytes + 24));  // pixels 8 and 12
+    return _mm_or_si128(
+        _mm_shuffle_epi8(first, _mm_setr_epi8(0, 1, 2, -1, 12, 13, 14, -1, -1, -1, -1, -1, -1, -1, -1, -1)),
+        _mm_shuffle_epi8(second, _mm_setr_epi8(-1, -1, -1, -1, -1, -1, -1, -1, 0, 1, 2, -1, 12, 13, 14, -1)));
+}
+
+// The samples x0, x0+4, x0+8 and x0+12 whose bits (0, 4, 8, 12) are set in
+// `samples`; 1 <= x0 <= width - 17, as pixels x0-1 .. x0+16 are read. The
+// four samples' values are computed side by side, then a 4 x 4 transpose
+// gives each sample's as vectors that are added to the cell's sums one
+// sample after the other, so no sum is reassociated.
+template <bool kNir>
+__attribute__((target("ssse3"))) inline void add_sample_group(const ColourRows& rows, int x0, unsigned samples,
+                                                              const std::uint16_t* cell_of,
+                                                              const std::uint16_t* plant_of, Ssse3Cell& cell)
+{
+    const cv::Vec3b* p = rows.bgr + x0;
+    // Lanes j of pk: pixel x0 + 4k - 1 + j; transposed, each sample's
+    // left neighbour, itself and its right neighbour.
+    const __m128i p0 = four_pixels(p - 1), p1 = four_pixels(p + 3), p2 = four_pixels(p + 7), p3 = four_pixels(p + 11);
+    const __m128i low01 = _mm_unpacklo_epi32(p0, p1), low23 = _mm_unpacklo_epi32(p2, p3);
+    const __m128i high01 = _mm_unpackhi_epi32(p0, p1), high23 = _mm_unpackhi_epi32(p2, p3);
+    const __m128i centre = _mm_unpackhi_epi64(low01, low23);
+    const __m128i left = brightness_of(_mm_unpacklo_epi64(low01, low23));
+    const __m128i right = brightness_of(_mm_unpacklo_epi64(high01, high23));
+    const __m128i above = brightness_of(every_fourth_pixel(rows.up + x0));
+    const __m128i below = brightness_of(every_fourth_pixel(rows.down + x0));
+    const __m128i red = _mm_srli_epi32(centre, 16);   // byte 3 is 0
+
+    __m128 brightness = _mm_cvtepi32_ps(brightness_of(centre));
+    const __m128 inv = reciprocal_of(brightness);
+    __m128 r = _mm_mul_ps(_mm_cvtepi32_ps(red), inv);
+    __m128 g = _mm_mul_ps(_mm_cvtepi32_ps(_mm_and_si128(_mm_srli_epi32(centre, 8), _mm_set1_epi32(0xff))), inv);
+    __m128 rr = _mm_mul_ps(r, r);
+    __m128 gg = _mm_mul_ps(g, g);
+    const __m128 gx = _mm_cvtepi32_ps(_mm_sub_epi32(right, left));
+    const __m128 gy = _mm_cvtepi32_ps(_mm_sub_epi32(below, above));
+    const __m128 magnitude = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+    __m128 gradient = _mm_add_ps(_mm_and_ps(gx, magnitude), _mm_and_ps(gy, magnitude));
+    __m128 sxx = _mm_mul_ps(gx, gx);
+    __m128 syy = _mm_mul_ps(gy, gy);
+    __m128 sxy = _mm_mul_ps(gx, gy);
+    // Without NIR the NDVI lanes add 0, which leaves their sums (0) as
+    // they are.
+    __m128 ndvi = _mm_setzero_ps(), ndvi2 = _mm_setzero_ps(), unused = _mm_setzero_ps();
+    if constexpr (kNir) {
+        const __m128i nir = _mm_shuffle_epi8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(rows.nir + x0)),
+                                             _mm_setr_epi8(0, -1, -1, -1, 4, -1, -1, -1, 8, -1, -1, -1, 12, -1, -1, -1));
+        ndvi = _mm_mul_ps(_mm_cvtepi32_ps(_mm_sub_epi32(nir, red)),
+                          reciprocal_of(_mm_cvtepi32_ps(_mm_add_epi32(nir, red))));
+        ndvi2 = _mm_mul_ps(ndvi, ndvi);
+    }
+    _MM_TRANSPOSE4_PS(r, g, rr, gg);                      // now samples 0, 1, 2, 3
+    _MM_TRANSPOSE4_PS(brightness, gradient, sxx, syy);
+    _MM_TRANSPOSE4_PS(sxy, ndvi, ndvi2, unused);
+    const auto add = [&](int k, __m128 colour, __m128 texture, __m128 rest) {
+        if (((samples >> (4 * k)) & 1u) == 0)
+            return;
+        const int x = x0 + 4 * k;
+        const std::size_t target = cell_of[x];
+        if (target != cell.current) {
+            store_cell(cell);
+            load_cell(cell, target);
+        }
+        cell.colour = _mm_add_ps(cell.colour, colour);
+        cell.texture = _mm_add_ps(cell.texture, texture);
+        cell.rest = _mm_add_ps(cell.rest, rest);
+        ++cell.sampled_px;
+        vote(plant_of[x], cell.plant_vote, cell.plant_count);
+    };
+    add(0, r, brightness, sxy);
+    add(1, g, gradient, ndvi);
+    add(2, rr, sxx, ndvi2);
+    add(3, gg, syy, unused);
+}
+
+template <bool kNir>
+__attribute__((target("ssse3"))) void add_samples_ssse3(const ColourRows& rows, const std::uint64_t* vegetation,
+                                                         const std::uint16_t* cell_of, const std::uint16_t* plant_of,
+                                                         CellSamples* cells)
+{
+    // Groups of 16 pixels from x0 = 16 while x0 <= width - 17; the row's
+    // first 16 pixels and those after the last group go through the
+    // baseline, in order.
+    const int width = rows.width;
+    const int last_group = width - 17;
+    if (last_group < 16) {
+        add_samples_baseline<kNir>(rows, vegetation, 0, width, cell_of, plant_of, cells);
+        return;
+    }
+    add_samples_baseline<kNir>(rows, vegetation, 0, 16, cell_of, plant_of, cells);
+    Ssse3Cell cell{cells, 0, {}, {}, {}, 0, 0, 0};
+    load_cell(cell, cell_of[16]);
+    int x0 = 16;
+    for (; x0 <= last_group; x0 += 16) {
+        const std::uint64_t word = vegetation[x0 >> 6] & kEveryFourth;
+        if (word == 0) {
+            x0 |= 48;   // the word's last group: the next step starts the next word
+            continue;
+        }
+        const auto samples = static_cast<unsigned>(word >> (x0 & 63)) & 0x1111u;
+        if (samples != 0)
+            add_sample_group<kNir>(rows, x0, samples, cell_of, plant_of, cell);
+    }
+    store_cell(cell);
+    // x0 is past the last group (or the last word's, where it held no
+    // sample): the rest of the row.
+    add_samples_baseline<kNir>(rows, vegetation, x0, width, cell_of, plant_of, cells);
+}
+
 // Picked once at start, never on the frame path.
 const bool kSsse3 = kernel_available(Kernel::ssse3);
 #else
@@ -224,6 +456,12 @@ template <bool kNir>
 void add_run_ssse3(const ColourRows& rows, int x_start, int x_stop, RunColour& c)
 {
     add_run_baseline<kNir>(rows, x_start, x_stop, c);
+}
+template <bool kNir>
+void add_samples_ssse3(const ColourRows& rows, const std::uint64_t* vegetation, const std::uint16_t* cell_of,
+                       const std::uint16_t* plant_of, CellSamples* cells)
+{
+    add_samples_baseline<kNir>(rows, vegetation, 0, rows.width, cell_of, plant_of, cells);
 }
 const bool kSsse3 = false;
 #endif
@@ -243,10 +481,25 @@ void add_run(const ColourRows& rows, int x_start, int x_stop, RunColour& sums, K
     }
 }
 
+void add_samples(const ColourRows& rows, const std::uint64_t* vegetation, const std::uint16_t* cell_of,
+                 const std::uint16_t* plant_of, CellSamples* cells, Kernel kernel)
+{
+    if (kernel == Kernel::ssse3) {
+        if (rows.nir != nullptr)
+            add_samples_ssse3<true>(rows, vegetation, cell_of, plant_of, cells);
+        else
+            add_samples_ssse3<false>(rows, vegetation, cell_of, plant_of, cells);
+    } else {
+        if (rows.nir != nullptr)
+            add_samples_baseline<true>(rows, vegetation, 0, rows.width, cell_of, plant_of, cells);
+        else
+            add_samples_baseline<false>(rows, vegetation, 0, rows.width, cell_of, plant_of, cells);
+    }
+}
+
 }  // namespace
 
-void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, RunColour& sums,
-                        Kernel kernel)
+void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, RunColour& sums, Kernel kernel)
 {
     CV_Assert(kernel_available(kernel));
     CV_Assert(0 <= x_start && x_start <= x_stop && x_stop <= rows.width);
@@ -256,6 +509,20 @@ void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, RunColo
 void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, RunColour& sums)
 {
     add_run(rows, x_start, x_stop, sums, kSsse3 ? Kernel::ssse3 : Kernel::baseline);
+}
+
+void add_cell_samples(const ColourRows& rows, const std::uint64_t* vegetation, const std::uint16_t* cell_of,
+                      const std::uint16_t* plant_of, CellSamples* cells, Kernel kernel)
+{
+    CV_Assert(kernel_available(kernel));
+    CV_Assert(rows.width >= 0);
+    add_samples(rows, vegetation, cell_of, plant_of, cells, kernel);
+}
+
+void add_cell_samples(const ColourRows& rows, const std::uint64_t* vegetation, const std::uint16_t* cell_of,
+                      const std::uint16_t* plant_of, CellSamples* cells)
+{
+    add_samples(rows, vegetation, cell_of, plant_of, cells, kSsse3 ? Kernel::ssse3 : Kernel::baseline);
 }
 
 }  // namespace stemd::vision

@@ -20,6 +20,7 @@
 #include "stemd/base/plant_class.hpp"
 #include "stemd/vision/classify.hpp"
 #include "stemd/vision/detect.hpp"
+#include "stemd/vision/run_colour.hpp"
 
 namespace stemd::vision {
 
@@ -190,9 +191,7 @@ private:
     friend WeedTargetCounts add_weed_parts(CellWorkspace&, const WeedTargetParams&, Detections&,
                                            std::span<PlantClass>, std::span<float>);
     struct Sums {
-        int vegetation_px, sampled_px, boundary;   // on the sampled rows
-        float r, g, rr, gg, brightness, gradient, sxx, syy, sxy, ndvi, ndvi2;
-        std::uint16_t plant_vote, plant_count;     // majority vote of the sampled pixels' plants
+        int vegetation_px, boundary;   // on the sampled rows
     };
     cv::Size frame_size_;
     double gsd_ = 1;
@@ -203,6 +202,7 @@ private:
     std::vector<std::uint64_t> transitions_, vertical_, either_;   // one row of bits each
     std::vector<int> row_counts_;   // one row's per-cell counts, two to a column
     std::vector<Sums> sums_;
+    std::vector<CellSamples> samples_;   // every fourth vegetation pixel of the sampled rows
     std::vector<double> integral_fill_, integral_px_, integral_g_, integral_r_, integral_n_;
     std::vector<double> column_fill_, column_px_;
     std::vector<CellRow> rows_;

@@ -1,5 +1,6 @@
-// The colour, brightness, texture and NDVI sums of a run of vegetation
-// pixels on one row: the inner loop of the plant features.
+// The colour, brightness, texture and NDVI sums of vegetation pixels on
+// one row: the inner loops of the plant features (a run of pixels) and of
+// the cell features (every fourth pixel, each to its cell).
 #pragma once
 
 #include <array>
@@ -57,5 +58,30 @@ inline constexpr std::array<float, kColourReciprocals> kColourReciprocal = [] {
 void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, RunColour& sums);
 // The same with the given implementation; `kernel` must be available.
 void add_vegetation_run(const ColourRows& rows, int x_start, int x_stop, RunColour& sums, Kernel kernel);
+
+// The sums over a cell's sampled pixels. Each float sum takes its samples
+// in pixel order, row after row, as add_cell_samples() adds them: a model
+// was trained on these roundings.
+struct CellSamples {
+    int sampled_px = 0;
+    float r = 0, g = 0, rr = 0, gg = 0;                // chromatic R/s, G/s and squares, s = R + G + B
+    float brightness = 0, gradient = 0;                // s; |gx| + |gy|
+    float sxx = 0, syy = 0, sxy = 0;                   // gx*gx, gy*gy, gx*gy: the structure tensor
+    float ndvi = 0, ndvi2 = 0;                         // (NIR - R) / (NIR + R) and square; 0 without NIR
+    std::uint16_t plant_vote = 0, plant_count = 0;     // Boyer-Moore majority vote of the samples' plants
+};
+
+// Adds the samples of a row to their cells: each pixel x with x % 4 == 0
+// whose bit is set in `vegetation` (the row's bits, 64 pixels a word, none
+// set past rows.width) goes to cells[cell_of[x]], voting for the plant
+// plant_of[x]. gx = s(x+1) - s(x-1) and gy = s(below) - s(above), with a
+// row's end its own neighbour. The kernels give the same bits: the SSSE3
+// one takes four samples a step and adds them to the sums one after the
+// other.
+void add_cell_samples(const ColourRows& rows, const std::uint64_t* vegetation, const std::uint16_t* cell_of,
+                      const std::uint16_t* plant_of, CellSamples* cells);
+// The same with the given implementation; `kernel` must be available.
+void add_cell_samples(const ColourRows& rows, const std::uint64_t* vegetation, const std::uint16_t* cell_of,
+                      const std::uint16_t* plant_of, CellSamples* cells, Kernel kernel);
 
 }  // namespace stemd::vision
