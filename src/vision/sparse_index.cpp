@@ -181,6 +181,25 @@ Histogram sampled_rows(const SparseTiles& tiles, std::uint8_t* raw_row, std::uin
     return sampled;
 }
 
+// The histogram of the whole index once every tile is computed, given
+// the sampled rows' (step 1): only the other rows are counted. The
+// sampled rows keep the values step 1 counted, as no tile smooths them
+// again, so this equals compute_histogram() on the index.
+void whole_histogram(const cv::Mat& index_u8, const Histogram& sampled, Histogram& out)
+{
+    const int width = index_u8.cols, height = index_u8.rows;
+    PartialHistograms partial;
+    for (int band = 0; band < height; band += kSparseRowStep) {
+        const int sampled_y = sample_row(band, height);
+        for (int y = band; y < std::min(band + kSparseRowStep, height); ++y)
+            if (y != sampled_y)
+                partial.add(index_u8.ptr<std::uint8_t>(y), width);
+    }
+    partial.sum(out);
+    for (std::size_t v = 0; v < out.size(); ++v)
+        out[v] += sampled[v];
+}
+
 }  // namespace
 
 int sparse_smoothed_index(const cv::Mat& bgr, RgbIndex kind, const SparseLevel& level, int reach_px,
@@ -246,6 +265,10 @@ int sparse_smoothed_index(const cv::Mat& bgr, RgbIndex kind, const SparseLevel& 
                 if (any)
                     tiles.queue(row * s.cols_ + col);
             }
+            // Enough found for every tile to be computed (below): the
+            // rest of the scan would change nothing.
+            if (3 * static_cast<int>(s.queue_.size()) >= s.tiles())
+                break;
         }
     }
     // Vegetation in a third of the tiles or more: growing would reach most
@@ -266,7 +289,7 @@ int sparse_smoothed_index(const cv::Mat& bgr, RgbIndex kind, const SparseLevel& 
     // 3. Soil tiles: their sampled rows stand for their bands in the
     // histogram, then they take the soil level.
     if (s.computed_ == s.tiles()) {
-        compute_histogram(index_u8, histogram);
+        whole_histogram(index_u8, sampled, histogram);
         return s.level_;
     }
     PartialHistograms partial;

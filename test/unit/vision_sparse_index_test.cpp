@@ -197,16 +197,20 @@ TEST(ChromaticExcessGreenSpan, TheScalarPathGivesTheVectorPathsValueForEveryColo
 
 TEST(SparseIndex, VegetationInEveryTileGivesExactlyTheWholeFrameResult)
 {
-    // Grass-like green stripes across every tile, crossing every sampled row.
-    cv::Mat bgr = soil_frame({300, 200}, 11);
-    for (int x = 10; x < bgr.cols; x += 30)
-        cv::line(bgr, {x, 0}, {x + 20, bgr.rows - 1}, kLeaf, 3);
-    for (const RgbIndex kind : {RgbIndex::chromatic_exg, RgbIndex::exg}) {
-        const WholeFrame whole(bgr, kind);
-        const Sparse sparse(bgr, kind);
-        EXPECT_EQ(sparse.scratch.computed_tiles(), sparse.scratch.tiles());
-        EXPECT_EQ(cv::norm(whole.index, sparse.index, cv::NORM_INF), 0.0);
-        EXPECT_EQ(whole.histogram, sparse.histogram);
+    // Grass-like green stripes across every tile, crossing every sampled
+    // row; a height of whole bands of sampled rows, and one whose last band
+    // is shorter (sampled at the frame's last row).
+    for (const cv::Size size : {cv::Size(300, 200), cv::Size(301, 195)}) {
+        cv::Mat bgr = soil_frame(size, 11);
+        for (int x = 10; x < bgr.cols; x += 30)
+            cv::line(bgr, {x, 0}, {x + 20, bgr.rows - 1}, kLeaf, 3);
+        for (const RgbIndex kind : {RgbIndex::chromatic_exg, RgbIndex::exg}) {
+            const WholeFrame whole(bgr, kind);
+            const Sparse sparse(bgr, kind);
+            EXPECT_EQ(sparse.scratch.computed_tiles(), sparse.scratch.tiles()) << size;
+            EXPECT_EQ(cv::norm(whole.index, sparse.index, cv::NORM_INF), 0.0) << size;
+            EXPECT_EQ(whole.histogram, sparse.histogram) << size;
+        }
     }
 }
 
