@@ -1,6 +1,8 @@
-// stemd-eval: scores stem detections and vegetation masks against ground truth.
+// stemd-eval: scores stem detections, vegetation masks, crop/weed class maps and
+// TARGET commands against ground truth.
 //   stemd-eval GT.csv PRED.csv [--tol-mm MM] [--gsd-mm-per-px MM] [--json]
 //   stemd-eval --iou PRED_MASK_DIR RECORDING_DIR [--gt-vegetation nonzero|zero] [--json]
+//   stemd-eval --classes PRED_CLASS_DIR RECORDING_DIR [--json]
 //   stemd-eval --sweep GT.csv RECORDING_DIR [--config FILE] [--set KEY=VALUE]... [--radii 1,6,10,20]
 //              [--tol-mm MM] [--json]
 //   stemd-eval --targets PLANTS.csv CAN_LOG [--config FILE] [--set KEY=VALUE]... [--tol-mm MM]
@@ -49,6 +51,7 @@ constexpr int kError = 2;  // bad arguments, unreadable or malformed input
 const char* const kUsage =
     "usage: stemd-eval GT.csv PRED.csv [--tol-mm MM] [--gsd-mm-per-px MM] [--json]\n"
     "       stemd-eval --iou PRED_MASK_DIR RECORDING_DIR [--gt-vegetation nonzero|zero] [--json]\n"
+    "       stemd-eval --classes PRED_CLASS_DIR RECORDING_DIR [--json]\n"
     "Stems (default mode): matches detected stems to ground truth one-to-one per image,\n"
     "closest pairs first; a detection within --tol-mm of a true stem is correct.\n"
     "  GT.csv           ground truth, columns image,x,y (stems.csv: image,x,y,kind,leaves)\n"
@@ -66,6 +69,13 @@ const char* const kUsage =
     "  --gt-vegetation  ground-truth vegetation pixels: nonzero (default) or zero (CWFID\n"
     "                   masks, which mark soil 255)\n"
     "  prints each frame's IoU and the mean\n"
+    "Class maps (--classes): per pixel of the annotated vegetation, for every frame of\n"
+    "RECORDING_DIR that has a class path (0 soil, 1 crop, 2 weed; other values are not\n"
+    "scored): crop recall, weed recall and their mean, the balanced accuracy, over all\n"
+    "the frames' pixels together (as stemd-train reports it) and per frame. A pixel the\n"
+    "map calls soil (not segmented, or left unclassified) is right for neither class.\n"
+    "  PRED_CLASS_DIR   class maps as stemd-detect --class-out writes them (0 soil, 1 crop,\n"
+    "                   2 weed), named like --iou's masks\n"
     "Sweep (--sweep): runs the detector over RECORDING_DIR for each closing radius m with\n"
     "the centre of mass and the paper's method (its 10 px cut, exactly parallel pairs\n"
     "skipped), plus the configured robust estimator at its own radius, and prints recall,\n"
@@ -90,7 +100,7 @@ const char* const kUsage =
     "All: --json prints one line of JSON instead of the text summary.\n"
     "Exit status: 0 done, 1 --require-exact failed, 2 bad arguments or unreadable/malformed input.\n";
 
-enum class Mode { stems, iou, sweep, targets };
+enum class Mode { stems, iou, classes, sweep, targets };
 enum class Vegetation { nonzero, zero };
 
 struct Args {
@@ -118,6 +128,7 @@ struct ModeSpec {
 const ModeSpec kModes[] = {
     {Mode::stems, nullptr, "GT.csv PRED.csv", {"--tol-mm", "--gsd-mm-per-px", "--json"}},
     {Mode::iou, "--iou", "PRED_MASK_DIR RECORDING_DIR", {"--gt-vegetation", "--json"}},
+    {Mode::classes, "--classes", "PRED_CLASS_DIR RECORDING_DIR", {"--json"}},
     {Mode::sweep, "--sweep", "GT.csv RECORDING_DIR", {"--tol-mm", "--json", "--config", "--set", "--radii"}},
     {Mode::targets, "--targets", "PLANTS.csv CAN_LOG",
      {"--tol-mm", "--json", "--config", "--set", "--treat", "--min-radius-mm", "--require-exact"}},
@@ -193,7 +204,8 @@ std::optional<int> parse_args(int argc, char** argv, Args& args)
     CLI::App app{"stemd-eval"};
     std::string treat = "all", gt_vegetation = "nonzero";
     const auto positive = tools::value_check<double>("a number > 0", [](double v) { return v > 0; });
-    CLI::Option* const mode_flags[] = {app.add_flag("--iou"), app.add_flag("--sweep"), app.add_flag("--targets")};
+    CLI::Option* const mode_flags[] = {app.add_flag("--iou"), app.add_flag("--classes"), app.add_flag("--sweep"),
+                                       app.add_flag("--targets")};
     app.add_option("--tol-mm", args.tol_mm)->check(positive);
     app.add_option("--gsd-mm-per-px", args.gsd_mm_per_px)->check(positive);
     app.add_option("--min-radius-mm", args.min_radius_mm)->check(positive);
@@ -209,7 +221,7 @@ std::optional<int> parse_args(int argc, char** argv, Args& args)
     args.treat_weeds_only = treat == "weeds";
     args.gt_vegetation = gt_vegetation == "zero" ? Vegetation::zero : Vegetation::nonzero;
     // The last mode flag given chooses the mode; check_mode refuses the others.
-    const Mode modes[] = {Mode::iou, Mode::sweep, Mode::targets};
+    const Mode modes[] = {Mode::iou, Mode::classes, Mode::sweep, Mode::targets};
     for (const CLI::Option* option : app.parse_order())
         for (std::size_t m = 0; m < std::size(modes); ++m)
             if (option == mode_flags[m])
@@ -305,16 +317,53 @@ int run_stems(const Args& args)
     return kOk;
 }
 
-// --- iou ---------------------------------------------------------------------
+// --- iou and classes ---------------------------------------------------------
+
+// stemd-detect names a frame by its rgb path (its mask path without rgb) and
+// writes its mask and class map as <that file name>.png.
+std::string frame_name(const io::RecordingFrame& f)
+{
+    return !f.rgb.empty() ? f.rgb : f.mask;
+}
+
+fs::path prediction_path(const fs::path& dir, const io::RecordingFrame& f)
+{
+    return dir / fs::path(frame_name(f)).filename().replace_extension(".png");
+}
+
+// The recording of --iou and --classes, once their prediction folder is
+// found to be one; nullopt with `error` otherwise.
+std::optional<io::Recording> read_scored_recording(const Args& args, std::string& error)
+{
+    std::error_code ec;
+    if (!fs::is_directory(args.positional[0], ec)) {
+        error = args.positional[0] + ": not a directory";
+        return std::nullopt;
+    }
+    return io::read_recording(args.positional[1], error);
+}
+
+// Frame f's prediction and its ground truth (`truth`, a path of the
+// recording) as 8-bit grey images; false with `error`.
+bool load_scored_pair(const fs::path& pred_dir, const io::Recording& rec, const io::RecordingFrame& f,
+                      const std::string& truth, cv::Mat& pred, cv::Mat& gt, std::string& error)
+{
+    if (!io::load_image(prediction_path(pred_dir, f), cv::IMREAD_GRAYSCALE, pred, error)) {
+        error = "prediction " + error;
+        return false;
+    }
+    if (!io::load_image(rec.resolve(truth), cv::IMREAD_GRAYSCALE, gt, error)) {
+        error = "ground truth " + error;
+        return false;
+    }
+    return true;
+}
 
 int run_iou(const Args& args)
 {
     const fs::path pred_dir = args.positional[0];
     std::string error;
-    std::error_code ec;
-    if (!fs::is_directory(pred_dir, ec))
-        return fail(pred_dir.string() + ": not a directory");
-    const auto rec = io::read_recording(args.positional[1], error);
+    const auto rec = read_scored_recording(args, error);
     if (!rec)
         return fail(error);
 
@@ -328,22 +377,16 @@ int run_iou(const Args& args)
     for (const io::RecordingFrame& f : rec->frames) {
         if (f.mask.empty())
             continue;
-        // stemd-detect names a frame by its rgb path (its mask path without rgb)
-        // and writes its mask as <that file name>.png.
-        const std::string& name = !f.rgb.empty() ? f.rgb : f.mask;
-        const fs::path pred_path = pred_dir / fs::path(name).filename().replace_extension(".png");
-        if (!io::load_image(pred_path, cv::IMREAD_GRAYSCALE, pred, error))
-            return fail("prediction " + error);
-        if (!io::load_image(rec->resolve(f.mask), cv::IMREAD_GRAYSCALE, gt, error))
-            return fail("ground truth " + error);
+        if (!load_scored_pair(pred_dir, *rec, f, f.mask, pred, gt, error))
+            return fail(error);
         if (args.gt_vegetation == Vegetation::zero)
             cv::compare(gt, 0, gt_vegetation, cv::CMP_EQ);
         else
             gt_vegetation = gt;
         const auto r = eval::mask_iou(pred, gt_vegetation, error);
         if (!r)
-            return fail(pred_path.string() + " vs " + rec->resolve(f.mask).string() + ": " + error);
-        results.push_back({name, *r});
+            return fail(prediction_path(pred_dir, f).string() + " vs " + rec->resolve(f.mask).string() + ": " + error);
+        results.push_back({frame_name(f), *r});
     }
     if (results.empty())
         return fail((rec->dir / "frames.csv").string() + ": no frame has a mask path, nothing to evaluate");
@@ -367,6 +410,72 @@ int run_iou(const Args& args)
                   << " px, union " << r.iou.union_px << " px)\n";
     std::cout << "mean IoU " << fixed(mean, 4) << " over " << results.size() << " frames (min "
               << fixed(worst->iou.iou, 4) << ": " << worst->name << ")\n";
+    return kOk;
+}
+
+int run_classes(const Args& args)
+{
+    const fs::path pred_dir = args.positional[0];
+    std::string error;
+    const auto rec = read_scored_recording(args, error);
+    if (!rec)
+        return fail(error);
+
+    // Everything is computed before anything is printed: an error leaves stdout empty.
+    struct FrameScore {
+        std::string name;
+        eval::ClassScore score;
+    };
+    std::vector<FrameScore> results;
+    eval::ClassScore all;
+    cv::Mat pred, truth;
+    for (const io::RecordingFrame& f : rec->frames) {
+        if (f.plant_class.empty())
+            continue;
+        if (!load_scored_pair(pred_dir, *rec, f, f.plant_class, pred, truth, error))
+            return fail(error);
+        const auto r = eval::class_map_score(pred, truth, error);
+        if (!r)
+            return fail(prediction_path(pred_dir, f).string() + " vs " + rec->resolve(f.plant_class).string() + ": " +
+                        error);
+        results.push_back({frame_name(f), *r});
+        all += *r;
+    }
+    if (results.empty())
+        return fail((rec->dir / "frames.csv").string() + ": no frame has a class path, nothing to evaluate");
+
+    const FrameScore* worst = &results.front();
+    for (const FrameScore& r : results)
+        if (r.score.balanced_accuracy() < worst->score.balanced_accuracy())
+            worst = &r;
+    const auto share = [](long part, long whole) {
+        return whole > 0 ? static_cast<double>(part) / static_cast<double>(whole) : 0.0;
+    };
+    if (args.json) {
+        print_json({{"frames", results.size()},
+                    {"crop_px", all.crop_px},
+                    {"weed_px", all.weed_px},
+                    {"crop_recall", json_number(all.crop_recall())},
+                    {"weed_recall", json_number(all.weed_recall())},
+                    {"balanced_accuracy", json_number(all.balanced_accuracy())},
+                    {"crop_as_weed", json_number(share(all.crop_as_weed, all.crop_px))},
+                    {"weed_as_crop", json_number(share(all.weed_as_crop, all.weed_px))},
+                    {"not_segmented", json_number(share(all.crop_as_soil() + all.weed_as_soil(),
+                                                        all.crop_px + all.weed_px))},
+                    {"min_frame_balanced_accuracy", json_number(worst->score.balanced_accuracy())}});
+        return kOk;
+    }
+    for (const FrameScore& r : results)
+        std::cout << r.name << "  balanced accuracy " << fixed(r.score.balanced_accuracy(), 4) << "  (crop "
+                  << r.score.crop_right << " of " << r.score.crop_px << " px, weed " << r.score.weed_right << " of "
+                  << r.score.weed_px << " px)\n";
+    std::cout << "crop recall " << fixed(all.crop_recall(), 4) << " (" << fixed(100 * share(all.crop_as_weed, all.crop_px), 1)
+              << " % called weed, " << fixed(100 * share(all.crop_as_soil(), all.crop_px), 1) << " % soil)\n"
+              << "weed recall " << fixed(all.weed_recall(), 4) << " (" << fixed(100 * share(all.weed_as_crop, all.weed_px), 1)
+              << " % called crop, " << fixed(100 * share(all.weed_as_soil(), all.weed_px), 1) << " % soil)\n"
+              << "balanced accuracy " << fixed(all.balanced_accuracy(), 4) << " over " << results.size()
+              << " frames, every pixel together (min frame " << fixed(worst->score.balanced_accuracy(), 4) << ": "
+              << worst->name << ")\n";
     return kOk;
 }
 
@@ -572,6 +681,8 @@ int run(const Args& args)
         return run_stems(args);
     case Mode::iou:
         return run_iou(args);
+    case Mode::classes:
+        return run_classes(args);
     case Mode::sweep:
         return run_sweep(args);
     case Mode::targets:

@@ -134,24 +134,39 @@ MatchResult match_stems(std::span<const StemPoint> ground_truth, std::span<const
     return r;
 }
 
-std::optional<IouResult> mask_iou(const cv::Mat& predicted, const cv::Mat& ground_truth, std::string& error)
+namespace {
+
+// Whether a prediction and its ground truth (`what`: "mask", "class map")
+// are both non-empty 8-bit single-channel images of one size; else false
+// with `error` saying which and both sizes and types.
+bool same_grey_images(const cv::Mat& predicted, const cv::Mat& ground_truth, const std::string& what,
+                      std::string& error)
 {
     const auto describe = [](const cv::Mat& m) {
         return std::to_string(m.cols) + "x" + std::to_string(m.rows) + " " + cv::typeToString(m.type());
     };
     if (predicted.empty() || ground_truth.empty()) {
-        error = std::string(predicted.empty() ? "predicted" : "ground-truth") + " mask is empty";
-        return std::nullopt;
+        error = std::string(predicted.empty() ? "predicted " : "ground-truth ") + what + " is empty";
+        return false;
     }
     if (predicted.type() != CV_8UC1 || ground_truth.type() != CV_8UC1) {
-        error = "masks must be 8-bit single-channel (CV_8UC1): predicted " + describe(predicted) + ", ground truth " +
-                describe(ground_truth);
-        return std::nullopt;
+        error = what + "s must be 8-bit single-channel (CV_8UC1): predicted " + describe(predicted) +
+                ", ground truth " + describe(ground_truth);
+        return false;
     }
     if (predicted.size() != ground_truth.size()) {
-        error = "mask sizes differ: predicted " + describe(predicted) + ", ground truth " + describe(ground_truth);
-        return std::nullopt;
+        error = what + " sizes differ: predicted " + describe(predicted) + ", ground truth " + describe(ground_truth);
+        return false;
     }
+    return true;
+}
+
+}  // namespace
+
+std::optional<IouResult> mask_iou(const cv::Mat& predicted, const cv::Mat& ground_truth, std::string& error)
+{
+    if (!same_grey_images(predicted, ground_truth, "mask", error))
+        return std::nullopt;
     IouResult r;
     for (int y = 0; y < predicted.rows; ++y) {
         const auto* p = predicted.ptr<std::uint8_t>(y);
@@ -167,6 +182,64 @@ std::optional<IouResult> mask_iou(const cv::Mat& predicted, const cv::Mat& groun
     }
     r.iou = r.union_px > 0 ? static_cast<double>(r.intersection_px) / static_cast<double>(r.union_px) : 1.0;
     return r;
+}
+
+ClassScore& ClassScore::operator+=(const ClassScore& o)
+{
+    crop_px += o.crop_px;
+    weed_px += o.weed_px;
+    crop_right += o.crop_right;
+    weed_right += o.weed_right;
+    crop_as_weed += o.crop_as_weed;
+    weed_as_crop += o.weed_as_crop;
+    return *this;
+}
+
+double ClassScore::crop_recall() const
+{
+    return crop_px > 0 ? static_cast<double>(crop_right) / static_cast<double>(crop_px) : 1.0;
+}
+
+double ClassScore::weed_recall() const
+{
+    return weed_px > 0 ? static_cast<double>(weed_right) / static_cast<double>(weed_px) : 1.0;
+}
+
+double ClassScore::balanced_accuracy() const
+{
+    if (crop_px > 0 && weed_px > 0)
+        return 0.5 * (crop_recall() + weed_recall());
+    if (crop_px > 0)
+        return crop_recall();
+    return weed_recall();
+}
+
+std::optional<ClassScore> class_map_score(const cv::Mat& predicted, const cv::Mat& truth, std::string& error)
+{
+    if (!same_grey_images(predicted, truth, "class map", error))
+        return std::nullopt;
+    ClassScore s;
+    for (int y = 0; y < predicted.rows; ++y) {
+        const auto* p = predicted.ptr<std::uint8_t>(y);
+        const auto* t = truth.ptr<std::uint8_t>(y);
+        for (int x = 0; x < predicted.cols; ++x) {
+            if (p[x] > 2) {
+                error = "predicted class map holds " + std::to_string(p[x]) + " at (" + std::to_string(x) + ", " +
+                        std::to_string(y) + "): not 0 soil, 1 crop or 2 weed";
+                return std::nullopt;
+            }
+            if (t[x] == 1) {
+                ++s.crop_px;
+                s.crop_right += p[x] == 1;
+                s.crop_as_weed += p[x] == 2;
+            } else if (t[x] == 2) {
+                ++s.weed_px;
+                s.weed_right += p[x] == 2;
+                s.weed_as_crop += p[x] == 1;
+            }
+        }
+    }
+    return s;
 }
 
 bool parse_finite(std::string_view text, double& out)

@@ -152,4 +152,35 @@ echo "not an image" >"$tmp/pred/f1.png"
 expect_error "stemd-eval: prediction $tmp/pred/f1.png: cannot decode: not a PNG, JPEG, BMP or PNM image" \
   --iou "$tmp/pred" "$tmp/rec"
 
+# --- class maps --------------------------------------------------------------------
+# Each frame is two equal rows. Truth f0: crop crop weed weed; its map: crop weed
+# weed soil. Truth f1: crop soil crop crop; its map: crop crop soil crop. Pooled:
+# crop 6 of 10 right (2 called weed, 2 soil), weed 2 of 4 (2 soil): balanced
+# accuracy (0.6 + 0.5) / 2; 4 of the 14 annotated pixels soil. f0 0.5, f1 4/6.
+mkdir -p "$tmp/crec/class" "$tmp/cpred"
+cat >"$tmp/crec/frames.csv" <<'EOF'
+t_ns,rgb,nir,mask,class
+0,rgb/f0.png,,,class/f0.pgm
+1,rgb/f1.png,,,class/f1.pgm
+2,rgb/f2.png,,,
+EOF
+pgm "$tmp/crec/class/f0.pgm" '\x01\x01\x02\x02'
+pgm "$tmp/cpred/f0.png" '\x01\x02\x02\x00'
+pgm "$tmp/crec/class/f1.pgm" '\x01\x00\x01\x01'
+pgm "$tmp/cpred/f1.png" '\x01\x01\x00\x01'
+expect_json '{"frames":2,"crop_px":10,"weed_px":4,"crop_recall":0.6,"weed_recall":0.5,"balanced_accuracy":0.55,"crop_as_weed":0.2,"weed_as_crop":0,"not_segmented":0.2857142857142857,"min_frame_balanced_accuracy":0.5}' \
+  --classes "$tmp/cpred" "$tmp/crec" --json
+"$eval_bin" --classes "$tmp/cpred" "$tmp/crec" >"$tmp/out" || fail "--classes text: exit $?"
+grep -qxF "rgb/f0.png  balanced accuracy 0.5000  (crop 2 of 4 px, weed 2 of 4 px)" "$tmp/out" \
+  || fail "--classes f0 line: $(cat "$tmp/out")"
+grep -qxF "balanced accuracy 0.5500 over 2 frames, every pixel together (min frame 0.5000: rgb/f0.png)" "$tmp/out" \
+  || fail "--classes summary line: $(cat "$tmp/out")"
+expect_error "stemd-eval: --gt-vegetation does not apply to --classes (see stemd-eval --help)" \
+  --classes "$tmp/cpred" "$tmp/crec" --gt-vegetation zero
+pgm "$tmp/cpred/f1.png" '\x01\x01\x03\x01'
+expect_error "stemd-eval: $tmp/cpred/f1.png vs $tmp/crec/class/f1.pgm: predicted class map holds 3 at (2, 0): not 0 soil, 1 crop or 2 weed" \
+  --classes "$tmp/cpred" "$tmp/crec"
+expect_error "stemd-eval: $tmp/rec/frames.csv: no frame has a class path, nothing to evaluate" \
+  --classes "$tmp/cpred" "$tmp/rec"
+
 echo "eval_test: all passed"

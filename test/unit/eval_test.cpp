@@ -2,6 +2,7 @@
 #include "temp_dir_test.hpp"
 
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -397,6 +398,71 @@ TEST(EvalIou, WrongTypeOrEmptyIsAnError)
     EXPECT_EQ(error, "ground-truth mask is empty");
     EXPECT_FALSE(mask_iou(cv::Mat(), gray, error));
     EXPECT_EQ(error, "predicted mask is empty");
+}
+
+// --- class_map_score -----------------------------------------------------------
+
+TEST(EvalClasses, CountsEachAnnotatedPixelByTheClassTheMapGivesIt)
+{
+    // Truth, one row of 10: 4 crop, 4 weed, 2 soil (and one value 7 that is
+    // no class, not scored). The map: crop pixels 2 right, 1 weed, 1 soil;
+    // weed pixels 1 right, 2 crop, 1 soil; whatever it says on soil is not
+    // scored.
+    const std::uint8_t truth_row[] = {1, 1, 1, 1, 2, 2, 2, 2, 0, 7};
+    const std::uint8_t map_row[] = {1, 1, 2, 0, 2, 1, 1, 0, 2, 1};
+    const cv::Mat truth(1, 10, CV_8UC1, const_cast<std::uint8_t*>(truth_row));
+    const cv::Mat map(1, 10, CV_8UC1, const_cast<std::uint8_t*>(map_row));
+    std::string error;
+    const auto s = stemd::eval::class_map_score(map, truth, error);
+    ASSERT_TRUE(s) << error;
+    EXPECT_EQ(s->crop_px, 4);
+    EXPECT_EQ(s->weed_px, 4);
+    EXPECT_EQ(s->crop_right, 2);
+    EXPECT_EQ(s->crop_as_weed, 1);
+    EXPECT_EQ(s->crop_as_soil(), 1);
+    EXPECT_EQ(s->weed_right, 1);
+    EXPECT_EQ(s->weed_as_crop, 2);
+    EXPECT_EQ(s->weed_as_soil(), 1);
+    EXPECT_DOUBLE_EQ(s->crop_recall(), 0.5);
+    EXPECT_DOUBLE_EQ(s->weed_recall(), 0.25);
+    EXPECT_DOUBLE_EQ(s->balanced_accuracy(), 0.375);
+}
+
+TEST(EvalClasses, FramesPoolTheirPixelsAndAMissingClassLeavesTheOtherRecall)
+{
+    stemd::eval::ClassScore only_crop;
+    only_crop.crop_px = 10;
+    only_crop.crop_right = 9;
+    EXPECT_DOUBLE_EQ(only_crop.balanced_accuracy(), 0.9) << "no weed annotated: the crop recall alone";
+    EXPECT_DOUBLE_EQ(stemd::eval::ClassScore{}.balanced_accuracy(), 1.0) << "nothing annotated, nothing wrong";
+
+    stemd::eval::ClassScore only_weed;
+    only_weed.weed_px = 30;
+    only_weed.weed_right = 15;
+    only_weed.weed_as_crop = 5;
+    stemd::eval::ClassScore all = only_crop;
+    all += only_weed;
+    EXPECT_EQ(all.crop_px, 10);
+    EXPECT_EQ(all.weed_px, 30);
+    EXPECT_EQ(all.weed_as_soil(), 10);
+    // Pooled over pixels, as stemd-train reports it: (0.9 + 0.5) / 2, not
+    // the mean of the frames' own figures (0.9 and 0.5 either way here).
+    EXPECT_DOUBLE_EQ(all.balanced_accuracy(), 0.7);
+}
+
+TEST(EvalClasses, ANonClassValueOrMismatchedMapsAreErrors)
+{
+    cv::Mat map(2, 3, CV_8UC1, cv::Scalar(0)), truth(2, 3, CV_8UC1, cv::Scalar(1));
+    map.at<std::uint8_t>(1, 2) = 255;
+    std::string error;
+    EXPECT_FALSE(stemd::eval::class_map_score(map, truth, error));
+    EXPECT_EQ(error, "predicted class map holds 255 at (2, 1): not 0 soil, 1 crop or 2 weed");
+    EXPECT_FALSE(stemd::eval::class_map_score(cv::Mat(2, 4, CV_8UC1, cv::Scalar(0)), truth, error));
+    EXPECT_EQ(error, "class map sizes differ: predicted 4x2 CV_8UC1, ground truth 3x2 CV_8UC1");
+    EXPECT_FALSE(stemd::eval::class_map_score(cv::Mat(2, 3, CV_8UC3, cv::Scalar(0, 0, 0)), truth, error));
+    EXPECT_EQ(error, "class maps must be 8-bit single-channel (CV_8UC1): predicted 3x2 CV_8UC3, ground truth 3x2 CV_8UC1");
+    EXPECT_FALSE(stemd::eval::class_map_score(cv::Mat(), truth, error));
+    EXPECT_EQ(error, "predicted class map is empty");
 }
 
 }  // namespace

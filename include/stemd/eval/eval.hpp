@@ -1,6 +1,7 @@
 // Evaluation against ground truth: stem positions (the paper's criterion: a
 // detected stem is correct when it lies within 0.5 cm of a true stem) and
-// vegetation masks (intersection over union).
+// vegetation masks (intersection over union), and crop/weed class maps per
+// pixel of the annotated vegetation.
 #pragma once
 
 #include <filesystem>
@@ -71,5 +72,30 @@ struct IouResult {
 // nonzero value is vegetation. Both must be non-empty and of the same size;
 // otherwise returns nullopt and says why in `error` (with both sizes/types).
 std::optional<IouResult> mask_iou(const cv::Mat& predicted, const cv::Mat& ground_truth, std::string& error);
+
+// How a class map (0 soil or unclassified, 1 crop, 2 weed: `stemd-detect
+// --class-out`) calls the annotated vegetation of a class image (1 crop,
+// 2 weed; every other value is not scored). An annotated pixel the map
+// calls soil (not segmented, or a cell left unclassified) is right for
+// neither class, as stemd-train counts it.
+struct ClassScore {
+    long crop_px = 0, weed_px = 0;             // annotated
+    long crop_right = 0, weed_right = 0;       // called their own class
+    long crop_as_weed = 0, weed_as_crop = 0;   // called the other class
+    // The rest of each class was called soil.
+    long crop_as_soil() const { return crop_px - crop_right - crop_as_weed; }
+    long weed_as_soil() const { return weed_px - weed_right - weed_as_crop; }
+
+    ClassScore& operator+=(const ClassScore& o);
+    // right / annotated of that class; 1 when it has no pixel.
+    double crop_recall() const;
+    double weed_recall() const;
+    // The mean of the recalls of the classes the annotation holds: both,
+    // else the one, else 1 (nothing to get wrong).
+    double balanced_accuracy() const;
+};
+
+// Both CV_8UC1 of one size; a predicted value above 2 is no class (error).
+std::optional<ClassScore> class_map_score(const cv::Mat& predicted, const cv::Mat& truth, std::string& error);
 
 }  // namespace stemd::eval
