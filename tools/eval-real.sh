@@ -2,23 +2,38 @@
 # Every real data set in DATA_DIR through the default configuration, in one
 # table: vegetation mask IoU against the human masks, stems against the
 # annotated stems, and the daemon's TARGET commands against the field truth.
+# Sets are found by their layout, whatever their folder names (other frames
+# of the same sources, say CWFID's test split); a set's GSD comes from
+# STEMD_EVAL_GSD="name=MM ...", else from its source (bonirob* 0.395,
+# cwfid* 0.11 mm/px), else the configuration's (masks only).
 #   tools/eval-real.sh [DATA_DIR] [OUT_DIR]    (defaults: ../shared/data, out/eval-real)
-# Builds Release first when the tools are missing. Extra configuration for
-# every run: STEMD_EVAL_SET="key=value key=value".
-# Exit 0 when the table was made; 77 (skip) when DATA_DIR is absent.
+# The tools come from $STEMD_TOOLS and the daemon from $STEMD_DAEMON (default
+# $STEMD_TOOLS/../src/runtime/stemd), else build/release (built first when
+# missing). Extra configuration for every run: STEMD_EVAL_SET="key=value ...".
+# Exit 0 when the table was made; 77 (skip) when DATA_DIR is absent; 2 when
+# a tool is missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data=${1:-../shared/data}
 out=${2:-out/eval-real}
-bin=build/release
 if [ ! -d "$data" ]; then
   echo "eval-real: $data is absent: no real frames to evaluate (see README, Evaluation on real frames)" >&2
   exit 77
 fi
-if [ ! -x "$bin/tools/stemd-detect" ] || [ ! -x "$bin/tools/stemd-eval" ] || [ ! -x "$bin/src/runtime/stemd" ]; then
-  cmake -S . -B "$bin" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-  cmake --build "$bin" -j "$(nproc)" --target stemd stemd-detect stemd-eval
+tools=${STEMD_TOOLS:-}
+daemon=${STEMD_DAEMON:-}
+if [ -z "$tools" ]; then
+  tools=build/release/tools
+  daemon=${daemon:-build/release/src/runtime/stemd}
+  if [ ! -x "$tools/stemd-detect" ] || [ ! -x "$tools/stemd-eval" ] || [ ! -x "$daemon" ]; then
+    cmake -S . -B build/release -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+    cmake --build build/release -j "$(nproc)" --target stemd stemd-detect stemd-eval
+  fi
 fi
+daemon=${daemon:-$tools/../src/runtime/stemd}
+for tool in "$tools/stemd-detect" "$tools/stemd-eval" "$daemon"; do
+  [ -x "$tool" ] || { echo "eval-real: no $tool" >&2; exit 2; }
+done
 mkdir -p "$out"
 sets=()
 for kv in ${STEMD_EVAL_SET:-}; do sets+=(--set "$kv"); done
@@ -32,71 +47,135 @@ iou() {  # name recording gt_vegetation [--set ...]
   local name=$1 recording=$2 gt=$3
   shift 3
   rm -rf "$out/$name-masks"
-  "$bin/tools/stemd-detect" --config config/stemd.yaml "${sets[@]}" "$@" "$recording" \
+  "$tools/stemd-detect" --config config/stemd.yaml "${sets[@]}" "$@" "$recording" \
     --mask-out "$out/$name-masks" >/dev/null 2>"$out/$name-detect.log"
   row "$name" "mask IoU" "default" \
-    "$("$bin/tools/stemd-eval" --iou "$out/$name-masks" "$recording" --gt-vegetation "$gt" --json)"
+    "$("$tools/stemd-eval" --iou "$out/$name-masks" "$recording" --gt-vegetation "$gt" --json)"
 }
 
 stems() {  # name recording stems.csv gsd label [--set ...]
   local name=$1 recording=$2 truth=$3 gsd=$4 label=$5
   shift 5
-  "$bin/tools/stemd-detect" --config config/stemd.yaml --set camera.gsd_mm_per_px="$gsd" "${sets[@]}" "$@" \
+  "$tools/stemd-detect" --config config/stemd.yaml --set camera.gsd_mm_per_px="$gsd" "${sets[@]}" "$@" \
     "$recording" --csv "$out/$name-$label.csv" >/dev/null 2>"$out/$name-$label-detect.log"
   row "$name" "stems" "$label" \
-    "$("$bin/tools/stemd-eval" "$truth" "$out/$name-$label.csv" --gsd-mm-per-px "$gsd" --json)"
+    "$("$tools/stemd-eval" "$truth" "$out/$name-$label.csv" --gsd-mm-per-px "$gsd" --json)"
 }
 
-cwfid_stems() {  # label stems.csv [--set ...]: CWFID's stems within 15 px (1.65 mm at 0.11 mm/px)
-  local label=$1 truth=$2
-  shift 2
-  local csv="$out/cwfid-train-${label//[ ,]/-}.csv"
+cwfid_stems() {  # name recording label stems.csv [--set ...]: CWFID's stems within 15 px (1.65 mm at 0.11 mm/px)
+  local name=$1 recording=$2 label=$3 truth=$4
+  shift 4
+  local csv="$out/$name-${label//[ ,]/-}.csv"
   # The recording names frames by path, the annotation by file name.
-  "$bin/tools/stemd-detect" --config config/stemd.yaml --set camera.gsd_mm_per_px=0.11 "${sets[@]}" "$@" \
-    "$out/cwfid-train-recording" --csv - 2>"${csv%.csv}-detect.log" | sed 's#^[^,]*/##' >"$csv"
-  row cwfid-train stems "$label" \
-    "$("$bin/tools/stemd-eval" "$truth" "$csv" --gsd-mm-per-px 0.11 --tol-mm 1.65 --json)"
+  "$tools/stemd-detect" --config config/stemd.yaml --set camera.gsd_mm_per_px=0.11 "${sets[@]}" "$@" \
+    "$recording" --csv - 2>"${csv%.csv}-detect.log" | sed 's#^[^,]*/##' >"$csv"
+  row "$name" stems "$label" \
+    "$("$tools/stemd-eval" "$truth" "$csv" --gsd-mm-per-px 0.11 --tol-mm 1.65 --json)"
 }
 
 targets() {  # name recording plants.csv gsd label [--set ...]
   local name=$1 recording=$2 truth=$3 gsd=$4 label=$5
   shift 5
-  local log="$out/$name-$label-can.log"
-  "$bin/src/runtime/stemd" --config config/stemd.yaml --set camera.gsd_mm_per_px="$gsd" \
+  local log="$out/$name-$label-can.log" size
+  # The daemon takes frames of the configured size only: the recording's.
+  size=$(/usr/bin/python3 - "$recording" <<'PY'
+import csv, os, sys, cv2
+row = next(csv.DictReader(open(os.path.join(sys.argv[1], "frames.csv"))))
+image = cv2.imread(os.path.join(sys.argv[1], row["rgb"]), cv2.IMREAD_UNCHANGED)
+print(image.shape[1], image.shape[0])
+PY
+)
+  "$daemon" --config config/stemd.yaml --set camera.gsd_mm_per_px="$gsd" \
+    --set source.width_px="${size% *}" --set source.height_px="${size#* }" \
     --set scheduler.policy=all --set source.replay_pacing=recorded "${sets[@]}" "$@" \
     --replay "$recording" --once --can-log "$log" --map "$out/$name-$label-map.jsonl" \
     >/dev/null 2>"$out/$name-$label-stemd.log"
   row "$name" "TARGETs" "$label" \
-    "$("$bin/tools/stemd-eval" --targets "$truth" "$log" --config config/stemd.yaml --tol-mm 10 --json || true)"
+    "$("$tools/stemd-eval" --targets "$truth" "$log" --config config/stemd.yaml --tol-mm 10 --json || true)"
 }
 
-if [ -f "$data/carrot-dev/frames.csv" ]; then
-  iou carrot-dev "$data/carrot-dev" nonzero
-else echo "eval-real: no $data/carrot-dev: skipped" >&2; fi
+# A set's ground sampling distance in mm per pixel, empty when unknown: from
+# STEMD_EVAL_GSD ("name=MM name=MM"), else by the source its folder name
+# starts with (the data README's figures: a camera and its height above the
+# ground, so other frames of the same source share them).
+gsd_of() {
+  local name=$1 kv
+  for kv in ${STEMD_EVAL_GSD:-}; do
+    if [ "${kv%%=*}" = "$name" ]; then echo "${kv#*=}"; return; fi
+  done
+  case $name in
+    bonirob*) echo 0.395 ;;  # measured from plants seen in two frames 265 mm apart
+    cwfid*) echo 0.11 ;;     # the JAI camera about 450 mm above the ground
+    *) echo "" ;;
+  esac
+}
 
-if [ -d "$data/cwfid-train/images" ]; then
-  tools/cwfid-recording.sh "$data/cwfid-train" "$out/cwfid-train-recording" >/dev/null
-  iou cwfid-train "$out/cwfid-train-recording" zero --set camera.gsd_mm_per_px=0.11
-  # Stems annotated by eye for this project (test/data/cwfid-train-stems.csv,
-  # README "Evaluation on real frames"): the sure ones, and all of them.
-  awk -F, 'NR == 1 || $5 == 1' test/data/cwfid-train-stems.csv >"$out/cwfid-train-stems-sure.csv"
-  cwfid_stems "sure, default" "$out/cwfid-train-stems-sure.csv"
-  cwfid_stems "sure, centre of mass" "$out/cwfid-train-stems-sure.csv" --set stem.method=com
-  cwfid_stems "all, default" test/data/cwfid-train-stems.csv
-else echo "eval-real: no $data/cwfid-train: skipped" >&2; fi
+# Whether a recording's frames.csv has a non-empty value in column $2.
+has_column() {
+  awk -F, -v want="$2" 'NR == 1 { for (i = 1; i <= NF; ++i) if ($i == want) c = i; next }
+                        c && $c != "" { found = 1; exit } END { exit !found }' "$1/frames.csv"
+}
 
-if [ -f "$data/bonirob/frames.csv" ]; then
-  b=$data/bonirob
-  # The recording has a nir column: the default (segment.method auto)
-  # reads it; "rgb" is the same camera without its NIR plane.
-  stems bonirob "$b" "$b/stems.csv" 0.395 "rgb+nir, default"
-  stems bonirob "$b" "$b/stems.csv" 0.395 rgb --set segment.method=chromatic_exg
-  stems bonirob "$b" "$b/stems.csv" 0.395 "rgb+nir, ndvi" --set segment.method=ndvi
-  stems bonirob "$b" "$b/stems.csv" 0.395 "rgb, centre of mass" --set segment.method=chromatic_exg --set stem.method=com
-  targets bonirob "$b" "$b/plants.csv" 0.395 "rgb+nir, default"
-  targets bonirob "$b" "$b/plants.csv" 0.395 rgb --set segment.method=chromatic_exg
-  targets bonirob "$b" "$b/plants.csv" 0.395 "rgb+nir, ndvi" --set segment.method=ndvi
-else echo "eval-real: no $data/bonirob: skipped" >&2; fi
+# Every set in DATA_DIR, by its layout: CWFID's (images/, masks/) or a
+# recording (frames.csv) with masks, annotated stems (stems.csv) or plants
+# in field coordinates (plants.csv).
+found=0
+for d in "$data"/*/; do
+  d=${d%/}
+  name=$(basename "$d")
+  gsd=$(gsd_of "$name")
+  if [ -d "$d/images" ] && [ -d "$d/masks" ]; then
+    found=1
+    gsd=${gsd:-0.11}
+    STEMD_CLASSMAP=${STEMD_CLASSMAP:-$tools/stemd-classmap} tools/cwfid-recording.sh "$d" "$out/$name-recording" >/dev/null
+    iou "$name" "$out/$name-recording" zero --set camera.gsd_mm_per_px="$gsd"
+    # Stems annotated by eye for this project (test/data/cwfid-train-stems.csv,
+    # README "Evaluation on real frames"): the sure ones, and all of them.
+    annotated=test/data/$name-stems.csv
+    if [ -f "$annotated" ]; then
+      awk -F, 'NR == 1 || $5 == 1' "$annotated" >"$out/$name-stems-sure.csv"
+      cwfid_stems "$name" "$out/$name-recording" "sure, default" "$out/$name-stems-sure.csv"
+      cwfid_stems "$name" "$out/$name-recording" "sure, centre of mass" "$out/$name-stems-sure.csv" --set stem.method=com
+      cwfid_stems "$name" "$out/$name-recording" "all, default" "$annotated"
+    fi
+  elif [ -f "$d/frames.csv" ]; then
+    found=1
+    gsd_set=()
+    [ -n "$gsd" ] && gsd_set=(--set camera.gsd_mm_per_px="$gsd")
+    if has_column "$d" mask; then
+      iou "$name" "$d" nonzero "${gsd_set[@]}"
+    fi
+    if [ -f "$d/stems.csv" ] || [ -f "$d/plants.csv" ]; then
+      if [ -z "$gsd" ]; then
+        echo "eval-real: $name: stems or plants to score but no GSD known (STEMD_EVAL_GSD=\"$name=MM\"): skipped" >&2
+        continue
+      fi
+      # With a nir column the default (segment.method auto) reads it; "rgb"
+      # is the same camera without its NIR plane.
+      if has_column "$d" nir; then
+        configs=("rgb+nir, default|" "rgb|segment.method=chromatic_exg" "rgb+nir, ndvi|segment.method=ndvi")
+      else
+        configs=("rgb, default|")
+      fi
+      for kind in stems targets; do
+        truth=$d/stems.csv
+        [ "$kind" = targets ] && truth=$d/plants.csv
+        [ -f "$truth" ] || continue
+        for c in "${configs[@]}"; do
+          extra=()
+          [ -n "${c#*|}" ] && extra=(--set "${c#*|}")
+          "$kind" "$name" "$d" "$truth" "$gsd" "${c%%|*}" "${extra[@]}"
+        done
+        if [ "$kind" = stems ]; then
+          stems "$name" "$d" "$truth" "$gsd" "rgb, centre of mass" --set segment.method=chromatic_exg --set stem.method=com
+        fi
+      done
+    fi
+  else
+    echo "eval-real: $name: neither CWFID's layout (images/, masks/) nor a recording (frames.csv): skipped" >&2
+  fi
+done
+[ "$found" = 1 ] || echo "eval-real: no set in $data" >&2
 
 python3 - "$rows" <<'PY'
 import json, sys
@@ -106,7 +185,7 @@ for r in rows:
     x = r["result"]
     if r["what"] == "mask IoU":
         text = "mean IoU %.3f (min %.3f) over %d frames" % (x["mean_iou"], x["min_iou"], x["frames"])
-    elif r["what"] == "stems" and r["set"] == "cwfid-train":
+    elif r["what"] == "stems" and r["set"].startswith("cwfid"):
         # Not every plant is annotated, so a precision would mean nothing.
         text = "%d of %d stems within %g mm, %d reported, mean error %.2f mm" % (
             x["true_positives"], x["ground_truth"], x["tol_mm"], x["predictions"], x["mean_error_mm"])

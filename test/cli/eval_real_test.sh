@@ -1,0 +1,87 @@
+#!/usr/bin/env bash
+# tools/eval-real.sh on a data folder of generated sets under names it has
+# never seen, laid out as the real ones are: each set is found by its layout
+# (a recording with masks and stems, a moving strip with plants.csv,
+# CWFID's images/ and masks/ with 0 marking vegetation), its GSD taken from
+# STEMD_EVAL_GSD or its source's name; a set it cannot score is named on
+# stderr and skipped; an absent folder skips (77) and a missing tool exits 2.
+# The figures are not judged here (the real sets' are in the README), only
+# that every set gets its rows, and that CWFID's inverted masks are read
+# the right way round, and that the daemon is run at the recording's frame
+# size (a strip of 320 x 240 frames gets its TARGETs).
+#   eval_real_test.sh TOOLS_DIR SOURCE_DIR
+set -euo pipefail
+tools=$1
+source_dir=$2
+. "$(dirname "$0")/../support/script.sh"
+script=$source_dir/tools/eval-real.sh
+export STEMD_TOOLS=$tools
+export STEMD_DAEMON=$tools/../src/runtime/stemd
+[ -x "$STEMD_DAEMON" ] || fail "no daemon at $STEMD_DAEMON"
+
+set +e
+"$script" "$tmp/absent" "$tmp/out" 2>"$tmp/err"
+code=$?
+STEMD_TOOLS=$tmp "$script" "$source_dir" "$tmp/out" 2>"$tmp/err2"
+code2=$?
+set -e
+[ "$code" = 77 ] || fail "an absent data folder exited $code, not 77"
+grep -q "absent" "$tmp/err" || fail "an absent data folder without a message: $(cat "$tmp/err")"
+[ "$code2" = 2 ] || fail "missing tools exited $code2, not 2"
+grep -q "no $tmp/stemd-detect" "$tmp/err2" || fail "missing tools without naming them: $(cat "$tmp/err2")"
+
+data=$tmp/data
+mkdir -p "$data/junk"
+"$tools/stemd-synth" --out "$data/field-a" --preset late --frames 2 --width 320 --height 240 --seed 3 >/dev/null
+"$tools/stemd-synth" --strip --out "$data/strip-b" --length-mm 600 --width 320 --height 240 --seed 4 >/dev/null
+# The same frames with no GSD known for them.
+cp -r "$data/field-a" "$data/unknown-c"
+# CWFID's layout under another name: NNN_image.png, and NNN_mask.png with 0
+# for vegetation and 255 for soil.
+mkdir -p "$data/cwfid-d/images" "$data/cwfid-d/masks"
+cp "$data/field-a/rgb/000000.png" "$data/cwfid-d/images/000_image.png"
+/usr/bin/python3 - "$data/field-a/mask/000000.png" "$data/cwfid-d/masks/000_mask.png" <<'PY'
+import sys, cv2
+mask = cv2.imread(sys.argv[1], cv2.IMREAD_GRAYSCALE)
+cv2.imwrite(sys.argv[2], 255 - (mask > 0).astype("uint8") * 255)
+PY
+
+STEMD_EVAL_GSD="field-a=0.33 strip-b=0.33" "$script" "$data" "$tmp/out" >"$tmp/table" 2>"$tmp/err" ||
+  fail "eval-real exited $?: $(cat "$tmp/err")"
+grep -q "junk: neither CWFID's layout" "$tmp/err" || fail "the folder of no layout was not named: $(cat "$tmp/err")"
+grep -q "unknown-c: stems or plants to score but no GSD known" "$tmp/err" ||
+  fail "the set without a GSD was not named: $(cat "$tmp/err")"
+
+/usr/bin/python3 - "$tmp/out/rows.jsonl" "$data" <<'PY' || fail "rows: $(cat "$tmp/out/rows.jsonl")"
+import csv, json, os, sys
+rows = [json.loads(line) for line in open(sys.argv[1])]
+frames = {name: sum(1 for _ in csv.DictReader(open(os.path.join(sys.argv[2], name, "frames.csv"))))
+          for name in ("field-a", "strip-b", "unknown-c")}
+frames["cwfid-d"] = 1
+got = sorted((r["set"], r["what"], r["config"]) for r in rows)
+stems = ["rgb+nir, default", "rgb", "rgb+nir, ndvi", "rgb, centre of mass"]
+# unknown-c's masks need no GSD: its IoU is scored, its stems are not.
+want = sorted([("field-a", "mask IoU", "default"), ("strip-b", "mask IoU", "default"),
+               ("cwfid-d", "mask IoU", "default"), ("unknown-c", "mask IoU", "default")]
+              + [("field-a", "stems", c) for c in stems] + [("strip-b", "stems", c) for c in stems]
+              + [("strip-b", "TARGETs", c) for c in stems[:3]])
+if got != want:
+    sys.exit("rows %s, expected %s" % (got, want))
+for r in rows:
+    if r["what"] == "mask IoU":
+        assert r["result"]["frames"] == frames[r["set"]], r
+    if r["what"] == "stems":
+        assert r["result"]["gsd_mm_per_px"] == 0.33, r
+# Read with soil as vegetation, the CWFID-like mask would barely overlap
+# the detection (an IoU near 0; the right way round, near 1).
+cwfid = [r for r in rows if r["set"] == "cwfid-d"][0]["result"]
+assert cwfid["mean_iou"] > 0.5, "CWFID's masks read the wrong way round: %s" % cwfid
+for r in rows:
+    if r["what"] == "TARGETs":
+        assert r["result"]["commands"] > 0, "no command from the strip: %s" % r
+print("rows as expected")
+PY
+for name in field-a strip-b cwfid-d; do
+  grep -q "^$name " "$tmp/table" || fail "$name is not in the table: $(cat "$tmp/table")"
+done
+echo "eval_real_test: all passed"
