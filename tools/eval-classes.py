@@ -201,7 +201,8 @@ def evaluate(name, recording, gsd, folds, tools, out, plants_of, inside, reuse_m
         model_stems.update(detections(os.path.join(fold, "classes.csv")))
         blind_stems.update(detections(os.path.join(fold, "blind.csv")))
     pixels = class_maps_score(tools, class_dir, recording, os.path.join(out, name, "classes-eval.log"))
-    report(name, f"{folds} {'blocks of consecutive frames' if blocks else 'folds by frame'}", rows, model_stems, blind_stems, plants_of, inside, pixels)
+    split = "blocks of consecutive frames" if blocks else "folds by frame"
+    report(name, f"{folds} {split}", rows, model_stems, blind_stems, plants_of, inside, pixels)
 
 
 def held_out(train, test, tools, out, detect_sets, train_args):
