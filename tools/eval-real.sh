@@ -40,8 +40,9 @@ for kv in ${STEMD_EVAL_SET:-}; do sets+=(--set "$kv"); done
 rows="$out/rows.jsonl"
 : >"$rows"
 
-# One JSON line per result: {"set", "what", "config", ...stemd-eval's JSON}.
-row() { printf '{"set":"%s","what":"%s","config":"%s","result":%s}\n' "$1" "$2" "$3" "$4" >>"$rows"; }
+# One JSON line per result: {"set", "what", "config", ["some_plants_annotated": true,]
+# "result": stemd-eval's JSON}.
+row() { printf '{"set":"%s","what":"%s","config":"%s"%s,"result":%s}\n' "$1" "$2" "$3" "${5:-}" "$4" >>"$rows"; }
 
 iou() {  # name recording gt_vegetation [--set ...]
   local name=$1 recording=$2 gt=$3
@@ -70,7 +71,7 @@ cwfid_stems() {  # name recording label stems.csv [--set ...]: CWFID's stems wit
   "$tools/stemd-detect" --config config/stemd.yaml --set camera.gsd_mm_per_px=0.11 "${sets[@]}" "$@" \
     "$recording" --csv - 2>"${csv%.csv}-detect.log" | sed 's#^[^,]*/##' >"$csv"
   row "$name" stems "$label" \
-    "$("$tools/stemd-eval" "$truth" "$csv" --gsd-mm-per-px 0.11 --tol-mm 1.65 --json)"
+    "$("$tools/stemd-eval" "$truth" "$csv" --gsd-mm-per-px 0.11 --tol-mm 1.65 --json)" ',"some_plants_annotated":true' 
 }
 
 targets() {  # name recording plants.csv gsd label [--set ...]
@@ -180,12 +181,13 @@ done
 python3 - "$rows" <<'PY'
 import json, sys
 rows = [json.loads(line) for line in open(sys.argv[1])]
-print("%-12s %-9s %-22s %s" % ("set", "measure", "configuration", "result"))
+width = max([12] + [len(r["set"]) for r in rows])
+print("%-*s %-9s %-22s %s" % (width, "set", "measure", "configuration", "result"))
 for r in rows:
     x = r["result"]
     if r["what"] == "mask IoU":
         text = "mean IoU %.3f (min %.3f) over %d frames" % (x["mean_iou"], x["min_iou"], x["frames"])
-    elif r["what"] == "stems" and r["set"].startswith("cwfid"):
+    elif r["what"] == "stems" and r.get("some_plants_annotated"):
         # Not every plant is annotated, so a precision would mean nothing.
         text = "%d of %d stems within %g mm, %d reported, mean error %.2f mm" % (
             x["true_positives"], x["ground_truth"], x["tol_mm"], x["predictions"], x["mean_error_mm"])
@@ -197,5 +199,5 @@ for r in rows:
         text = "%d of %d plants with a command within %g mm, %d duplicates, %d extra, error p50 %.1f max %.1f mm" % (
             x["matched"], x["plants"], x["tol_mm"], x["duplicates"], x["extra"], x["error_p50_mm"],
             x["error_max_mm"])
-    print("%-12s %-9s %-22s %s" % (r["set"], r["what"], r["config"], text))
+    print("%-*s %-9s %-22s %s" % (width, r["set"], r["what"], r["config"], text))
 PY
