@@ -9,9 +9,13 @@
 #   tools/bench-real.sh [DATA_DIR] [OUT_DIR]    (defaults: ../shared/data, out/bench-real)
 #   STEMD_BENCH_RUNS=N   rounds (default 3); the sets take turns in each
 #                        round, so a noisy neighbour spreads over all of them
+# Every folder is a set by its layout, whatever its name (tools/real-sets.sh:
+# CWFID's images/ and masks/, or a recording; RGB+NIR recordings are also
+# timed from RGB alone), at the GSD of its source or STEMD_EVAL_GSD.
 # The tools come from $STEMD_TOOLS, else build/release/tools (built first
-# when missing). Makes CWFID's recording, and the example model
-# (tools/cwfid-model.sh, about a minute) when out/models/cwfid.yaml is absent.
+# when missing). Makes each CWFID set's recording, and the example model
+# (tools/cwfid-model.sh on DATA_DIR/cwfid-train, about a minute) when
+# out/models/cwfid.yaml is absent.
 # Exit 0 when the table was made; 77 (skip) when DATA_DIR is absent.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -37,38 +41,62 @@ fi
 for tool in stemd-detect stemd-bench; do
   [ -x "$tools/$tool" ] || { echo "bench-real: no $tools/$tool" >&2; exit 2; }
 done
+. tools/real-sets.sh
 mkdir -p "$out"
 rows="$out/rows.jsonl"
 : >"$rows"
 
-# The configurations, one per line: name|configuration|--set arguments|inputs
-# (a set's frames are given several times, so that each median is over
-# 30-80 frames).
+# The configurations, one per line: name|configuration|--set arguments|inputs.
+# Every folder of DATA_DIR is a set by its layout (tools/real-sets.sh),
+# whatever its name; its frames are given several times over (at least
+# twice, and until 30 frames), so that each median is over 30 frames or
+# more.
+repeated() {  # dir frames: the dir as many times as that takes
+  local n=$(( (30 + $2 - 1) / $2 )) list="" i
+  (( n < 2 )) && n=2
+  for ((i = 0; i < n; i++)); do list+="${list:+ }$1"; done
+  echo "$list"
+}
 configs=()
-if [ -f "$data/bonirob/frames.csv" ]; then
-  b=$data/bonirob
-  ten="$b $b $b $b $b $b $b $b $b $b"
-  configs+=("bonirob|rgb+nir, default|--set camera.gsd_mm_per_px=0.395|$ten")
-  configs+=("bonirob|rgb|--set camera.gsd_mm_per_px=0.395 --set segment.method=chromatic_exg|$ten")
-else echo "bench-real: no $data/bonirob: skipped" >&2; fi
-model=""
-if [ -d "$data/cwfid-train/images" ]; then
-  tools/cwfid-recording.sh "$data/cwfid-train" "$out/cwfid-train-recording" >/dev/null
-  c=$out/cwfid-train-recording
-  configs+=("cwfid-train|default|--set camera.gsd_mm_per_px=0.11|$c $c")
-  model=out/models/cwfid.yaml
-  if [ ! -f "$model" ]; then
-    echo "bench-real: making the example model $model (tools/cwfid-model.sh)" >&2
-    tools/cwfid-model.sh "$data/cwfid-train" >"$out/cwfid-model.log" 2>&1
-  fi
-  configs+=("cwfid-train|classifier (example model)|--set camera.gsd_mm_per_px=0.11 --set classify.model=$model|$c")
-else echo "bench-real: no $data/cwfid-train: skipped" >&2; fi
-if [ -f "$data/carrot-dev/frames.csv" ]; then
-  d=$data/carrot-dev
-  configs+=("carrot-dev|default||$d $d")
-else echo "bench-real: no $data/carrot-dev: skipped" >&2; fi
+model=out/models/cwfid.yaml
+for d in "$data"/*/; do
+  d=${d%/}
+  name=$(basename "$d")
+  layout=$(real_set_layout "$d")
+  gsd=$(real_set_gsd "$name" "$layout")
+  gsd_set=${gsd:+--set camera.gsd_mm_per_px=$gsd}
+  case $layout in
+    cwfid)
+      c=$out/$name-recording
+      tools/cwfid-recording.sh "$d" "$c" >/dev/null
+      configs+=("$name|default|$gsd_set|$(repeated "$c" "$(recording_frames "$c")")")
+      # The example model is for CWFID's camera: its classifier's stage, once
+      # over the frames. It is made from cwfid-train only, never from the
+      # set being timed (which may be a test split).
+      if [ ! -f "$model" ] && [ "$(real_set_layout "$data/cwfid-train")" = cwfid ]; then
+        echo "bench-real: making the example model $model (tools/cwfid-model.sh)" >&2
+        tools/cwfid-model.sh "$data/cwfid-train" >"$out/cwfid-model.log" 2>&1
+      fi
+      if [ -f "$model" ]; then
+        configs+=("$name|classifier (example model)|$gsd_set --set classify.model=$model|$c")
+      else
+        echo "bench-real: $name: no $model (tools/cwfid-model.sh CWFID_TRAIN_DIR makes it): its classifier not timed" >&2
+      fi
+      ;;
+    recording)
+      inputs=$(repeated "$d" "$(recording_frames "$d")")
+      if recording_has_column "$d" nir; then
+        configs+=("$name|rgb+nir, default|$gsd_set|$inputs")
+        configs+=("$name|rgb|$gsd_set --set segment.method=chromatic_exg|$inputs")
+      else
+        configs+=("$name|default|$gsd_set|$inputs")
+      fi
+      ;;
+    *) echo "bench-real: $name: neither CWFID's layout (images/, masks/) nor a recording (frames.csv): skipped" >&2 ;;
+  esac
+done
 if [ ${#configs[@]} -eq 0 ]; then
-  echo "bench-real: no known data set under $data" >&2
+  echo "bench-real: no data set under $data" >&2
   exit 77
 fi
 
@@ -123,7 +151,9 @@ print("cvtColor BGR->GRAY (stemd-bench's yardstick, at each round's start and en
 print("each round's time is the median over its frames; below, the median over %d round%s (their range)," % (
     rounds, "" if rounds == 1 else "s"))
 print("and that median in cvtColor passes")
-print("%-12s %-27s %6s  %-9s %-20s %-7s %s" % ("set", "configuration", "frames", "stage", "ms", "passes", "targets"))
+width = max([12] + [len(name) for name, _ in keys])
+print("%-*s %-27s %6s  %-9s %-20s %-7s %s" % (width, "set", "configuration", "frames", "stage", "ms", "passes",
+                                              "targets"))
 for name, config in keys:
     field = "classify_cpu_ms" if config.startswith("classifier") else "frame_ms"
     mine = [r for r in rows if (r["set"], r["config"]) == (name, config) and r[field] is not None]
@@ -139,7 +169,7 @@ for name, config in keys:
     else:
         stage = "classify"
         targets = "thread CPU; 1 ms: %s" % ("met" if median <= 1.0 else "missed")
-    print("%-12s %-27s %6d  %-9s %-20s %-7s %s" % (
-        name, config, mine[0]["frames"], stage, "%.2f (%.2f-%.2f)" % (median, values[0], values[-1]),
+    print("%-*s %-27s %6d  %-9s %-20s %-7s %s" % (
+        width, name, config, mine[0]["frames"], stage, "%.2f (%.2f-%.2f)" % (median, values[0], values[-1]),
         "%.1f" % passes, targets))
 PY

@@ -26,7 +26,8 @@ and weed recall, balanced accuracy).
 
   tools/eval-classes.py [--data DIR] [--out DIR] [--folds N] [--split interleaved|blocks] [--seed N]
                         [--only SET] [--reuse-models] [--set K=V]... [--tools DIR]
-  tools/eval-classes.py --train SET_DIR --test SET_DIR [--gsd MM] [--out DIR] [--seed N] [--set K=V]...
+  tools/eval-classes.py --train SET_DIR --test SET_DIR [--gsd MM] [--out DIR] [--seed N] [--split ...]
+                        [--set K=V]...
 
 The first form takes every set in DATA_DIR with crop/weed annotations:
 a CWFID layout (images/, masks/, annotations/; 0.11 mm/px) or a recording
@@ -34,6 +35,8 @@ with a class column (frames.csv; 0.25 mm/px, carrot-dev's). The second
 trains one model on all of TRAIN (stemd-train) and scores it on TEST, a
 set it never saw (say CWFID's test split, or other photos of the same
 field), each of the two in either layout; --gsd overrides the layout's.
+With --split blocks, every model's own cross-validation (stemd-train
+--split blocks, which fits its class-map bar) folds consecutive frames too.
 
 Needs python3-opencv, python3-numpy and python3-yaml (Debian), and the
 Release tools. A measurement, not part of stemd: the per-plant figures in
@@ -283,12 +286,15 @@ def main():
     parser.add_argument("--split", choices=["interleaved", "blocks"], default="interleaved",
                         help="folds: frame i in fold i mod N (interleaved, as stemd-train folds) or N runs of "
                              "consecutive frames (blocks: neighbouring frames, alike in light and field, "
-                             "stay on one side)")
+                             "stay on one side; stemd-train --split blocks for each model's own folds too)")
     parser.add_argument("--train", metavar="SET_DIR", help="train one model on this set (with --test)")
     parser.add_argument("--test", metavar="SET_DIR", help="score that model on this set (with --train)")
     parser.add_argument("--gsd", type=float, help="mm per pixel of --train and --test (default: the layout's)")
     args = parser.parse_args()
     train_args = ["--seed", str(args.seed)] if args.seed is not None else []
+    # Each model's own cross-validation, which fits its class-map bar, split alike.
+    if args.split == "blocks":
+        train_args += ["--split", "blocks"]
     detect_sets = [a for kv in args.set for a in ("--set", kv)]
     out = os.path.abspath(args.out)
     os.makedirs(out, exist_ok=True)

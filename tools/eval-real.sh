@@ -34,6 +34,7 @@ daemon=${daemon:-$tools/../src/runtime/stemd}
 for tool in "$tools/stemd-detect" "$tools/stemd-eval" "$daemon"; do
   [ -x "$tool" ] || { echo "eval-real: no $tool" >&2; exit 2; }
 done
+. tools/real-sets.sh
 mkdir -p "$out"
 sets=()
 for kv in ${STEMD_EVAL_SET:-}; do sets+=(--set "$kv"); done
@@ -95,28 +96,6 @@ PY
     "$("$tools/stemd-eval" --targets "$truth" "$log" --config config/stemd.yaml --tol-mm 10 --json || true)"
 }
 
-# A set's ground sampling distance in mm per pixel, empty when unknown: from
-# STEMD_EVAL_GSD ("name=MM name=MM"), else by the source its folder name
-# starts with (the data README's figures: a camera and its height above the
-# ground, so other frames of the same source share them).
-gsd_of() {
-  local name=$1 kv
-  for kv in ${STEMD_EVAL_GSD:-}; do
-    if [ "${kv%%=*}" = "$name" ]; then echo "${kv#*=}"; return; fi
-  done
-  case $name in
-    bonirob*) echo 0.395 ;;  # measured from plants seen in two frames 265 mm apart
-    cwfid*) echo 0.11 ;;     # the JAI camera about 450 mm above the ground
-    *) echo "" ;;
-  esac
-}
-
-# Whether a recording's frames.csv has a non-empty value in column $2.
-has_column() {
-  awk -F, -v want="$2" 'NR == 1 { for (i = 1; i <= NF; ++i) if ($i == want) c = i; next }
-                        c && $c != "" { found = 1; exit } END { exit !found }' "$1/frames.csv"
-}
-
 # Every set in DATA_DIR, by its layout: CWFID's (images/, masks/) or a
 # recording (frames.csv) with masks, annotated stems (stems.csv) or plants
 # in field coordinates (plants.csv).
@@ -124,10 +103,10 @@ found=0
 for d in "$data"/*/; do
   d=${d%/}
   name=$(basename "$d")
-  gsd=$(gsd_of "$name")
-  if [ -d "$d/images" ] && [ -d "$d/masks" ]; then
+  layout=$(real_set_layout "$d")
+  gsd=$(real_set_gsd "$name" "$layout")
+  if [ "$layout" = cwfid ]; then
     found=1
-    gsd=${gsd:-0.11}
     STEMD_CLASSMAP=${STEMD_CLASSMAP:-$tools/stemd-classmap} tools/cwfid-recording.sh "$d" "$out/$name-recording" >/dev/null
     iou "$name" "$out/$name-recording" zero --set camera.gsd_mm_per_px="$gsd"
     # Stems annotated by eye for this project (test/data/cwfid-train-stems.csv,
@@ -139,11 +118,11 @@ for d in "$data"/*/; do
       cwfid_stems "$name" "$out/$name-recording" "sure, centre of mass" "$out/$name-stems-sure.csv" --set stem.method=com
       cwfid_stems "$name" "$out/$name-recording" "all, default" "$annotated"
     fi
-  elif [ -f "$d/frames.csv" ]; then
+  elif [ "$layout" = recording ]; then
     found=1
     gsd_set=()
     [ -n "$gsd" ] && gsd_set=(--set camera.gsd_mm_per_px="$gsd")
-    if has_column "$d" mask; then
+    if recording_has_column "$d" mask; then
       iou "$name" "$d" nonzero "${gsd_set[@]}"
     fi
     if [ -f "$d/stems.csv" ] || [ -f "$d/plants.csv" ]; then
@@ -153,7 +132,7 @@ for d in "$data"/*/; do
       fi
       # With a nir column the default (segment.method auto) reads it; "rgb"
       # is the same camera without its NIR plane.
-      if has_column "$d" nir; then
+      if recording_has_column "$d" nir; then
         configs=("rgb+nir, default|" "rgb|segment.method=chromatic_exg" "rgb+nir, ndvi|segment.method=ndvi")
       else
         configs=("rgb, default|")

@@ -1,27 +1,39 @@
 #!/usr/bin/env bash
 # The real sets of DATA_DIR under other light and a noisier sensor
 # (tools/perturb-recording.py: exposure, colour cast, vignetting, motion
-# blur, gain noise, YUYV, MJPEG compression), each
-# through the default configuration, in one table: mask IoU on carrot-dev
-# and cwfid-train against their human masks, and BoniRob's stems from
-# RGB+NIR and from RGB alone. The first row of each set is the frames as
-# recorded (re-written as PNG, so it matches tools/eval-real.sh).
+# blur, gain noise, YUYV, MJPEG compression), each through the default
+# configuration, in one table: mask IoU against the human masks, and stems
+# from RGB+NIR (when the set has a NIR plane) and from RGB alone against the
+# annotated stems. Every folder is a set by its layout, whatever its name
+# (tools/real-sets.sh: CWFID's images/ and masks/; a recording with a mask
+# column or a stems.csv), at the GSD of its source or STEMD_EVAL_GSD. The
+# first row of each set is the frames as recorded (re-written as PNG, so it
+# matches tools/eval-real.sh).
 #   tools/eval-robust.sh [DATA_DIR] [OUT_DIR]    (defaults: ../shared/data, out/eval-robust)
-# Builds Release first when the tools are missing. About 5.5 minutes.
-# Exit 0 when the table was made; 77 (skip) when DATA_DIR is absent.
+# The tools come from $STEMD_TOOLS, else build/release/tools (built first
+# when missing). About 5.5 minutes on the shared sets.
+# Exit 0 when the table was made; 77 (skip) when DATA_DIR is absent; 2 when
+# a tool is missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data=${1:-../shared/data}
 out=${2:-out/eval-robust}
-bin=build/release
 if [ ! -d "$data" ]; then
   echo "eval-robust: $data is absent: no real frames to evaluate (see README, Evaluation on real frames)" >&2
   exit 77
 fi
-if [ ! -x "$bin/tools/stemd-detect" ] || [ ! -x "$bin/tools/stemd-eval" ]; then
-  cmake -S . -B "$bin" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-  cmake --build "$bin" -j "$(nproc)" --target stemd-detect stemd-eval
+tools=${STEMD_TOOLS:-}
+if [ -z "$tools" ]; then
+  tools=build/release/tools
+  if [ ! -x "$tools/stemd-detect" ] || [ ! -x "$tools/stemd-eval" ]; then
+    cmake -S . -B build/release -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+    cmake --build build/release -j "$(nproc)" --target stemd-detect stemd-eval stemd-classmap
+  fi
 fi
+for tool in stemd-detect stemd-eval; do
+  [ -x "$tools/$tool" ] || { echo "eval-robust: no $tools/$tool" >&2; exit 2; }
+done
+. tools/real-sets.sh
 mkdir -p "$out"
 rows="$out/rows.jsonl"
 : >"$rows"
@@ -65,44 +77,73 @@ perturb() {  # name source: a copy of the recording under the condition
 iou() {  # name recording gt_vegetation [--set ...]
   local name=$1 recording=$2 gt=$3
   shift 3
-  "$bin/tools/stemd-detect" --config config/stemd.yaml "$@" "$recording" --mask-out "$recording/masks-out" \
+  "$tools/stemd-detect" --config config/stemd.yaml "$@" "$recording" --mask-out "$recording/masks-out" \
     >/dev/null 2>"$recording/detect.log"
   row "$name" "$label" default \
-    "$("$bin/tools/stemd-eval" --iou "$recording/masks-out" "$recording" --gt-vegetation "$gt" --json)"
+    "$("$tools/stemd-eval" --iou "$recording/masks-out" "$recording" --gt-vegetation "$gt" --json)"
 }
 
-# A CWFID copy as a recording with masks (cwfid-recording.sh's frames.csv).
-cwfid=""
-if [ -d "$data/cwfid-train/images" ]; then
-  cwfid=$out/cwfid-train-recording
-  tools/cwfid-recording.sh "$data/cwfid-train" "$cwfid" >/dev/null
-fi
+# Every folder of DATA_DIR is a set by its layout, whatever its name
+# (tools/real-sets.sh): CWFID's, read as a recording with masks
+# (cwfid-recording.sh's frames.csv), or a recording, with masks (IoU) and
+# stems.csv (stems, from RGB+NIR when it has a NIR plane and from RGB).
+names=() layouts=() sources=() gsds=()
+for d in "$data"/*/; do
+  d=${d%/}
+  name=$(basename "$d")
+  layout=$(real_set_layout "$d")
+  case $layout in
+    cwfid)
+      STEMD_CLASSMAP=${STEMD_CLASSMAP:-$tools/stemd-classmap} tools/cwfid-recording.sh "$d" "$out/$name-recording" \
+        >/dev/null
+      sources+=("$out/$name-recording") ;;
+    recording) sources+=("$d") ;;
+    *) echo "eval-robust: $name: neither CWFID's layout (images/, masks/) nor a recording (frames.csv): skipped" >&2
+       continue ;;
+  esac
+  gsd=$(real_set_gsd "$name" "$layout")
+  if [ "$layout" = recording ] && [ -f "$d/stems.csv" ] && [ -z "$gsd" ]; then
+    echo "eval-robust: $name: stems to score but no GSD known (STEMD_EVAL_GSD=\"$name=MM\"): its stems skipped" >&2
+  fi
+  names+=("$name") layouts+=("$layout") gsds+=("$gsd")
+done
 
 for condition in "${conditions[@]}"; do
   read -r label exposure gains noise vignetting blur yuyv jpeg <<<"$condition"
-  if [ -f "$data/carrot-dev/frames.csv" ]; then
-    iou carrot-dev "$(perturb carrot-dev "$data/carrot-dev")" nonzero
-  fi
-  if [ -n "$cwfid" ]; then
-    iou cwfid-train "$(perturb cwfid-train "$cwfid")" zero --set camera.gsd_mm_per_px=0.11
-  fi
-  if [ -f "$data/bonirob/frames.csv" ]; then
-    copy=$(perturb bonirob "$data/bonirob")
-    for segment in "rgb+nir auto" "rgb chromatic_exg"; do
+  for i in "${!names[@]}"; do
+    name=${names[$i]} source=${sources[$i]} gsd=${gsds[$i]}
+    gsd_set=()
+    [ -n "$gsd" ] && gsd_set=(--set camera.gsd_mm_per_px="$gsd")
+    if [ "${layouts[$i]}" = cwfid ]; then
+      iou "$name" "$(perturb "$name" "$source")" zero "${gsd_set[@]}"
+      continue
+    fi
+    stems=no
+    [ -f "$source/stems.csv" ] && [ -n "$gsd" ] && stems=yes
+    recording_has_column "$source" mask || [ "$stems" = yes ] || continue
+    copy=$(perturb "$name" "$source")
+    if recording_has_column "$source" mask; then
+      iou "$name" "$copy" nonzero "${gsd_set[@]}"
+    fi
+    [ "$stems" = yes ] || continue
+    segments=("rgb chromatic_exg")
+    recording_has_column "$source" nir && segments=("rgb+nir auto" "rgb chromatic_exg")
+    for segment in "${segments[@]}"; do
       read -r config method <<<"$segment"
-      "$bin/tools/stemd-detect" --config config/stemd.yaml --set camera.gsd_mm_per_px=0.395 \
+      "$tools/stemd-detect" --config config/stemd.yaml "${gsd_set[@]}" \
         --set segment.method="$method" "$copy" --csv "$copy/$config.csv" >/dev/null 2>"$copy/$config-detect.log"
-      row bonirob "$label" "$config" \
-        "$("$bin/tools/stemd-eval" "$data/bonirob/stems.csv" "$copy/$config.csv" --gsd-mm-per-px 0.395 --json)"
+      row "$name" "$label" "$config" \
+        "$("$tools/stemd-eval" "$source/stems.csv" "$copy/$config.csv" --gsd-mm-per-px "$gsd" --json)"
     done
-  fi
+  done
 done
 
 python3 - "$rows" <<'PY'
 import json, sys
 rows = [json.loads(line) for line in open(sys.argv[1])]
-print("%-12s %-24s %-8s %s" % ("set", "condition", "config", "result"))
-for key in ("carrot-dev", "cwfid-train", "bonirob"):
+width = max([12] + [len(r["set"]) for r in rows])
+print("%-*s %-24s %-8s %s" % (width, "set", "condition", "config", "result"))
+for key in dict.fromkeys(r["set"] for r in rows):  # each set's rows together, in the order found
     for r in (r for r in rows if r["set"] == key):
         x = r["result"]
         if "mean_iou" in x:
@@ -110,5 +151,5 @@ for key in ("carrot-dev", "cwfid-train", "bonirob"):
         else:
             text = "%d of %d stems within %g mm, %d reported" % (
                 x["true_positives"], x["ground_truth"], x["tol_mm"], x["predictions"])
-        print("%-12s %-24s %-8s %s" % (r["set"], r["condition"], r["config"], text))
+        print("%-*s %-24s %-8s %s" % (width, r["set"], r["condition"], r["config"], text))
 PY

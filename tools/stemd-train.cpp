@@ -2,7 +2,7 @@
 // vision/classify and the cell forest of vision/cells) from recordings with
 // a class column, prints cross-validated figures split by frame, and writes
 // one model file.
-//   stemd-train --out MODEL [--config FILE] [--set K=V]... [--folds N]
+//   stemd-train --out MODEL [--config FILE] [--set K=V]... [--folds N] [--split interleaved|blocks]
 //               [--trees N] [--max-depth N] [--cell-mm MM] [--cell-trees N]
 //               [--cell-max-depth N] [--cell-samples N] [--cell-context yes|no] [--seed N] [--jobs N]
 //               [--cell-weights cells|pixels] [--test-on RECORDING]... [--test-set K=V]...
@@ -235,9 +235,21 @@ bool collect(const std::vector<tools::FrameJob>& jobs, Pipeline& pipeline, std::
     return true;
 }
 
+// The fold of item i of n: interleaved puts item i in fold i mod folds;
+// blocks cuts the items, in their order, into `folds` runs of consecutive
+// ones (sizes differing by at most one), so that a frame's neighbours (the
+// same light, the same patch of field) are not among its model's training
+// frames.
+int fold_of(std::size_t i, std::size_t n, int folds, bool blocks)
+{
+    const auto k = static_cast<std::size_t>(folds);
+    return static_cast<int>(blocks ? i * k / std::max<std::size_t>(n, 1) : i % k);
+}
+
 // Every vegetated cell of every frame as one CSV line, for analysis
 // outside stemd (the rows the forests train on, with their pixel counts).
-bool write_cells_csv(const std::string& path, const std::vector<FrameSamples>& frames, int folds, std::string& error)
+bool write_cells_csv(const std::string& path, const std::vector<FrameSamples>& frames, int folds, bool blocks,
+                     std::string& error)
 {
     std::ofstream out(path);
     if (!out) {
@@ -252,7 +264,7 @@ bool write_cells_csv(const std::string& path, const std::vector<FrameSamples>& f
         const FrameSamples& frame = frames[i];
         const auto width = static_cast<std::uint32_t>(std::max(frame.grid.width, 1));
         for (const CellSample& c : frame.cells) {
-            out << i << ',' << frame.name << ',' << i % static_cast<std::size_t>(folds) << ',' << c.cell << ','
+            out << i << ',' << frame.name << ',' << fold_of(i, frames.size(), folds, blocks) << ',' << c.cell << ','
                 << c.cell % width << ',' << c.cell / width << ',' << c.plant << ',' << c.crop_px << ',' << c.weed_px;
             for (const float v : c.row)
                 out << ',' << v;
@@ -518,6 +530,7 @@ int main(int argc, char** argv)
     std::vector<std::string> test_recordings;
     std::vector<std::string> recordings;
     int folds = 5;
+    std::string split = "interleaved";
     vision::ForestOptions forest;
     vision::ForestOptions cell_forest = vision::kDefaultCellForest;
     double cell_mm = vision::kDefaultCellMm;
@@ -528,8 +541,12 @@ int main(int argc, char** argv)
     int threads = static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 256u));
     app.add_option("--out", out_path, "model file to write (.yaml or .json)")->required();
     tools::add_config_options(app, config_args);
-    app.add_option("--folds", folds, "cross-validation folds; frame i is in fold i mod N")
-        ->check(CLI::Range(2, 100));
+    app.add_option("--folds", folds, "cross-validation folds")->check(CLI::Range(2, 100));
+    app.add_option("--split", split,
+                   "how frames fall into folds: interleaved (frame i in fold i mod N, the default) or blocks (runs "
+                   "of consecutive frames, so a frame's neighbours are never in its model's training frames; also "
+                   "the context stage's inner folds)")
+        ->check(CLI::IsMember({"interleaved", "blocks"}));
     app.add_option("--trees", forest.trees, "trees in the plant forest")->check(CLI::Range(1, 1000));
     app.add_option("--max-depth", forest.max_depth, "depth limit of each plant tree")->check(CLI::Range(1, 50));
     app.add_option("--cell-mm", cell_mm, "side of the classified cells, in mm")->check(CLI::Range(0.5, 50.0));
@@ -563,6 +580,7 @@ int main(int argc, char** argv)
     if (const auto exit_code = tools::parse(app, argc, argv, {.tool = "stemd-train", .after = " (see --help)"}))
         return *exit_code;
     cell_forest.seed = forest.seed;
+    const bool blocks = split == "blocks";
 
     std::string error;
     Pipeline pipeline;
@@ -584,7 +602,7 @@ int main(int argc, char** argv)
         std::cerr << "stemd-train: " << frames.size() << " frames, fewer than " << folds << " folds\n";
         return kUsageError;
     }
-    if (!cells_csv.empty() && !write_cells_csv(cells_csv, frames, folds, error)) {
+    if (!cells_csv.empty() && !write_cells_csv(cells_csv, frames, folds, blocks, error)) {
         std::cerr << "stemd-train: --cells-csv " << error << "\n";
         return 1;
     }
@@ -620,7 +638,10 @@ int main(int argc, char** argv)
         for (std::size_t k = 0; k < inner; ++k) {
             std::vector<std::size_t> fit, held_out;
             for (std::size_t i = 0; i < which.size(); ++i)
-                (i % inner == k ? held_out : fit).push_back(which[i]);
+                (static_cast<std::size_t>(fold_of(i, which.size(), static_cast<int>(inner), blocks)) == k
+                     ? held_out
+                     : fit)
+                    .push_back(which[i]);
             vision::PlantClassifier stage;
             if (!train_cell_forest(fit, stage, false, why)) {
                 why = "context, inner fold " + std::to_string(k) + ": " + why;
@@ -679,7 +700,7 @@ int main(int argc, char** argv)
     // frame. They are independent, so `threads` threads train them. Each
     // forest seeds its own thread's cv::theRNG() (train_forest), so no
     // model depends on the thread count or the order.
-    const auto in_fold = [&](std::size_t f, int k) { return static_cast<int>(f % static_cast<std::size_t>(folds)) == k; };
+    const auto in_fold = [&](std::size_t f, int k) { return fold_of(f, frames.size(), folds, blocks) == k; };
     const int model_count = folds + 1;
     std::vector<std::optional<vision::PlantClassifier>> models(static_cast<std::size_t>(model_count));
     std::vector<std::string> model_errors(static_cast<std::size_t>(model_count));
@@ -775,6 +796,9 @@ int main(int argc, char** argv)
                       kMapBars[map_bar], cv_figures_half.map_balanced_accuracy(map_bar));
         sweep << text;
     }
+    // The default's title is the one earlier models carry.
+    const std::string cv_title = std::to_string(folds) + "-fold cross-validation by frame" +
+                                 (blocks ? " (folds of consecutive frames)" : "");
     std::ostringstream report;
     char cells_line[200];
     std::snprintf(cells_line, sizeof cells_line,
@@ -783,8 +807,7 @@ int main(int argc, char** argv)
                   cell_context == "yes" ? " and a context forest as large" : "",
                   cell_weights == "pixels" ? "their vegetation pixels" : "one each");
     report << cells_line
-           << cv_figures_half.text(std::to_string(folds) + "-fold cross-validation by frame", symmetric)
-           << cv_figures.text(std::to_string(folds) + "-fold cross-validation by frame", decision) << sweep.str();
+           << cv_figures_half.text(cv_title, symmetric) << cv_figures.text(cv_title, decision) << sweep.str();
 
     auto& model = models[static_cast<std::size_t>(folds)];
     if (!model) {

@@ -45,6 +45,21 @@ awk -F, 'NR == 1 { n = NF; next } NF != n { print "line " NR " has " NF " fields
   $8 + $9 > 0 { labelled++ }
   END { if (NR < 2 || labelled == 0) { print "no labelled cell"; bad = 1 } exit bad }' "$tmp/cells.csv" ||
   fail "cells csv rows"
+# Frame i of the strip's n frames is in fold i mod 3; with --split blocks,
+# in fold floor(3 i / n): runs of consecutive frames, the title saying so.
+n=$(($(wc -l <"$tmp/rec/frames.csv") - 1))
+awk -F, 'NR > 1 && $3 != $1 % 3 { print "line " NR ": frame " $1 " in fold " $3; bad = 1 } END { exit bad }' \
+  "$tmp/cells.csv" || fail "interleaved folds"
+"$tools/stemd-train" --out "$tmp/blocks.yaml" --config "$src/config/stemd.yaml" --set segment.method=chromatic_exg --folds 3 --trees 20 "${small_forests[@]}" \
+  --split blocks --cells-csv "$tmp/blocks.csv" "$tmp/rec" >"$tmp/blocks.txt" 2>&1 || fail "training in blocks: $(cat "$tmp/blocks.txt")"
+grep -q '^3-fold cross-validation by frame (folds of consecutive frames)' "$tmp/blocks.txt" ||
+  fail "the blocks' figures do not say so: $(head -3 "$tmp/blocks.txt")"
+awk -F, -v n="$n" 'NR > 1 && $3 != int(3 * $1 / n) { print "line " NR ": frame " $1 " of " n " in fold " $3; bad = 1 }
+  END { exit bad }' "$tmp/blocks.csv" || fail "folds of consecutive frames"
+[ "$(awk -F, 'NR > 1 { print $3 }' "$tmp/blocks.csv" | sort -u | tr -d '\n')" = 012 ] || fail "blocks: not three folds"
+if "$tools/stemd-train" --out "$tmp/x.yaml" --split random "$tmp/rec" >"$tmp/x.txt" 2>&1; then fail "--split random accepted"; fi
+grep -q -- "--split" "$tmp/x.txt" || fail "--split random without naming the option: $(cat "$tmp/x.txt")"
+
 labelled=$(sed -n 's/.* plants and \([0-9]*\) labelled cells from .*/\1/p' "$tmp/train.txt")
 [ -n "$labelled" ] && [ "$(awk -F, 'NR > 1 && $8 + $9 > 0' "$tmp/cells.csv" | wc -l)" -eq "$labelled" ] ||
   fail "cells csv: not the $labelled labelled cells stemd-train counted"

@@ -14,37 +14,17 @@ set -euo pipefail
 tools=$1
 source_dir=$2
 . "$(dirname "$0")/../support/script.sh"
+. "$(dirname "$0")/../support/real_sets.sh"
 script=$source_dir/tools/eval-real.sh
 export STEMD_TOOLS=$tools
 export STEMD_DAEMON=$tools/../src/runtime/stemd
 [ -x "$STEMD_DAEMON" ] || fail "no daemon at $STEMD_DAEMON"
 
-set +e
-"$script" "$tmp/absent" "$tmp/out" 2>"$tmp/err"
-code=$?
-STEMD_TOOLS=$tmp "$script" "$source_dir" "$tmp/out" 2>"$tmp/err2"
-code2=$?
-set -e
-[ "$code" = 77 ] || fail "an absent data folder exited $code, not 77"
-grep -q "absent" "$tmp/err" || fail "an absent data folder without a message: $(cat "$tmp/err")"
-[ "$code2" = 2 ] || fail "missing tools exited $code2, not 2"
-grep -q "no $tmp/stemd-detect" "$tmp/err2" || fail "missing tools without naming them: $(cat "$tmp/err2")"
+check_absent_and_missing_tools "$script"
 
 data=$tmp/data
-mkdir -p "$data/junk"
-"$tools/stemd-synth" --out "$data/field-a" --preset late --frames 2 --width 320 --height 240 --seed 3 >/dev/null
+unseen_sets "$data"
 "$tools/stemd-synth" --strip --out "$data/strip-b" --length-mm 600 --width 320 --height 240 --seed 4 >/dev/null
-# The same frames with no GSD known for them.
-cp -r "$data/field-a" "$data/unknown-c"
-# CWFID's layout under another name: NNN_image.png, and NNN_mask.png with 0
-# for vegetation and 255 for soil.
-mkdir -p "$data/cwfid-d/images" "$data/cwfid-d/masks"
-cp "$data/field-a/rgb/000000.png" "$data/cwfid-d/images/000_image.png"
-/usr/bin/python3 - "$data/field-a/mask/000000.png" "$data/cwfid-d/masks/000_mask.png" <<'PY'
-import sys, cv2
-mask = cv2.imread(sys.argv[1], cv2.IMREAD_GRAYSCALE)
-cv2.imwrite(sys.argv[2], 255 - (mask > 0).astype("uint8") * 255)
-PY
 
 STEMD_EVAL_GSD="field-a=0.33 strip-b=0.33" "$script" "$data" "$tmp/out" >"$tmp/table" 2>"$tmp/err" ||
   fail "eval-real exited $?: $(cat "$tmp/err")"
