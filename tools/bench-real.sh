@@ -92,7 +92,7 @@ for d in "$data"/*/; do
         configs+=("$name|default|$gsd_set|$inputs")
       fi
       ;;
-    *) echo "bench-real: $name: neither CWFID's layout (images/, masks/) nor a recording (frames.csv): skipped" >&2 ;;
+    *) real_set_skipped bench-real "$name" "$layout" ;;
   esac
 done
 if [ ${#configs[@]} -eq 0 ]; then

@@ -157,7 +157,7 @@ for d in "$data"/*/; do
       done
     fi
   else
-    echo "eval-real: $name: neither CWFID's layout (images/, masks/) nor a recording (frames.csv): skipped" >&2
+    real_set_skipped eval-real "$name" "$layout"
   fi
 done
 [ "$found" = 1 ] || echo "eval-real: no set in $data" >&2

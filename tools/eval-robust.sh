@@ -98,7 +98,7 @@ for d in "$data"/*/; do
         >/dev/null
       sources+=("$out/$name-recording") ;;
     recording) sources+=("$d") ;;
-    *) echo "eval-robust: $name: neither CWFID's layout (images/, masks/) nor a recording (frames.csv): skipped" >&2
+    *) real_set_skipped eval-robust "$name" "$layout"
        continue ;;
   esac
   gsd=$(real_set_gsd "$name" "$layout")

@@ -5,12 +5,22 @@
 # same sets.
 
 # A folder's layout: "cwfid" (images/NNN_image.png and masks/NNN_mask.png, 0
-# marking vegetation), "recording" (frames.csv), or nothing.
+# marking vegetation), "recording" (frames.csv), "empty" (either layout, but
+# no frame in it), or nothing.
 real_set_layout() {
   if [ -d "$1/images" ] && [ -d "$1/masks" ]; then
-    echo cwfid
+    if compgen -G "$1/images/*_image.png" >/dev/null; then echo cwfid; else echo empty; fi
   elif [ -f "$1/frames.csv" ]; then
-    echo recording
+    if [ "$(recording_frames "$1")" -gt 0 ]; then echo recording; else echo empty; fi
+  fi
+}
+
+# Why a folder of DATA_DIR is not scored, on stderr: SCRIPT NAME LAYOUT.
+real_set_skipped() {
+  if [ "$3" = empty ]; then
+    echo "$1: $2: no frames in it: skipped" >&2
+  else
+    echo "$1: $2: neither CWFID's layout (images/, masks/) nor a recording (frames.csv): skipped" >&2
   fi
 }
 

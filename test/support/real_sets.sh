@@ -37,13 +37,28 @@ PY
   done
 }
 
+# folders_of_no_set DIR: junk (an empty folder, of neither layout), and two
+# sets of no frames: empty-e (CWFID's layout) and empty-f (a recording).
+folders_of_no_set() {
+  mkdir -p "$1/junk" "$1/empty-e/images" "$1/empty-e/masks" "$1/empty-f"
+  echo "t_ns,rgb,nir,mask" >"$1/empty-f/frames.csv"
+}
+
 # unseen_sets DIR: sets under names no script knows: field-a (a recording
 # of two 320 x 240 frames with NIR, masks and stems.csv), unknown-c (the
 # same frames, for a set whose GSD is not known), cwfid-d (field-a's first
-# frame in CWFID's layout) and junk (an empty folder, of neither layout).
+# frame in CWFID's layout), and the folders_of_no_set.
 unseen_sets() {
-  mkdir -p "$1/junk"
+  folders_of_no_set "$1"
   "$tools/stemd-synth" --out "$1/field-a" --preset late --frames 2 --width 320 --height 240 --seed 3 >/dev/null
   cp -r "$1/field-a" "$1/unknown-c"
   cwfid_layout "$1/field-a" "$1/cwfid-d" 000000
+}
+
+# check_skipped ERR_FILE: the folders_of_no_set were each named on stderr
+# with the reason.
+check_skipped() {
+  grep -q "junk: neither CWFID's layout" "$1" || fail "the folder of no layout was not named: $(cat "$1")"
+  grep -q "empty-e: no frames in it: skipped" "$1" || fail "the empty CWFID set was not named: $(cat "$1")"
+  grep -q "empty-f: no frames in it: skipped" "$1" || fail "the empty recording was not named: $(cat "$1")"
 }
