@@ -167,23 +167,26 @@ TEST(Classify, NdviFeaturesComeFromTheNirPlane)
     EXPECT_NEAR(c.cws.features()[0][f_ndvi_std], 0.0, 1e-4);
 }
 
-TEST(Classify, FrameBrightnessIsTheMeanOfEveryFourthPixelOfEveryFourthRow)
+TEST(Classify, FrameBrightnessIsTheMeanOfEveryPixelOnRowFourOfEachSixteenRowBand)
 {
-    // Widths around the 16-pixel blocks, heights not a multiple of 4, and a
-    // view into a larger frame (rows not contiguous).
+    // Heights around the 16-row bands (a short last band is read at its
+    // last row), odd widths, and a view into a larger frame (rows not
+    // contiguous).
     cv::RNG rng(21);
-    cv::Mat big(40, 120, CV_8UC3);
+    cv::Mat big(60, 120, CV_8UC3);
     rng.fill(big, cv::RNG::UNIFORM, 0, 256);
-    for (const int width : {1, 3, 15, 16, 17, 33, 64, 100}) {
-        for (const int height : {1, 4, 7, 13}) {
+    for (const int width : {1, 3, 17, 100}) {
+        for (const int height : {1, 4, 5, 16, 21, 33, 50}) {
             const cv::Mat frame = big(cv::Rect(5, 2, width, height));
-            long sum = 0, samples = 0;
-            for (int y = 0; y < height; y += 4)
-                for (int x = 0; x < width; x += 4, ++samples) {
+            double sum = 0, samples = 0;
+            for (int band = 0; band < height; band += 16) {
+                const int y = std::min(band + 4, height - 1);
+                for (int x = 0; x < width; ++x, ++samples) {
                     const cv::Vec3b p = frame.at<cv::Vec3b>(y, x);
                     sum += p[0] + p[1] + p[2];
                 }
-            EXPECT_EQ(sampled_frame_brightness(frame), std::max(static_cast<double>(sum) / static_cast<double>(samples), 1.0))
+            }
+            EXPECT_FLOAT_EQ(static_cast<float>(sampled_frame_brightness(frame)), static_cast<float>(sum / samples))
                 << width << "x" << height;
         }
     }

@@ -126,9 +126,10 @@ private:
 void plant_features(const FrameView& frame, const Params& params, const Workspace& detect_workspace,
                     const Detections& detections, ClassifyWorkspace& workspace);
 
-// The frame's mean R+G+B over every 4th pixel of every 4th row (at least
-// 1): the classifier's brightness normaliser, as its models were trained.
-// CV_8UC3; an empty frame gives 1.
+// The frame's mean R+G+B as the chromatic index measures it
+// (chromatic_mean_brightness: every pixel of one row in kBrightnessRowStep,
+// at least 1): the classifier's brightness normaliser, as its models were
+// trained. CV_8UC3; an empty frame gives 1.
 double sampled_frame_brightness(const cv::Mat& bgr);
 
 // The class of a plant from its weed probability, asymmetric because a
