@@ -167,6 +167,41 @@ TEST(Classify, NdviFeaturesComeFromTheNirPlane)
     EXPECT_NEAR(c.cws.features()[0][f_ndvi_std], 0.0, 1e-4);
 }
 
+// Rows of four greens, one per row modulo 4 from `top`: which rows the
+// colour features read shows in their mean.
+cv::Mat striped_plant(cv::Size size, cv::Rect plant)
+{
+    static const cv::Scalar kGreens[4] = {{40, 170, 60}, {60, 150, 40}, {30, 140, 90}, {50, 190, 110}};
+    cv::Mat bgr(size, CV_8UC3, cv::Scalar(60, 80, 110));
+    for (int y = plant.y; y < plant.y + plant.height; ++y)
+        bgr(cv::Rect(plant.x, y, plant.width, 1)).setTo(kGreens[(y - plant.y) % 4]);
+    return bgr;
+}
+
+double chromatic_g(const cv::Vec3b& p) { return p[1] / static_cast<double>(p[0] + p[1] + p[2]); }
+
+TEST(Classify, ColourIsReadOnEveryFourthRowOfThePlantsBoxFromItsThirdOrMiddleRow)
+{
+    const Params params = test_params();
+    for (const int height : {3, 4, 9, 41}) {
+        const cv::Rect drawn(60, 50, 50, height);
+        const cv::Mat bgr = striped_plant({200, 160}, drawn);
+        Classified c(bgr, params);
+        ASSERT_EQ(c.det.plants.size(), 1u) << height << " rows";
+        const cv::Rect box = c.det.plants[0].bbox;
+        ASSERT_EQ(box, drawn) << "the plant is its rectangle: no mixed pixels on a uniform soil";
+        // The rows the definition names, every vegetation pixel on them.
+        double g = 0;
+        int rows = 0;
+        for (int y = box.y + std::min(box.height / 2, 2); y < box.y + box.height; y += 4, ++rows)
+            g += chromatic_g(bgr.at<cv::Vec3b>(y, box.x + box.width / 2));
+        ASSERT_GT(rows, 0);
+        EXPECT_NEAR(c.cws.features()[0][f_g_mean], g / rows, 1e-4) << height << " rows";
+        // Rows 4 apart have one green: a row between them would add another.
+        EXPECT_NEAR(c.cws.features()[0][f_g_std], 0.0, 2e-3) << height << " rows";
+    }
+}
+
 TEST(Classify, FrameBrightnessIsTheMeanOfEveryPixelOnRowFourOfEachSixteenRowBand)
 {
     // Heights around the 16-row bands (a short last band is read at its

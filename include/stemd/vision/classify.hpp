@@ -53,7 +53,7 @@ enum PlantFeature : int {
     f_leaf_elongation,    // mean elongation of those leaves (1 without leaves)
     f_vegetation_fill,    // vegetation pixels / closed pixels (lacy plants < 1)
     f_mean_width_mm,      // 2 area / perimeter
-    f_r_mean,             // chromatic r, g, b over the plant's vegetation pixels (every other row)
+    f_r_mean,             // chromatic r, g, b over the plant's vegetation pixels (every 4th row of its box)
     f_g_mean,
     f_b_mean,
     f_r_std,
