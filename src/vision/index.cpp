@@ -88,10 +88,19 @@ float chromatic_mean_brightness(const cv::Mat& bgr)
     const int row_bytes = 3 * bgr.cols;
     for (int band = 0; band < bgr.rows; band += kBrightnessRowStep) {
         const std::uint8_t* src = bgr.ptr<std::uint8_t>(std::min(band + 4, bgr.rows - 1));
-        std::uint32_t row_sum = 0;  // at most 3 * 255 per pixel: fits for rows below 5.6 million pixels
-        for (int i = 0; i < row_bytes; ++i)
-            row_sum += src[i];
-        sum += row_sum;
+        int i = 0;
+#if defined(__x86_64__)
+        // psadbw sums 16 bytes into two 64-bit lanes: two instructions per
+        // 16 bytes, where the compiler's widening loop took about sixteen.
+        const __m128i zero = _mm_setzero_si128();
+        __m128i lanes = zero;
+        for (; i + 16 <= row_bytes; i += 16)
+            lanes = _mm_add_epi64(lanes, _mm_sad_epu8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(src + i)), zero));
+        sum += static_cast<std::uint64_t>(_mm_cvtsi128_si64(lanes)) +
+               static_cast<std::uint64_t>(_mm_cvtsi128_si64(_mm_unpackhi_epi64(lanes, lanes)));
+#endif
+        for (; i < row_bytes; ++i)
+            sum += src[i];
         samples += static_cast<std::uint64_t>(bgr.cols);
     }
     // The floor keeps an all-black frame from dividing by zero; it is far

@@ -174,6 +174,20 @@ TEST(ChromaticExcessGreen, MeanBrightnessIsTheMeanOfRowFourOfEveryBand)
     EXPECT_FLOAT_EQ(chromatic_mean_brightness(short_frame), 30.0f);
     // An all-black frame gets the floor, not a division by zero.
     EXPECT_FLOAT_EQ(chromatic_mean_brightness(cv::Mat(20, 8, CV_8UC3, cv::Scalar::all(0))), 1.0f);
+    // Random rows of every width around the 16-byte blocks, and a view into
+    // a larger frame: the mean of the sampled rows' bytes, as defined.
+    cv::RNG rng(5);
+    cv::Mat big(40, 120, CV_8UC3);
+    rng.fill(big, cv::RNG::UNIFORM, 0, 256);
+    for (int width = 1; width <= 100; ++width) {
+        const cv::Mat frame = big(cv::Rect(3, 1, width, 37));
+        double sum = 0;
+        for (const int y : {4, 20, 36})
+            for (int x = 0; x < width; ++x)
+                for (int c = 0; c < 3; ++c)
+                    sum += frame.at<cv::Vec3b>(y, x)[c];
+        EXPECT_FLOAT_EQ(chromatic_mean_brightness(frame), static_cast<float>(sum / (3.0 * width))) << width;
+    }
 }
 
 TEST(ChromaticExcessGreen, DoesNotChangeWithExposure)
