@@ -13,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "stemd/vision/classify.hpp"
+#include "stemd/vision/index.hpp"
 #include "vision_classify_test_util.hpp"
 #include "vision_test_util.hpp"
 
@@ -75,6 +76,19 @@ void toy_data(int rows, std::uint32_t seed, cv::Mat& samples, cv::Mat& labels)
 }
 
 fs::path temp_path(const std::string& name) { return test::classify_temp_path("stemd-classify", name); }
+
+// Rows of four greens, one per row modulo 4 from the plant's top row:
+// which rows the colour features read shows in their mean.
+cv::Mat striped_plant(cv::Size size, cv::Rect plant)
+{
+    static const cv::Scalar kGreens[4] = {{40, 170, 60}, {60, 150, 40}, {30, 140, 90}, {50, 190, 110}};
+    cv::Mat bgr(size, CV_8UC3, cv::Scalar(60, 80, 110));
+    for (int y = plant.y; y < plant.y + plant.height; ++y)
+        bgr(cv::Rect(plant.x, y, plant.width, 1)).setTo(kGreens[(y - plant.y) % 4]);
+    return bgr;
+}
+
+double chromatic_g(const cv::Vec3b& p) { return p[1] / static_cast<double>(p[0] + p[1] + p[2]); }
 
 }  // namespace
 
@@ -167,19 +181,6 @@ TEST(Classify, NdviFeaturesComeFromTheNirPlane)
     EXPECT_NEAR(c.cws.features()[0][f_ndvi_std], 0.0, 1e-4);
 }
 
-// Rows of four greens, one per row modulo 4 from `top`: which rows the
-// colour features read shows in their mean.
-cv::Mat striped_plant(cv::Size size, cv::Rect plant)
-{
-    static const cv::Scalar kGreens[4] = {{40, 170, 60}, {60, 150, 40}, {30, 140, 90}, {50, 190, 110}};
-    cv::Mat bgr(size, CV_8UC3, cv::Scalar(60, 80, 110));
-    for (int y = plant.y; y < plant.y + plant.height; ++y)
-        bgr(cv::Rect(plant.x, y, plant.width, 1)).setTo(kGreens[(y - plant.y) % 4]);
-    return bgr;
-}
-
-double chromatic_g(const cv::Vec3b& p) { return p[1] / static_cast<double>(p[0] + p[1] + p[2]); }
-
 TEST(Classify, ColourIsReadOnEveryFourthRowOfThePlantsBoxFromItsThirdOrMiddleRow)
 {
     const Params params = test_params();
@@ -202,31 +203,24 @@ TEST(Classify, ColourIsReadOnEveryFourthRowOfThePlantsBoxFromItsThirdOrMiddleRow
     }
 }
 
-TEST(Classify, FrameBrightnessIsTheMeanOfEveryPixelOnRowFourOfEachSixteenRowBand)
+TEST(Classify, FrameBrightnessIsTheChromaticIndexsNormaliser)
 {
-    // Heights around the 16-row bands (a short last band is read at its
-    // last row), odd widths, and a view into a larger frame (rows not
-    // contiguous).
+    // One definition of a frame's brightness: chromatic_mean_brightness,
+    // whose samples ChromaticExcessGreen.MeanBrightnessIsTheMeanOfRowFourOfEveryBand
+    // checks. Here: the classifier takes exactly it, on views into a larger
+    // frame (rows not contiguous) of heights around the 16-row bands.
     cv::RNG rng(21);
     cv::Mat big(60, 120, CV_8UC3);
     rng.fill(big, cv::RNG::UNIFORM, 0, 256);
     for (const int width : {1, 3, 17, 100}) {
         for (const int height : {1, 4, 5, 16, 21, 33, 50}) {
             const cv::Mat frame = big(cv::Rect(5, 2, width, height));
-            double sum = 0, samples = 0;
-            for (int band = 0; band < height; band += 16) {
-                const int y = std::min(band + 4, height - 1);
-                for (int x = 0; x < width; ++x, ++samples) {
-                    const cv::Vec3b p = frame.at<cv::Vec3b>(y, x);
-                    sum += p[0] + p[1] + p[2];
-                }
-            }
-            EXPECT_FLOAT_EQ(static_cast<float>(sampled_frame_brightness(frame)), static_cast<float>(sum / samples))
+            EXPECT_EQ(sampled_frame_brightness(frame), static_cast<double>(chromatic_mean_brightness(frame)))
                 << width << "x" << height;
         }
     }
     EXPECT_EQ(sampled_frame_brightness(cv::Mat(8, 8, CV_8UC3, cv::Scalar::all(0))), 1.0) << "a black frame: the floor";
-    EXPECT_EQ(sampled_frame_brightness(cv::Mat()), 1.0);
+    EXPECT_EQ(sampled_frame_brightness(cv::Mat()), 1.0) << "an empty frame";
 }
 
 TEST(Classify, DecisionLeavesTheUnsureMiddleUnknown)
