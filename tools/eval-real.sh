@@ -79,19 +79,8 @@ targets() {  # name recording plants.csv gsd label [--set ...]
   local name=$1 recording=$2 truth=$3 gsd=$4 label=$5
   shift 5
   local log="$out/$name-$label-can.log" size
-  # The daemon takes frames of the configured size only: the recording's
-  # (read once per set).
-  if [ "${frame_size_of:-}" != "$recording" ]; then
-    frame_size=$(/usr/bin/python3 - "$recording" <<'PY'
-import csv, os, sys, cv2
-row = next(csv.DictReader(open(os.path.join(sys.argv[1], "frames.csv"))))
-image = cv2.imread(os.path.join(sys.argv[1], row["rgb"]), cv2.IMREAD_UNCHANGED)
-print(image.shape[1], image.shape[0])
-PY
-)
-    frame_size_of=$recording
-  fi
-  size=$frame_size
+  # The daemon takes frames of the configured size only: the recording's.
+  size=$(recording_frame_size "$recording")
   "$daemon" --config config/stemd.yaml --set camera.gsd_mm_per_px="$gsd" \
     --set source.width_px="${size% *}" --set source.height_px="${size#* }" \
     --set scheduler.policy=all --set source.replay_pacing=recorded "${sets[@]}" "$@" \

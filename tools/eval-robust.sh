@@ -87,7 +87,7 @@ iou() {  # name recording gt_vegetation [--set ...]
 # (tools/real-sets.sh): CWFID's, read as a recording with masks
 # (cwfid-recording.sh's frames.csv), or a recording, with masks (IoU) and
 # stems.csv (stems, from RGB+NIR when it has a NIR plane and from RGB).
-names=() layouts=() sources=() gsds=()
+names=() layouts=() sources=() gsds=() has_columns=()
 for d in "$data"/*/; do
   d=${d%/}
   name=$(basename "$d")
@@ -105,7 +105,11 @@ for d in "$data"/*/; do
   if [ "$layout" = recording ] && [ -f "$d/stems.csv" ] && [ -z "$gsd" ]; then
     echo "eval-robust: $name: stems to score but no GSD known (STEMD_EVAL_GSD=\"$name=MM\"): its stems skipped" >&2
   fi
-  names+=("$name") layouts+=("$layout") gsds+=("$gsd")
+  # What each recording holds is read once, not once per condition.
+  columns=""
+  recording_has_column "${sources[-1]}" mask && columns+=" mask"
+  recording_has_column "${sources[-1]}" nir && columns+=" nir"
+  names+=("$name") layouts+=("$layout") gsds+=("$gsd") has_columns+=("$columns")
 done
 
 for condition in "${conditions[@]}"; do
@@ -120,14 +124,16 @@ for condition in "${conditions[@]}"; do
     fi
     stems=no
     [ -f "$source/stems.csv" ] && [ -n "$gsd" ] && stems=yes
-    recording_has_column "$source" mask || [ "$stems" = yes ] || continue
+    has_mask=no
+    [[ "${has_columns[$i]}" == *" mask"* ]] && has_mask=yes
+    [ "$has_mask" = yes ] || [ "$stems" = yes ] || continue
     copy=$(perturb "$name" "$source")
-    if recording_has_column "$source" mask; then
+    if [ "$has_mask" = yes ]; then
       iou "$name" "$copy" nonzero "${gsd_set[@]}"
     fi
     [ "$stems" = yes ] || continue
     segments=("rgb chromatic_exg")
-    recording_has_column "$source" nir && segments=("rgb+nir auto" "rgb chromatic_exg")
+    [[ "${has_columns[$i]}" == *" nir"* ]] && segments=("rgb+nir auto" "rgb chromatic_exg")
     for segment in "${segments[@]}"; do
       read -r config method <<<"$segment"
       "$tools/stemd-detect" --config config/stemd.yaml "${gsd_set[@]}" \

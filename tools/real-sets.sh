@@ -51,3 +51,13 @@ recording_has_column() {  # dir column
 recording_frames() {
   awk 'END { print NR - 1 }' "$1/frames.csv"
 }
+
+# A recording's frame size, "WIDTH HEIGHT", from its first frame.
+recording_frame_size() {  # dir
+  /usr/bin/python3 - "$1" <<'PY'
+import csv, os, sys, cv2
+row = next(csv.DictReader(open(os.path.join(sys.argv[1], "frames.csv"))))
+image = cv2.imread(os.path.join(sys.argv[1], row["rgb"]), cv2.IMREAD_UNCHANGED)
+print(image.shape[1], image.shape[0])
+PY
+}
