@@ -17,7 +17,7 @@ cd "$(dirname "$0")/.."
 data=${1:-../shared/data}
 out=${2:-out/eval-real}
 if [ ! -d "$data" ]; then
-  echo "eval-real: $data is absent: no real frames to evaluate (see README, Evaluation on real frames)" >&2
+  echo "eval-real: $data is absent: no real frames to evaluate (see README, Accuracy)" >&2
   exit 77
 fi
 tools=${STEMD_TOOLS:-}
@@ -104,13 +104,18 @@ for d in "$data"/*/; do
     STEMD_CLASSMAP=${STEMD_CLASSMAP:-$tools/stemd-classmap} tools/cwfid-recording.sh "$d" "$out/$name-recording" >/dev/null
     iou "$name" "$out/$name-recording" zero --set camera.gsd_mm_per_px="$gsd"
     # Stems annotated by eye for this project (test/data/cwfid-train-stems.csv,
-    # README "Evaluation on real frames"): the sure ones, and all of them.
+    # README, "Accuracy"): the sure ones, all and by kind, and all of them.
     annotated=test/data/$name-stems.csv
     if [ -f "$annotated" ]; then
       awk -F, 'NR == 1 || $5 == 1' "$annotated" >"$out/$name-stems-sure.csv"
       cwfid_stems "$name" "$out/$name-recording" "sure, default" "$out/$name-stems-sure.csv"
       cwfid_stems "$name" "$out/$name-recording" "sure, centre of mass" "$out/$name-stems-sure.csv" --set stem.method=com
       cwfid_stems "$name" "$out/$name-recording" "all, default" "$annotated"
+      # By kind: the crop's stems and the weeds' fail for different reasons.
+      for plant_kind in crop weed; do
+        awk -F, -v kind="$plant_kind" 'NR == 1 || ($5 == 1 && $4 == kind)' "$annotated" >"$out/$name-stems-sure-$plant_kind.csv"
+        cwfid_stems "$name" "$out/$name-recording" "sure $plant_kind, default" "$out/$name-stems-sure-$plant_kind.csv"
+      done
     fi
   elif [ "$layout" = recording ]; then
     found=1

@@ -19,7 +19,7 @@ cd "$(dirname "$0")/.."
 data=${1:-../shared/data}
 out=${2:-out/eval-robust}
 if [ ! -d "$data" ]; then
-  echo "eval-robust: $data is absent: no real frames to evaluate (see README, Evaluation on real frames)" >&2
+  echo "eval-robust: $data is absent: no real frames to evaluate (see README, Accuracy)" >&2
   exit 77
 fi
 tools=${STEMD_TOOLS:-}
