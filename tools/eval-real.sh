@@ -10,6 +10,8 @@
 # The tools come from $STEMD_TOOLS and the daemon from $STEMD_DAEMON (default
 # $STEMD_TOOLS/../src/runtime/stemd), else build/release (built first when
 # missing). Extra configuration for every run: STEMD_EVAL_SET="key=value ...".
+# A CWFID-layout set's stems are read from $STEMD_EVAL_STEMS_DIR/NAME-stems.csv
+# (default test/data, this project's annotation of cwfid-train).
 # Exit 0 when the table was made; 77 (skip) when DATA_DIR is absent; 2 when
 # a tool is missing.
 set -euo pipefail
@@ -105,7 +107,7 @@ for d in "$data"/*/; do
     iou "$name" "$out/$name-recording" zero --set camera.gsd_mm_per_px="$gsd"
     # Stems annotated by eye for this project (test/data/cwfid-train-stems.csv,
     # README, "Accuracy"): the sure ones, all and by kind, and all of them.
-    annotated=test/data/$name-stems.csv
+    annotated=${STEMD_EVAL_STEMS_DIR:-test/data}/$name-stems.csv
     if [ -f "$annotated" ]; then
       awk -F, 'NR == 1 || $5 == 1' "$annotated" >"$out/$name-stems-sure.csv"
       cwfid_stems "$name" "$out/$name-recording" "sure, default" "$out/$name-stems-sure.csv"
