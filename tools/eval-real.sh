@@ -80,9 +80,7 @@ cwfid_stems() {  # name recording label stems.csv [--set ...]: CWFID's stems wit
 targets() {  # name recording plants.csv gsd label [--set ...]
   local name=$1 recording=$2 truth=$3 gsd=$4 label=$5
   shift 5
-  local log="$out/$name-$label-can.log" size
-  # The daemon takes frames of the configured size only: the recording's.
-  size=$(recording_frame_size "$recording")
+  local log="$out/$name-$label-can.log" size=$frame_size
   "$daemon" --config config/stemd.yaml --set camera.gsd_mm_per_px="$gsd" \
     --set source.width_px="${size% *}" --set source.height_px="${size#* }" \
     --set scheduler.policy=all --set source.replay_pacing=recorded "${sets[@]}" "$@" \
@@ -106,7 +104,7 @@ for d in "$data"/*/; do
     STEMD_CLASSMAP=${STEMD_CLASSMAP:-$tools/stemd-classmap} tools/cwfid-recording.sh "$d" "$out/$name-recording" >/dev/null
     iou "$name" "$out/$name-recording" zero --set camera.gsd_mm_per_px="$gsd"
     # Stems annotated by eye for this project (test/data/cwfid-train-stems.csv,
-    # README, "Accuracy"): the sure ones, all and by kind, and all of them.
+    # README, "Accuracy"): the sure ones (together, then each kind) and all.
     annotated=${STEMD_EVAL_STEMS_DIR:-test/data}/$name-stems.csv
     if [ -f "$annotated" ]; then
       awk -F, 'NR == 1 || $5 == 1' "$annotated" >"$out/$name-stems-sure.csv"
@@ -138,6 +136,10 @@ for d in "$data"/*/; do
       else
         configs=("rgb, default|")
       fi
+      # The daemon takes frames of the configured size only: the recording's
+      # (read once per set, for its TARGETs).
+      frame_size=""
+      [ -f "$d/plants.csv" ] && frame_size=$(recording_frame_size "$d")
       for kind in stems targets; do
         truth=$d/stems.csv
         [ "$kind" = targets ] && truth=$d/plants.csv
