@@ -201,7 +201,7 @@ constexpr std::array kSchema{
     bool_key<STEMD_KEY(daemon.vision.smooth_index)>("segment.smooth", "true",
         "smooth the index with a 3x3 binomial kernel before the threshold"),
     bool_key<STEMD_KEY(daemon.vision.sparse_index)>("segment.sparse_index", "true",
-        "exg, chromatic_exg (smoothed): compute the index in full only in 64 px tiles near vegetation found on every 8th row, the rest as soil (a piece at most about 5 rows tall between sampled rows, away from any plant, is missed); the threshold's histogram counts soil tiles from those rows. false: every pixel"),
+        "exg, chromatic_exg (smoothed): compute the index in full only in 64 px tiles near vegetation found on every 8th row, the rest as soil (a piece at most about 5 rows tall between sampled rows, away from any plant, is missed); the threshold's histogram counts soil tiles from those rows, and every tile when vegetation fills a third of a camera-sized frame. false: every pixel"),
     enum_key<STEMD_KEY(daemon.vision.threshold), vision::kThresholdMethodNames>("segment.threshold", "above_soil",
         "automatic threshold on the vegetation index; above_soil: Otsu, but never within segment.soil_sigmas of the soil mode"),
     real_key<STEMD_KEY(daemon.vision.soil_sigmas)>("segment.soil_sigmas", "sigma", 1, 20, "5",

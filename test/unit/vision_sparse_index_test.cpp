@@ -195,21 +195,60 @@ TEST(ChromaticExcessGreenSpan, TheScalarPathGivesTheVectorPathsValueForEveryColo
     EXPECT_EQ(cv::norm(whole.rowRange(0, 64), single.rowRange(0, 64), cv::NORM_INF), 0.0);
 }
 
-TEST(SparseIndex, VegetationInEveryTileGivesExactlyTheWholeFrameResult)
+// The histogram of `index` with each band of kSparseRowStep rows counted
+// from its sampled row (its row 4, or the frame's last row when the band
+// has none), as many times as the band has rows.
+Histogram sampled_rows_histogram(const cv::Mat& index)
+{
+    Histogram h{};
+    for (int band = 0; band < index.rows; band += kSparseRowStep) {
+        const int rows = std::min(kSparseRowStep, index.rows - band);
+        const int y = std::min(band + kSparseRowStep / 2, index.rows - 1);
+        for (int x = 0; x < index.cols; ++x)
+            h[index.at<std::uint8_t>(y, x)] += static_cast<std::uint32_t>(rows);
+    }
+    return h;
+}
+
+TEST(SparseIndex, VegetationInEveryTileGivesTheWholeFrameIndexAndItsHistogram)
 {
     // Grass-like green stripes across every tile, crossing every sampled
-    // row; a height of whole bands of sampled rows, and one whose last band
-    // is shorter (sampled at the frame's last row).
-    for (const cv::Size size : {cv::Size(300, 200), cv::Size(301, 195)}) {
-        cv::Mat bgr = soil_frame(size, 11);
+    // row; heights of whole bands of sampled rows, and ones whose last band
+    // is shorter (195: sampled at the frame's last row). The small frames' few
+    // sampled rows are counted exactly, the camera-sized frames' estimated.
+    struct Case {
+        cv::Size size;
+        bool estimated;
+    };
+    for (const Case c : {Case{{300, 200}, false}, Case{{301, 195}, false}, Case{{1296, 968}, true},
+                         Case{{1297, 966}, true}}) {
+        const long sampled_pixels = static_cast<long>((c.size.height + kSparseRowStep - 1) / kSparseRowStep) * c.size.width;
+        ASSERT_EQ(sampled_pixels >= kSampledPixelsForEstimate, c.estimated) << c.size;
+        cv::Mat bgr = soil_frame(c.size, 11);
         for (int x = 10; x < bgr.cols; x += 30)
             cv::line(bgr, {x, 0}, {x + 20, bgr.rows - 1}, kLeaf, 3);
         for (const RgbIndex kind : {RgbIndex::chromatic_exg, RgbIndex::exg}) {
             const WholeFrame whole(bgr, kind);
             const Sparse sparse(bgr, kind);
-            EXPECT_EQ(sparse.scratch.computed_tiles(), sparse.scratch.tiles()) << size;
-            EXPECT_EQ(cv::norm(whole.index, sparse.index, cv::NORM_INF), 0.0) << size;
-            EXPECT_EQ(whole.histogram, sparse.histogram) << size;
+            EXPECT_EQ(sparse.scratch.computed_tiles(), sparse.scratch.tiles()) << c.size;
+            EXPECT_EQ(cv::norm(whole.index, sparse.index, cv::NORM_INF), 0.0) << c.size;
+            EXPECT_EQ(histogram_total(sparse.histogram), static_cast<long>(c.size.area())) << c.size;
+            if (!c.estimated) {
+                EXPECT_EQ(sparse.histogram, whole.histogram) << c.size;
+                continue;
+            }
+            EXPECT_EQ(sparse.histogram, sampled_rows_histogram(whole.index)) << c.size;
+            // The estimate may move the threshold within the gap between
+            // soil and leaf, but must not change which pixels are leaf:
+            // few lie between the two thresholds.
+            const int exact = auto_threshold(whole.histogram, ThresholdMethod::above_soil, 5.0);
+            const int estimated = auto_threshold(sparse.histogram, ThresholdMethod::above_soil, 5.0);
+            long between = 0, leaf = 0;
+            for (int v = 0; v < 256; ++v) {
+                between += v > std::min(exact, estimated) && v <= std::max(exact, estimated) ? whole.histogram[v] : 0;
+                leaf += v > exact ? whole.histogram[v] : 0;
+            }
+            EXPECT_LE(between * 100, leaf) << c.size << ": thresholds " << exact << " and " << estimated;
         }
     }
 }

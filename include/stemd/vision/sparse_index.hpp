@@ -3,9 +3,10 @@
 // field frame: the index is computed in full only in 64x64 tiles near
 // vegetation, found from every 8th row.
 //
-// 1. Every 8th row (rows 4, 12, 20, ...; the last row for a short last
-//    band) is smoothed, from the raw index on it and its two neighbours. Its histogram gives the soil mode and the
-//    "vegetation possible" level: soil_noise_threshold(sampled, sigmas).
+// 1. Every 8th row (rows 4, 12, 20, ...; the frame's last row when the
+//    last band is too short for its row 4) is smoothed, from the raw index
+//    on it and its two neighbours. Its histogram gives the soil mode and
+//    the "vegetation possible" level: soil_noise_threshold(sampled, sigmas).
 // 2. A tile is computed when its part of a sampled row has a pixel above
 //    that level, or the raw index on a row beside it (computed for the
 //    smoothing anyway) has a run of 4 pixels above it (single noisy pixels
@@ -18,6 +19,13 @@
 // 3. The other tiles are set to the soil mode. The histogram is exact on
 //    computed tiles; a soil tile adds its sampled rows, each counted for
 //    the rows of its band (8), so the counts sum to the frame's pixels.
+//    When every tile is computed and the sampled rows hold at least
+//    kSampledPixelsForEstimate pixels, every tile's sampled rows stand for
+//    their bands in the same way: vegetation then fills a third of the
+//    tiles or more, and an eighth of its pixels gives its statistics (on
+//    CWFID's and carrot-dev's frames the threshold is the exact
+//    histogram's, or one level above). A smaller frame is counted exactly:
+//    its few sampled rows would make a noisy soil mode and spread.
 //
 // The bound: a piece above the level is missed only when it touches no
 // sampled row (it lies within the 7 rows between two of them), its raw
@@ -41,6 +49,8 @@ namespace stemd::vision {
 
 inline constexpr int kSparseTilePx = 64;    // one BitMask word wide
 inline constexpr int kSparseRowStep = 8;    // a sampled row every 8 rows
+// A 1280x720 frame's 90 sampled rows hold 115 200 pixels.
+inline constexpr long kSampledPixelsForEstimate = 1L << 16;
 
 enum class RgbIndex : std::uint8_t { exg, chromatic_exg };
 
@@ -90,8 +100,9 @@ private:
 // raw index into `raw_u8` where it was needed, and the histogram estimated
 // as above. `raw_u8` and `index_u8` are allocated at bgr's size; reach_px
 // is at most kSparseTilePx. Returns the level. When every tile is computed
-// (or the sampled rows leave no soil mode), it is the whole-frame result,
-// histogram included.
+// (or the sampled rows leave no soil mode), the index is the whole frame's
+// and so is the histogram, estimated from the sampled rows on a frame
+// whose sampled rows hold kSampledPixelsForEstimate pixels or more.
 int sparse_smoothed_index(const cv::Mat& bgr, RgbIndex kind, const SparseLevel& level, int reach_px,
                           SparseIndexScratch& scratch, cv::Mat& raw_u8, cv::Mat& index_u8, Histogram& histogram);
 
