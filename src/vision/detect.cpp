@@ -432,17 +432,17 @@ void detect(const FrameView& frame, const Params& params, Workspace& ws, Detecti
                 erode_mask(*to_open, opening_radius, ws.opened_, ws.opening_);
             else
                 ws.opened_ = *to_open;
-            if (green_seeds) {
+            label_components(ws.thresholded_, ws.labels_, ws.components_);
+            if (green_seeds)
                 // Greener than the soil's own spread: a live leaf is, dead
                 // straw and leaves (bright in NIR too) are not. Thin and dark
                 // seedlings are far less green than a sugar-beet leaf, hence
-                // the low bar. Only the seeds are tested, so the index is
-                // needed only on their rows, not on the whole frame.
-                keep_greener_than_soil(frame.bgr, kGreenerThanSoilSigmas, ws.sparse_, ws.raw_index_, ws.green_index_,
-                                       ws.opened_);
-            }
-            label_components(ws.thresholded_, ws.labels_, ws.components_);
-            mark_seeded_components(ws.labels_, ws.opened_, ws.keep_);
+                // the low bar. Only seeds of components not yet kept are
+                // tested, so the index is needed only on their rows.
+                mark_green_seeded_components(frame.bgr, kGreenerThanSoilSigmas, ws.opened_, ws.labels_, ws.sparse_,
+                                             ws.raw_index_, ws.green_index_, ws.keep_);
+            else
+                mark_seeded_components(ws.labels_, ws.opened_, ws.keep_);
             if (leaf_colour_seeds)
                 out.stats.colour_fringes = drop_colour_fringes(frame.bgr, soil, kLeafGreenOverSoil, ws.labels_,
                                                                ws.keep_, ws.fringe_passed_);

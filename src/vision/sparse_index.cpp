@@ -22,14 +22,14 @@ void SparseIndexScratch::reserve(int width_px, int height_px)
     raw_row_.assign(static_cast<std::size_t>(height_), 0);
     smoothed_row_.assign(static_cast<std::size_t>(height_), 0);
     row_sums_.assign(static_cast<std::size_t>(width_), 0);
-    mask_span_.assign(static_cast<std::size_t>(height_), cv::Range(0, 0));
+    raw_range_.assign(static_cast<std::size_t>(height_), cv::Range(0, 0));
     computed_ = 0;
 }
 
 std::size_t SparseIndexScratch::reserved_bytes() const
 {
     return state_.capacity() + queue_.capacity() * sizeof(int) + raw_row_.capacity() + smoothed_row_.capacity() +
-           row_sums_.capacity() * sizeof(std::uint16_t) + mask_span_.capacity() * sizeof(cv::Range);
+           row_sums_.capacity() * sizeof(std::uint16_t) + raw_range_.capacity() * sizeof(cv::Range);
 }
 
 // The tile work of one frame, on the scratch's buffers.
@@ -348,13 +348,33 @@ void complete_sparse_index(const cv::Mat& bgr, SparseIndexScratch& scratch, cv::
     compute_histogram(index_u8, histogram);
 }
 
-int keep_greener_than_soil(const cv::Mat& bgr, double sigmas, SparseIndexScratch& scratch, cv::Mat& raw_u8,
-                           cv::Mat& index_u8, BitMask& mask)
+namespace {
+
+// Word w of a row with only bits x0..x1 (inclusive) kept.
+std::uint64_t word_in_range(const std::uint64_t* row, int w, int x0, int x1)
+{
+    std::uint64_t bits = row[w];
+    if (w == (x0 >> 6))
+        bits &= ~std::uint64_t{0} << (x0 & 63);
+    if (w == (x1 >> 6) && (x1 & 63) != 63)
+        bits &= (std::uint64_t{1} << ((x1 & 63) + 1)) - 1;
+    return bits;
+}
+
+}  // namespace
+
+int mark_green_seeded_components(const cv::Mat& bgr, double sigmas, const BitMask& seeds, const LabelScratch& labels,
+                                 SparseIndexScratch& scratch, cv::Mat& raw_u8, cv::Mat& index_u8,
+                                 std::vector<std::uint8_t>& keep)
 {
     CV_Assert(bgr.type() == CV_8UC3 && bgr.cols == scratch.width_ && bgr.rows == scratch.height_);
     CV_Assert(raw_u8.type() == CV_8UC1 && raw_u8.size() == bgr.size());
     CV_Assert(index_u8.type() == CV_8UC1 && index_u8.size() == bgr.size());
-    CV_Assert(mask.width() == bgr.cols && mask.height() == bgr.rows);
+    CV_Assert(seeds.width() == bgr.cols && seeds.height() == bgr.rows);
+    std::size_t components = 0;
+    for (std::size_t i = 0; i < labels.run_count(); ++i)
+        components = std::max(components, static_cast<std::size_t>(labels.run(i).component + 1));
+    keep.assign(components, 0);
     SparseIndexScratch& s = scratch;
     const int width = s.width_, height = s.height_;
     if (width == 0 || height == 0)
@@ -365,53 +385,75 @@ int keep_greener_than_soil(const cv::Mat& bgr, double sigmas, SparseIndexScratch
     // Its index is another image: no row of the tiles' index is known
     // smoothed any more.
     std::fill(s.smoothed_row_.begin(), s.smoothed_row_.end(), std::uint8_t{0});
+    std::fill(s.raw_range_.begin(), s.raw_range_.end(), cv::Range(0, 0));
     const SparseTiles tiles{bgr, s, raw_u8, index_u8};
 
     // 1. The soil's noise from the sampled rows, as the sparse index reads
     // it: the bar is a statistic of the soil, which every row shows alike.
     const int bar = soil_noise_threshold(sampled_rows(tiles, s.raw_row_.data(), s.row_sums_.data(), nullptr), sigmas);
 
-    // 2. Each row's set pixels, first to last.
-    const int words = mask.words_per_row();
-    for (int y = 0; y < height; ++y) {
-        const std::uint64_t* row = mask.row(y);
-        const int first = next_bit(row, words, width, 0, true);
-        int last = -1;
-        for (int w = words - 1; w >= 0 && first < width && last < 0; --w)
-            if (row[w] != 0)
-                last = 64 * w + 63 - std::countl_zero(row[w]);
-        s.mask_span_[static_cast<std::size_t>(y)] = first < width ? cv::Range(first, last + 1) : cv::Range(0, 0);
-    }
+    // The raw index of row r on [a, b) at least, grown from what the row
+    // already holds (the same values wherever it is computed).
+    const auto need_raw = [&](int r, int a, int b) {
+        if (s.raw_row_[static_cast<std::size_t>(r)])
+            return;
+        cv::Range& have = s.raw_range_[static_cast<std::size_t>(r)];
+        if (have.start >= have.end) {
+            tiles.raw_span(r, a, b);
+            have = cv::Range(a, b);
+            return;
+        }
+        if (a < have.start) {
+            tiles.raw_span(r, a, have.start);
+            have.start = a;
+        }
+        if (b > have.end) {
+            tiles.raw_span(r, have.end, b);
+            have.end = b;
+        }
+    };
 
-    // 3. The raw index the smoothing of those spans reads: the rows above
-    // and below, one pixel wider on each side.
-    for (int y = 0; y < height; ++y) {
-        if (s.raw_row_[static_cast<std::size_t>(y)])
-            continue;
+    // 2. Row by row, the seeds of components not yet kept: the smoothed
+    // index from the first to the last of them, and each component's seeds
+    // tested until one passes.
+    for (std::size_t begin = 0; begin < labels.run_count();) {
+        const int y = labels.run(begin).y;
+        std::size_t end = begin;
+        while (end < labels.run_count() && labels.run(end).y == y)
+            ++end;
+        const std::uint64_t* seed_row = seeds.row(y);
         int lo = width, hi = 0;
-        for (int r = std::max(y - 1, 0); r <= std::min(y + 1, height - 1); ++r) {
-            const cv::Range& span = s.mask_span_[static_cast<std::size_t>(r)];
-            if (span.start < span.end) {
-                lo = std::min(lo, span.start - 1);
-                hi = std::max(hi, span.end + 1);
+        for (std::size_t i = begin; i < end; ++i) {
+            const LabelScratch::LabelledRun run = labels.run(i);
+            if (keep[static_cast<std::size_t>(run.component)])
+                continue;
+            for (int w = run.x0 >> 6; w <= (run.x1 >> 6); ++w)
+                if (const std::uint64_t bits = word_in_range(seed_row, w, run.x0, run.x1)) {
+                    lo = std::min(lo, 64 * w + std::countr_zero(bits));
+                    break;
+                }
+            for (int w = run.x1 >> 6; w >= (run.x0 >> 6); --w)
+                if (const std::uint64_t bits = word_in_range(seed_row, w, run.x0, run.x1)) {
+                    hi = std::max(hi, 64 * w + 64 - std::countl_zero(bits));
+                    break;
+                }
+        }
+        if (lo < hi) {
+            const int a = std::max(lo - 1, 0), b = std::min(hi + 1, width);
+            for (int r = std::max(y - 1, 0); r <= std::min(y + 1, height - 1); ++r)
+                need_raw(r, a, b);
+            smooth_binomial3_rect(raw_u8, cv::Rect(lo, y, hi - lo, 1), s.row_sums_.data(), index_u8);
+            const std::uint8_t* green = index_u8.ptr<std::uint8_t>(y);
+            for (std::size_t i = begin; i < end; ++i) {
+                const LabelScratch::LabelledRun run = labels.run(i);
+                std::uint8_t& kept = keep[static_cast<std::size_t>(run.component)];
+                for (int w = run.x0 >> 6; w <= (run.x1 >> 6) && !kept; ++w)
+                    for (std::uint64_t bits = word_in_range(seed_row, w, run.x0, run.x1); bits != 0 && !kept;
+                         bits &= bits - 1)
+                        kept = green[64 * w + std::countr_zero(bits)] > bar;
             }
         }
-        if (lo < hi)
-            tiles.raw_span(y, std::max(lo, 0), std::min(hi, width));
-    }
-
-    // 4. The smoothed index on each span, and the test on its set pixels.
-    for (int y = 0; y < height; ++y) {
-        const cv::Range& span = s.mask_span_[static_cast<std::size_t>(y)];
-        if (span.start >= span.end)
-            continue;
-        smooth_binomial3_rect(raw_u8, cv::Rect(span.start, y, span.end - span.start, 1), s.row_sums_.data(), index_u8);
-        const std::uint8_t* green = index_u8.ptr<std::uint8_t>(y);
-        std::uint64_t* row = mask.row(y);
-        visit_row_bits(span.start / 64, (span.end - 1) / 64 + 1, [row](int w) { return row[w]; }, [&](int x) {
-            if (green[x] <= bar)
-                row[x >> 6] &= ~(std::uint64_t{1} << (x & 63));
-        });
+        begin = end;
     }
     return bar;
 }

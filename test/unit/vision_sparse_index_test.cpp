@@ -10,6 +10,7 @@
 
 #include "stemd/vision/detect.hpp"
 #include "stemd/vision/index.hpp"
+#include "stemd/vision/plants.hpp"
 #include "stemd/vision/sparse_index.hpp"
 #include "stemd/vision/threshold.hpp"
 
@@ -429,19 +430,22 @@ TEST(SparseIndex, AThresholdBelowTheLevelFallsBackOnTheWholeFrame)
     EXPECT_EQ(out.stats.index_tiles_computed, out.stats.index_tiles);
 }
 
-// exg_and_ndvi's greenness test on the mask's rows only.
+// exg_and_ndvi's greenness test: the components of `mask` kept by it.
 struct Greener {
     SparseIndexScratch scratch;
     cv::Mat raw, index;
-    BitMask mask;
+    LabelScratch labels;
+    std::vector<Component> components;
+    std::vector<std::uint8_t> keep;
     int bar = 0;
-    Greener(const cv::Mat& bgr, const BitMask& seeds, double sigmas = 2.0)
-        : mask(seeds)
+    Greener(const cv::Mat& bgr, const BitMask& mask, const BitMask& seeds, double sigmas = 2.0)
     {
         scratch.reserve(bgr.cols, bgr.rows);
         raw.create(bgr.size(), CV_8UC1);
         index.create(bgr.size(), CV_8UC1);
-        bar = keep_greener_than_soil(bgr, sigmas, scratch, raw, index, mask);
+        labels.reserve(bgr.cols, bgr.rows);
+        label_components(mask, labels, components);
+        bar = mark_green_seeded_components(bgr, sigmas, seeds, labels, scratch, raw, index, keep);
     }
 };
 
@@ -470,34 +474,65 @@ cv::Mat soil_with_leaves(cv::Size size, double cover, std::uint64_t seed)
     return bgr;
 }
 
-TEST(GreenerThanSoil, OnTheSeedsRowsTheTestIsTheWholeFramesForTheSameBar)
+TEST(GreenerThanSoil, KeepsTheComponentsATestOfEverySeedOnTheWholeFrameKeeps)
 {
-    // 300 px wide (a last word of 44 px), seeds on every border, on whole
-    // rows, beside sampled rows and scattered over leaves and soil alike.
+    // 300 px wide (a last word of 44 px). Rectangles over leaves and soil
+    // alike, on every border and across whole rows, most of them seeded at
+    // random, one seeded on every pixel of two rows beside a sampled row.
     const cv::Mat bgr = soil_with_leaves({300, 200}, 0.1, 21);
-    BitMask seeds;
-    seeds.reset(bgr.cols, bgr.rows);
+    cv::Mat mask_u8(bgr.size(), CV_8UC1, cv::Scalar(0));
     cv::RNG rng(22);
+    for (int i = 0; i < 40; ++i) {
+        const int x = rng.uniform(-20, bgr.cols), y = rng.uniform(-20, bgr.rows);
+        cv::rectangle(mask_u8, cv::Rect(x, y, rng.uniform(3, 60), rng.uniform(3, 40)), cv::Scalar(255), cv::FILLED);
+    }
+    mask_u8.rowRange(36, 39).setTo(255);
+    BitMask mask, seeds;
+    pack_mask(mask_u8, MaskVegetation::nonzero, mask);
+    seeds.reset(bgr.cols, bgr.rows);
     for (int y = 0; y < bgr.rows; ++y)
         for (int x = 0; x < bgr.cols; ++x)
-            if (x == 0 || y == 0 || x == bgr.cols - 1 || y == bgr.rows - 1 || y == 37 || y == 3 || y == 5 ||
-                rng.uniform(0.0, 1.0) < 0.05)
+            if (mask.get(x, y) && (y == 3 || y == 5 || rng.uniform(0.0, 1.0) < 0.05))
                 seeds.set(x, y);
-    const Greener greener(bgr, seeds);
-    const BitMask expected = whole_frame_greener(bgr, seeds, greener.bar);
-    EXPECT_TRUE(same_bits(greener.mask, expected));
-    // Both outcomes occur: soil seeds go, leaf seeds stay.
-    EXPECT_GT(greener.mask.count(), 0);
-    EXPECT_LT(greener.mask.count(), seeds.count());
+    const Greener greener(bgr, mask, seeds);
+
+    std::vector<std::uint8_t> expected;
+    mark_seeded_components(greener.labels, whole_frame_greener(bgr, seeds, greener.bar), expected);
+    ASSERT_EQ(greener.keep.size(), expected.size());
+    EXPECT_EQ(greener.keep, expected);
+    // Both outcomes occur, and components whose first seed fails the test
+    // are kept by a later one: the test goes on until a seed passes.
+    const auto kept = std::count(expected.begin(), expected.end(), std::uint8_t{1});
+    EXPECT_GT(kept, 0);
+    EXPECT_LT(kept, static_cast<long>(expected.size()));
+    const BitMask passing = whole_frame_greener(bgr, seeds, greener.bar);
+    std::vector<std::uint8_t> first_seed_seen(expected.size(), 0), first_seed_failed(expected.size(), 0);
+    for (std::size_t i = 0; i < greener.labels.run_count(); ++i) {
+        const LabelScratch::LabelledRun run = greener.labels.run(i);
+        const auto c = static_cast<std::size_t>(run.component);
+        for (int x = run.x0; x <= run.x1 && !first_seed_seen[c]; ++x)
+            if (seeds.get(x, run.y)) {
+                first_seed_seen[c] = 1;
+                first_seed_failed[c] = !passing.get(x, run.y);
+            }
+    }
+    int kept_after_a_failure = 0;
+    for (std::size_t c = 0; c < expected.size(); ++c)
+        kept_after_a_failure += expected[c] && first_seed_failed[c];
+    EXPECT_GT(kept_after_a_failure, 0);
 }
 
-TEST(GreenerThanSoil, NoSeedsLeaveNoSeedsAndAnEmptyFrameHasNoBar)
+TEST(GreenerThanSoil, NoSeedsKeepNothingAndAnEmptyFrameHasNoBar)
 {
     const cv::Mat bgr = soil_with_leaves({130, 70}, 0.2, 23);
-    BitMask seeds;
+    BitMask mask, seeds;
+    mask.reset(bgr.cols, bgr.rows);
     seeds.reset(bgr.cols, bgr.rows);
-    const Greener greener(bgr, seeds);
-    EXPECT_EQ(greener.mask.count(), 0);
+    for (int x = 10; x < 60; ++x)
+        mask.set(x, 30);
+    const Greener greener(bgr, mask, seeds);
+    ASSERT_EQ(greener.keep.size(), 1u);
+    EXPECT_EQ(greener.keep[0], 0);
     EXPECT_LT(greener.bar, 255);
 
     SparseIndexScratch scratch;
@@ -505,7 +540,13 @@ TEST(GreenerThanSoil, NoSeedsLeaveNoSeedsAndAnEmptyFrameHasNoBar)
     cv::Mat empty_bgr(0, 0, CV_8UC3), raw(0, 0, CV_8UC1), index(0, 0, CV_8UC1);
     BitMask none;
     none.reset(0, 0);
-    EXPECT_EQ(keep_greener_than_soil(empty_bgr, 2.0, scratch, raw, index, none), 255);
+    LabelScratch labels;
+    labels.reserve(0, 0);
+    std::vector<Component> components;
+    label_components(none, labels, components);
+    std::vector<std::uint8_t> keep;
+    EXPECT_EQ(mark_green_seeded_components(empty_bgr, 2.0, none, labels, scratch, raw, index, keep), 255);
+    EXPECT_TRUE(keep.empty());
 }
 
 TEST(GreenerThanSoil, TheSampledRowsGiveTheWholeFramesBar)
@@ -516,9 +557,9 @@ TEST(GreenerThanSoil, TheSampledRowsGiveTheWholeFramesBar)
     for (const double cover : {0.01, 0.1, 0.3}) {
         for (std::uint64_t seed = 31; seed < 34; ++seed) {
             const cv::Mat bgr = soil_with_leaves({1296, 966}, cover, seed);
-            BitMask seeds;
-            seeds.reset(bgr.cols, bgr.rows);
-            const Greener greener(bgr, seeds);
+            BitMask none;
+            none.reset(bgr.cols, bgr.rows);
+            const Greener greener(bgr, none, none);
             const WholeFrame whole(bgr, RgbIndex::chromatic_exg);
             EXPECT_EQ(greener.bar, soil_noise_threshold(whole.histogram, 2.0)) << "cover " << cover << " seed " << seed;
         }

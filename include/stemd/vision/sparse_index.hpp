@@ -43,6 +43,7 @@
 #include <opencv2/core/mat.hpp>
 
 #include "stemd/vision/bitmask.hpp"
+#include "stemd/vision/plants.hpp"
 #include "stemd/vision/threshold.hpp"
 
 namespace stemd::vision {
@@ -81,7 +82,8 @@ private:
     friend int sparse_smoothed_index(const cv::Mat&, RgbIndex, const SparseLevel&, int, SparseIndexScratch&, cv::Mat&,
                                      cv::Mat&, Histogram&);
     friend void complete_sparse_index(const cv::Mat&, SparseIndexScratch&, cv::Mat&, cv::Mat&, Histogram&);
-    friend int keep_greener_than_soil(const cv::Mat&, double, SparseIndexScratch&, cv::Mat&, cv::Mat&, BitMask&);
+    friend int mark_green_seeded_components(const cv::Mat&, double, const BitMask&, const LabelScratch&,
+                                            SparseIndexScratch&, cv::Mat&, cv::Mat&, std::vector<std::uint8_t>&);
     friend struct SparseTiles;
     int width_ = 0, height_ = 0, cols_ = 0, rows_ = 0, computed_ = 0;
     int level_ = 255, soil_ = 0;
@@ -92,7 +94,7 @@ private:
     std::vector<std::uint8_t> raw_row_;      // per row: raw index computed for the whole row
     std::vector<std::uint8_t> smoothed_row_; // per row: the index holds the whole row smoothed
     std::vector<std::uint16_t> row_sums_;    // smoothing scratch, one per column
-    std::vector<cv::Range> mask_span_;       // per row: first to one past the last set pixel of a mask
+    std::vector<cv::Range> raw_range_;       // per row: the columns whose raw index the greenness test computed
 };
 
 // The smoothed index (3x3 binomial of excess_green or chromatic_excess_green)
@@ -111,16 +113,22 @@ int sparse_smoothed_index(const cv::Mat& bgr, RgbIndex kind, const SparseLevel& 
 void complete_sparse_index(const cv::Mat& bgr, SparseIndexScratch& scratch, cv::Mat& raw_u8, cv::Mat& index_u8,
                            Histogram& histogram);
 
-// exg_and_ndvi's greenness test, computed only where it is asked, not on
-// the whole frame: clears every pixel of `mask` whose smoothed chromatic
-// Excess Green is at or below the soil's noise, soil_noise_threshold(
-// sampled, sigmas) of the histogram of the sampled rows alone (step 1
-// above). The index goes into `raw_u8` and `index_u8` on the sampled rows
-// and, on each row of `mask`, from its first to its last set pixel (the raw
-// index one pixel further, for the smoothing): there it is the whole-frame
-// index, so for the same bar the test is the whole frame's, pixel for
-// pixel. Returns the bar (255 when the frame is empty).
-int keep_greener_than_soil(const cv::Mat& bgr, double sigmas, SparseIndexScratch& scratch, cv::Mat& raw_u8,
-                           cv::Mat& index_u8, BitMask& mask);
+// exg_and_ndvi's greenness test, computed only where it decides something:
+// keep (one entry per component of `labels`, resized; reserve it) = 1 for
+// each component holding a pixel of `seeds` (a subset of the labelled mask)
+// whose smoothed chromatic Excess Green lies above the soil's noise,
+// soil_noise_threshold(sampled, sigmas) of the histogram of the sampled
+// rows alone (step 1 above). Row by row, only the seeds of components not
+// yet kept are tested, and the index is computed from the first to the
+// last of them (the raw index one pixel further, for the smoothing); there
+// it is the whole-frame index. So for the same bar the components kept are
+// those the test on every seed pixel of the whole frame keeps, and a
+// component is done once one of its seeds passes: under a closed canopy
+// most rows need no index at all. The index goes into `raw_u8` and
+// `index_u8` where it was computed. Returns the bar (255 when the frame is
+// empty).
+int mark_green_seeded_components(const cv::Mat& bgr, double sigmas, const BitMask& seeds, const LabelScratch& labels,
+                                 SparseIndexScratch& scratch, cv::Mat& raw_u8, cv::Mat& index_u8,
+                                 std::vector<std::uint8_t>& keep);
 
 }  // namespace stemd::vision
