@@ -50,7 +50,10 @@ namespace stemd::vision {
 
 inline constexpr int kSparseTilePx = 64;    // one BitMask word wide
 inline constexpr int kSparseRowStep = 8;    // a sampled row every 8 rows
-// A 1280x720 frame's 90 sampled rows hold 115 200 pixels.
+// The fewest sampled pixels from which the histogram of a frame computed
+// whole is estimated (step 3). On 160 px windows (3 200 sampled pixels)
+// the estimate lost leaves; a 1280x720 frame's 90 sampled rows hold
+// 115 200 pixels.
 inline constexpr long kSampledPixelsForEstimate = 1L << 16;
 
 enum class RgbIndex : std::uint8_t { exg, chromatic_exg };
