@@ -130,28 +130,16 @@ namespace {
 // Whether any bit x0..x1 (inclusive) of a row is set, or sets them all.
 bool any_in_range(const std::uint64_t* row, int x0, int x1)
 {
-    for (int w = x0 >> 6; w <= (x1 >> 6); ++w) {
-        std::uint64_t bits = row[w];
-        if (w == (x0 >> 6))
-            bits &= ~std::uint64_t{0} << (x0 & 63);
-        if (w == (x1 >> 6) && (x1 & 63) != 63)
-            bits &= (std::uint64_t{1} << ((x1 & 63) + 1)) - 1;
-        if (bits)
+    for (int w = x0 >> 6; w <= (x1 >> 6); ++w)
+        if (row[w] & range_bits_of_word(w, x0, x1))
             return true;
-    }
     return false;
 }
 
 void set_range(std::uint64_t* row, int x0, int x1)
 {
-    for (int w = x0 >> 6; w <= (x1 >> 6); ++w) {
-        std::uint64_t bits = ~std::uint64_t{0};
-        if (w == (x0 >> 6))
-            bits &= ~std::uint64_t{0} << (x0 & 63);
-        if (w == (x1 >> 6) && (x1 & 63) != 63)
-            bits &= (std::uint64_t{1} << ((x1 & 63) + 1)) - 1;
-        row[w] |= bits;
-    }
+    for (int w = x0 >> 6; w <= (x1 >> 6); ++w)
+        row[w] |= range_bits_of_word(w, x0, x1);
 }
 
 }  // namespace

@@ -348,21 +348,6 @@ void complete_sparse_index(const cv::Mat& bgr, SparseIndexScratch& scratch, cv::
     compute_histogram(index_u8, histogram);
 }
 
-namespace {
-
-// Word w of a row with only bits x0..x1 (inclusive) kept.
-std::uint64_t word_in_range(const std::uint64_t* row, int w, int x0, int x1)
-{
-    std::uint64_t bits = row[w];
-    if (w == (x0 >> 6))
-        bits &= ~std::uint64_t{0} << (x0 & 63);
-    if (w == (x1 >> 6) && (x1 & 63) != 63)
-        bits &= (std::uint64_t{1} << ((x1 & 63) + 1)) - 1;
-    return bits;
-}
-
-}  // namespace
-
 int mark_green_seeded_components(const cv::Mat& bgr, double sigmas, const BitMask& seeds, const LabelScratch& labels,
                                  SparseIndexScratch& scratch, cv::Mat& raw_u8, cv::Mat& index_u8,
                                  std::vector<std::uint8_t>& keep)
@@ -428,12 +413,12 @@ int mark_green_seeded_components(const cv::Mat& bgr, double sigmas, const BitMas
             if (keep[static_cast<std::size_t>(run.component)])
                 continue;
             for (int w = run.x0 >> 6; w <= (run.x1 >> 6); ++w)
-                if (const std::uint64_t bits = word_in_range(seed_row, w, run.x0, run.x1)) {
+                if (const std::uint64_t bits = seed_row[w] & range_bits_of_word(w, run.x0, run.x1)) {
                     lo = std::min(lo, 64 * w + std::countr_zero(bits));
                     break;
                 }
             for (int w = run.x1 >> 6; w >= (run.x0 >> 6); --w)
-                if (const std::uint64_t bits = word_in_range(seed_row, w, run.x0, run.x1)) {
+                if (const std::uint64_t bits = seed_row[w] & range_bits_of_word(w, run.x0, run.x1)) {
                     hi = std::max(hi, 64 * w + 64 - std::countl_zero(bits));
                     break;
                 }
@@ -448,7 +433,7 @@ int mark_green_seeded_components(const cv::Mat& bgr, double sigmas, const BitMas
                 const LabelScratch::LabelledRun run = labels.run(i);
                 std::uint8_t& kept = keep[static_cast<std::size_t>(run.component)];
                 for (int w = run.x0 >> 6; w <= (run.x1 >> 6) && !kept; ++w)
-                    for (std::uint64_t bits = word_in_range(seed_row, w, run.x0, run.x1); bits != 0 && !kept;
+                    for (std::uint64_t bits = seed_row[w] & range_bits_of_word(w, run.x0, run.x1); bits != 0 && !kept;
                          bits &= bits - 1)
                         kept = green[64 * w + std::countr_zero(bits)] > bar;
             }

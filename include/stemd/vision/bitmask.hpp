@@ -42,6 +42,17 @@ inline int next_bit(const std::uint64_t* row, int words, int width, int x, bool 
     return std::min(width, (i << 6) + std::countr_zero(w));
 }
 
+// The bits of word w of a row that hold pixels x0..x1 (inclusive).
+inline std::uint64_t range_bits_of_word(int w, int x0, int x1)
+{
+    std::uint64_t bits = ~std::uint64_t{0};
+    if (w == (x0 >> 6))
+        bits &= ~std::uint64_t{0} << (x0 & 63);
+    if (w == (x1 >> 6) && (x1 & 63) != 63)
+        bits &= (std::uint64_t{1} << ((x1 & 63) + 1)) - 1;
+    return bits;
+}
+
 // The row visitor: visit(x) for each set pixel of words [w0, w1) of a row,
 // word w taken as word_of(w) (a mask row's word, or that word filtered or
 // combined with others). word_of(w) is read once, before its bits are
