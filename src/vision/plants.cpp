@@ -95,6 +95,7 @@ void label_components(const BitMask& mask, LabelScratch& scratch, std::vector<Co
         c.x_max = std::max(c.x_max, run.x1);
         c.y_max = run.y;
     }
+    scratch.component_count_ = out.size();
 }
 
 int component_at(const LabelScratch& scratch, cv::Point p)
@@ -146,10 +147,7 @@ void set_range(std::uint64_t* row, int x0, int x1)
 
 void mark_seeded_components(const LabelScratch& scratch, const BitMask& seeds, std::vector<std::uint8_t>& keep)
 {
-    std::size_t components = 0;
-    for (std::size_t i = 0; i < scratch.run_count(); ++i)
-        components = std::max(components, static_cast<std::size_t>(scratch.run(i).component + 1));
-    keep.assign(components, 0);
+    keep.assign(scratch.component_count(), 0);
     for (std::size_t i = 0; i < scratch.run_count(); ++i) {
         const LabelScratch::LabelledRun run = scratch.run(i);
         if (any_in_range(seeds.row(run.y), run.x0, run.x1))

@@ -356,10 +356,7 @@ int mark_green_seeded_components(const cv::Mat& bgr, double sigmas, const BitMas
     CV_Assert(raw_u8.type() == CV_8UC1 && raw_u8.size() == bgr.size());
     CV_Assert(index_u8.type() == CV_8UC1 && index_u8.size() == bgr.size());
     CV_Assert(seeds.width() == bgr.cols && seeds.height() == bgr.rows);
-    std::size_t components = 0;
-    for (std::size_t i = 0; i < labels.run_count(); ++i)
-        components = std::max(components, static_cast<std::size_t>(labels.run(i).component + 1));
-    keep.assign(components, 0);
+    keep.assign(labels.component_count(), 0);
     SparseIndexScratch& s = scratch;
     const int width = s.width_, height = s.height_;
     if (width == 0 || height == 0)

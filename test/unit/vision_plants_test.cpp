@@ -87,6 +87,7 @@ TEST(Plants, ComponentAtFindsThePixelsComponent)
         cv::Mat labels;
         const int n = cv::connectedComponents(mask, labels, 8, CV_32S, cv::CCL_DEFAULT);
         ASSERT_EQ(static_cast<int>(components.size()), n - 1);
+        EXPECT_EQ(scratch.component_count(), components.size());
         // OpenCV's label of each component's first pixel names the same set.
         std::vector<int> ours_for_theirs(static_cast<std::size_t>(n), -2);
         for (int y = 0; y < mask.rows; ++y)

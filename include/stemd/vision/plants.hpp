@@ -40,6 +40,8 @@ public:
         const Run& r = runs_[i];
         return {r.y, r.x0, r.x1, run_component_[i]};
     }
+    // After label_components: how many components its `out` holds.
+    std::size_t component_count() const { return component_count_; }
 
 private:
     friend void label_components(const BitMask&, LabelScratch&, std::vector<Component>&);
@@ -49,6 +51,7 @@ private:
     std::vector<Run> runs_;
     std::vector<int> parent_;
     std::vector<int> run_component_;
+    std::size_t component_count_ = 0;
 };
 
 // Components in raster order of their first pixel. `out` is cleared and
