@@ -135,6 +135,14 @@ double sampled_frame_brightness(const cv::Mat& bgr)
     return bgr.empty() ? 1.0 : static_cast<double>(chromatic_mean_brightness(bgr));
 }
 
+int colour_row_step(int vegetation_px)
+{
+    int step = 4;
+    while (vegetation_px / step > kPlantColourSamples)
+        step *= 2;
+    return step;
+}
+
 void plant_features(const FrameView& frame, const Params& params, const Workspace& dws, const Detections& det,
                     ClassifyWorkspace& ws)
 {
@@ -164,13 +172,15 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
     // One pass over the closed mask, run by run, from its labelling: each
     // run gets its plant once, its index pixels in one fill, its moments in
     // closed form from its ends and its vegetation count by bit count. Only
-    // colour, texture and NDVI read pixels, on every 4th row of the plant's
-    // box: they are means, and a quarter of the rows estimates them as well
-    // as half did (cross-validated on cwfid-train and carrot-dev). The rows
-    // start at the box's third row, or its middle one under four rows, so
-    // a seedling one row tall is read too and the top edge's mixed pixels
-    // are not the only ones read from a small plant.
+    // colour, texture and NDVI read pixels, on every colour_row_step()-th
+    // row of the plant's box: they are means, and a quarter of the rows
+    // estimates them as well as half did (cross-validated on cwfid-train and
+    // carrot-dev). The rows start at the box's third row, or its middle one
+    // under four rows, so a seedling one row tall is read too and the top
+    // edge's mixed pixels are not the only ones read from a small plant.
     std::fill(ws.sums_.begin(), ws.sums_.begin() + static_cast<std::ptrdiff_t>(ws.plants_), ClassifyWorkspace::Sums{});
+    for (std::size_t i = 0; i < ws.plants_; ++i)
+        ws.colour_row_step_[i] = colour_row_step(det.plants[i].area_px);
     const int width = ws.frame_size_.width, height = ws.frame_size_.height;
     const LabelScratch& pieces = dws.pieces();
     for (std::size_t k = 0; k < pieces.run_count(); ++k) {
@@ -188,7 +198,7 @@ void plant_features(const FrameView& frame, const Params& params, const Workspac
         ClassifyWorkspace::Sums& s = ws.sums_[id - 1u];
         const cv::Rect& box = det.plants[id - 1u].bbox;
         const int first_sampled_dy = std::min(box.height / 2, 2);
-        const bool sample_row = ((y - box.y - first_sampled_dy) & 3) == 0;
+        const bool sample_row = ((y - box.y - first_sampled_dy) & (ws.colour_row_step_[id - 1u] - 1)) == 0;
         std::fill(index_row + run_start, index_row + run_stop, id);
         cv::Range& written = ws.written_[static_cast<std::size_t>(y)];
         written = written.start < written.end

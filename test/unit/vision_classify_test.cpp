@@ -203,6 +203,45 @@ TEST(Classify, ColourIsReadOnEveryFourthRowOfThePlantsBoxFromItsThirdOrMiddleRow
     }
 }
 
+TEST(Classify, ColourRowStepKeepsAPlantsSampleWithinTheBound)
+{
+    EXPECT_EQ(colour_row_step(0), 4);
+    EXPECT_EQ(colour_row_step(4 * kPlantColourSamples), 4);
+    EXPECT_EQ(colour_row_step(4 * kPlantColourSamples + 4), 8);
+    EXPECT_EQ(colour_row_step(8 * kPlantColourSamples + 8), 16);
+    for (const int px : {1000, 300'000, 1'251'936, 5'000'000}) {
+        const int step = colour_row_step(px);
+        EXPECT_LE(px / step, kPlantColourSamples) << px;
+        if (step > 4) {
+            EXPECT_GT(px / (step / 2), kPlantColourSamples) << px << ": the smallest step within the bound";
+        }
+    }
+}
+
+TEST(Classify, ColourOfAPlantOverTheSampleBoundIsReadOnFewerRowsOfItsBox)
+{
+    // 600 x 500 px of vegetation: over 4 kPlantColourSamples, within 8.
+    const Params params = test_params();
+    const cv::Rect drawn(40, 30, 600, 500);
+    ASSERT_EQ(colour_row_step(drawn.area()), 8);
+    static const cv::Scalar kGreens[8] = {{40, 170, 60}, {60, 150, 40},  {30, 140, 90}, {50, 190, 110},
+                                          {45, 160, 70}, {35, 180, 100}, {55, 145, 50}, {40, 200, 80}};
+    cv::Mat bgr(cv::Size(680, 560), CV_8UC3, cv::Scalar(60, 80, 110));
+    for (int y = drawn.y; y < drawn.y + drawn.height; ++y)
+        bgr(cv::Rect(drawn.x, y, drawn.width, 1)).setTo(kGreens[(y - drawn.y) % 8]);
+    Classified c(bgr, params);
+    ASSERT_EQ(c.det.plants.size(), 1u);
+    const Plant& plant = c.det.plants[0];
+    ASSERT_EQ(colour_row_step(plant.area_px), 8) << plant.area_px << " px";
+    // Every 8th row from the box's third: one green, that row's. Every 4th
+    // row would mix in another.
+    const double third_row_g = chromatic_g(bgr.at<cv::Vec3b>(plant.bbox.y + 2, plant.bbox.x + plant.bbox.width / 2));
+    EXPECT_NEAR(c.cws.features()[0][f_g_mean], third_row_g, 1e-4);
+    EXPECT_NEAR(c.cws.features()[0][f_g_std], 0.0, 2e-3);
+    // The vegetation fill still counts every row.
+    EXPECT_NEAR(c.cws.features()[0][f_vegetation_fill], 1.0, 1e-3);
+}
+
 TEST(Classify, FrameBrightnessIsTheChromaticIndexsNormaliser)
 {
     // One definition of a frame's brightness: chromatic_mean_brightness,
