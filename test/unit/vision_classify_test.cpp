@@ -129,7 +129,7 @@ TEST(Classify, AReusedWorkspaceHoldsOnlyTheLatestFramesPlants)
     ClassifyWorkspace cws(size, params);
     Detections det;
     const cv::Mat soil(size, CV_8UC3, cv::Scalar(60, 80, 110));
-    for (const std::uint64_t seed : {1u, 2u, 3u, 4u}) {
+    for (const std::uint64_t seed : {1u, 2u, 3u, 4u, 5u, 6u, 7u, 8u}) {
         // The third frame is bare soil: nothing of the frame before may stay.
         const cv::Mat bgr = seed == 3 ? soil : plants_frame(size, seed);
         detect({.bgr = bgr}, params, ws, det);
@@ -141,6 +141,12 @@ TEST(Classify, AReusedWorkspaceHoldsOnlyTheLatestFramesPlants)
         for (std::size_t i = 0; i < cws.features().size(); ++i)
             EXPECT_EQ(cws.features()[i], fresh.cws.features()[i]) << "plant " << i << " seed " << seed;
     }
+    // A frame that gives no features (no rgb image) leaves no plant either.
+    detect({.bgr = plants_frame(size, 9)}, params, ws, det);
+    ASSERT_GT(det.plants.size(), 0u);
+    plant_features({}, params, ws, det, cws);
+    EXPECT_EQ(cws.features().size(), 0u);
+    EXPECT_EQ(cv::countNonZero(cws.plant_index()), 0);
 }
 
 TEST(Classify, ShapeFeaturesTellADiscFromALine)
