@@ -64,9 +64,9 @@ constexpr SignalDef kSent{"targets_sent", 16, 16, false, 0, 0xFFFF, "", "TARGET 
 constexpr SignalDef kDeadlineMisses{"deadline_misses", 32, 12, false, 0, 4095, "",
                                     "Targets that missed their deadline; saturates at 4095."};
 constexpr SignalDef kDropped{"targets_dropped", 44, 12, false, 0, 4095, "",
-                             "Targets dropped (queue full, encode error); saturates at 4095."};
+                             "TARGETs not sent: no tool covers the plant, enable off, or the send failed; saturates at 4095."};
 constexpr SignalDef kRxRejected{"rx_rejected", 56, 8, false, 0, 255, "",
-                                "Received frames rejected (E2E or decode); saturates at 255."};
+                                "Received frames rejected (E2E, decode, or TOOL_FIRED for a tool not configured); saturates at 255."};
 constexpr std::array kHeartbeatSignals{kCrc, kCounter, kState, kSent, kDeadlineMisses, kDropped, kRxRejected};
 
 // TOOL_FIRED repeats the TARGET's bits for the fields it echoes.
