@@ -174,7 +174,8 @@ std::optional<vision::PlantClassifier> bench_forest(Setup& s, vision::ClassifyWo
 class NullBus final : public drivers::CanBus {
 public:
     std::string_view name() const override { return "null"; }
-    drivers::SendResult send(const protocol::CanFrame&, std::int64_t) override
+    using drivers::CanBus::send;
+    drivers::SendResult send(const protocol::CanFrame&, std::int64_t, drivers::SendGate) override
     {
         ++sent;
         return drivers::SendResult::sent;

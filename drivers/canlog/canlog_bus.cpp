@@ -51,11 +51,15 @@ bool CanLogBus::open()
     return true;
 }
 
-SendResult CanLogBus::send(const protocol::CanFrame& frame, std::int64_t deadline_ns)
+SendResult CanLogBus::send(const protocol::CanFrame& frame, std::int64_t deadline_ns, SendGate gate)
 {
     if (base::monotonic_ns() >= deadline_ns) {
         CanBusCounterCells::bump(counters_.deadline_misses);
         return SendResult::deadline_passed;
+    }
+    if (!gate.open()) {
+        CanBusCounterCells::bump(counters_.withdrawn);
+        return SendResult::withdrawn;
     }
     if (!file_.is_open()) {
         CanBusCounterCells::bump(counters_.errors);

@@ -52,7 +52,8 @@ public:
 
     std::string_view name() const override { return name_; }
     // error if not open, if the frame cannot be formatted, or if the write fails.
-    SendResult send(const protocol::CanFrame& frame, std::int64_t deadline_ns) override;
+    using CanBus::send;
+    SendResult send(const protocol::CanFrame& frame, std::int64_t deadline_ns, SendGate gate) override;
     using CanBus::receive;
     bool receive(protocol::CanFrame& out, std::int64_t timeout_ns, std::int64_t& t_rx_ns) override;
     CanBusCounters counters() const override;

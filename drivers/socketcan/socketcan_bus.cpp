@@ -71,6 +71,10 @@ bool is_down_errno(int e) { return e == ENETDOWN || e == ENODEV || e == ENXIO; }
 // socket's own buffer is not the one that is full. Retry after this pause.
 constexpr std::int64_t kEnobufsPauseNs = 100'000;
 
+// While the transmit queue stays full, the caller's SendGate is checked
+// at least this often.
+constexpr std::int64_t kGateCheckNs = 1'000'000;
+
 }  // namespace
 
 std::string_view to_string(SocketCanState s)
@@ -220,7 +224,7 @@ void SocketCanBus::go_down(const char* what, int err)
     set_state(SocketCanState::down);
 }
 
-SendResult SocketCanBus::send(const protocol::CanFrame& frame, std::int64_t deadline_ns)
+SendResult SocketCanBus::send(const protocol::CanFrame& frame, std::int64_t deadline_ns, SendGate gate)
 {
     const std::uint32_t max_id = frame.extended ? protocol::kMaxExtendedId : protocol::kMaxStandardId;
     if (frame.dlc > CAN_MAX_DLEN || frame.id > max_id) {
@@ -239,6 +243,11 @@ SendResult SocketCanBus::send(const protocol::CanFrame& frame, std::int64_t dead
             CanBusCounterCells::bump(counters_.deadline_misses);
             log_->debug("{}: deadline passed, frame 0x{:03X} not sent", name_, frame.id);
             return SendResult::deadline_passed;
+        }
+        if (!gate.open()) {
+            CanBusCounterCells::bump(counters_.withdrawn);
+            log_->debug("{}: gate closed, frame 0x{:03X} not sent", name_, frame.id);
+            return SendResult::withdrawn;
         }
         if (!ensure_open(now)) {
             CanBusCounterCells::bump(counters_.errors);
@@ -259,7 +268,9 @@ SendResult SocketCanBus::send(const protocol::CanFrame& frame, std::int64_t dead
             continue;
         if (e == ENOBUFS || e == EAGAIN) {
             CanBusCounterCells::bump(counters_.tx_queue_full_retries);
-            const std::int64_t left = deadline_ns - base::monotonic_ns();
+            // Waits in slices, so that the gate is checked again while the
+            // queue stays full.
+            const std::int64_t left = std::min(deadline_ns - base::monotonic_ns(), kGateCheckNs);
             if (e == ENOBUFS)
                 sleep_for_ns(std::min(left, kEnobufsPauseNs));
             else if (left > 0 && wait_fd(fd_.get(), POLLOUT, left) < 0 && errno != EINTR) {

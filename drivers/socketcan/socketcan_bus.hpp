@@ -16,7 +16,9 @@
 //   `down`, the error is logged naming the interface and errno, and send() /
 //   receive() keep retrying the open on the backoff schedule. Nothing throws.
 // - send() retries a full transmit queue (ENOBUFS, EAGAIN) by polling for
-//   POLLOUT until the deadline, and never writes after it (deadline miss).
+//   POLLOUT until the deadline, and never writes after it (deadline miss),
+//   nor once the caller's SendGate has closed (withdrawn): it checks the
+//   gate before each write and at least every millisecond while it waits.
 //   While `down` (before the next reopen attempt is due) it fails at once.
 // - Error frames are enabled (CAN_RAW_ERR_FILTER = CAN_ERR_MASK) and decoded
 //   in receive(): CAN_ERR_BUSOFF and error-passive (CAN_ERR_CRTL) are counted
@@ -70,7 +72,8 @@ public:
     bool open();
 
     std::string_view name() const override { return name_; }
-    SendResult send(const protocol::CanFrame& frame, std::int64_t deadline_ns) override;
+    using CanBus::send;
+    SendResult send(const protocol::CanFrame& frame, std::int64_t deadline_ns, SendGate gate) override;
     using CanBus::receive;
     // t_rx_ns: the kernel's receive stamp (SO_TIMESTAMPNS), moved onto
     // CLOCK_MONOTONIC; the read time if the socket gave none.

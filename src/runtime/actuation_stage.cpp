@@ -128,7 +128,7 @@ void ActuationStage::on_frame(const FrameResult& r, std::int64_t now_ns) noexcep
     last_class_map_ = r.has_class_map;
     for (const actuation::Target& t : targets) {
         bump(counters_.targets);
-        if (sender_.schedule(t, now_ns, r.has_class_map, enabled()))
+        if (sender_.schedule(t, now_ns, r.has_class_map, enable_gate()))
             counters_.send_latency.record(now_ns - r.t_sample_ns);
         if (live_feed_ != nullptr)
             live_feed_->push_target(
@@ -237,7 +237,7 @@ void ActuationStage::end_of_stream() noexcept
     frame.view_s_max_mm = frame.odom_at_capture_mm + projector_.view_forward_max_mm();
     for (const actuation::Target& t : tracker_.update(frame)) {
         bump(counters_.targets);
-        sender_.schedule(t, last_capture_ns_, last_class_map_, enabled());
+        sender_.schedule(t, last_capture_ns_, last_class_map_, enable_gate());
     }
     write_retired(tracker_.retired(), base::monotonic_ns());
 }

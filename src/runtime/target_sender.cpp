@@ -86,7 +86,7 @@ TargetSender::Fired TargetSender::on_fired(const protocol::ToolFired& fired, dou
 }
 
 bool TargetSender::schedule(const actuation::Target& target, std::int64_t now_ns, bool class_map,
-                            bool enabled) noexcept
+                            drivers::SendGate enable) noexcept
 {
     MapEntry& entry = outcomes_[target.target_id];
     entry = MapEntry{};
@@ -102,7 +102,7 @@ bool TargetSender::schedule(const actuation::Target& target, std::int64_t now_ns
     now.now_ns = now_ns;
     now.odom_mm = odom_now;
     now.speed_mm_per_s = odometry_.speed_mm_per_s();
-    now.enabled = enabled;
+    now.enabled = enable.open();
     actuation::Scheduler& scheduler = (scheduler_all_ && !class_map) ? *scheduler_all_ : scheduler_;
     const actuation::ScheduleDecision d = scheduler.schedule(target, now);
     entry.reason = reason_of(d.outcome);
@@ -133,8 +133,12 @@ bool TargetSender::schedule(const actuation::Target& target, std::int64_t now_ns
         bump(counters_.bus_errors);
         return false;
     }
-    switch (bus_.send(frame, d.deadline_ns)) {
+    switch (bus_.send(frame, d.deadline_ns, enable)) {
     case drivers::SendResult::sent: bump(counters_.sent); return true;
+    case drivers::SendResult::withdrawn:
+        entry.reason = MapReason::disabled;
+        bump(counters_.disabled);
+        break;
     case drivers::SendResult::deadline_passed:
         entry.reason = MapReason::bus_deadline;
         bump(counters_.bus_deadline);

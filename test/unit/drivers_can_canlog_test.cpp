@@ -155,6 +155,26 @@ TEST_F(CanLogTest, DeadlineAlreadyPassedIsNotWrittenAndCounted)
     EXPECT_TRUE(read_lines(path).empty());
 }
 
+TEST_F(CanLogTest, AClosedGateIsNotWrittenAndCounted)
+{
+    const auto path = dir_ / "gate.log";
+    {
+        CanLogBus bus(to(path), quiet_logger());
+        ASSERT_TRUE(bus.open());
+        bool open = false;
+        const stemd::drivers::SendGate gate{.is_open = [](const void* c) { return *static_cast<const bool*>(c); },
+                                            .context = &open};
+        EXPECT_EQ(bus.send(sample_frames()[0], stemd::base::monotonic_ns() + kSecond, gate), SendResult::withdrawn);
+        open = true;
+        EXPECT_EQ(bus.send(sample_frames()[1], stemd::base::monotonic_ns() + kSecond, gate), SendResult::sent);
+        const auto c = bus.counters();
+        EXPECT_EQ(c.withdrawn, 1U);
+        EXPECT_EQ(c.sent, 1U);
+        EXPECT_EQ(c.errors, 0U);
+    }
+    EXPECT_EQ(read_lines(path).size(), 1U);
+}
+
 TEST_F(CanLogTest, EverySentFrameIsInTheFileWhenSendReturns)
 {
     const auto path = dir_ / "lines.log";

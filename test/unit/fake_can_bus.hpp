@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -15,8 +16,13 @@ namespace stemd::test {
 class FakeCanBus final : public drivers::CanBus {
 public:
     std::string_view name() const override { return "fake"; }
-    drivers::SendResult send(const protocol::CanFrame& frame, std::int64_t deadline_ns) override
+    using drivers::CanBus::send;
+    drivers::SendResult send(const protocol::CanFrame& frame, std::int64_t deadline_ns, drivers::SendGate gate) override
     {
+        if (before_write)
+            before_write(frame);
+        if (!gate.open())
+            return drivers::SendResult::withdrawn;
         if (fail_id && frame.id == *fail_id)
             return drivers::SendResult::error;
         sent.push_back(frame);
@@ -43,6 +49,9 @@ public:
     // Receive times of the inbox's first frames; the others get the read time.
     std::deque<std::int64_t> inbox_t_rx_ns;
     std::optional<std::uint32_t> fail_id;   // sends of this identifier fail (not recorded)
+    // Runs in send() before the gate is checked: what a real bus's wait for
+    // a full transmit queue lets happen (the enable input dropping).
+    std::function<void(const protocol::CanFrame&)> before_write;
 };
 
 }  // namespace stemd::test

@@ -228,6 +228,25 @@ TEST(ActuationStage, EnableTakesEffectFromTheNextFrame)
     EXPECT_EQ(run.stage->counters().disabled.load() + sent_before_disable, plants.size());
 }
 
+TEST(ActuationStage, EnableDroppingWhileTheBusHoldsATargetWithdrawsIt)
+{
+    // The enable input drops between the scheduler's decision and the
+    // bus's write of the third TARGET, as it can while a full transmit
+    // queue keeps the frame waiting: that TARGET must not go out either.
+    const auto plants = strip(10);
+    Stage run = make_stage(base_config(), true);
+    int attempts = 0;
+    run.bus->before_write = [&](const CanFrame& f) {
+        if (protocol::CanIds{}.kind_of(f) == MessageKind::Target && ++attempts == 3)
+            run.gpio->enable = false;
+    };
+    drive(run, plants, 3'000'000);
+    EXPECT_EQ(attempts, 3) << "the scheduler stops asking once enable is off";
+    EXPECT_EQ(targets(*run.bus).size(), 2u);
+    EXPECT_EQ(run.stage->counters().sent.load(), 2u);
+    EXPECT_EQ(run.stage->counters().disabled.load(), plants.size() - 2);
+}
+
 TEST(ActuationStage, OperatorDisableStopsTargetsAndClearingItResumesThem)
 {
     const auto plants = strip(10);

@@ -243,6 +243,12 @@ check_socketcan() {
   sc receive vcan0 3000 -- sh -c 'cansend vcan0 123#00 && cansend vcan0 "$1"' sh "$odometry" ||
     die "SocketCanBus receive"
 
+  echo "== a full transmit queue (a token bucket of two frames at 100 bit/s): the send waits, and gives"
+  echo "   its frame up once the caller's gate closes (the enable input dropping), long before its deadline"
+  modprobe sch_tbf || die "modprobe sch_tbf"
+  sc gate vcan0 -- sh -c 'if [ "$2" = add ]; then tc qdisc replace dev "$1" root tbf rate 100bit burst 32 limit 32;
+                          else tc qdisc del dev "$1" root; fi' sh vcan0 || die "SocketCanBus gate"
+
   echo "== vcan0 down while sending (errors, no crash), then up (sending resumes)"
   sc downup vcan0 -- sh -c 'ip link set "$1" "$2"' sh vcan0 || die "SocketCanBus down/up"
   ip link set vcan0 up

@@ -12,6 +12,12 @@
 //   stemd-vm-socketcan-check receive IFACE TIMEOUT_MS -- TRIGGER...
 //       SocketCanBus with a receive filter on the ODOMETRY id; runs TRIGGER
 //       (cansend), receives, and checks the E2E status and decoded values.
+//   stemd-vm-socketcan-check gate IFACE -- TRIGGER...
+//       runs "TRIGGER add" (a qdisc that takes a few frames, then refuses
+//       them: ENOBUFS), sends until the transmit queue is full, then sends a
+//       frame whose SendGate closes after its first write was refused: the
+//       send must give it up (withdrawn) within milliseconds, long before
+//       its deadline, and count it; then runs "TRIGGER del".
 //   stemd-vm-socketcan-check downup IFACE -- TRIGGER...
 //       sends, runs "TRIGGER down", checks sends fail with errors reported (no
 //       crash, not sent), runs "TRIGGER up", checks sending resumes (the driver
@@ -107,11 +113,13 @@ void open_or_fail(SocketCanBus& bus)
 void counters(const SocketCanBus& bus)
 {
     const auto c = bus.counters();
-    std::printf("%.*s: state %.*s, sent %llu, retries %llu, deadline misses %llu, errors %llu, rx %llu, reopens %llu\n",
+    std::printf("%.*s: state %.*s, sent %llu, retries %llu, deadline misses %llu, withdrawn %llu, errors %llu, rx %llu, "
+                "reopens %llu\n",
                 static_cast<int>(bus.name().size()), bus.name().data(),
                 static_cast<int>(to_string(bus.state()).size()), to_string(bus.state()).data(),
                 static_cast<unsigned long long>(c.sent), static_cast<unsigned long long>(c.tx_queue_full_retries),
-                static_cast<unsigned long long>(c.deadline_misses), static_cast<unsigned long long>(c.errors),
+                static_cast<unsigned long long>(c.deadline_misses), static_cast<unsigned long long>(c.withdrawn),
+                static_cast<unsigned long long>(c.errors),
                 static_cast<unsigned long long>(c.rx), static_cast<unsigned long long>(bus.reopens()));
     std::fflush(stdout);
 }
@@ -176,6 +184,54 @@ void run_trigger(std::vector<std::string> trigger, const char* arg)
     const int status = stemd::vmprobe::run_command(trigger);
     if (status != 0)
         fail("trigger '" + trigger[0] + " ... " + arg + "' exited " + std::to_string(status));
+}
+
+// A SendGate open for its first check only: the enable input dropping
+// while the frame waits for the transmit queue.
+struct OpenOnce {
+    mutable int checks = 0;
+    static bool open(const void* self) { return ++static_cast<const OpenOnce*>(self)->checks == 1; }
+};
+
+void gate(const std::string& iface, const std::vector<std::string>& trigger)
+{
+    if (trigger.empty())
+        fail("gate needs a TRIGGER (it appends add / del)");
+    SocketCanBus bus(options(iface), logger());
+    open_or_fail(bus);
+    run_trigger(trigger, "add");
+    std::uint8_t counter = 0;
+    bool full = false;
+    for (int i = 0; i < 16 && !full; ++i) {
+        const auto r = bus.send(target_frame(counter++), stemd::base::monotonic_ns() + 20 * kMs);
+        if (r == SendResult::error)
+            fail("filling the queue: send error: " + bus.last_error());
+        full = r == SendResult::deadline_passed;
+    }
+    counters(bus);
+    if (!full || bus.counters().tx_queue_full_retries == 0)
+        fail("the transmit queue never filled: no send was refused until its deadline");
+    info("== the transmit queue is full; a frame whose gate closes while it waits");
+    const std::uint64_t retries_before = bus.counters().tx_queue_full_retries;
+    const OpenOnce once;
+    const drivers::SendGate closing{.is_open = &OpenOnce::open, .context = &once};
+    const std::int64_t t0 = stemd::base::monotonic_ns();
+    const auto r = bus.send(target_frame(counter), t0 + 5000 * kMs, closing);
+    const std::int64_t waited_ns = stemd::base::monotonic_ns() - t0;
+    run_trigger(trigger, "del");
+    counters(bus);
+    info("gated send: " + std::string(to_string(r)) + " after " + std::to_string(waited_ns / 1000) + " us, " +
+         std::to_string(once.checks) + " gate checks");
+    if (r != SendResult::withdrawn)
+        fail("the gated send returned " + std::string(to_string(r)) + ", not withdrawn");
+    if (bus.counters().tx_queue_full_retries <= retries_before)
+        fail("the gated frame never met the full queue: its first write was not refused");
+    if (once.checks < 2)
+        fail("the gate was not checked again after the refused write");
+    if (bus.counters().withdrawn != 1)
+        fail("withdrawn counter is not 1");
+    if (waited_ns > 1000 * kMs)
+        fail("the send waited " + std::to_string(waited_ns / kMs) + " ms for a closed gate");
 }
 
 void downup(const std::string& iface, const std::vector<std::string>& trigger)
@@ -247,12 +303,12 @@ void downup(const std::string& iface, const std::vector<std::string>& trigger)
 int main(int argc, char** argv)
 {
     const std::string mode = argc > 1 ? argv[1] : "";
-    const bool ok = mode == "frames" || (argc >= 3 && (mode == "send" || mode == "downup")) ||
+    const bool ok = mode == "frames" || (argc >= 3 && (mode == "send" || mode == "downup" || mode == "gate")) ||
                     (argc >= 4 && mode == "receive");
     if (!ok) {
         std::fprintf(stderr,
                      "usage: %s frames | send IFACE | receive IFACE TIMEOUT_MS -- TRIGGER... | downup IFACE -- "
-                     "TRIGGER...\n",
+                     "TRIGGER... | gate IFACE -- TRIGGER...\n",
                      argv[0]);
         return 2;
     }
@@ -264,6 +320,8 @@ int main(int argc, char** argv)
             send(argv[2]);
         } else if (mode == "receive") {
             receive(argv[2], std::atoi(argv[3]), stemd::vmprobe::command_after_dashes(argc, argv));
+        } else if (mode == "gate") {
+            gate(argv[2], stemd::vmprobe::command_after_dashes(argc, argv));
         } else {
             downup(argv[2], stemd::vmprobe::command_after_dashes(argc, argv));
         }

@@ -153,7 +153,7 @@ depmod -b "$work/full" "$kv"
 root=$work/root
 mkdir -p "$root"/{bin,sbin,dev,proc,sys,tmp,host} "$root/lib/modules/$kv"
 cp "$kdir/busybox/bin/busybox" "$root/bin/busybox"
-modules=(vcan can-raw vivid configfs gpio-sim vimc virtio_pci 9pnet_virtio 9p)
+modules=(vcan can-raw sch_tbf vivid configfs gpio-sim vimc virtio_pci 9pnet_virtio 9p)
 for m in "${modules[@]}"; do
   modprobe -d "$work/full" -S "$kv" --show-depends "$m" | awk '$1 == "insmod" { print $2 }'
 done | sort -u | while read -r ko; do

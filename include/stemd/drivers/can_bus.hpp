@@ -6,7 +6,9 @@
 // Time: deadlines and timeouts are CLOCK_MONOTONIC nanoseconds
 // (base::monotonic_ns()). A frame is never handed to the bus after its
 // deadline: send() checks the clock before every attempt and, once the
-// deadline has passed, gives up and counts a deadline miss.
+// deadline has passed, gives up and counts a deadline miss. A caller's
+// SendGate is checked before every attempt too: a TARGET kept waiting by a
+// full transmit queue must not go out after the enable input dropped.
 //
 // Threading: one thread drives a bus (send() and receive() from the same
 // thread, or from two threads only if the backend says so); counters() may be
@@ -28,6 +30,7 @@ namespace stemd::drivers {
 enum class SendResult : std::uint8_t {
     sent,             // the kernel (or the log) took the whole frame
     deadline_passed,  // not sent: the deadline passed before it could be (counted in deadline_misses)
+    withdrawn,        // not sent: the caller's SendGate closed before it could be (counted in withdrawn)
     error,            // not sent: the bus is down, the frame is invalid, a write failed (counted in errors)
 };
 
@@ -36,6 +39,7 @@ constexpr std::string_view to_string(SendResult r)
     switch (r) {
     case SendResult::sent: return "sent";
     case SendResult::deadline_passed: return "deadline_passed";
+    case SendResult::withdrawn: return "withdrawn";
     case SendResult::error: return "error";
     }
     return "?";
@@ -46,6 +50,7 @@ struct CanBusCounters {
     std::uint64_t sent = 0;                   // frames the bus took
     std::uint64_t tx_queue_full_retries = 0;  // send attempts that found the transmit queue full and retried
     std::uint64_t deadline_misses = 0;        // frames given up at their deadline (never sent)
+    std::uint64_t withdrawn = 0;              // frames given up when their SendGate closed (never sent)
     std::uint64_t errors = 0;                 // failed sends and receive errors (bus down, write errors...)
     std::uint64_t bus_off = 0;                // bus-off events reported by the controller
     std::uint64_t error_passive = 0;          // error-passive events reported by the controller
@@ -59,6 +64,7 @@ struct CanBusCounterCells {
     std::atomic<std::uint64_t> sent{0};
     std::atomic<std::uint64_t> tx_queue_full_retries{0};
     std::atomic<std::uint64_t> deadline_misses{0};
+    std::atomic<std::uint64_t> withdrawn{0};
     std::atomic<std::uint64_t> errors{0};
     std::atomic<std::uint64_t> bus_off{0};
     std::atomic<std::uint64_t> error_passive{0};
@@ -72,11 +78,21 @@ struct CanBusCounterCells {
         return {.sent = get(sent),
                 .tx_queue_full_retries = get(tx_queue_full_retries),
                 .deadline_misses = get(deadline_misses),
+                .withdrawn = get(withdrawn),
                 .errors = get(errors),
                 .bus_off = get(bus_off),
                 .error_passive = get(error_passive),
                 .rx = get(rx)};
     }
+};
+
+// What must still hold when a frame is written: checked by send() before
+// every attempt, the first included. A function and its context, so that
+// passing one allocates nothing; the default is always open.
+struct SendGate {
+    bool (*is_open)(const void* context) = nullptr;
+    const void* context = nullptr;
+    bool open() const { return is_open == nullptr || is_open(context); }
 };
 
 class CanBus : base::NonCopyable {
@@ -86,9 +102,14 @@ public:
     // "socketcan:can0", "canlog:/var/log/stemd/can.log"... for logs.
     virtual std::string_view name() const = 0;
 
-    // Sends one frame unless deadline_ns (CLOCK_MONOTONIC) passes first.
-    // Never blocks past the deadline.
-    virtual SendResult send(const protocol::CanFrame& frame, std::int64_t deadline_ns) = 0;
+    // Sends one frame unless deadline_ns (CLOCK_MONOTONIC) passes, or
+    // `gate` closes, first. Never blocks past the deadline, and checks the
+    // gate at least every millisecond while it waits.
+    virtual SendResult send(const protocol::CanFrame& frame, std::int64_t deadline_ns, SendGate gate) = 0;
+    SendResult send(const protocol::CanFrame& frame, std::int64_t deadline_ns)
+    {
+        return send(frame, deadline_ns, SendGate{});
+    }
 
     // Waits at most timeout_ns for the next data frame that passes the bus's
     // receive filter and writes it into `out`, and into t_rx_ns when it

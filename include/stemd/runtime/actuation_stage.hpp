@@ -136,6 +136,12 @@ private:
     {
         return enable_input() && !operator_disabled_.load(std::memory_order_relaxed);
     }
+    // enabled() as the bus checks it before writing a TARGET.
+    drivers::SendGate enable_gate() const noexcept
+    {
+        return {.is_open = [](const void* stage) { return static_cast<const ActuationStage*>(stage)->enabled(); },
+                .context = this};
+    }
     void write_retired(std::span<const actuation::RetiredTrack> retired, std::int64_t now_ns) noexcept;
     void poll_gnss(std::int64_t now_ns) noexcept;
     // One map line; with GNSS, placed on the track as it is at now_ns.

@@ -35,8 +35,12 @@ public:
                  drivers::CanBus& bus, protocol::CanIds ids, const OdometryInput& odometry,
                  ActuationCounters& counters);
 
-    // True when the bus took the TARGET frame.
-    bool schedule(const actuation::Target& target, std::int64_t now_ns, bool class_map, bool enabled) noexcept;
+    // True when the bus took the TARGET frame. `enable` is open while the
+    // enable input is on: the scheduler reads it, and the bus checks it again
+    // before it writes the frame, however long a full transmit queue kept
+    // the frame waiting (a withdrawn frame is counted as disabled).
+    bool schedule(const actuation::Target& target, std::int64_t now_ns, bool class_map,
+                  drivers::SendGate enable) noexcept;
     // What became of target_id's last target.
     const MapEntry& outcome(std::uint16_t target_id) const { return outcomes_[target_id]; }
 
