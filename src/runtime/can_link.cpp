@@ -89,8 +89,13 @@ void CanLink::heartbeat_if_due(std::int64_t now_ns, bool frames_seen, bool camer
 void CanLink::heartbeat(std::int64_t now_ns, bool frames_seen, bool camera_lost, bool enabled) noexcept
 {
     // On a fixed grid (10 Hz stays 10 Hz however late a poll comes); a
-    // heartbeat more than a period late is not caught up.
-    next_heartbeat_ns_ = next_heartbeat_ns_ == 0 || now_ns - next_heartbeat_ns_ >= heartbeat_interval_ns_
+    // heartbeat more than a period late is not caught up, and each period
+    // that passed without one is a miss.
+    const std::int64_t late_ns = next_heartbeat_ns_ == 0 ? 0 : now_ns - next_heartbeat_ns_;
+    if (late_ns >= heartbeat_interval_ns_)
+        counters_.heartbeat_misses.fetch_add(static_cast<std::uint64_t>(late_ns / heartbeat_interval_ns_),
+                                             std::memory_order_relaxed);
+    next_heartbeat_ns_ = next_heartbeat_ns_ == 0 || late_ns >= heartbeat_interval_ns_
         ? now_ns + heartbeat_interval_ns_
         : next_heartbeat_ns_ + heartbeat_interval_ns_;
     const std::uint64_t misses = counters_.deadline_misses.load(std::memory_order_relaxed) +

@@ -531,6 +531,7 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
         s.no_odometry = get(a.no_odometry);
         s.bus_errors = get(a.bus_errors);
         s.heartbeat_errors = get(a.heartbeat_errors);
+        s.heartbeat_misses = get(a.heartbeat_misses);
         s.rx_tool_fired = get(a.rx_tool_fired);
         s.fired_unmatched = get(a.fired_unmatched);
         s.compensation_misses = get(a.compensation_misses);

@@ -126,6 +126,7 @@ Metrics collect_metrics(runtime::Daemon& daemon)
         m.bus_deadline = get(a->bus_deadline);
         m.bus_error = get(a->bus_errors);
         m.heartbeat_errors = get(a->heartbeat_errors);
+        m.heartbeat_misses = get(a->heartbeat_misses);
         m.no_odometry = get(a->no_odometry);
         m.capture_to_send = histogram_of(a->send_latency);
     }
@@ -151,6 +152,9 @@ std::string format_metrics(const Metrics& m)
                     {"deadline_miss", m.deadline_miss}, {"bus_deadline", m.bus_deadline}, {"bus_error", m.bus_error}});
         t.counters("bus_errors_total", "CAN frames the bus failed, by frame.", "frame",
                    {{"target", m.bus_error}, {"heartbeat", m.heartbeat_errors}});
+        t.counter("heartbeat_misses_total",
+                  "HEARTBEAT periods that passed without their HEARTBEAT (the actuator thread came over a period late).",
+                  m.heartbeat_misses);
         t.counter("no_odometry_frames_total", "Frames not actuated: no usable odometer reading.", m.no_odometry);
     }
     t.counter("bad_class_plants_total", "Plants whose class-map window held values above 2 (taken as unknown).",

@@ -42,7 +42,8 @@ nlohmann::json status_json(const runtime::StatusSnapshot& s, const Metrics& m, d
                           {"policy", m.policy},         {"no_tool", m.no_tool},
                           {"disabled", m.disabled},     {"deadline_miss", m.deadline_miss},
                           {"bus_deadline", m.bus_deadline}, {"bus_errors", m.bus_error},
-                          {"heartbeat_errors", m.heartbeat_errors}, {"no_odometry", m.no_odometry}};
+                          {"heartbeat_errors", m.heartbeat_errors}, {"heartbeat_misses", m.heartbeat_misses},
+                          {"no_odometry", m.no_odometry}};
     else
         j["actuation"] = nullptr;
     j["latency_ms"] = summary_json(s.latency);

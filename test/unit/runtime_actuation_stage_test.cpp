@@ -635,6 +635,23 @@ TEST(ActuationStage, PlantsCutByTheAlongTrackBordersAreNotTrackedButLateralOnesA
 }
 
 
+TEST(ActuationStage, HeartbeatPeriodsPassedWithoutAPollAreCountedAsMisses)
+{
+    // 100 ms period. Polls every millisecond to +150 ms (heartbeats at 0
+    // and +100 ms), then none until +500 ms (a stalled actuator thread):
+    // the slots at +200, +300 and +400 ms passed with no heartbeat. The
+    // poll at +500 ms sends one and the grid goes on from it (+600, +700).
+    Stage run = make_stage(base_config());
+    for (std::int64_t t = kT0; t <= kT0 + 150'000'000; t += 1'000'000)
+        run.stage->poll(t);
+    EXPECT_EQ(run.stage->counters().heartbeats.load(), 2u);
+    EXPECT_EQ(run.stage->counters().heartbeat_misses.load(), 0u);
+    for (std::int64_t t = kT0 + 500'000'000; t <= kT0 + 700'000'000; t += 1'000'000)
+        run.stage->poll(t);
+    EXPECT_EQ(run.stage->counters().heartbeat_misses.load(), 3u);
+    EXPECT_EQ(run.stage->counters().heartbeats.load(), 5u);
+}
+
 TEST(ActuationStage, FailedHeartbeatsAreNotCountedAsDroppedTargets)
 {
     // The first heartbeats fail on the bus; the ones after must still say

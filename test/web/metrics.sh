@@ -31,6 +31,7 @@ families = {f.name: f for f in text_string_to_metric_families(text)}
 want = {
     "stemd_frames_in": "counter", "stemd_frames_out": "counter", "stemd_frames_dropped": "counter",
     "stemd_deadline_misses": "counter", "stemd_targets": "counter", "stemd_bus_errors": "counter",
+    "stemd_heartbeat_misses": "counter",
     "stemd_capture_to_result_seconds": "histogram", "stemd_capture_to_send_seconds": "histogram",
     "stemd_thread_cycle_seconds": "histogram", "stemd_pipeline_seconds": "histogram",
 }

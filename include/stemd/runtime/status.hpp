@@ -82,7 +82,7 @@ struct StatusSnapshot {
     // Actuation (when a CAN side is configured).
     bool actuation = false;
     std::uint64_t targets = 0, sent = 0, deadline_misses = 0, no_odometry = 0, not_treated = 0, bus_errors = 0,
-                  heartbeat_errors = 0;
+                  heartbeat_errors = 0, heartbeat_misses = 0;
     DurationHistogram::Summary latency;    // interval, or whole run for the final line
     DurationHistogram::Summary pipeline;
     DurationHistogram::Summary send;       // actuation: capture -> TARGET on the bus

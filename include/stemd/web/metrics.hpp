@@ -40,7 +40,8 @@ struct Metrics {
     std::uint64_t ring_full = 0, overwritten = 0, results_full = 0, corrupt = 0, bad_size = 0, failed = 0;
     bool actuation = false;   // the actuation's series are written only with it
     std::uint64_t targets = 0, sent = 0, policy = 0, no_tool = 0, disabled = 0, deadline_miss = 0,
-                  bus_deadline = 0, bus_error = 0, heartbeat_errors = 0, no_odometry = 0;
+                  bus_deadline = 0, bus_error = 0, heartbeat_errors = 0, heartbeat_misses = 0,
+                  no_odometry = 0;
     // Plants' classes: class-map windows with values above 2 (any provider);
     // the in-box model's weed targets beside the plants' stems and the cells
     // its budget left out; the socket provider's maps, late maps, bad
