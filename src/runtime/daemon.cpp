@@ -465,13 +465,15 @@ void Daemon::actuator_loop()
         const std::int64_t t_start_ns = base::monotonic_ns();
         const std::int64_t latency_ns = t_start_ns - result->t_sample_ns;
         counters_->actuator.latency.record(latency_ns);
-        if (!sink_->consume(*result, latency_ns))
-            bump(counters_->actuator.sink_errors);
         if (actuation_) {
             // Published after the frame's sample: drained here, it is in.
             take_captured_odometry();
             actuation_->on_frame(*result, base::monotonic_ns());
         }
+        // The detections' CSV is optional output: written once the frame's
+        // TARGETs are out, so that its write(2) never delays them.
+        if (!sink_->consume(*result, latency_ns))
+            bump(counters_->actuator.sink_errors);
         bump(counters_->actuator.stems, result->detections.plants.size() - static_cast<std::size_t>(result->detections.stats.stemless));
         bump(counters_->actuator.frames);
         results_.pop();
