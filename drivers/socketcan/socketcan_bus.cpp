@@ -355,14 +355,20 @@ bool SocketCanBus::receive(protocol::CanFrame& out, std::int64_t timeout_ns, std
 void SocketCanBus::handle_error_frame(std::uint32_t can_id, const std::uint8_t (&data)[8])
 {
     const CanErrorInfo info = decode_error_frame(can_id, data);
+    const std::int64_t now = base::monotonic_ns();
+    std::uint64_t left_out = 0;
     if (info.bus_off) {
         CanBusCounterCells::bump(counters_.bus_off);
-        log_->error("{}: controller is bus-off (error frame 0x{:X})", name_, can_id);
+        if (bus_off_log_.allow(now, left_out))
+            log_->error("{}: controller is bus-off (error frame 0x{:X}; {} more not logged since the last)", name_,
+                        can_id, left_out);
         set_state(SocketCanState::bus_off);
     }
     if (info.error_passive) {
         CanBusCounterCells::bump(counters_.error_passive);
-        log_->warn("{}: controller is error-passive (ctrl 0x{:02X})", name_, data[1]);
+        if (error_passive_log_.allow(now, left_out))
+            log_->warn("{}: controller is error-passive (ctrl 0x{:02X}; {} more not logged since the last)", name_,
+                       data[1], left_out);
         if (state() != SocketCanState::bus_off)
             set_state(SocketCanState::error_passive);
     }
@@ -371,8 +377,9 @@ void SocketCanBus::handle_error_frame(std::uint32_t can_id, const std::uint8_t (
             log_->info("{}: controller is error-active again; sending resumes", name_);
         set_state(SocketCanState::up);
     }
-    if (info.tx_timeout)
-        log_->warn("{}: transmit timeout reported by the controller", name_);
+    if (info.tx_timeout && tx_timeout_log_.allow(now, left_out))
+        log_->warn("{}: transmit timeout reported by the controller ({} more not logged since the last)", name_,
+                   left_out);
 }
 
 CanBusCounters SocketCanBus::counters() const

@@ -36,6 +36,7 @@
 
 #include <spdlog/logger.h>
 
+#include "stemd/base/log_throttle.hpp"
 #include "stemd/drivers/can_bus.hpp"
 #include "stemd/drivers/reopen_backoff.hpp"
 #include "stemd/base/unique_fd.hpp"
@@ -105,6 +106,8 @@ private:
     std::string last_error_;
 
     CanBusCounterCells counters_;
+    // Error frames can come with every frame on the bus: one warning a second each.
+    base::LogThrottle bus_off_log_, error_passive_log_, tx_timeout_log_;
     std::atomic<std::uint64_t> reopens_{0};
 };
 

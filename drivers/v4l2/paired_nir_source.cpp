@@ -192,8 +192,11 @@ NextStatus PairedNirSource::next(Frame& into, std::chrono::nanoseconds timeout)
         if (got == NextStatus::frame) {
             if (pairer_.push(side, slot.t_sample_ns, id) != PushResult::accepted) {
                 slots.give(id);
-                log_->warn("{}: {} frame {} at {} ns is older than its previous one; dropped", name_,
-                           side == PairSide::rgb ? "RGB" : "NIR", slot.source_seq, slot.t_sample_ns);
+                if (std::uint64_t left_out = 0; out_of_order_log_.allow(slot.t_sample_ns, left_out))
+                    log_->warn("{}: {} frame {} at {} ns is older than its previous one; dropped ({} more not "
+                               "logged since the last warning)",
+                               name_, side == PairSide::rgb ? "RGB" : "NIR", slot.source_seq, slot.t_sample_ns,
+                               left_out);
                 out_of_order_.store(pairer_.counters().out_of_order, std::memory_order_relaxed);
                 unpaired_rgb_.store(pairer_.counters().unpaired_rgb, std::memory_order_relaxed);
                 unpaired_nir_.store(pairer_.counters().unpaired_nir, std::memory_order_relaxed);

@@ -39,6 +39,7 @@
 
 #include <spdlog/logger.h>
 
+#include "stemd/base/log_throttle.hpp"
 #include "stemd/drivers/frame_source.hpp"
 #include "stemd/drivers/timestamp_pairing.hpp"
 #include "v4l2/v4l2_source.hpp"
@@ -114,6 +115,7 @@ private:
 
     const PairedNirOptions options_;
     const std::shared_ptr<spdlog::logger> log_;
+    base::LogThrottle out_of_order_log_;   // one warning a second
     const std::string name_;
     V4l2Source rgb_;
     V4l2Source nir_;
