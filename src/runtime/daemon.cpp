@@ -10,6 +10,8 @@
 #include <new>
 #include <string>
 
+#include <opencv2/core/utility.hpp>
+
 #include "stemd/runtime/logging.hpp"
 #include "stemd/runtime/thread_settings.hpp"
 #include "stemd/runtime/trigger_clock.hpp"
@@ -141,6 +143,11 @@ bool Daemon::start()
         log_->error("{}: cannot start the frame source", source_->name());
         return false;
     }
+    // OpenCV's calls on these threads (the capture's colour conversion)
+    // run on the calling thread: its own worker pool would inherit one
+    // thread's CPU and priority, and run beside the three unaccounted. The
+    // pipeline is made to fit one core (Benchmarks).
+    cv::setNumThreads(1);
     // Stamped now, so a thread not yet scheduled does not look stuck.
     for (auto& stamp : alive_ns_)
         stamp.store(base::monotonic_ns(), std::memory_order_relaxed);

@@ -7,6 +7,8 @@
 #include <memory>
 #include <thread>
 
+#include <opencv2/core/utility.hpp>
+
 #include "runtime_test_util.hpp"
 #include "stemd/runtime/daemon.hpp"
 #include "stemd/runtime/actuation_stage.hpp"
@@ -100,6 +102,16 @@ TEST(Daemon, EachOverflowPolicyCountsEveryFrameItDoesNotProcess)
                   static_cast<std::uint64_t>(kFrames));
         EXPECT_EQ(run.daemon->counters().capture.no_free_slot.load(), 0u);
     }
+}
+
+TEST(Daemon, OpenCvRunsOnTheDaemonsOwnThreadsOnly)
+{
+    cv::setNumThreads(-1);   // OpenCV's default: a worker per CPU
+    if (cv::getNumThreads() <= 1)
+        GTEST_SKIP() << "one CPU: OpenCV's default is one thread already";
+    const DaemonRun run = run_to_end(config_for(runtime::OverflowPolicy::drop_newest), 5, false);
+    EXPECT_EQ(run.end.frames_out, 5u);
+    EXPECT_EQ(cv::getNumThreads(), 1) << "OpenCV's worker pool is still in use";
 }
 
 TEST(Daemon, SourceThatCanWaitGetsBackPressureAndLosesNothing)
