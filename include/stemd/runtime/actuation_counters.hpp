@@ -38,7 +38,7 @@ struct ActuationCounters {
     std::atomic<std::uint64_t> bus_errors{0};       // TARGETs that could not be encoded or sent
     std::atomic<std::uint64_t> heartbeats{0};
     std::atomic<std::uint64_t> heartbeat_errors{0}; // HEARTBEATs that could not be encoded or sent
-    std::atomic<std::uint64_t> heartbeat_misses{0}; // HEARTBEAT periods that passed with no HEARTBEAT due in them sent
+    std::atomic<std::uint64_t> heartbeat_misses{0}; // HEARTBEAT periods that passed without their HEARTBEAT
     std::atomic<std::uint64_t> rx_odometry{0};      // ODOMETRY frames accepted
     std::atomic<std::uint64_t> rx_tool_status{0};   // TOOL_STATUS frames accepted
     std::atomic<std::uint64_t> rx_tool_fired{0};    // TOOL_FIRED frames accepted (known tool)
