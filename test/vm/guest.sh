@@ -243,7 +243,7 @@ check_socketcan() {
   sc receive vcan0 3000 -- sh -c 'cansend vcan0 123#00 && cansend vcan0 "$1"' sh "$odometry" ||
     die "SocketCanBus receive"
 
-  echo "== a full transmit queue (a token bucket of two frames at 100 bit/s): the send waits, and gives"
+  echo "== a full transmit queue (a token bucket that takes four frames, then 100 bit/s): the send waits, and gives"
   echo "   its frame up once the caller's gate closes (the enable input dropping), long before its deadline"
   modprobe sch_tbf || die "modprobe sch_tbf"
   sc gate vcan0 -- sh -c 'if [ "$2" = add ]; then tc qdisc replace dev "$1" root tbf rate 100bit burst 32 limit 32;
