@@ -26,6 +26,10 @@ using namespace std::chrono_literals;
 // How long a source may block in next(): bounds how late a stop is noticed.
 constexpr auto kSourceTimeout = 100ms;
 
+// The writer's ring, in lines (1 KiB each): 4096 rows are 16 frames of 256
+// plants, or several seconds of a normal field's output, for a disk to stall.
+constexpr std::size_t kRecordWriterLines = 4096;
+
 // Waiting for the other side of a ring: a short spin for the frame that is
 // about to arrive, then 100 us sleeps. Sleeping keeps an idle thread off a
 // CPU the pipeline needs (2 cores) and bounds the added latency at ~0.1 ms.
@@ -69,6 +73,12 @@ Daemon::Daemon(const DaemonConfig& config, std::unique_ptr<drivers::FrameSource>
 {
     for (std::size_t i = 0; i < pool_.size(); ++i)
         free_slots_.try_push(&pool_[i]);
+    if (sink_->csv_open() || (actuation_ && actuation_->has_map())) {
+        writer_ = std::make_unique<RecordWriter>(kRecordWriterLines, make_logger("writer"));
+        sink_->attach(*writer_);
+        if (actuation_)
+            actuation_->attach_map_writer(*writer_);
+    }
 }
 
 void Daemon::set_vision_params(const vision::Params& params)
@@ -148,6 +158,9 @@ bool Daemon::start()
     // thread's CPU and priority, and run beside the three unaccounted. The
     // pipeline is made to fit one core (Benchmarks).
     cv::setNumThreads(1);
+    // The optional outputs' writer: the normal priority of this thread.
+    if (writer_)
+        writer_->start();
     // Stamped now, so a thread not yet scheduled does not look stuck.
     for (auto& stamp : alive_ns_)
         stamp.store(base::monotonic_ns(), std::memory_order_relaxed);
@@ -180,6 +193,10 @@ bool Daemon::join()
     joined_ = true;
     if (!sink_->close())
         sink_ok_.store(false);
+    // The plant map was closed by the actuator's finish(), the CSV now:
+    // nothing is left to write.
+    if (writer_)
+        writer_->stop();
     return sink_ok_.load();
 }
 
@@ -477,8 +494,8 @@ void Daemon::actuator_loop()
             take_captured_odometry();
             actuation_->on_frame(*result, base::monotonic_ns());
         }
-        // The detections' CSV is optional output: written once the frame's
-        // TARGETs are out, so that its write(2) never delays them.
+        // The detections' CSV is optional output: queued for the writer
+        // once the frame's TARGETs are out.
         if (!sink_->consume(*result, latency_ns))
             bump(counters_->actuator.sink_errors);
         bump(counters_->actuator.stems, result->detections.plants.size() - static_cast<std::size_t>(result->detections.stats.stemless));

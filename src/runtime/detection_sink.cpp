@@ -64,11 +64,15 @@ bool DetectionSink::consume(const FrameResult& result, std::int64_t latency_ns)
         log_->debug("frame {} {}: {} plants ({} from leaves), latency {:.2f} ms, pipeline {:.2f} ms", result.seq,
                     result.name.view(), d.plants.size(), from_leaves, latency_ns / 1e6, result.pipeline_ns / 1e6);
     }
-    if (!csv_.is_open() || csv_failed_)
-        return !csv_failed_;
+    if (!csv_.is_open())
+        return true;
+    if (csv_failed_ && writer_ == nullptr)
+        return false;
     char image[2 * drivers::FrameName::kCapacity + 3];
     const std::size_t image_len = csv_field(result.name.view(), image, sizeof image);
     char line[sizeof image + 160];
+    static_assert(sizeof line <= RecordWriter::kLineBytes);
+    bool all_queued = true;
     for (std::size_t i = 0; i < d.plants.size(); ++i) {
         const vision::Plant& p = d.plants[i];
         if (!p.has_stem)
@@ -82,6 +86,10 @@ bool DetectionSink::consume(const FrameResult& result, std::int64_t latency_ns)
                                     i, p.stem.x, p.stem.y, static_cast<int>(method.size()), method.data(),
                                     p.leaves.size(), p.area_px, static_cast<int>(estimator.size()), estimator.data(),
                                     p.confidence);
+        if (writer_ != nullptr && n >= 0 && static_cast<std::size_t>(n) < sizeof line) {
+            all_queued = writer_->write(writer_file_, {line, static_cast<std::size_t>(n)}) && all_queued;
+            continue;   // a lost row is counted and logged by the writer
+        }
         const int err = n < 0 || static_cast<std::size_t>(n) >= sizeof line
             ? EOVERFLOW
             : csv_.write({line, static_cast<std::size_t>(n)});
@@ -92,11 +100,24 @@ bool DetectionSink::consume(const FrameResult& result, std::int64_t latency_ns)
             return false;
         }
     }
-    return true;
+    return all_queued;
+}
+
+void DetectionSink::attach(RecordWriter& writer)
+{
+    if (!csv_.is_open())
+        return;
+    writer_file_ = writer.add(csv_, csv_path_.string());
+    writer_ = &writer;
 }
 
 bool DetectionSink::close()
 {
+    if (writer_ != nullptr && csv_.is_open()) {
+        writer_->flush();
+        if (writer_->counters(writer_file_).lost() > 0)
+            csv_failed_ = true;
+    }
     csv_.close();
     return !csv_failed_;
 }

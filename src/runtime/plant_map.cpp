@@ -126,14 +126,32 @@ bool PlantMap::write(const actuation::RetiredTrack& t, const MapEntry& e)
         n += std::snprintf(line + n, capacity - static_cast<std::size_t>(n), "}\n");
     if (n < 0 || static_cast<std::size_t>(n) >= capacity)
         return failed(EOVERFLOW);   // a 1e300 position would not fit: never written half
-    if (const int err = file_.write({line, static_cast<std::size_t>(n)}); err != 0)
+    const std::string_view text(line, static_cast<std::size_t>(n));
+    if (writer_ != nullptr) {
+        if (!writer_->write(writer_file_, text))
+            return false;   // counted and logged by the writer
+    } else if (const int err = file_.write(text); err != 0) {
         return failed(err);
+    }
     ++lines_;
     return true;
 }
 
+void PlantMap::attach(RecordWriter& writer)
+{
+    if (!file_.is_open())
+        return;
+    writer_file_ = writer.add(file_, path_.string());
+    writer_ = &writer;
+}
+
 bool PlantMap::close()
 {
+    if (writer_ != nullptr && file_.is_open()) {
+        writer_->flush();
+        if (writer_->counters(writer_file_).lost() > 0)
+            failed_ = true;
+    }
     file_.close();
     return !failed_;
 }

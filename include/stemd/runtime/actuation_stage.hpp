@@ -116,6 +116,16 @@ public:
     // Before the first frame: every plant the map gets (with or without a
     // map file) is pushed to the live view's feed too (nullptr: none).
     void set_live_feed(LiveFeed* feed) { live_feed_ = feed; }
+    // Before the first frame: the plant map's lines go through `writer`'s
+    // thread (which must outlive this stage). False without a map file.
+    bool attach_map_writer(RecordWriter& writer)
+    {
+        if (!parts_.map || !parts_.map->is_open())
+            return false;
+        parts_.map->attach(writer);
+        return true;
+    }
+    bool has_map() const { return parts_.map && parts_.map->is_open(); }
     // The operator's software disable (any thread): while set, targets are
     // not sent and the heartbeat says disabled. It can only add to the
     // enable input: clearing it never enables past an inactive input.

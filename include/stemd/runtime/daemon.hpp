@@ -17,10 +17,14 @@
 // A source that can wait (fast replay) gets back-pressure instead: nothing
 // is dropped.
 //
+// The optional outputs (the detections' CSV, the plant map) are formatted
+// by the actuator and written by a fourth thread, the writer
+// (record_writer.hpp), at normal priority.
+//
 // Per frame, once running, no thread allocates, locks or does blocking I/O
-// (the replay source's PNG decoding and the optional outputs' one write(2)
-// per line aside: see drivers/replay/replay_source.hpp, detection_sink.hpp,
-// plant_map.hpp and drivers/canlog/canlog_bus.hpp). Idle threads
+// (the replay source's PNG decoding and the CAN log's one write(2) per
+// frame aside: see drivers/replay/replay_source.hpp and
+// drivers/canlog/canlog_bus.hpp). Idle threads
 // poll their ring with a short spin then 100 us sleeps, which bounds the
 // added latency without a futex on the producer's side.
 #pragma once
@@ -42,6 +46,7 @@
 #include "stemd/runtime/detection_sink.hpp"
 #include "stemd/runtime/frame_pool.hpp"
 #include "stemd/runtime/live_feed.hpp"
+#include "stemd/runtime/record_writer.hpp"
 #include "stemd/base/spsc_ring.hpp"
 #include "stemd/runtime/status.hpp"
 #include "stemd/vision/detect.hpp"
@@ -135,6 +140,8 @@ private:
     const std::shared_ptr<spdlog::logger> log_;
     const std::shared_ptr<spdlog::logger> capture_log_;
     const std::shared_ptr<spdlog::logger> processing_log_;
+    // Before the sink and the actuation, whose files it writes: destroyed after them.
+    std::unique_ptr<RecordWriter> writer_;   // nullptr without a CSV or a map
     const std::unique_ptr<drivers::FrameSource> source_;
     const std::unique_ptr<DetectionSink> sink_;
     const std::unique_ptr<Counters> counters_;

@@ -15,6 +15,7 @@
 #include "stemd/base/plant_class.hpp"
 #include "stemd/base/record_file.hpp"
 #include "stemd/drivers/frame_source.hpp"
+#include "stemd/runtime/record_writer.hpp"
 #include "stemd/vision/types.hpp"
 
 namespace stemd::runtime {
@@ -48,14 +49,20 @@ public:
     // cannot.
     bool open_csv(const std::filesystem::path& path);
 
+    // After open_csv(): rows go through `writer` (which must outlive
+    // close()), whose thread makes the write(2)s.
+    void attach(RecordWriter& writer);
+    bool csv_open() const { return csv_.is_open(); }
+
     // Per frame, on the actuator thread: no allocation. Each row is
-    // formatted into a fixed buffer and written with one write(2)
-    // (base::RecordFile), so a kill leaves only complete rows: file I/O on
-    // this thread is what --detections-csv asks for; without it, nothing is
-    // written. False if a CSV write failed (logged once).
+    // formatted into a fixed buffer and handed to the writer (or, without
+    // one, written here), one write(2) per row (base::RecordFile), so a
+    // kill leaves only complete rows. Without --detections-csv nothing is
+    // written. False if a row was lost (the writer counts and logs it).
     bool consume(const FrameResult& result, std::int64_t latency_ns);
 
-    // Closes the CSV; false if anything was lost (logged).
+    // Waits for the writer's last row, closes the CSV; false if anything
+    // was lost (logged).
     bool close();
 
     static constexpr const char* kCsvHeader = "t_ns,image,plant,x,y,method,leaves,area_px,estimator,confidence";
@@ -64,6 +71,8 @@ private:
     std::shared_ptr<spdlog::logger> log_;
     std::filesystem::path csv_path_;
     base::RecordFile csv_;
+    RecordWriter* writer_ = nullptr;
+    std::size_t writer_file_ = 0;
     bool csv_failed_ = false;
 };
 

@@ -34,10 +34,12 @@
 // order the tracks ended, and a kill loses the waiting ones. Plants that
 // left the view before their tool's first report have no such columns.
 //
-// Written by the actuator thread, one write(2) per line (base::RecordFile),
-// formatted into a fixed buffer without allocating: a kill loses no plant
-// whose track had ended, and leaves no torn line. A few lines a second cost
-// nothing.
+// Formatted by the actuator thread into a fixed buffer, without allocating.
+// In the daemon the line is then handed to the writer thread
+// (record_writer.hpp), which makes the one write(2) per line
+// (base::RecordFile): a slow disk does not hold up the actuator, a kill
+// leaves no torn line and loses only the lines of the last millisecond or
+// so. Without a writer (tests, tools) write() makes the write(2) itself.
 #pragma once
 
 #include <array>
@@ -51,6 +53,7 @@
 #include "stemd/actuation/tracker.hpp"
 #include "stemd/base/record_file.hpp"
 #include "stemd/runtime/gnss_input.hpp"
+#include "stemd/runtime/record_writer.hpp"
 
 namespace stemd::runtime {
 
@@ -90,9 +93,14 @@ public:
     bool open(const std::filesystem::path& path);
     bool is_open() const { return file_.is_open(); }
 
-    // One line; false if a write failed (logged once). No allocation.
+    // After open(): lines go through `writer` (which must outlive close()).
+    void attach(RecordWriter& writer);
+
+    // One line; false if it was lost: it could not be queued (the writer's
+    // ring full), or written (logged once). No allocation.
     bool write(const actuation::RetiredTrack& track, const MapEntry& entry);
-    // Closes; false if anything was lost.
+    // Waits for the writer's last line of this file, then closes; false if
+    // anything was lost.
     bool close();
 
     std::uint64_t lines() const { return lines_; }
@@ -103,7 +111,10 @@ private:
     std::shared_ptr<spdlog::logger> log_;
     std::filesystem::path path_;
     base::RecordFile file_;
+    RecordWriter* writer_ = nullptr;
+    std::size_t writer_file_ = 0;
     std::array<char, 768> line_{};   // one line: well under this
+    static_assert(sizeof line_ <= RecordWriter::kLineBytes);
     bool failed_ = false;
     std::uint64_t lines_ = 0;
 };

@@ -1,0 +1,183 @@
+// The writer thread of the optional outputs (runtime/record_writer.hpp):
+// lines reach their own file in order, a stalled file holds up only the
+// writer, and every lost line is counted.
+#include "stemd/runtime/record_writer.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <fstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "captured_log.hpp"
+#include "temp_dir_test.hpp"
+
+namespace {
+
+using stemd::base::RecordFile;
+using stemd::runtime::RecordWriter;
+
+std::vector<std::string> read_lines(const std::filesystem::path& path)
+{
+    std::ifstream in(path);
+    std::vector<std::string> lines;
+    for (std::string line; std::getline(in, line);)
+        lines.push_back(line);
+    return lines;
+}
+
+std::string numbered(const char* prefix, int i) { return std::string(prefix) + std::to_string(i) + "\n"; }
+
+class RecordWriterTest : public stemd::test::TempDirTest {};
+
+TEST_F(RecordWriterTest, LinesReachTheirOwnFileInOrder)
+{
+    RecordFile a, b;
+    ASSERT_EQ(a.open((dir_ / "a.csv").c_str()), 0);
+    ASSERT_EQ(b.open((dir_ / "b.jsonl").c_str()), 0);
+    stemd::test::CapturedLog log;
+    RecordWriter writer(64, log.logger);
+    const std::size_t ia = writer.add(a, "a.csv");
+    const std::size_t ib = writer.add(b, "b.jsonl");
+    writer.start();
+    // Many times the ring's 64 cells, 32 lines between flushes: the ring
+    // wraps while the writer drains it.
+    constexpr int kLines = 1000;
+    for (int i = 0; i < kLines; ++i) {
+        ASSERT_TRUE(writer.write(ia, numbered("a", i)));
+        ASSERT_TRUE(writer.write(ib, numbered("b", i)));
+        if (i % 16 == 15)
+            writer.flush();
+    }
+    writer.flush();
+    const std::vector<std::string> got_a = read_lines(dir_ / "a.csv");
+    const std::vector<std::string> got_b = read_lines(dir_ / "b.jsonl");
+    ASSERT_EQ(got_a.size(), static_cast<std::size_t>(kLines)) << "flush() returned before the last line";
+    ASSERT_EQ(got_b.size(), static_cast<std::size_t>(kLines));
+    for (int i = 0; i < kLines; ++i) {
+        EXPECT_EQ(got_a[i] + "\n", numbered("a", i));
+        EXPECT_EQ(got_b[i] + "\n", numbered("b", i));
+    }
+    writer.stop();
+    EXPECT_EQ(writer.counters(ia).written, static_cast<std::uint64_t>(kLines));
+    EXPECT_EQ(writer.counters(ib).written, static_cast<std::uint64_t>(kLines));
+    EXPECT_EQ(writer.counters(ia).lost(), 0u);
+    EXPECT_EQ(writer.counters(ib).lost(), 0u);
+    EXPECT_EQ(log.text(), "") << "nothing failed, nothing to say";
+}
+
+TEST_F(RecordWriterTest, AFileThatStopsTakingLinesHoldsUpOnlyTheWriter)
+{
+    // A pipe nobody reads: it takes 64 KiB, then write(2) blocks, as a
+    // stalled disk would.
+    int fds[2];
+    ASSERT_EQ(::pipe2(fds, O_CLOEXEC), 0);
+    const int pipe_bytes = ::fcntl(fds[1], F_GETPIPE_SZ);
+    ASSERT_GT(pipe_bytes, 0);
+    RecordFile file;
+    ASSERT_EQ(file.open_duplicate(fds[1]), 0);
+    ::close(fds[1]);
+    stemd::test::CapturedLog log;
+    constexpr int kLines = 200;
+    RecordWriter writer(kLines, log.logger);
+    const std::size_t id = writer.add(file, "pipe");
+    writer.start();
+    const std::string payload(999, 'x');
+    // Every line is taken at once, although the pipe can hold only part of them.
+    for (int i = 0; i < kLines; ++i)
+        ASSERT_TRUE(writer.write(id, payload + "\n")) << "line " << i;
+    const int pipe_lines = pipe_bytes / 1000;
+    ASSERT_LT(pipe_lines, kLines);
+    EXPECT_LE(writer.counters(id).written, static_cast<std::uint64_t>(pipe_lines));
+    // Once the pipe is read, every line arrives, whole and in order.
+    std::string received;
+    std::thread reader([&] {
+        char buffer[4096];
+        for (;;) {
+            const ssize_t n = ::read(fds[0], buffer, sizeof buffer);
+            if (n <= 0)
+                break;
+            received.append(buffer, static_cast<std::size_t>(n));
+        }
+    });
+    writer.flush();
+    writer.stop();
+    file.close();   // the reader sees the end
+    reader.join();
+    ::close(fds[0]);
+    EXPECT_EQ(received.size(), static_cast<std::size_t>(kLines) * 1000);
+    EXPECT_EQ(received.find_first_not_of("x\n"), std::string::npos);
+    EXPECT_EQ(writer.counters(id).written, static_cast<std::uint64_t>(kLines));
+    EXPECT_EQ(writer.counters(id).lost(), 0u);
+}
+
+TEST_F(RecordWriterTest, AFullRingDropsTheLineAndCountsIt)
+{
+    RecordFile file;
+    ASSERT_EQ(file.open((dir_ / "map.jsonl").c_str()), 0);
+    stemd::test::CapturedLog log;
+    RecordWriter writer(4, log.logger);   // not started: nothing drains the ring
+    const std::size_t id = writer.add(file, "map.jsonl");
+    for (int i = 0; i < 6; ++i)
+        EXPECT_EQ(writer.write(id, numbered("line ", i)), i < 4) << i;
+    EXPECT_EQ(writer.counters(id).dropped, 2u);
+    // Without a thread, flush() writes on the caller's.
+    writer.flush();
+    const std::vector<std::string> got = read_lines(dir_ / "map.jsonl");
+    ASSERT_EQ(got.size(), 4u);
+    EXPECT_EQ(got.back(), "line 3");
+    writer.stop();
+    EXPECT_EQ(writer.counters(id).lost(), 2u);
+    EXPECT_NE(log.text().find("map.jsonl: 2 lines lost (0 failed writes, 2 to a full queue), 4 written"),
+              std::string::npos)
+        << log.text();
+}
+
+TEST_F(RecordWriterTest, ALineLongerThanACellIsDroppedNotCut)
+{
+    RecordFile file;
+    ASSERT_EQ(file.open((dir_ / "out.csv").c_str()), 0);
+    stemd::test::CapturedLog log;
+    RecordWriter writer(8, log.logger);
+    const std::size_t id = writer.add(file, "out.csv");
+    EXPECT_FALSE(writer.write(id, std::string(RecordWriter::kLineBytes + 1, 'y')));
+    EXPECT_TRUE(writer.write(id, std::string(RecordWriter::kLineBytes - 1, 'z') + "\n"));
+    writer.stop();
+    const std::vector<std::string> got = read_lines(dir_ / "out.csv");
+    ASSERT_EQ(got.size(), 1u);
+    EXPECT_EQ(got[0], std::string(RecordWriter::kLineBytes - 1, 'z'));
+    EXPECT_EQ(writer.counters(id).dropped, 1u);
+}
+
+TEST_F(RecordWriterTest, AFailedWriteIsLoggedOnceWithItsErrnoAndLaterLinesAreTried)
+{
+    RecordFile file;
+    ASSERT_EQ(file.open("/dev/full"), 0);   // every write: ENOSPC
+    stemd::test::CapturedLog log;
+    RecordWriter writer(16, log.logger);
+    const std::size_t id = writer.add(file, "/dev/full");
+    writer.start();
+    for (int i = 0; i < 3; ++i)
+        ASSERT_TRUE(writer.write(id, numbered("l", i)));
+    writer.flush();
+    writer.stop();
+    const RecordWriter::FileCounters c = writer.counters(id);
+    EXPECT_EQ(c.failed, 3u);
+    EXPECT_EQ(c.written, 0u);
+    EXPECT_EQ(c.first_error, ENOSPC);
+    const std::string text = log.text();
+    const std::string failure = "/dev/full: write failed: No space left on device (errno 28)";
+    const std::size_t first = text.find(failure);
+    ASSERT_NE(first, std::string::npos) << text;
+    EXPECT_EQ(text.find("write failed", first + failure.size()), std::string::npos) << "logged more than once:\n"
+                                                                                    << text;
+    EXPECT_NE(text.find("/dev/full: 3 lines lost (3 failed writes, 0 to a full queue), 0 written"), std::string::npos)
+        << text;
+}
+
+}  // namespace
