@@ -250,13 +250,34 @@ bool GpiodLines::set_trigger(bool active)
 
 bool GpiodLines::pulse(std::uint32_t width_us)
 {
-    if (!set_trigger(true))
+    // Held for the whole pulse (its width, ~100 us), so that the line cannot
+    // be dropped between its two edges.
+    std::unique_lock lock(io_mutex_, std::try_to_lock);
+    if (!lock.owns_lock()) {
+        trigger_busy_.fetch_add(1, std::memory_order_relaxed);
         return false;
-    base::sleep_for_ns(static_cast<std::int64_t>(width_us) * 1000);
-    const bool ok = set_trigger(false);
-    if (ok)
-        pulses_.fetch_add(1, std::memory_order_relaxed);
-    return ok;
+    }
+    if (!chip_ || chip_->trigger == nullptr) {
+        errors_.fetch_add(1, std::memory_order_relaxed);   // down: the GPIO thread reopens and logs
+        return false;
+    }
+    for (const int level : {1, 0}) {
+        if (gpiod_line_set_value(chip_->trigger, level) < 0) {
+            const int err = errno;
+            errors_.fetch_add(1, std::memory_order_relaxed);
+            // The GPIO thread notices a lost chip on its fds and reopens.
+            std::uint64_t left_out = 0;
+            if (trigger_log_.allow(base::monotonic_ns(), left_out))
+                log_->error("{}: gpiod_line_set_value (trigger) on {} line {}: {} (errno {}; {} more failures "
+                            "since the last line)",
+                            name_, options_.chip, options_.trigger_line, std::strerror(err), err, left_out);
+            return false;
+        }
+        if (level == 1)
+            base::sleep_for_ns(static_cast<std::int64_t>(width_us) * 1000);
+    }
+    pulses_.fetch_add(1, std::memory_order_relaxed);
+    return true;
 }
 
 EncoderReading GpiodLines::encoder() const
@@ -276,6 +297,7 @@ GpioCounters GpiodLines::counters() const
     c.errors = errors_.load(std::memory_order_relaxed);
     c.reopens = reopens_.load(std::memory_order_relaxed);
     c.trigger_pulses = pulses_.load(std::memory_order_relaxed);
+    c.trigger_busy = trigger_busy_.load(std::memory_order_relaxed);
     return c;
 }
 

@@ -36,6 +36,7 @@
 
 #include "stemd/drivers/gpio_lines.hpp"
 #include "stemd/drivers/reopen_backoff.hpp"
+#include "stemd/base/log_throttle.hpp"
 #include "stemd/base/unique_fd.hpp"
 
 struct gpiod_chip;
@@ -80,12 +81,20 @@ public:
     bool wait_change(bool seen, std::int64_t timeout_ns) override;
     bool has_trigger() const override { return options_.trigger_line >= 0; }
     bool set_trigger(bool active) override;
+    // The camera trigger, from the capture thread (SCHED_FIFO): never waits
+    // for the GPIO thread, which holds the lines' mutex while it opens or
+    // drops the chip (milliseconds, with log writes). A pulse due then is
+    // skipped (false, counted trigger_busy): the lines are changing and it
+    // could not go out anyway. A failed write is counted, and logged at
+    // most once a second.
     bool pulse(std::uint32_t width_us) override;
     EncoderMode encoder_mode() const override { return options_.encoder; }
     EncoderReading encoder() const override;
     GpioCounters counters() const override;
 
     GpiodState state() const { return state_.load(std::memory_order_relaxed); }
+    // Tests: holds the lines as the GPIO thread does while it reopens them.
+    std::unique_lock<std::mutex> hold_lines_for_test() { return std::unique_lock(io_mutex_); }
     // The last failure, "<what> on <chip> line <n>: <strerror> (errno N)"; "" if none.
     std::string last_error() const;
 
@@ -105,7 +114,9 @@ private:
     const std::shared_ptr<spdlog::logger> log_;
     const std::string name_;
 
-    std::mutex io_mutex_;  // chip_ lifetime and the trigger line (not the enable path)
+    // chip_ lifetime and the trigger line (not the enable path). The
+    // capture thread's pulse() only tries it: see pulse().
+    std::mutex io_mutex_;
     std::unique_ptr<Chip> chip_;
     std::atomic<GpiodState> state_{GpiodState::closed};
     ReopenBackoff backoff_;  // when the next open is due (reopen_min..reopen_max); io_mutex_ held
@@ -133,6 +144,8 @@ private:
     std::atomic<std::uint64_t> errors_{0};
     std::atomic<std::uint64_t> reopens_{0};
     std::atomic<std::uint64_t> pulses_{0};
+    std::atomic<std::uint64_t> trigger_busy_{0};
+    base::LogThrottle trigger_log_;   // pulse()'s failures: the capture thread's
 };
 
 }  // namespace stemd::drivers

@@ -275,6 +275,8 @@ void Daemon::capture_loop()
                 const std::uint64_t late_before = trigger_clock.late();
                 if (trigger->pulse(actuation_->trigger_pulse_us()))
                     bump(counters_->capture.trigger_pulses);
+                else
+                    bump(counters_->capture.trigger_failed);
                 trigger_clock.fired(now_ns);
                 bump(counters_->capture.trigger_late, trigger_clock.late() - late_before);
             }
@@ -546,6 +548,10 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
     s.source_timeouts = source.timeouts;
     s.source_errors = source.errors;
     s.source_reopens = source.reopens;
+    s.trigger = actuation_ && actuation_->trigger_lines() != nullptr;
+    s.trigger_pulses = counters_->capture.trigger_pulses.load(std::memory_order_relaxed);
+    s.trigger_late = counters_->capture.trigger_late.load(std::memory_order_relaxed);
+    s.trigger_failed = counters_->capture.trigger_failed.load(std::memory_order_relaxed);
     if (actuation_) {
         const ActuationCounters& a = actuation_->counters();
         const auto get = [](const std::atomic<std::uint64_t>& c) { return c.load(std::memory_order_relaxed); };

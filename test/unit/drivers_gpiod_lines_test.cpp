@@ -6,6 +6,8 @@
 
 #ifdef STEMD_HAVE_LIBGPIOD
 
+#include <atomic>
+#include <chrono>
 #include <sstream>
 #include <thread>
 
@@ -78,6 +80,39 @@ TEST(GpiodLines, EncoderOptionsAreChecked)
     GpiodLines lines(o, log.logger);
     EXPECT_FALSE(lines.open());
     EXPECT_NE(lines.last_error().find("encoder_b_line"), std::string::npos) << lines.last_error();
+}
+
+TEST(GpiodLines, ATriggerPulseDueWhileTheLinesAreBeingReopenedIsSkippedNotWaitedFor)
+{
+    CapturedLog log;
+    GpiodLines lines(missing_chip(), log.logger);
+    std::uint64_t errors_before = 0;
+    {
+        auto held = lines.hold_lines_for_test();
+        // The capture thread's two pulses must return while the lines are
+        // held; one that waited would return only after the release below
+        // (and then fail for the missing chip, not as busy).
+        std::atomic<bool> returned{false};
+        std::thread capture([&] {
+            EXPECT_FALSE(lines.pulse(10));
+            EXPECT_FALSE(lines.pulse(10));
+            returned.store(true);
+        });
+        const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+        while (!returned.load() && std::chrono::steady_clock::now() < give_up)
+            std::this_thread::yield();
+        EXPECT_TRUE(returned.load()) << "pulse() waited for the lines";
+        held.unlock();
+        capture.join();
+        errors_before = lines.counters().errors;
+    }
+    const GpioCounters c = lines.counters();
+    EXPECT_EQ(c.trigger_busy, 2U);
+    EXPECT_EQ(c.trigger_pulses, 0U);
+    // Once the lines are free again a pulse is tried (and fails here: no chip).
+    EXPECT_FALSE(lines.pulse(10));
+    EXPECT_EQ(lines.counters().trigger_busy, 2U);
+    EXPECT_EQ(lines.counters().errors, errors_before + 1);
 }
 
 #else

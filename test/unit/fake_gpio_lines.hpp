@@ -21,14 +21,15 @@ public:
     {
         last_width_us.store(width_us);
         pulses.fetch_add(1);
-        return with_trigger_;
+        return with_trigger_ && trigger_works.load();
     }
     drivers::EncoderMode encoder_mode() const override { return encoder_mode_value; }
     drivers::EncoderReading encoder() const override { return {.ticks = ticks.load(), .direction = 1}; }
     drivers::GpioCounters counters() const override { return {}; }
 
     std::atomic<bool> enable{true};
-    std::atomic<std::uint64_t> pulses{0};
+    std::atomic<std::uint64_t> pulses{0};            // pulse() calls
+    std::atomic<bool> trigger_works{true};           // false: pulse() fails (lines down)
     std::atomic<std::uint32_t> last_width_us{0};
     std::atomic<std::int64_t> ticks{0};
     drivers::EncoderMode encoder_mode_value = drivers::EncoderMode::none;

@@ -261,7 +261,7 @@ TEST(Daemon, CaptureThreadPulsesTheCameraTrigger)
     geometry::NadirParams nadir;
     nadir.principal_px = geometry::image_centre({1296, 966});
     auto gpio = std::make_unique<test::FakeGpioLines>(/*with_trigger=*/true);
-    const test::FakeGpioLines& lines = *gpio;
+    test::FakeGpioLines& lines = *gpio;
     runtime::ActuationStage::Parts parts;
     parts.bus = std::make_unique<test::FakeCanBus>();
     parts.gpio = std::move(gpio);
@@ -276,10 +276,21 @@ TEST(Daemon, CaptureThreadPulsesTheCameraTrigger)
                            std::move(stage));
     ASSERT_TRUE(daemon.start());
     EXPECT_TRUE(test::wait_for([&] { return lines.pulses.load() >= 3; }, 60s));
+    // Pulses that do not go out (the lines down) are counted as failed.
+    lines.trigger_works.store(false);
+    const std::uint64_t calls_before = lines.pulses.load();
+    EXPECT_TRUE(test::wait_for([&] { return lines.pulses.load() >= calls_before + 3; }, 60s));
     daemon.request_stop();
     EXPECT_TRUE(daemon.join());
     EXPECT_EQ(lines.last_width_us.load(), 150u);
-    EXPECT_EQ(daemon.counters().capture.trigger_pulses.load(), lines.pulses.load());
+    const std::uint64_t sent = daemon.counters().capture.trigger_pulses.load();
+    const std::uint64_t failed = daemon.counters().capture.trigger_failed.load();
+    EXPECT_EQ(sent + failed, lines.pulses.load());
+    EXPECT_GE(failed, 3u);
+    EXPECT_GE(sent, 3u);
+    const runtime::StatusSnapshot s = daemon.snapshot(true);
+    EXPECT_TRUE(s.trigger);
+    EXPECT_EQ(s.trigger_failed, failed);
 }
 
 namespace {

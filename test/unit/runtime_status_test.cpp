@@ -73,6 +73,27 @@ TEST(Status, SourceTimeoutsErrorsAndReopensAreShown)
                               "source: timeouts 7, errors 4, reopens 1");
 }
 
+// A camera trigger: pulses sent, periods skipped for lateness, and pulses
+// that did not go out (the GPIO lines down or being reopened); nothing of
+// it without a trigger line.
+TEST(Status, TheCameraTriggersPulsesAreShownOnlyWithATrigger)
+{
+    StatusSnapshot before;
+    before.t_ns = 1'000'000'000;
+    before.trigger = true;
+    before.trigger_pulses = 30;
+    before.trigger_failed = 1;
+    StatusSnapshot now = before;
+    now.t_ns = 2'000'000'000;
+    now.trigger_pulses = 58;
+    now.trigger_late = 1;
+    now.trigger_failed = 2;
+    expect_interval_and_total(now, before, "trigger: pulses 28, late 1, failed 1", "trigger: pulses 58, late 1, failed 2");
+    now.trigger = false;
+    EXPECT_EQ(format_status(now, before).find("trigger"), std::string::npos);
+    EXPECT_EQ(format_summary(now, 2.0).find("trigger"), std::string::npos);
+}
+
 TEST(Status, ToolTimingPerToolThatFiredOrLeads)
 {
     StatusSnapshot s = with_actuation();

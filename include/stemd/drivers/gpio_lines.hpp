@@ -154,6 +154,7 @@ struct GpioCounters {
     std::uint64_t errors = 0;         // failed opens, reads, writes
     std::uint64_t reopens = 0;        // successful reopens after the lines were lost
     std::uint64_t trigger_pulses = 0; // pulse() calls that drove the line
+    std::uint64_t trigger_busy = 0;   // pulse() calls skipped: the lines were being opened or dropped
 };
 
 class GpioLines : base::NonCopyable {

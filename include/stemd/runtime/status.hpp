@@ -29,6 +29,7 @@ struct Counters {
         std::atomic<std::uint64_t> no_free_slot{0};    // never expected: the pool is sized so it cannot happen
         std::atomic<std::uint64_t> trigger_pulses{0};  // camera trigger pulses sent (gpio.trigger_line)
         std::atomic<std::uint64_t> trigger_late{0};    // trigger periods skipped: the thread came back too late
+        std::atomic<std::uint64_t> trigger_failed{0};  // pulses due that did not go out (lines down or being reopened)
         DurationHistogram cycle;                       // a delivered frame: from next() returning to the ring push
     } capture;
     struct Processing {
@@ -79,6 +80,10 @@ struct StatusSnapshot {
     // The source's own: waits without a frame, failures (a camera unplugged),
     // successful reopens after one.
     std::uint64_t source_timeouts = 0, source_errors = 0, source_reopens = 0;
+    // The camera trigger (gpio.trigger_line): pulses sent, periods skipped
+    // for lateness, pulses that did not go out.
+    bool trigger = false;
+    std::uint64_t trigger_pulses = 0, trigger_late = 0, trigger_failed = 0;
     // Actuation (when a CAN side is configured).
     bool actuation = false;
     std::uint64_t targets = 0, sent = 0, deadline_misses = 0, no_odometry = 0, not_treated = 0, bus_errors = 0,
@@ -110,6 +115,7 @@ struct StatusSnapshot {
 //  drops: ring_full 0, overwritten 0, results_full 0, corrupt 1, bad_size 0, failed 0 |
 //  source: timeouts 0, errors 0, reopens 0 |
 //  latency p50 1.62 p99 2.31 ms | pipeline p50 1.35 p99 1.90 ms"
+// With a camera trigger, " | trigger: pulses 300, late 0, failed 0" after the source's.
 // With GNSS, e.g. " | gnss: 3d rtk_fixed, eph 14.0 mm, fixes 812, degraded 0"
 // ("eph 2400.0 mm over gnss.max_eph_mm" when the newest fix is above it).
 std::string format_status(const StatusSnapshot& now, const StatusSnapshot& before);
