@@ -304,7 +304,7 @@ int run(int argc, char** argv, Phase& phase)
     // server starts once the daemon runs.
     std::unique_ptr<runtime::LiveFeed> live_feed;
     if (web_address) {
-        live_feed = std::make_unique<runtime::LiveFeed>(daemon_config.frame_size, daemon_config.web.fps,
+        live_feed = std::make_unique<runtime::LiveFeed>(daemon_config.frame_shape(), daemon_config.web.fps,
                                                         static_cast<std::size_t>(daemon_config.web.plants) + 256);
         daemon->attach_live_feed(live_feed.get());
     }

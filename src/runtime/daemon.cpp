@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <exception>
 #include <new>
+#include <stdexcept>
 #include <string>
 
 #include <opencv2/core/utility.hpp>
@@ -61,7 +62,7 @@ Daemon::Daemon(const DaemonConfig& config, std::unique_ptr<drivers::FrameSource>
       sink_(std::move(sink)),
       counters_(std::make_unique<Counters>()),
       actuation_(std::move(actuation)),
-      pool_(config.frame_size, config.vision.segmentation, config.ring_capacity + 2, config.class_maps),
+      pool_(config.frame_shape(), config.ring_capacity + 2),
       free_slots_(config.ring_capacity + 2),
       frames_(config.ring_capacity),
       results_(config.results_capacity),
@@ -101,6 +102,8 @@ bool Daemon::enable_input() const { return actuation_ ? actuation_->enable_input
 
 void Daemon::attach_live_feed(LiveFeed* feed)
 {
+    if (feed != nullptr && !(feed->shape() == pool_.shape()))
+        throw std::invalid_argument("Daemon::attach_live_feed: the feed's frame slots are not the pool's shape");
     live_feed_ = feed;
     if (actuation_)
         actuation_->set_live_feed(feed);
@@ -429,14 +432,16 @@ void Daemon::processing_loop()
                 bump(counters_->processing.plants_over_capacity,
                      static_cast<std::uint64_t>(result->detections.stats.plants_over_capacity));
                 results_.publish();
-                // After the publish, so the copy delays no result; the
-                // actuator only reads the published result, and this thread
-                // claims its cell again no sooner than its next frame.
+                // After the publish, so the copy of the plants and mask
+                // delays no result; the actuator only reads the published
+                // result, and this thread claims its cell again no sooner
+                // than its next frame. The frame slot itself goes to the
+                // feed, and the slot it gives back goes to the pool.
                 if (live_feed_ != nullptr) {
                     const std::int64_t now_ns = base::monotonic_ns();
                     if (live_feed_->frame_due(now_ns))
-                        live_feed_->publish(*frame, result->detections, workspace_->closed(),
-                                            result->plant_class.data(), result->has_class_map, now_ns);
+                        frame = live_feed_->publish(frame, result->detections, workspace_->closed(),
+                                                    result->plant_class.data(), result->has_class_map, now_ns);
                 }
             } else {
                 bump(counters_->processing.failed);

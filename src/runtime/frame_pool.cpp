@@ -4,10 +4,13 @@
 
 namespace stemd::runtime {
 
-FramePool::FramePool(cv::Size size, vision::Segmentation segmentation, std::size_t count, bool class_maps)
-    : count_(count), slots_(std::make_unique<drivers::Frame[]>(count))
+FramePool::FramePool(const FrameShape& shape, std::size_t count)
+    : shape_(shape), count_(count), slots_(std::make_unique<drivers::Frame[]>(count))
 {
     using vision::Segmentation;
+    const cv::Size size = shape.size;
+    const Segmentation segmentation = shape.segmentation;
+    const bool class_maps = shape.class_maps;
     for (std::size_t i = 0; i < count; ++i) {
         drivers::Frame& f = slots_[i];
         // Zeroed, not just allocated, so that every page is touched now

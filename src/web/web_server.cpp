@@ -245,7 +245,7 @@ struct WebServer::Impl {
         odom_mm = f.odom_mm;
         if (!f.has_image)
             return;
-        f.bgr.copyTo(canvas);
+        f.frame->bgr.copyTo(canvas);
         viz::draw_overlay(canvas, f.detections, f.closed);
         for (std::size_t i = 0; f.has_class && i < f.detections.plants.size(); ++i) {
             const vision::Plant& p = f.detections.plants[i];

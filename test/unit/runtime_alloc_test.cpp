@@ -233,7 +233,7 @@ void run_actuation(bool with_web_view)
     // it; plus a client polling it throughout.
     runtime::WebConfig web_config;
     web_config.fps = 30;   // every frame it may: the most copying
-    runtime::LiveFeed feed(size, web_config.fps, 256);
+    runtime::LiveFeed feed(config.frame_shape(), web_config.fps, 256);
     runtime::Daemon daemon(config, std::make_unique<drivers::ReplaySource>(replay, runtime::make_logger("replay")),
                            std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator")),
                            std::move(stage));

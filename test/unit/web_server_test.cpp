@@ -27,7 +27,9 @@ namespace {
 const cv::Size kSize(800, 600);
 
 struct Fixture : ::testing::Test {
-    runtime::LiveFeed feed{kSize, 30, 16};
+    // Lent to the feed, so it outlives the server.
+    drivers::Frame frame;
+    runtime::LiveFeed feed{runtime::FrameShape{kSize}, 30, 16};
     std::unique_ptr<web::WebServer> server;
 
     void SetUp() override
@@ -66,7 +68,6 @@ struct Fixture : ::testing::Test {
 
     void publish_frame()
     {
-        drivers::Frame frame;
         frame.bgr = cv::Mat(kSize, CV_8UC3, cv::Scalar(40, 60, 80));
         frame.seq = 9;
         vision::Detections detections;
@@ -76,7 +77,7 @@ struct Fixture : ::testing::Test {
         detections.plants.push_back(plant);
         vision::BitMask closed(kSize.width, kSize.height);
         const PlantClass classes[1] = {PlantClass::Weed};
-        feed.publish(frame, detections, closed, classes, true, 1);
+        feed.publish(&frame, detections, closed, classes, true, 1);
     }
 
     // Sends raw bytes, returns the status line (or "" if the server closed).
@@ -330,7 +331,8 @@ TEST(WebFrameTargets, DrawnWhereTheirStemsWereAndColouredByOutcome)
     const auto camera = geometry::CameraModel::nadir(
         {.gsd_mm_per_px = 0.5, .principal_px = geometry::image_centre(kSize), .mount = {}});
     ASSERT_TRUE(camera);
-    runtime::LiveFeed feed{kSize, 30, 16};
+    drivers::Frame frame;   // lent to the feed: outlives the server
+    runtime::LiveFeed feed{runtime::FrameShape{kSize}, 30, 16};
     runtime::WebConfig config;
     config.max_width_px = 400;   // half size
     web::WebSources sources;
@@ -350,12 +352,11 @@ TEST(WebFrameTargets, DrawnWhereTheirStemsWereAndColouredByOutcome)
     target_at({600, 450}, 2, runtime::MapReason::disabled);
     target_at({400, 300}, 3, runtime::MapReason::deadline_miss);
 
-    drivers::Frame frame;
     frame.bgr = cv::Mat(kSize, CV_8UC3, cv::Scalar(40, 60, 80));
     frame.seq = 3;
     frame.odom_mm = kOdomMm;
     const vision::BitMask closed(kSize.width, kSize.height);
-    feed.publish(frame, vision::Detections{}, closed, nullptr, false, 1);
+    feed.publish(&frame, vision::Detections{}, closed, nullptr, false, 1);
 
     httplib::Client c("127.0.0.1", server.port());
     c.set_read_timeout(10, 0);

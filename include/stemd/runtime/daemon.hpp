@@ -79,8 +79,10 @@ public:
     const ClassProvider& class_provider() const { return *classes_; }
 
     // Before start(): the live view's feed (owned by the caller, outliving
-    // the threads). The processing thread publishes frames into it when a
-    // viewer wants them, the actuator the plants whose tracks ended.
+    // the threads). The processing thread lends it frames when a viewer
+    // wants them (and takes the feed's in exchange: the feed must have the
+    // pool's shape, or std::invalid_argument), the actuator the plants
+    // whose tracks ended.
     void attach_live_feed(LiveFeed* feed);
 
     // From the live view's threads (any thread but the real-time ones): the

@@ -10,6 +10,7 @@
 
 #include "stemd/base/enum_names.hpp"
 #include "stemd/geometry/camera_model.hpp"
+#include "stemd/runtime/frame_pool.hpp"
 #include "stemd/runtime/web_config.hpp"
 #include "stemd/vision/cells.hpp"
 #include "stemd/vision/types.hpp"
@@ -113,6 +114,8 @@ struct DaemonConfig {
     // Allocate a class-map plane per frame slot (replay of recordings with a
     // class column, for the actuation's policy).
     bool class_maps = false;
+    // The frame slots' shape (FramePool): the daemon's and the live feed's.
+    FrameShape frame_shape() const { return {frame_size, vision.segmentation, class_maps}; }
     ClassifyConfig classify;
     // web.*
     WebConfig web;
