@@ -557,6 +557,12 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
     s.trigger_pulses = counters_->capture.trigger_pulses.load(std::memory_order_relaxed);
     s.trigger_late = counters_->capture.trigger_late.load(std::memory_order_relaxed);
     s.trigger_failed = counters_->capture.trigger_failed.load(std::memory_order_relaxed);
+    if (writer_) {
+        const RecordWriter::FileCounters files = writer_->totals();
+        s.files = true;
+        s.file_lines_written = files.written;
+        s.file_lines_lost = files.lost();
+    }
     if (actuation_) {
         const ActuationCounters& a = actuation_->counters();
         const auto get = [](const std::atomic<std::uint64_t>& c) { return c.load(std::memory_order_relaxed); };

@@ -145,4 +145,18 @@ RecordWriter::FileCounters RecordWriter::counters(std::size_t file) const
     return c;
 }
 
+RecordWriter::FileCounters RecordWriter::totals() const
+{
+    FileCounters sum;
+    for (std::size_t i = 0; i < n_files_; ++i) {
+        const FileCounters c = counters(i);
+        sum.written += c.written;
+        sum.failed += c.failed;
+        sum.dropped += c.dropped;
+        if (sum.first_error == 0)
+            sum.first_error = c.first_error;
+    }
+    return sum;
+}
+
 }  // namespace stemd::runtime

@@ -34,6 +34,14 @@ std::string trigger(const StatusSnapshot& now, const StatusSnapshot& before)
                        now.trigger_late - before.trigger_late, now.trigger_failed - before.trigger_failed);
 }
 
+std::string files(const StatusSnapshot& now, const StatusSnapshot& before)
+{
+    if (!now.files)
+        return "";
+    return fmt::format(" | files: lines written {}, lost {}", now.file_lines_written - before.file_lines_written,
+                       now.file_lines_lost - before.file_lines_lost);
+}
+
 // What was seen but not reported, and how far a paced replay fell behind
 // (the worst lateness is the whole run's).
 std::string behind(const StatusSnapshot& now, const StatusSnapshot& before)
@@ -128,7 +136,7 @@ std::string format_status(const StatusSnapshot& now, const StatusSnapshot& befor
                        static_cast<double>(now.frames_in - before.frames_in) / dt_s,
                        static_cast<double>(now.frames_out - before.frames_out) / dt_s,
                        now.no_vegetation - before.no_vegetation)
-           + behind(now, before) + " | " + drops(now, before) + source(now, before) + trigger(now, before) + actuation(now, before) + class_socket(now, before) + class_model(now, before) + " | "
+           + behind(now, before) + " | " + drops(now, before) + source(now, before) + trigger(now, before) + files(now, before) + actuation(now, before) + class_socket(now, before) + class_model(now, before) + " | "
            + durations(now) + tool_timing(now) + gnss(now);
 }
 
@@ -152,7 +160,7 @@ std::string format_summary(const StatusSnapshot& end, double run_s)
                        end.frames_out, end.stems_out, run_s,
                        run_s > 0 ? static_cast<double>(end.frames_out) / run_s : 0.0, end.no_vegetation)
            + behind(end, StatusSnapshot{}) + " | " + drops(end, StatusSnapshot{}) + source(end, StatusSnapshot{})
-           + trigger(end, StatusSnapshot{}) + actuation(end, StatusSnapshot{}) + class_socket(end, StatusSnapshot{}) + class_model(end, StatusSnapshot{}) + " | " + durations(end) + tool_timing(end) + gnss(end);
+           + trigger(end, StatusSnapshot{}) + files(end, StatusSnapshot{}) + actuation(end, StatusSnapshot{}) + class_socket(end, StatusSnapshot{}) + class_model(end, StatusSnapshot{}) + " | " + durations(end) + tool_timing(end) + gnss(end);
 }
 
 }  // namespace stemd::runtime

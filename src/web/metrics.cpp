@@ -109,6 +109,13 @@ Metrics collect_metrics(runtime::Daemon& daemon)
     m.class_timeouts = s.class_timeouts;
     m.class_bad_messages = s.class_bad_messages;
     m.class_peers = s.class_peers;
+    m.trigger = s.trigger;
+    m.trigger_pulses = s.trigger_pulses;
+    m.trigger_late = s.trigger_late;
+    m.trigger_failed = s.trigger_failed;
+    m.files = s.files;
+    m.file_lines_written = s.file_lines_written;
+    m.file_lines_lost = s.file_lines_lost;
     m.capture_to_result = histogram_of(c.actuator.latency);
     m.pipeline = histogram_of(c.processing.pipeline);
     m.cycle_capture = histogram_of(c.capture.cycle);
@@ -143,6 +150,16 @@ std::string format_metrics(const Metrics& m)
     t.counters("frames_dropped_total", "Frames dropped, by cause.", "cause",
                {{"ring_full", m.ring_full}, {"overwritten", m.overwritten}, {"results_full", m.results_full},
                 {"corrupt", m.corrupt}, {"bad_size", m.bad_size}, {"failed", m.failed}});
+    if (m.trigger)
+        t.counters("trigger_pulses_total",
+                   "Camera trigger periods by outcome: pulsed, skipped for lateness, or not pulsed (GPIO lines down or "
+                   "being reopened).",
+                   "outcome", {{"sent", m.trigger_pulses}, {"late", m.trigger_late}, {"failed", m.trigger_failed}});
+    if (m.files)
+        t.counters("file_lines_total",
+                   "Lines of the detections CSV and the plant map by outcome: written, or lost (a failed write, or "
+                   "the writer's queue full while the disk stalled).",
+                   "outcome", {{"written", m.file_lines_written}, {"lost", m.file_lines_lost}});
     if (m.actuation) {
         t.counter("deadline_misses_total", "Targets never sent because they could not be on time (scheduler or bus).",
                   m.deadline_miss + m.bus_deadline);

@@ -31,6 +31,8 @@ rows=$(($(wc -l <"$tmp/d.csv") - 1))
 awk -F, 'NR == FNR { if (FNR > 1) t[$2] = $1; next } FNR > 1 && t[$2] != $1 { print; bad = 1 } END { exit bad }' \
   "$tmp/rec/frames.csv" "$tmp/d.csv" || fail "t_ns column is not the recording's t_ns"
 grep -q "total: 5 frames in, 5 out" "$tmp/err" || fail "summary: $(grep total: "$tmp/err")"
+# Every row went through the writer thread, none lost (the header is written at open).
+grep -q "files: lines written $rows, lost 0" "$tmp/err" || fail "files in the summary: $(grep total: "$tmp/err")"
 
 # An extra odom_mm column is tolerated; pacing fast and preload give the same rows.
 awk -F, -v OFS=, '{ print $0, (NR == 1 ? "odom_mm" : (NR - 2) * 25) }' "$tmp/rec/frames.csv" >"$tmp/f.csv"

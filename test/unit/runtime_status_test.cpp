@@ -94,6 +94,22 @@ TEST(Status, TheCameraTriggersPulsesAreShownOnlyWithATrigger)
     EXPECT_EQ(format_summary(now, 2.0).find("trigger"), std::string::npos);
 }
 
+// The optional files' lines through the writer thread: written and lost.
+TEST(Status, TheFilesLinesWrittenAndLostAreShownOnlyWithFiles)
+{
+    StatusSnapshot before;
+    before.t_ns = 1'000'000'000;
+    before.files = true;
+    before.file_lines_written = 100;
+    StatusSnapshot now = before;
+    now.t_ns = 2'000'000'000;
+    now.file_lines_written = 130;
+    now.file_lines_lost = 4;
+    expect_interval_and_total(now, before, "files: lines written 30, lost 4", "files: lines written 130, lost 4");
+    now.files = false;
+    EXPECT_EQ(format_status(now, before).find("files:"), std::string::npos);
+}
+
 TEST(Status, ToolTimingPerToolThatFiredOrLeads)
 {
     StatusSnapshot s = with_actuation();

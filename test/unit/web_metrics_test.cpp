@@ -139,6 +139,32 @@ TEST(WebMetrics, ActuationSeriesOnlyWithActuation)
     EXPECT_NE(web::format_metrics(m).find("stemd_capture_to_send_seconds_bucket{le=\"+Inf\"} 0"), std::string::npos);
 }
 
+TEST(WebMetrics, TriggerAndFileSeriesOnlyWithATriggerAndFiles)
+{
+    web::Metrics m;
+    std::string text = web::format_metrics(m);
+    EXPECT_EQ(text.find("stemd_trigger_pulses_total"), std::string::npos);
+    EXPECT_EQ(text.find("stemd_file_lines_total"), std::string::npos);
+    m.trigger = true;
+    m.trigger_pulses = 300;
+    m.trigger_late = 2;
+    m.trigger_failed = 5;
+    m.files = true;
+    m.file_lines_written = 812;
+    m.file_lines_lost = 3;
+    std::map<std::string, std::string> types;
+    std::string error;
+    const std::map<std::string, double> value = by_key(parse(web::format_metrics(m), types, error));
+    EXPECT_EQ(error, "");
+    EXPECT_EQ(types.at("stemd_trigger_pulses_total"), "counter");
+    EXPECT_EQ(value.at("stemd_trigger_pulses_total{outcome=\"sent\"}"), 300);
+    EXPECT_EQ(value.at("stemd_trigger_pulses_total{outcome=\"late\"}"), 2);
+    EXPECT_EQ(value.at("stemd_trigger_pulses_total{outcome=\"failed\"}"), 5);
+    EXPECT_EQ(types.at("stemd_file_lines_total"), "counter");
+    EXPECT_EQ(value.at("stemd_file_lines_total{outcome=\"written\"}"), 812);
+    EXPECT_EQ(value.at("stemd_file_lines_total{outcome=\"lost\"}"), 3);
+}
+
 TEST(WebMetrics, ClassProviderSeriesOnlyWithTheirProvider)
 {
     web::Metrics m;

@@ -20,7 +20,7 @@ fetch_until() {
 
 "$tools/stemd-synth" --out "$tmp/rec" --preset late --frames 10 --fps 10 >/dev/null
 start_stemd "$tmp/err" --config "$src/config/stemd.yaml" --replay "$tmp/rec" --can-log "$tmp/can.log" \
-  --set web.listen=127.0.0.1:0
+  --map "$tmp/map.jsonl" --set web.listen=127.0.0.1:0
 # Wait until frames went through, so the histograms have counts.
 fetch_until "$tmp/metrics" '^stemd_frames_out_total [1-9]'
 /usr/bin/python3 - "$tmp/metrics" <<'PY' || fail "metrics check"
@@ -31,7 +31,7 @@ families = {f.name: f for f in text_string_to_metric_families(text)}
 want = {
     "stemd_frames_in": "counter", "stemd_frames_out": "counter", "stemd_frames_dropped": "counter",
     "stemd_deadline_misses": "counter", "stemd_targets": "counter", "stemd_bus_errors": "counter",
-    "stemd_heartbeat_misses": "counter",
+    "stemd_heartbeat_misses": "counter", "stemd_file_lines": "counter",
     "stemd_capture_to_result_seconds": "histogram", "stemd_capture_to_send_seconds": "histogram",
     "stemd_thread_cycle_seconds": "histogram", "stemd_pipeline_seconds": "histogram",
 }
@@ -41,6 +41,11 @@ if bad:
 causes = {s.labels["cause"] for s in families["stemd_frames_dropped"].samples}
 if causes != {"ring_full", "overwritten", "results_full", "corrupt", "bad_size", "failed"}:
     sys.exit(f"drop causes: {causes}")
+outcomes = {s.labels["outcome"] for s in families["stemd_file_lines"].samples}
+if outcomes != {"written", "lost"}:
+    sys.exit(f"file line outcomes: {outcomes}")
+if "stemd_trigger_pulses" in families:
+    sys.exit("trigger series without a trigger line")
 threads = {s.labels.get("thread") for s in families["stemd_thread_cycle_seconds"].samples}
 if threads != {"capture", "processing", "actuator"}:
     sys.exit(f"threads: {threads}")

@@ -81,6 +81,8 @@ public:
     void stop() noexcept;
 
     FileCounters counters(std::size_t file) const;
+    // Every file's added up (first_error: the first file's that has one).
+    FileCounters totals() const;
     std::size_t capacity() const { return ring_.capacity(); }
 
 private:

@@ -84,6 +84,11 @@ struct StatusSnapshot {
     // for lateness, pulses that did not go out.
     bool trigger = false;
     std::uint64_t trigger_pulses = 0, trigger_late = 0, trigger_failed = 0;
+    // The optional files (--detections-csv, --map) through the writer
+    // thread: lines written, and lost (a failed write, or the writer's ring
+    // full while the disk stalled).
+    bool files = false;
+    std::uint64_t file_lines_written = 0, file_lines_lost = 0;
     // Actuation (when a CAN side is configured).
     bool actuation = false;
     std::uint64_t targets = 0, sent = 0, deadline_misses = 0, no_odometry = 0, not_treated = 0, bus_errors = 0,
@@ -115,7 +120,8 @@ struct StatusSnapshot {
 //  drops: ring_full 0, overwritten 0, results_full 0, corrupt 1, bad_size 0, failed 0 |
 //  source: timeouts 0, errors 0, reopens 0 |
 //  latency p50 1.62 p99 2.31 ms | pipeline p50 1.35 p99 1.90 ms"
-// With a camera trigger, " | trigger: pulses 300, late 0, failed 0" after the source's.
+// With a camera trigger, " | trigger: pulses 300, late 0, failed 0" after the source's;
+// with --detections-csv or --map, " | files: lines written 812, lost 0" after that.
 // With GNSS, e.g. " | gnss: 3d rtk_fixed, eph 14.0 mm, fixes 812, degraded 0"
 // ("eph 2400.0 mm over gnss.max_eph_mm" when the newest fix is above it).
 std::string format_status(const StatusSnapshot& now, const StatusSnapshot& before);

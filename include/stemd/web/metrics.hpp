@@ -51,6 +51,12 @@ struct Metrics {
     std::uint64_t weed_parts = 0, stemless_weeds = 0, weed_cover = 0, cells_over_budget = 0, frames_over_budget = 0;
     bool class_socket = false;
     std::uint64_t class_maps = 0, class_timeouts = 0, class_bad_messages = 0, class_peers = 0;
+    // The camera trigger's pulses by outcome, with a trigger line.
+    bool trigger = false;
+    std::uint64_t trigger_pulses = 0, trigger_late = 0, trigger_failed = 0;
+    // The optional files' lines by outcome, with --detections-csv or --map.
+    bool files = false;
+    std::uint64_t file_lines_written = 0, file_lines_lost = 0;
     Histogram capture_to_result, capture_to_send, pipeline;
     Histogram cycle_capture, cycle_processing, cycle_actuator;
     // The live view.
