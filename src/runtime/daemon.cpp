@@ -550,7 +550,10 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
     s.weed_cover = classes.weed_cover.load(std::memory_order_relaxed);
     s.cells_over_budget = classes.cells_over_budget.load(std::memory_order_relaxed);
     s.frames_over_budget = classes.frames_over_budget.load(std::memory_order_relaxed);
-    s.source_timeouts = source.timeouts;
+    // The capture thread's count, not the source's: with a camera trigger
+    // every wait is cut short at the next pulse, which the source would
+    // count as a timeout.
+    s.source_timeouts = counters_->capture.timeouts.load(std::memory_order_relaxed);
     s.source_errors = source.errors;
     s.source_reopens = source.reopens;
     s.trigger = actuation_ && actuation_->trigger_lines() != nullptr;

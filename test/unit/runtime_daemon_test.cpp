@@ -250,25 +250,60 @@ TEST(Daemon, ActuatorThreadDrivesTheActuationStage)
     EXPECT_GE(heartbeats, 1u);
 }
 
-TEST(Daemon, CaptureThreadPulsesTheCameraTrigger)
+namespace {
+
+// An actuation stage with the fake GPIO lines `lines` (a trigger output,
+// 150 us pulses) and a fake bus.
+std::unique_ptr<runtime::ActuationStage> stage_with_trigger(std::unique_ptr<test::FakeGpioLines> lines)
 {
-    // A source that waits for frames (realtime, endless) and GPIO lines with
-    // a trigger output: the capture thread pulses it, with the configured
-    // width, and counts the pulses. (The cadence itself: TriggerClock tests.)
     runtime::ActuationConfig actuation;
     actuation.tools = {{.id = 0, .offset_mm = 600, .y_min_mm = -220, .y_max_mm = 220, .lanes = 1}};
     actuation.trigger_pulse_us = 150;
     geometry::NadirParams nadir;
     nadir.principal_px = geometry::image_centre({1296, 966});
-    auto gpio = std::make_unique<test::FakeGpioLines>(/*with_trigger=*/true);
-    test::FakeGpioLines& lines = *gpio;
     runtime::ActuationStage::Parts parts;
     parts.bus = std::make_unique<test::FakeCanBus>();
-    parts.gpio = std::move(gpio);
+    parts.gpio = std::move(lines);
     std::string error;
     auto stage = runtime::ActuationStage::make(actuation, *geometry::CameraModel::nadir(nadir), {1296, 966},
                                                std::move(parts), runtime::make_logger("actuator"), error);
-    ASSERT_TRUE(stage) << error;
+    EXPECT_TRUE(stage) << error;
+    return stage;
+}
+
+// A camera that sends nothing: each next() waits out its timeout (as a
+// V4L2 poll does) and counts it.
+class SilentSource final : public drivers::FrameSource {
+public:
+    std::string_view name() const override { return "silent"; }
+    bool open() override { return true; }
+    bool start() override { return true; }
+    drivers::NextStatus next(drivers::Frame&, std::chrono::nanoseconds timeout) override
+    {
+        std::this_thread::sleep_for(timeout);
+        timeouts_.fetch_add(1);
+        return drivers::NextStatus::timeout;
+    }
+    void stop() override {}
+    drivers::SourceCounters counters() const override { return {.timeouts = timeouts_.load()}; }
+    bool realtime() const override { return true; }
+    std::uint64_t timeouts() const { return timeouts_.load(); }
+
+private:
+    std::atomic<std::uint64_t> timeouts_{0};
+};
+
+}  // namespace
+
+TEST(Daemon, CaptureThreadPulsesTheCameraTrigger)
+{
+    // A source that waits for frames (realtime, endless) and GPIO lines with
+    // a trigger output: the capture thread pulses it, with the configured
+    // width, and counts the pulses. (The cadence itself: TriggerClock tests.)
+    auto gpio = std::make_unique<test::FakeGpioLines>(/*with_trigger=*/true);
+    test::FakeGpioLines& lines = *gpio;
+    auto stage = stage_with_trigger(std::move(gpio));
+    ASSERT_TRUE(stage);
     runtime::DaemonConfig config = config_for(runtime::OverflowPolicy::drop_newest);
     config.fps = 200;
     runtime::Daemon daemon(config, std::make_unique<ScriptedSource>(-1, true),
@@ -291,6 +326,43 @@ TEST(Daemon, CaptureThreadPulsesTheCameraTrigger)
     const runtime::StatusSnapshot s = daemon.snapshot(true);
     EXPECT_TRUE(s.trigger);
     EXPECT_EQ(s.trigger_failed, failed);
+}
+
+// With a trigger, the capture thread cuts its wait for a frame short at
+// each pulse; the source counts each such wait as a timeout. The status
+// line's source timeouts are the daemon's: waits of the whole
+// kSourceTimeout (100 ms) without a frame, so a triggered camera that
+// delivers is not shown as timing out, and a silent one still is.
+TEST(Daemon, WaitsCutShortForTheTriggerAreNotSourceTimeouts)
+{
+    for (const bool with_trigger : {true, false}) {
+        SCOPED_TRACE(with_trigger ? "trigger" : "no trigger");
+        auto gpio = std::make_unique<test::FakeGpioLines>(with_trigger);
+        test::FakeGpioLines& lines = *gpio;
+        auto stage = stage_with_trigger(std::move(gpio));
+        ASSERT_TRUE(stage);
+        runtime::DaemonConfig config = config_for(runtime::OverflowPolicy::drop_newest);
+        config.fps = 100;   // a pulse every 10 ms
+        auto source = std::make_unique<SilentSource>();
+        const SilentSource& silent = *source;
+        runtime::Daemon daemon(config, std::move(source),
+                               std::make_unique<runtime::DetectionSink>(runtime::make_logger("actuator")),
+                               std::move(stage));
+        ASSERT_TRUE(daemon.start());
+        EXPECT_TRUE(test::wait_for([&] { return silent.timeouts() >= 3; }, 60s));
+        daemon.request_stop();
+        EXPECT_TRUE(daemon.join());
+        const runtime::StatusSnapshot s = daemon.snapshot(true);
+        if (with_trigger) {
+            EXPECT_GE(lines.pulses.load(), 3u);
+            EXPECT_EQ(s.source_timeouts, 0u) << "the source counted " << silent.timeouts();
+        } else {
+            EXPECT_EQ(lines.pulses.load(), 0u);
+            // Each of the source's waits but the one the stop cut short.
+            EXPECT_GE(s.source_timeouts + 1, silent.timeouts());
+            EXPECT_GE(s.source_timeouts, 2u);
+        }
+    }
 }
 
 namespace {

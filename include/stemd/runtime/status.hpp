@@ -24,7 +24,7 @@ inline void bump(std::atomic<std::uint64_t>& counter, std::uint64_t by = 1)
 struct Counters {
     struct Capture {
         std::atomic<std::uint64_t> frames{0};          // frames the source delivered
-        std::atomic<std::uint64_t> timeouts{0};        // next() returned nothing in its timeout
+        std::atomic<std::uint64_t> timeouts{0};        // next() returned nothing in its whole timeout (not one cut short for a trigger pulse)
         std::atomic<std::uint64_t> backpressure_waits{0};  // fast replay: ring full, waited (not a drop)
         std::atomic<std::uint64_t> no_free_slot{0};    // never expected: the pool is sized so it cannot happen
         std::atomic<std::uint64_t> trigger_pulses{0};  // camera trigger pulses sent (gpio.trigger_line)
