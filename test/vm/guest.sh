@@ -552,17 +552,17 @@ check_faults() {
   cap=$(v4l_node vivid-000-vid-cap) || die "no vivid capture node"
   outn=$(v4l_node vivid-000-vid-out) || die "no vivid output node"
   vcan_up
-  sim_chip stemd_faults 2 stemd-faults 0:enable
+  sim_chip stemd_faults 2 stemd-faults 0:enable 1:cam_trigger
   pull_up() { echo pull-up > "/sys/devices/platform/$(cat "$c/dev_name")/$(cat "$c/bank0/chip_name")/sim_gpio0/pull"; }
   pull_up || die "pull-up enable"
-  echo "vivid $vivid_dev: $outn -> $cap, vcan0, gpio-sim $(cat "$c/bank0/chip_name") (stemd-faults) line 0 (enable) pulled up"
+  echo "vivid $vivid_dev: $outn -> $cap, vcan0, gpio-sim $(cat "$c/bank0/chip_name") (stemd-faults) line 0 (enable) pulled up, line 1 the camera trigger"
 
   hostrun "$daemon" loop "$cap" "$outn" > /tmp/faults-feeder.log 2>&1 &
   feeder=$!
   within 120 grep -q '^ready' /tmp/faults-feeder.log || die "feeder did not get ready: $(cat /tmp/faults-feeder.log)"
   candump_start /tmp/faults.candump /tmp/faults-candump.err
   sets=
-  for s in $(hostrun "$daemon" config) $fault_settings source.v4l2_device="$cap" can.interface=vcan0 gpio.chip=stemd-faults gpio.enable_line=0; do
+  for s in $(hostrun "$daemon" config) $fault_settings source.v4l2_device="$cap" can.interface=vcan0 gpio.chip=stemd-faults gpio.enable_line=0 gpio.trigger_line=1; do
     sets="$sets --set $s"
   done
   stamp; t0=$cs
@@ -626,6 +626,11 @@ check_faults() {
   stamp; echo "t=$(secs $cs) s: gpio-sim stemd-faults gone"
   forced_off() { alive; log_after $mark 'enable forced off'; }
   if ! within 60 forced_off; then fault_fail gpio "gpio: stemd did not force enable off within 60 s"; fi
+  # The camera trigger's pulses fail with the chip gone: counted, and the
+  # capture thread goes on (it never waits for the GPIO thread's reopen).
+  trigger_failed() { alive; log_after $mark 'trigger: pulses [0-9]+, late [0-9]+, failed [1-9]'; }
+  if ! within 60 trigger_failed; then fault_fail gpio "gpio: no failed trigger pulse counted with the chip gone"; fi
+  stamp; echo "t=$(secs $cs) s: $(tail -n +$((mark + 1)) /tmp/faults-stemd.log | grep -oE -m1 'trigger: pulses [0-9]+, late [0-9]+, failed [1-9][0-9]*') in a status line with the chip gone"
   marker 7F2
   stamp; echo "t=$(secs $cs) s: stemd: $(tail -n +$((mark + 1)) /tmp/faults-stemd.log | grep -m1 'enable forced off')"
   # Plants keep passing: each is counted as not treated, none is commanded.
@@ -642,6 +647,9 @@ check_faults() {
   pull_up || fdie "pull-up enable on the chip back as $(cat "$c/bank0/chip_name")"
   reopened_gpio() { alive; log_after $mark 'lines reopened'; }
   if ! within 60 reopened_gpio; then fault_fail gpio "gpio: stemd did not reopen the chip within 60 s"; fi
+  mark=$(log_lines)
+  pulsing() { alive; log_after $mark 'trigger: pulses [1-9]'; }
+  if ! within 60 pulsing; then fault_fail gpio "gpio: the camera trigger did not pulse again within 60 s of the chip's return"; fi
   marker 7F4
   if ! within 120 target_after 7F4; then fault_fail gpio "gpio: no TARGET within 120 s of the chip's return"; fi
   stamp; echo "t=$(secs $cs) s: chip back as $(cat "$c/bank0/chip_name"), TARGETs again"
