@@ -451,7 +451,7 @@ constexpr std::array kSections{
                 "mlockall: true. Without the privileges (CAP_SYS_NICE, CAP_IPC_LOCK or RLIMIT_MEMLOCK) stemd "
                 "warns once and runs without them."},
     SectionSpec{"ring", "", "The lock-free rings between the capture, processing and actuator threads."},
-    SectionSpec{"threads", "", "Real-time scheduling, CPU pinning and memory locking of the three threads."},
+    SectionSpec{"threads", "", "Real-time scheduling, CPU pinning and memory locking of the three real-time threads (capture, processing, actuator)."},
     SectionSpec{"status", "", "The status line."},
     SectionSpec{"log", "", "Logging (standard error, the journal under systemd)."},
     SectionSpec{"web", "", "The live view: an HTTP server on a low-priority thread (README, \"Live view\"). Off by default; "

@@ -1,4 +1,5 @@
-// The daemon's three threads and what connects them:
+// The daemon's three real-time threads and what connects them (and the writer
+// thread of the optional files, below):
 //
 //   capture ──SpscRing<Frame*> (ring.capacity)──► processing ──SpscRing<FrameResult>──► actuator
 //      ▲                                              │        (ring.results_capacity)
