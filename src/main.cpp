@@ -11,6 +11,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -417,6 +418,13 @@ int run(int argc, char** argv, Phase& phase)
     }
     const double run_s = static_cast<double>(base::monotonic_ns() - t_start_ns) / 1e9;
     status_log->info("total: {}", runtime::format_summary(daemon->snapshot(true), run_s));
+    if (daemon->output_stalled()) {
+        // A write(2) that never returns cannot be cancelled, and the thread
+        // in it cannot be joined: end here, without destructors.
+        log->error("exiting with an output file stalled");
+        std::fflush(nullptr);
+        std::_Exit(1);
+    }
     return exit_code;
 }
 

@@ -269,7 +269,10 @@ bool ActuationStage::finish() noexcept
     write_retired(tracker_.drain(), end_ns);
     write_waiting(end_ns, true);
     ok = parts_.map->close() && counters_.map_errors.load(std::memory_order_relaxed) == 0 && ok;
-    parts_.map.reset();
+    if (parts_.map->output_stalled())
+        static_cast<void>(parts_.map.release());   // the writer may still be in its file: leaked, the process ends
+    else
+        parts_.map.reset();
     return ok;
 }
 

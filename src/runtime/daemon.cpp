@@ -118,6 +118,11 @@ Daemon::~Daemon()
 {
     request_stop();
     join();
+    if (output_stalled()) {
+        // The writer thread may still be in a write(2) to the sink's file.
+        static_cast<void>(sink_.release());
+        static_cast<void>(writer_.release());
+    }
 }
 
 bool Daemon::start()
@@ -564,7 +569,7 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
         const RecordWriter::FileCounters files = writer_->totals();
         s.files = true;
         s.file_lines_written = files.written;
-        s.file_lines_lost = files.lost();
+        s.file_lines_lost = files.lost() + writer_->unwritten();
     }
     if (actuation_) {
         const ActuationCounters& a = actuation_->counters();

@@ -114,7 +114,8 @@ void DetectionSink::attach(RecordWriter& writer)
 bool DetectionSink::close()
 {
     if (writer_ != nullptr && csv_.is_open()) {
-        writer_->flush();
+        if (!writer_->flush(RecordWriter::kCloseTimeoutNs))
+            return false;   // left open: the writer thread may be in a write(2) on it
         if (writer_->counters(writer_file_).lost() > 0)
             csv_failed_ = true;
     }

@@ -148,7 +148,8 @@ void PlantMap::attach(RecordWriter& writer)
 bool PlantMap::close()
 {
     if (writer_ != nullptr && file_.is_open()) {
-        writer_->flush();
+        if (!writer_->flush(RecordWriter::kCloseTimeoutNs))
+            return false;   // left open: see output_stalled()
         if (writer_->counters(writer_file_).lost() > 0)
             failed_ = true;
     }

@@ -17,6 +17,11 @@ RecordWriter::RecordWriter(std::size_t capacity_lines, std::shared_ptr<spdlog::l
 RecordWriter::~RecordWriter()
 {
     stop();
+    // Stalled: the thread may be blocked in write(2) for good. The owner
+    // should have leaked this writer and ended the process; detached, at
+    // least the thread's end does not terminate it.
+    if (thread_.joinable())
+        thread_.detach();
 }
 
 std::size_t RecordWriter::add(base::RecordFile& file, std::string name)
@@ -36,6 +41,7 @@ void RecordWriter::start()
     if (running())
         return;
     stop_.store(false, std::memory_order_relaxed);
+    finished_.store(false, std::memory_order_relaxed);
     thread_ = std::thread([this] { run(); });
     // At most 15 characters; a failure only leaves the process's name.
     static_cast<void>(pthread_setname_np(thread_.native_handle(), "stemd-writer"));
@@ -55,6 +61,7 @@ bool RecordWriter::write(std::size_t file, std::string_view line) noexcept
     cell->length = static_cast<std::uint16_t>(line.size());
     std::memcpy(cell->text.data(), line.data(), line.size());
     ring_.publish();
+    f.queued.store(f.queued.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
     queued_.store(queued_.load(std::memory_order_relaxed) + 1, std::memory_order_release);
     return true;
 }
@@ -101,23 +108,52 @@ void RecordWriter::run()
         if (!write_queued())
             base::sleep_for_ns(kIdleSleepNs);
     write_queued();
+    finished_.store(true, std::memory_order_release);
 }
 
-void RecordWriter::flush() noexcept
+bool RecordWriter::flush(std::int64_t timeout_ns) noexcept
 {
+    if (stalled())
+        return false;
     const std::uint64_t target = queued_.load(std::memory_order_relaxed);
     if (!running()) {
         write_queued();
-        return;
+        return true;
     }
-    while (done_.load(std::memory_order_acquire) < target)
+    const std::int64_t give_up_ns = timeout_ns < 0 ? -1 : base::monotonic_ns() + timeout_ns;
+    while (done_.load(std::memory_order_acquire) < target) {
+        if (give_up_ns >= 0 && base::monotonic_ns() >= give_up_ns) {
+            unwritten_.store(queued_.load(std::memory_order_relaxed) - done_.load(std::memory_order_acquire),
+                             std::memory_order_relaxed);
+            stalled_.store(true, std::memory_order_release);
+            for (std::size_t i = 0; i < n_files_; ++i) {
+                const File& f = files_[i];
+                const std::uint64_t queued = f.queued.load(std::memory_order_relaxed);
+                const std::uint64_t done = f.written.load(std::memory_order_relaxed) +
+                                           f.failed.load(std::memory_order_relaxed);
+                if (queued > done)
+                    log_->error("{}: {} lines not written: the file did not take them within {} ms (a hung disk "
+                                "or mount?); they are given up",
+                                f.name, queued - done, timeout_ns / 1'000'000);
+            }
+            return false;
+        }
         base::sleep_for_ns(kIdleSleepNs / 4);
+    }
+    return true;
 }
 
-void RecordWriter::stop() noexcept
+void RecordWriter::stop(std::int64_t stalled_wait_ns) noexcept
 {
     if (running()) {
         stop_.store(true, std::memory_order_release);
+        if (stalled()) {
+            const std::int64_t give_up_ns = base::monotonic_ns() + stalled_wait_ns;
+            while (!finished_.load(std::memory_order_acquire) && base::monotonic_ns() < give_up_ns)
+                base::sleep_for_ns(kIdleSleepNs);
+            if (!finished_.load(std::memory_order_acquire))
+                return;   // still in a write(2): left alone
+        }
         thread_.join();
     }
     write_queued();

@@ -116,6 +116,51 @@ TEST_F(RecordWriterTest, AFileThatStopsTakingLinesHoldsUpOnlyTheWriter)
     EXPECT_EQ(writer.counters(id).lost(), 0u);
 }
 
+TEST_F(RecordWriterTest, AFileThatTakesNothingWithinTheTimeoutStallsTheFlush)
+{
+    int fds[2];
+    ASSERT_EQ(::pipe2(fds, O_CLOEXEC), 0);
+    const int pipe_bytes = ::fcntl(fds[1], F_GETPIPE_SZ);
+    RecordFile file;
+    ASSERT_EQ(file.open_duplicate(fds[1]), 0);
+    ::close(fds[1]);
+    stemd::test::CapturedLog log;
+    constexpr int kLines = 200;
+    RecordWriter writer(kLines, log.logger);
+    const std::size_t id = writer.add(file, "pipe");
+    writer.start();
+    const std::string line(999, 'x');
+    for (int i = 0; i < kLines; ++i)
+        ASSERT_TRUE(writer.write(id, line + "\n"));
+    // Nobody reads: the pipe takes its 64 KiB and the writer waits in write(2).
+    EXPECT_FALSE(writer.flush(100'000'000));
+    EXPECT_TRUE(writer.stalled());
+    EXPECT_GE(writer.unwritten(), static_cast<std::uint64_t>(kLines - pipe_bytes / 1000));
+    EXPECT_FALSE(writer.flush()) << "a stalled writer is not waited for again";
+    // Read after all: the thread's write returns, it takes the rest, and
+    // stop() can join it.
+    std::size_t received = 0;
+    std::thread reader([&] {
+        char buffer[4096];
+        while (received < static_cast<std::size_t>(kLines) * 1000) {
+            const ssize_t n = ::read(fds[0], buffer, sizeof buffer);
+            if (n <= 0)
+                break;
+            received += static_cast<std::size_t>(n);
+        }
+    });
+    reader.join();
+    writer.stop(60'000'000'000);
+    EXPECT_FALSE(writer.running()) << "the thread ended once its file took the lines";
+    ::close(fds[0]);
+    EXPECT_EQ(received, static_cast<std::size_t>(kLines) * 1000);
+    EXPECT_EQ(writer.counters(id).written, static_cast<std::uint64_t>(kLines));
+    EXPECT_NE(log.text().find("pipe: " + std::to_string(writer.unwritten()) +
+                              " lines not written: the file did not take them within 100 ms"),
+              std::string::npos)
+        << log.text();
+}
+
 TEST_F(RecordWriterTest, AFullRingDropsTheLineAndCountsIt)
 {
     RecordFile file;

@@ -112,6 +112,12 @@ public:
     // Joins the threads and closes the sink and the plant map; false if
     // either lost data.
     bool join();
+    // After join(): an optional file did not take its last lines in time
+    // (RecordWriter::stalled()); its writer thread may be blocked in
+    // write(2) for good. The caller then ends the process without
+    // destructors (stemd: _Exit(1)); this daemon leaks its writer and sink
+    // if it is destroyed.
+    bool output_stalled() const { return writer_ && writer_->stalled(); }
 
     StatusSnapshot snapshot(bool whole_run);
 
@@ -146,7 +152,7 @@ private:
     // Before the sink and the actuation, whose files it writes: destroyed after them.
     std::unique_ptr<RecordWriter> writer_;   // nullptr without a CSV or a map
     const std::unique_ptr<drivers::FrameSource> source_;
-    const std::unique_ptr<DetectionSink> sink_;
+    std::unique_ptr<DetectionSink> sink_;   // leaked when the output stalled
     const std::unique_ptr<Counters> counters_;
     const std::unique_ptr<ActuationStage> actuation_;
 

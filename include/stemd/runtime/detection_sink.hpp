@@ -61,8 +61,10 @@ public:
     // written. False if a row was lost (the writer counts and logs it).
     bool consume(const FrameResult& result, std::int64_t latency_ns);
 
-    // Waits for the writer's last row, closes the CSV; false if anything
-    // was lost (logged).
+    // Waits for the writer's last row (at most
+    // RecordWriter::kCloseTimeoutNs), closes the CSV; false if anything was
+    // lost (logged). If the writer stalled, the CSV is left open (see
+    // PlantMap::close()).
     bool close();
 
     static constexpr const char* kCsvHeader = "t_ns,image,plant,x,y,method,leaves,area_px,estimator,confidence";

@@ -99,9 +99,13 @@ public:
     // One line; false if it was lost: it could not be queued (the writer's
     // ring full), or written (logged once). No allocation.
     bool write(const actuation::RetiredTrack& track, const MapEntry& entry);
-    // Waits for the writer's last line of this file, then closes; false if
-    // anything was lost.
+    // Waits for the writer's last line of this file (at most
+    // RecordWriter::kCloseTimeoutNs), then closes; false if anything was
+    // lost. If the writer stalled, the file is left open (the writer thread
+    // may be in a write(2) on it) and this map must not be destroyed:
+    // output_stalled().
     bool close();
+    bool output_stalled() const { return writer_ != nullptr && writer_->stalled(); }
 
     std::uint64_t lines() const { return lines_; }
 

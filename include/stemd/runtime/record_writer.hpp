@@ -14,7 +14,13 @@
 //   - a failed write (ENOSPC, EFBIG) is logged once per file with its errno
 //     and counted; later lines are still tried.
 // flush() (end of a run) waits until every queued line is written, so a
-// file is closed only after its last line.
+// file is closed only after its last line; for at most its timeout. A file
+// that has not taken them by then (a hung mount, a FIFO nobody reads) is
+// stalled(): its lines still queued are given up, reported, and the writer
+// thread, which may be blocked in write(2) on it, must then neither be
+// joined nor have its files destroyed. The daemon ends the process instead
+// (stemd exits 1 without running destructors; a blocked write(2) cannot be
+// cancelled otherwise).
 //
 // One producer thread at a time: the daemon's actuator thread while it
 // runs, the thread that joins it afterwards. Nothing allocates after add().
@@ -41,6 +47,9 @@ public:
     static constexpr std::size_t kLineBytes = 1024;   // longest line: the plant map's, under 768
     static constexpr std::size_t kMaxFiles = 4;
     static constexpr std::int64_t kIdleSleepNs = 1'000'000;
+    // How long closing a file waits for its last lines at the end of a run
+    // (a healthy disk takes the whole ring in milliseconds).
+    static constexpr std::int64_t kCloseTimeoutNs = 3'000'000'000;
 
     struct FileCounters {
         std::uint64_t written = 0;   // lines the file took
@@ -70,15 +79,24 @@ public:
     // allocation, no lock, no system call.
     bool write(std::size_t file, std::string_view line) noexcept;
 
-    // Producer: returns once every line queued so far has been written or
-    // has failed. Without a running thread (never started, or stopped),
-    // writes them on the caller's thread.
-    void flush() noexcept;
+    // Producer: returns true once every line queued so far has been
+    // written or has failed; false if that took longer than timeout_ns
+    // (< 0: no limit), or an earlier flush timed out: then stalled().
+    // Without a running thread (never started, or stopped), writes them on
+    // the caller's thread.
+    bool flush(std::int64_t timeout_ns = -1) noexcept;
+    // A flush timed out: the writer thread may be blocked in write(2), and
+    // `unwritten()` lines were still queued then.
+    bool stalled() const { return stalled_.load(std::memory_order_acquire); }
+    std::uint64_t unwritten() const { return unwritten_.load(std::memory_order_relaxed); }
 
     // Writes what is queued, then stops and joins the thread; logs each
     // file's losses (once). The writer can still take lines (flush()
-    // writes them).
-    void stop() noexcept;
+    // writes them). Once stalled(), the thread is asked to stop and joined
+    // only if it ends within stalled_wait_ns (its file took the lines
+    // after all); else it is left as it is (the caller leaks the writer and
+    // ends the process).
+    void stop(std::int64_t stalled_wait_ns = 100'000'000) noexcept;
 
     FileCounters counters(std::size_t file) const;
     // Every file's added up (first_error: the first file's that has one).
@@ -96,6 +114,7 @@ private:
         std::string name;
         std::atomic<std::uint64_t> written{0};
         std::atomic<std::uint64_t> failed{0};
+        std::atomic<std::uint64_t> queued{0};    // the producer's
         std::atomic<std::uint64_t> dropped{0};   // the producer's
         std::atomic<int> first_error{0};
         std::uint64_t dropped_logged = 0;        // the consumer's
@@ -113,6 +132,9 @@ private:
     std::atomic<std::uint64_t> queued_{0};   // lines published (producer)
     std::atomic<std::uint64_t> done_{0};     // lines written or failed (consumer)
     std::atomic<bool> stop_{false};
+    std::atomic<bool> stalled_{false};
+    std::atomic<bool> finished_{false};   // run() returned
+    std::atomic<std::uint64_t> unwritten_{0};
     bool losses_reported_ = false;
     std::thread thread_;
 };
