@@ -35,6 +35,44 @@ std::string numbered(const char* prefix, int i) { return std::string(prefix) + s
 
 class RecordWriterTest : public stemd::test::TempDirTest {};
 
+// A pipe nobody reads yet: it takes its capacity (64 KiB), then write(2)
+// blocks, as on a stalled disk. `file` writes into it, `read_fd` reads it.
+struct UnreadPipe {
+    RecordFile file;
+    int read_fd = -1;
+    int capacity_bytes = 0;
+    UnreadPipe()
+    {
+        int fds[2];
+        if (::pipe2(fds, O_CLOEXEC) != 0)
+            return;
+        capacity_bytes = ::fcntl(fds[1], F_GETPIPE_SZ);
+        if (file.open_duplicate(fds[1]) == 0)
+            read_fd = fds[0];
+        else
+            ::close(fds[0]);
+        ::close(fds[1]);
+    }
+    ~UnreadPipe()
+    {
+        if (read_fd >= 0)
+            ::close(read_fd);
+    }
+    // Reads until `bytes` came or the writing side is closed.
+    std::string read(std::size_t bytes) const
+    {
+        std::string received;
+        char buffer[4096];
+        while (received.size() < bytes) {
+            const ssize_t n = ::read(read_fd, buffer, sizeof buffer);
+            if (n <= 0)
+                break;
+            received.append(buffer, static_cast<std::size_t>(n));
+        }
+        return received;
+    }
+};
+
 TEST_F(RecordWriterTest, LinesReachTheirOwnFileInOrder)
 {
     RecordFile a, b;
@@ -73,43 +111,28 @@ TEST_F(RecordWriterTest, LinesReachTheirOwnFileInOrder)
 
 TEST_F(RecordWriterTest, AFileThatStopsTakingLinesHoldsUpOnlyTheWriter)
 {
-    // A pipe nobody reads: it takes 64 KiB, then write(2) blocks, as a
-    // stalled disk would.
-    int fds[2];
-    ASSERT_EQ(::pipe2(fds, O_CLOEXEC), 0);
-    const int pipe_bytes = ::fcntl(fds[1], F_GETPIPE_SZ);
-    ASSERT_GT(pipe_bytes, 0);
-    RecordFile file;
-    ASSERT_EQ(file.open_duplicate(fds[1]), 0);
-    ::close(fds[1]);
+    UnreadPipe pipe;
+    ASSERT_GE(pipe.read_fd, 0);
+    ASSERT_GT(pipe.capacity_bytes, 0);
     stemd::test::CapturedLog log;
     constexpr int kLines = 200;
     RecordWriter writer(kLines, log.logger);
-    const std::size_t id = writer.add(file, "pipe");
+    const std::size_t id = writer.add(pipe.file, "pipe");
     writer.start();
     const std::string payload(999, 'x');
     // Every line is taken at once, although the pipe can hold only part of them.
     for (int i = 0; i < kLines; ++i)
         ASSERT_TRUE(writer.write(id, payload + "\n")) << "line " << i;
-    const int pipe_lines = pipe_bytes / 1000;
+    const int pipe_lines = pipe.capacity_bytes / 1000;
     ASSERT_LT(pipe_lines, kLines);
     EXPECT_LE(writer.counters(id).written, static_cast<std::uint64_t>(pipe_lines));
     // Once the pipe is read, every line arrives, whole and in order.
     std::string received;
-    std::thread reader([&] {
-        char buffer[4096];
-        for (;;) {
-            const ssize_t n = ::read(fds[0], buffer, sizeof buffer);
-            if (n <= 0)
-                break;
-            received.append(buffer, static_cast<std::size_t>(n));
-        }
-    });
+    std::thread reader([&] { received = pipe.read(static_cast<std::size_t>(kLines) * 1000 + 1); });
     writer.flush();
     writer.stop();
-    file.close();   // the reader sees the end
+    pipe.file.close();   // the reader sees the end
     reader.join();
-    ::close(fds[0]);
     EXPECT_EQ(received.size(), static_cast<std::size_t>(kLines) * 1000);
     EXPECT_EQ(received.find_first_not_of("x\n"), std::string::npos);
     EXPECT_EQ(writer.counters(id).written, static_cast<std::uint64_t>(kLines));
@@ -118,16 +141,12 @@ TEST_F(RecordWriterTest, AFileThatStopsTakingLinesHoldsUpOnlyTheWriter)
 
 TEST_F(RecordWriterTest, AFileThatTakesNothingWithinTheTimeoutStallsTheFlush)
 {
-    int fds[2];
-    ASSERT_EQ(::pipe2(fds, O_CLOEXEC), 0);
-    const int pipe_bytes = ::fcntl(fds[1], F_GETPIPE_SZ);
-    RecordFile file;
-    ASSERT_EQ(file.open_duplicate(fds[1]), 0);
-    ::close(fds[1]);
+    UnreadPipe pipe;
+    ASSERT_GE(pipe.read_fd, 0);
     stemd::test::CapturedLog log;
     constexpr int kLines = 200;
     RecordWriter writer(kLines, log.logger);
-    const std::size_t id = writer.add(file, "pipe");
+    const std::size_t id = writer.add(pipe.file, "pipe");
     writer.start();
     const std::string line(999, 'x');
     for (int i = 0; i < kLines; ++i)
@@ -135,24 +154,15 @@ TEST_F(RecordWriterTest, AFileThatTakesNothingWithinTheTimeoutStallsTheFlush)
     // Nobody reads: the pipe takes its 64 KiB and the writer waits in write(2).
     EXPECT_FALSE(writer.flush(100'000'000));
     EXPECT_TRUE(writer.stalled());
-    EXPECT_GE(writer.unwritten(), static_cast<std::uint64_t>(kLines - pipe_bytes / 1000));
+    EXPECT_GE(writer.unwritten(), static_cast<std::uint64_t>(kLines - pipe.capacity_bytes / 1000));
     EXPECT_FALSE(writer.flush()) << "a stalled writer is not waited for again";
     // Read after all: the thread's write returns, it takes the rest, and
     // stop() can join it.
     std::size_t received = 0;
-    std::thread reader([&] {
-        char buffer[4096];
-        while (received < static_cast<std::size_t>(kLines) * 1000) {
-            const ssize_t n = ::read(fds[0], buffer, sizeof buffer);
-            if (n <= 0)
-                break;
-            received += static_cast<std::size_t>(n);
-        }
-    });
+    std::thread reader([&] { received = pipe.read(static_cast<std::size_t>(kLines) * 1000).size(); });
     reader.join();
     writer.stop(60'000'000'000);
     EXPECT_FALSE(writer.running()) << "the thread ended once its file took the lines";
-    ::close(fds[0]);
     EXPECT_EQ(received, static_cast<std::size_t>(kLines) * 1000);
     EXPECT_EQ(writer.counters(id).written, static_cast<std::uint64_t>(kLines));
     EXPECT_NE(log.text().find("pipe: " + std::to_string(writer.unwritten()) +
