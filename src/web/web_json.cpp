@@ -46,6 +46,12 @@ nlohmann::json status_json(const runtime::StatusSnapshot& s, const Metrics& m, d
                           {"no_odometry", m.no_odometry}};
     else
         j["actuation"] = nullptr;
+    j["trigger"] = s.trigger ? nlohmann::json{{"pulses", s.trigger_pulses},
+                                              {"late", s.trigger_late},
+                                              {"failed", s.trigger_failed}}
+                             : nlohmann::json(nullptr);
+    j["files"] = s.files ? nlohmann::json{{"lines_written", s.file_lines_written}, {"lines_lost", s.file_lines_lost}}
+                         : nlohmann::json(nullptr);
     j["latency_ms"] = summary_json(s.latency);
     j["pipeline_ms"] = summary_json(s.pipeline);
     j["send_ms"] = summary_json(s.send);

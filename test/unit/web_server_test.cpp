@@ -43,6 +43,9 @@ struct Fixture : ::testing::Test {
                                     s.frames_in = 42;
                                     s.frames_out = 41;
                                     s.ring_full = 1;
+                                    s.files = true;
+                                    s.file_lines_written = 812;
+                                    s.file_lines_lost = 3;
                                     return s;
                                 },
                                 .metrics = [] {
@@ -187,6 +190,9 @@ TEST_F(Fixture, StatusJsonHasTheCountersAndHistograms)
     for (const char* cause : {"overwritten", "results_full", "corrupt", "bad_size", "failed"})
         EXPECT_TRUE(j.at("drops").contains(cause)) << cause;
     EXPECT_TRUE(j.at("actuation").is_null());
+    EXPECT_TRUE(j.at("trigger").is_null());
+    EXPECT_EQ(j.at("files").at("lines_written"), 812);
+    EXPECT_EQ(j.at("files").at("lines_lost"), 3);
     const auto& h = j.at("histograms").at("capture_to_result");
     EXPECT_EQ(h.at("counts").size(), h.at("le_ms").size() + 1) << "one bucket beyond the last bound";
     EXPECT_TRUE(j.at("latency_ms").contains("p99"));
