@@ -60,8 +60,8 @@ bool RecordWriter::write(std::size_t file, std::string_view line) noexcept
     cell->file = static_cast<std::uint16_t>(file);
     cell->length = static_cast<std::uint16_t>(line.size());
     std::memcpy(cell->text.data(), line.data(), line.size());
-    ring_.publish();
     f.queued.store(f.queued.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+    ring_.publish();
     queued_.store(queued_.load(std::memory_order_relaxed) + 1, std::memory_order_release);
     return true;
 }
