@@ -19,7 +19,7 @@ command -v chromium >/dev/null || { echo "SKIP: chromium is not installed (Debia
 printf '%s\n' 0123456789abcdef-browser-test >"$tmp/token"
 chmod 600 "$tmp/token"
 start_stemd "$tmp/err" --config "$src/config/stemd.yaml" --replay "$tmp/rec" --can-log "$tmp/can.log" \
-  --set web.listen=127.0.0.1:0 --set web.fps=10 --set web.token_file="$tmp/token"
+  --map "$tmp/map.jsonl" --set web.listen=127.0.0.1:0 --set web.fps=10 --set web.token_file="$tmp/token"
 
 fetch / "$tmp/page.html"
 if grep -Eo '(https?:)?//[A-Za-z0-9.-]+' "$tmp/page.html" | grep -v '^//$' >"$tmp/urls"; then
@@ -61,6 +61,9 @@ read -r natural_w natural_h <<<"$loaded"
 [ "$natural_w" -gt 0 ] && [ "$natural_h" -gt 0 ] || fail "frame naturalWidth $natural_w"
 [ "$natural_w" -le 640 ] || fail "frame $natural_w px wide, web.max_width_px is 640"
 grep -q 'id="state">live<' "$tmp/dom1.html" || fail "the status poll did not succeed"
+# With --map the writer's lines are shown; without a trigger line, "off".
+[ -n "$(counter "$tmp/dom1.html" file_lines)" ] || fail "no file lines count: $(grep -o 'id="file_lines"[^<]*' "$tmp/dom1.html")"
+grep -q 'id="trigger_pulses">off<' "$tmp/dom1.html" || fail "trigger: $(grep -o 'id="trigger_pulses"[^<]*' "$tmp/dom1.html")"
 grep -o '<section[^>]*id="control"[^>]*>' "$tmp/dom1.html" | grep -qv hidden || fail "the control panel is hidden"
 grep -q 'id="enabled"[^>]*>enabled<' "$tmp/dom1.html" || fail "no enable state: $(grep -o 'id="enabled"[^<]*' "$tmp/dom1.html")"
 grep -q 'type="range"[^>]*data-key="stem.min_confidence"' "$tmp/dom1.html" ||
