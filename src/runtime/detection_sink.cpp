@@ -2,7 +2,6 @@
 
 #include <cerrno>
 #include <cstdio>
-#include <cstring>
 #include <string>
 
 namespace stemd::runtime {
@@ -33,7 +32,7 @@ std::size_t csv_field(std::string_view value, char* out, std::size_t capacity)
 
 }  // namespace
 
-DetectionSink::DetectionSink(std::shared_ptr<spdlog::logger> log) : log_(std::move(log)) {}
+DetectionSink::DetectionSink(std::shared_ptr<spdlog::logger> log) : log_(log), csv_("detections CSV", log) {}
 
 DetectionSink::~DetectionSink()
 {
@@ -42,16 +41,7 @@ DetectionSink::~DetectionSink()
 
 bool DetectionSink::open_csv(const std::filesystem::path& path)
 {
-    csv_path_ = path;
-    int err = csv_.open(path.c_str());
-    if (err == 0)
-        err = csv_.write(std::string(kCsvHeader) + "\n");
-    if (err != 0) {
-        log_->error("{}: cannot open for writing: {} (errno {})", path.string(), std::strerror(err), err);
-        csv_.close();
-        return false;
-    }
-    return true;
+    return csv_.open(path, std::string(kCsvHeader) + "\n");
 }
 
 bool DetectionSink::consume(const FrameResult& result, std::int64_t latency_ns)
@@ -66,13 +56,11 @@ bool DetectionSink::consume(const FrameResult& result, std::int64_t latency_ns)
     }
     if (!csv_.is_open())
         return true;
-    if (csv_failed_ && writer_ == nullptr)
-        return false;
     char image[2 * drivers::FrameName::kCapacity + 3];
     const std::size_t image_len = csv_field(result.name.view(), image, sizeof image);
     char line[sizeof image + 160];
     static_assert(sizeof line <= RecordWriter::kLineBytes);
-    bool all_queued = true;
+    bool all_written = true;
     for (std::size_t i = 0; i < d.plants.size(); ++i) {
         const vision::Plant& p = d.plants[i];
         if (!p.has_stem)
@@ -86,41 +74,12 @@ bool DetectionSink::consume(const FrameResult& result, std::int64_t latency_ns)
                                     i, p.stem.x, p.stem.y, static_cast<int>(method.size()), method.data(),
                                     p.leaves.size(), p.area_px, static_cast<int>(estimator.size()), estimator.data(),
                                     p.confidence);
-        if (writer_ != nullptr && n >= 0 && static_cast<std::size_t>(n) < sizeof line) {
-            all_queued = writer_->write(writer_file_, {line, static_cast<std::size_t>(n)}) && all_queued;
-            continue;   // a lost row is counted and logged by the writer
-        }
-        const int err = n < 0 || static_cast<std::size_t>(n) >= sizeof line
-            ? EOVERFLOW
-            : csv_.write({line, static_cast<std::size_t>(n)});
-        if (err != 0) {
-            log_->error("{}: write failed: {} (errno {}); no more detections will be written", csv_path_.string(),
-                        std::strerror(err), err);
-            csv_failed_ = true;
-            return false;
-        }
+        const bool written = n >= 0 && static_cast<std::size_t>(n) < sizeof line
+                                 ? csv_.write({line, static_cast<std::size_t>(n)})
+                                 : csv_.lose(EOVERFLOW);   // a 1e300 stem would not fit: never written half
+        all_written = written && all_written;
     }
-    return all_queued;
-}
-
-void DetectionSink::attach(RecordWriter& writer)
-{
-    if (!csv_.is_open())
-        return;
-    writer_file_ = writer.add(csv_, csv_path_.string());
-    writer_ = &writer;
-}
-
-bool DetectionSink::close()
-{
-    if (writer_ != nullptr && csv_.is_open()) {
-        if (!writer_->flush(RecordWriter::kCloseTimeoutNs))
-            return false;   // left open: the writer thread may be in a write(2) on it
-        if (writer_->counters(writer_file_).lost() > 0)
-            csv_failed_ = true;
-    }
-    csv_.close();
-    return !csv_failed_;
+    return all_written;
 }
 
 }  // namespace stemd::runtime

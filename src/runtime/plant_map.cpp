@@ -3,7 +3,6 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 
 namespace stemd::runtime {
 
@@ -75,7 +74,7 @@ std::string_view to_string(MapReason r)
     return "?";
 }
 
-PlantMap::PlantMap(std::shared_ptr<spdlog::logger> log) : log_(std::move(log)) {}
+PlantMap::PlantMap(std::shared_ptr<spdlog::logger> log) : file_("plant map", std::move(log)) {}
 
 PlantMap::~PlantMap()
 {
@@ -84,20 +83,7 @@ PlantMap::~PlantMap()
 
 bool PlantMap::open(const std::filesystem::path& path)
 {
-    path_ = path;
-    if (const int err = file_.open(path.c_str()); err != 0) {
-        log_->error("{}: cannot create the plant map: {} (errno {})", path.string(), std::strerror(err), err);
-        return false;
-    }
-    return true;
-}
-
-bool PlantMap::failed(int err)
-{
-    if (!failed_)
-        log_->error("{}: plant map write failed: {} (errno {})", path_.string(), std::strerror(err), err);
-    failed_ = true;
-    return false;
+    return file_.open(path);
 }
 
 bool PlantMap::write(const actuation::RetiredTrack& t, const MapEntry& e)
@@ -125,36 +111,11 @@ bool PlantMap::write(const actuation::RetiredTrack& t, const MapEntry& e)
     if (n >= 0 && static_cast<std::size_t>(n) < capacity)
         n += std::snprintf(line + n, capacity - static_cast<std::size_t>(n), "}\n");
     if (n < 0 || static_cast<std::size_t>(n) >= capacity)
-        return failed(EOVERFLOW);   // a 1e300 position would not fit: never written half
-    const std::string_view text(line, static_cast<std::size_t>(n));
-    if (writer_ != nullptr) {
-        if (!writer_->write(writer_file_, text))
-            return false;   // counted and logged by the writer
-    } else if (const int err = file_.write(text); err != 0) {
-        return failed(err);
-    }
+        return file_.lose(EOVERFLOW);   // a 1e300 position would not fit: never written half
+    if (!file_.write({line, static_cast<std::size_t>(n)}))
+        return false;
     ++lines_;
     return true;
-}
-
-void PlantMap::attach(RecordWriter& writer)
-{
-    if (!file_.is_open())
-        return;
-    writer_file_ = writer.add(file_, path_.string());
-    writer_ = &writer;
-}
-
-bool PlantMap::close()
-{
-    if (writer_ != nullptr && file_.is_open()) {
-        if (!writer_->flush(RecordWriter::kCloseTimeoutNs))
-            return false;   // left open: see output_stalled()
-        if (writer_->counters(writer_file_).lost() > 0)
-            failed_ = true;
-    }
-    file_.close();
-    return !failed_;
 }
 
 }  // namespace stemd::runtime

@@ -9,13 +9,13 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <string_view>
 
 #include <spdlog/logger.h>
 
 #include "stemd/base/plant_class.hpp"
-#include "stemd/base/record_file.hpp"
 #include "stemd/drivers/frame_source.hpp"
-#include "stemd/runtime/record_writer.hpp"
+#include "stemd/runtime/record_output.hpp"
 #include "stemd/vision/types.hpp"
 
 namespace stemd::runtime {
@@ -51,7 +51,7 @@ public:
 
     // After open_csv(): rows go through `writer` (which must outlive
     // close()), whose thread makes the write(2)s.
-    void attach(RecordWriter& writer);
+    void attach(RecordWriter& writer) { csv_.attach(writer); }
     bool csv_open() const { return csv_.is_open(); }
 
     // Per frame, on the actuator thread: no allocation. Each row is
@@ -65,17 +65,13 @@ public:
     // RecordWriter::kCloseTimeoutNs), closes the CSV; false if anything was
     // lost (logged). If the writer stalled, the CSV is left open (see
     // PlantMap::close()).
-    bool close();
+    bool close() { return csv_.close(); }
 
-    static constexpr const char* kCsvHeader = "t_ns,image,plant,x,y,method,leaves,area_px,estimator,confidence";
+    static constexpr std::string_view kCsvHeader = "t_ns,image,plant,x,y,method,leaves,area_px,estimator,confidence";
 
 private:
     std::shared_ptr<spdlog::logger> log_;
-    std::filesystem::path csv_path_;
-    base::RecordFile csv_;
-    RecordWriter* writer_ = nullptr;
-    std::size_t writer_file_ = 0;
-    bool csv_failed_ = false;
+    RecordOutput csv_;
 };
 
 }  // namespace stemd::runtime

@@ -51,9 +51,8 @@
 #include <spdlog/logger.h>
 
 #include "stemd/actuation/tracker.hpp"
-#include "stemd/base/record_file.hpp"
 #include "stemd/runtime/gnss_input.hpp"
-#include "stemd/runtime/record_writer.hpp"
+#include "stemd/runtime/record_output.hpp"
 
 namespace stemd::runtime {
 
@@ -94,7 +93,7 @@ public:
     bool is_open() const { return file_.is_open(); }
 
     // After open(): lines go through `writer` (which must outlive close()).
-    void attach(RecordWriter& writer);
+    void attach(RecordWriter& writer) { file_.attach(writer); }
 
     // One line; false if it was lost: it could not be queued (the writer's
     // ring full), or written (logged once). No allocation.
@@ -104,22 +103,15 @@ public:
     // lost. If the writer stalled, the file is left open (the writer thread
     // may be in a write(2) on it) and this map must not be destroyed:
     // output_stalled().
-    bool close();
-    bool output_stalled() const { return writer_ != nullptr && writer_->stalled(); }
+    bool close() { return file_.close(); }
+    bool output_stalled() const { return file_.stalled(); }
 
     std::uint64_t lines() const { return lines_; }
 
 private:
-    bool failed(int err);
-
-    std::shared_ptr<spdlog::logger> log_;
-    std::filesystem::path path_;
-    base::RecordFile file_;
-    RecordWriter* writer_ = nullptr;
-    std::size_t writer_file_ = 0;
+    RecordOutput file_;
     std::array<char, 768> line_{};   // one line: well under this
     static_assert(sizeof line_ <= RecordWriter::kLineBytes);
-    bool failed_ = false;
     std::uint64_t lines_ = 0;
 };
 
