@@ -199,6 +199,77 @@ std::optional<cv::Size> jpeg_size(std::span<const unsigned char> b, std::string&
     return std::nullopt;
 }
 
+// Whether a PNG's chunks run whole to its IEND chunk. libpng refuses a PNG
+// cut off in its image data anyway, but only after decoding it, with a line
+// of its own on stderr.
+bool png_complete(std::span<const unsigned char> b)
+{
+    std::size_t i = 8;   // after the signature: chunks of length (4), type (4), data, CRC (4)
+    while (i + 12 <= b.size()) {
+        const std::size_t length = big_endian(b.data() + i, 4);
+        if (std::string_view(reinterpret_cast<const char*>(b.data()) + i + 4, 4) == "IEND")
+            return true;
+        if (length > b.size() - i - 12)
+            return false;
+        i += 12 + length;
+    }
+    return false;
+}
+
+// Whether a JPEG's data runs to its end-of-image marker (EOI). libjpeg
+// decodes a JPEG cut off inside its scan data without failing: it fills
+// the missing rows with grey and only warns, so a cut-off file (an
+// interrupted copy, a failing card) would pass for a whole frame. Marker
+// segments are skipped by their length; inside a scan's entropy-coded data
+// a 0xFF byte is followed by 0x00 (a stuffed byte) or a restart marker, so
+// the first other marker ends the scan. Bytes after the EOI (a second
+// picture, a vendor's trailer) are not looked at, as the decoder does not.
+bool jpeg_complete(std::span<const unsigned char> b)
+{
+    std::size_t i = 2;   // after SOI
+    while (i + 2 <= b.size()) {
+        if (b[i] != 0xFF)
+            return false;   // no marker where one belongs
+        const unsigned char marker = b[i + 1];
+        if (marker == 0xFF) {   // fill byte
+            ++i;
+            continue;
+        }
+        if (marker == 0xD9)
+            return true;
+        if (marker == 0x01 || (marker >= 0xD0 && marker <= 0xD7)) {   // no payload
+            i += 2;
+            continue;
+        }
+        if (i + 4 > b.size())
+            return false;
+        const std::size_t length = big_endian(b.data() + i + 2, 2);
+        if (length < 2)
+            return false;
+        i += 2 + length;
+        if (marker != 0xDA)
+            continue;
+        for (;;) {   // the scan's entropy-coded data, up to the next marker
+            if (i >= b.size())
+                return false;
+            const auto* ff = static_cast<const unsigned char*>(std::memchr(b.data() + i, 0xFF, b.size() - i));
+            if (ff == nullptr)
+                return false;
+            i = static_cast<std::size_t>(ff - b.data());
+            if (i + 1 >= b.size())
+                return false;
+            const unsigned char next = b[i + 1];
+            if (next == 0x00 || (next >= 0xD0 && next <= 0xD7))
+                i += 2;
+            else if (next == 0xFF)
+                ++i;
+            else
+                break;
+        }
+    }
+    return false;
+}
+
 std::optional<cv::Size> bmp_size(std::span<const unsigned char> b, std::string& why)
 {
     // File header (14), then the DIB header: its size, then the dimensions
@@ -267,12 +338,22 @@ HeaderCheck check_image_header(std::span<const unsigned char> bytes, cv::Size ex
     if (!size)
         return HeaderCheck::unreadable;
     const bool wrong_size = !expected.empty() && *size != expected;
-    if (!wrong_size && size->width <= kMaxImageSidePx && size->height <= kMaxImageSidePx)
-        return HeaderCheck::ok;
-    why = "declares " + std::to_string(size->width) + "x" + std::to_string(size->height) +
-          (wrong_size ? ", the frames are " + std::to_string(expected.width) + "x" + std::to_string(expected.height)
-                      : ", more than " + std::to_string(kMaxImageSidePx) + " px a side");
-    return HeaderCheck::bad_size;
+    if (wrong_size || size->width > kMaxImageSidePx || size->height > kMaxImageSidePx) {
+        why = "declares " + std::to_string(size->width) + "x" + std::to_string(size->height) +
+              (wrong_size ? ", the frames are " + std::to_string(expected.width) + "x" + std::to_string(expected.height)
+                          : ", more than " + std::to_string(kMaxImageSidePx) + " px a side");
+        return HeaderCheck::bad_size;
+    }
+    const bool png = bytes[0] == 0x89, jpeg = bytes[0] == 0xFF;   // declared_image_size() told them apart
+    if (png && !png_complete(bytes)) {
+        why = "PNG cut off: its chunks end before the IEND chunk";
+        return HeaderCheck::unreadable;
+    }
+    if (jpeg && !jpeg_complete(bytes)) {
+        why = "JPEG cut off: its data ends before the end-of-image marker";
+        return HeaderCheck::unreadable;
+    }
+    return HeaderCheck::ok;
 }
 
 bool read_whole_file(const std::filesystem::path& path, std::size_t max_bytes, std::vector<unsigned char>& bytes,

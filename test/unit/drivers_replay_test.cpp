@@ -126,6 +126,28 @@ TEST_F(ReplayTest, CorruptAndWrongSizeFramesAreCountedAndSkipped)
     });
 }
 
+TEST_F(ReplayTest, AJpegCutOffInItsImageDataIsCountedAsCorruptNotDeliveredHalfGrey)
+{
+    // libjpeg would decode it, the missing rows grey, without an error.
+    write_recording(3, 1'000'000);
+    cv::Mat textured(kSize, CV_8UC3);
+    cv::RNG(3).fill(textured, cv::RNG::UNIFORM, 0, 256);
+    std::vector<unsigned char> jpg;
+    ASSERT_TRUE(cv::imencode(".jpg", textured, jpg));
+    std::ofstream(dir_ / "rgb/1.png", std::ios::binary)
+        .write(reinterpret_cast<const char*>(jpg.data()), static_cast<std::streamsize>(jpg.size() * 2 / 3));
+    each_preload([&](ReplaySource& source) {
+        Frame f = slot();
+        EXPECT_EQ(source.next(f, 1s), NextStatus::frame);
+        EXPECT_EQ(source.next(f, 1s), NextStatus::skipped);
+        ASSERT_EQ(source.next(f, 1s), NextStatus::frame);
+        EXPECT_EQ(f.name.view(), "rgb/2.png");
+        EXPECT_EQ(source.next(f, 1s), NextStatus::end_of_stream);
+        EXPECT_EQ(source.counters().corrupt, 1u);
+        EXPECT_EQ(source.counters().delivered, 2u);
+    });
+}
+
 TEST_F(ReplayTest, MissingFileIsCountedAsCorrupt)
 {
     write_recording(2, 1'000'000);

@@ -6,9 +6,11 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <span>
 #include <string>
 #include <vector>
 
+#include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "forged_png.hpp"
@@ -25,6 +27,33 @@ std::vector<unsigned char> encode(const std::string& ext, cv::Size size, int typ
     std::vector<unsigned char> bytes;
     EXPECT_TRUE(cv::imencode(ext, cv::Mat(size, type, cv::Scalar::all(90)), bytes));
     return bytes;
+}
+
+// A textured image: its JPEG's scan data holds many 0xFF bytes (stuffed
+// with 0x00), as a field frame's does.
+cv::Mat noise(cv::Size size)
+{
+    cv::Mat image(size, CV_8UC3);
+    cv::RNG rng(7);
+    rng.fill(image, cv::RNG::UNIFORM, 0, 256);
+    return image;
+}
+
+std::vector<unsigned char> encode_image(const std::string& ext, const cv::Mat& image, const std::vector<int>& params = {})
+{
+    std::vector<unsigned char> bytes;
+    EXPECT_TRUE(cv::imencode(ext, image, bytes, params));
+    return bytes;
+}
+
+// Where a JPEG's first scan starts (after the SOS segment), found by its
+// marker segments: a cut after it is a cut in the image data.
+std::size_t jpeg_scan_start(const std::vector<unsigned char>& b)
+{
+    std::size_t i = 2;
+    while (i + 4 <= b.size() && !(b[i] == 0xFF && b[i + 1] == 0xDA))
+        i += 2 + (static_cast<std::size_t>(b[i + 2]) << 8 | b[i + 3]);
+    return i + 2 + (static_cast<std::size_t>(b[i + 2]) << 8 | b[i + 3]);
 }
 
 }  // namespace
@@ -90,6 +119,88 @@ TEST(ImageHeader, LoadImageRefusesAHugeDeclaredSize)
     std::string error;
     EXPECT_FALSE(load_image(path, cv::IMREAD_COLOR, out, error));
     EXPECT_EQ(error, path.string() + ": declares 30000x30000, more than 8192 px a side; not decoded");
+    EXPECT_TRUE(out.empty());
+    fs::remove(path);
+}
+
+TEST(ImageHeader, AJpegCutOffInItsScanDataIsRefusedThoughTheDecoderWouldTakeIt)
+{
+    const auto jpg = encode_image(".jpg", noise({96, 64}));
+    const std::size_t scan = jpeg_scan_start(jpg);
+    ASSERT_LT(scan, jpg.size() - 2);
+    std::string why;
+    ASSERT_EQ(check_image_header(jpg, {96, 64}, why), HeaderCheck::ok) << why;
+    // Why the check is needed: libjpeg decodes the half file, its missing
+    // rows grey, and reports no error.
+    const std::vector<unsigned char> half(jpg.begin(), jpg.begin() + static_cast<std::ptrdiff_t>(jpg.size() / 2));
+    EXPECT_FALSE(cv::imdecode(half, cv::IMREAD_COLOR).empty());
+    // Every cut from the scan's first byte to just before the EOI marker.
+    for (std::size_t cut = scan; cut < jpg.size(); ++cut) {
+        const std::span<const unsigned char> cut_off(jpg.data(), cut);
+        ASSERT_EQ(check_image_header(cut_off, {96, 64}, why), HeaderCheck::unreadable) << "cut at " << cut;
+        ASSERT_EQ(why, "JPEG cut off: its data ends before the end-of-image marker");
+    }
+}
+
+TEST(ImageHeader, WholeJpegsWithRestartMarkersProgressiveScansOrATrailerAreTaken)
+{
+    const cv::Mat image = noise({96, 64});
+    std::string why;
+    const auto restarts = encode_image(".jpg", image, {cv::IMWRITE_JPEG_RST_INTERVAL, 1});
+    EXPECT_EQ(check_image_header(restarts, {}, why), HeaderCheck::ok) << why;
+    const auto progressive = encode_image(".jpg", image, {cv::IMWRITE_JPEG_PROGRESSIVE, 1});
+    EXPECT_EQ(check_image_header(progressive, {}, why), HeaderCheck::ok) << why;
+    // A progressive JPEG cut between two of its scans.
+    const std::size_t second_scan = [&] {
+        std::size_t i = jpeg_scan_start(progressive);
+        while (i + 1 < progressive.size() &&
+               !(progressive[i] == 0xFF && progressive[i + 1] != 0x00 && (progressive[i + 1] < 0xD0 || progressive[i + 1] > 0xD7)))
+            ++i;
+        return i;
+    }();
+    ASSERT_LT(second_scan + 2, progressive.size()) << "one scan only";
+    EXPECT_EQ(check_image_header(std::span(progressive).first(second_scan), {}, why), HeaderCheck::unreadable);
+    // Bytes after the end-of-image marker (a vendor's trailer) are not read.
+    auto trailer = encode_image(".jpg", image);
+    for (const char c : std::string("SEFT trailer"))
+        trailer.push_back(static_cast<unsigned char>(c));
+    EXPECT_EQ(check_image_header(trailer, {}, why), HeaderCheck::ok) << why;
+}
+
+TEST(ImageHeader, AnEndMarkerInsideAMetadataSegmentDoesNotMakeACutJpegWhole)
+{
+    // An APP1 segment (where EXIF keeps a thumbnail, whole JPEG with its own
+    // EOI) right after SOI: its bytes are skipped by the segment's length.
+    auto jpg = encode_image(".jpg", noise({96, 64}));
+    const std::vector<unsigned char> app1 = {0xFF, 0xE1, 0x00, 0x08, 0xFF, 0xD8, 0xFF, 0xD9, 0x00, 0x00};
+    jpg.insert(jpg.begin() + 2, app1.begin(), app1.end());
+    std::string why;
+    ASSERT_EQ(check_image_header(jpg, {96, 64}, why), HeaderCheck::ok) << why;
+    EXPECT_EQ(check_image_header(std::span(jpg).first(jpg.size() - 100), {96, 64}, why), HeaderCheck::unreadable);
+}
+
+TEST(ImageHeader, APngCutOffAnywhereAfterItsHeaderIsRefusedBeforeDecoding)
+{
+    const auto png = encode_image(".png", noise({96, 64}));
+    std::string why;
+    ASSERT_EQ(check_image_header(png, {96, 64}, why), HeaderCheck::ok) << why;
+    for (std::size_t cut = 33; cut < png.size(); ++cut) {   // after the signature and IHDR (8 + 25 bytes)
+        ASSERT_EQ(check_image_header(std::span(png).first(cut), {96, 64}, why), HeaderCheck::unreadable)
+            << "cut at " << cut;
+        ASSERT_EQ(why, "PNG cut off: its chunks end before the IEND chunk");
+    }
+}
+
+TEST(ImageHeader, LoadImageRefusesACutOffJpeg)
+{
+    const fs::path path = fs::temp_directory_path() / ("stemd-header-" + std::to_string(std::random_device{}()) + ".jpg");
+    const auto jpg = encode_image(".jpg", noise({96, 64}));
+    std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(jpg.data()),
+                                                static_cast<std::streamsize>(jpg.size() * 3 / 4));
+    cv::Mat out;
+    std::string error;
+    EXPECT_FALSE(load_image(path, cv::IMREAD_COLOR, out, error));
+    EXPECT_EQ(error, path.string() + ": cannot decode: JPEG cut off: its data ends before the end-of-image marker");
     EXPECT_TRUE(out.empty());
     fs::remove(path);
 }
