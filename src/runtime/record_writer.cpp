@@ -63,7 +63,16 @@ bool RecordWriter::write(std::size_t file, std::string_view line) noexcept
     f.queued.store(f.queued.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
     ring_.publish();
     queued_.store(queued_.load(std::memory_order_relaxed) + 1, std::memory_order_release);
+    wake();
     return true;
+}
+
+void RecordWriter::wake() noexcept
+{
+    // A futex wake only while the writer thread waits; otherwise an atomic
+    // add and a load.
+    wake_.fetch_add(1, std::memory_order_release);
+    wake_.notify_one();
 }
 
 bool RecordWriter::write_queued() noexcept
@@ -104,9 +113,16 @@ void RecordWriter::report_drops() noexcept
 
 void RecordWriter::run()
 {
-    while (!stop_.load(std::memory_order_acquire))
-        if (!write_queued())
-            base::sleep_for_ns(kIdleSleepNs);
+    for (;;) {
+        // Read before looking at the ring: a line published after this
+        // changes wake_, so the wait below returns at once.
+        const std::uint32_t seen = wake_.load(std::memory_order_acquire);
+        if (write_queued())
+            continue;
+        if (stop_.load(std::memory_order_acquire))
+            break;
+        wake_.wait(seen, std::memory_order_acquire);
+    }
     write_queued();
     finished_.store(true, std::memory_order_release);
 }
@@ -138,7 +154,7 @@ bool RecordWriter::flush(std::int64_t timeout_ns) noexcept
             }
             return false;
         }
-        base::sleep_for_ns(kIdleSleepNs / 4);
+        base::sleep_for_ns(kProgressPollNs);
     }
     return true;
 }
@@ -147,10 +163,11 @@ void RecordWriter::stop(std::int64_t stalled_wait_ns) noexcept
 {
     if (running()) {
         stop_.store(true, std::memory_order_release);
+        wake();
         if (stalled()) {
             const std::int64_t give_up_ns = base::monotonic_ns() + stalled_wait_ns;
             while (!finished_.load(std::memory_order_acquire) && base::monotonic_ns() < give_up_ns)
-                base::sleep_for_ns(kIdleSleepNs);
+                base::sleep_for_ns(kProgressPollNs);
             if (!finished_.load(std::memory_order_acquire))
                 return;   // still in a write(2): left alone
         }

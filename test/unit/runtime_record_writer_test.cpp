@@ -4,8 +4,10 @@
 #include "stemd/runtime/record_writer.hpp"
 
 #include <fcntl.h>
+#include <poll.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <fstream>
 #include <string>
@@ -58,6 +60,23 @@ struct UnreadPipe {
         if (read_fd >= 0)
             ::close(read_fd);
     }
+    // Reads until `bytes` came, nothing came for `quiet_ms`, or the writing
+    // side is closed.
+    std::string read_within(std::size_t bytes, int quiet_ms) const
+    {
+        std::string received;
+        char buffer[4096];
+        while (received.size() < bytes) {
+            pollfd p{.fd = read_fd, .events = POLLIN, .revents = 0};
+            if (::poll(&p, 1, quiet_ms) != 1)
+                break;
+            const ssize_t n = ::read(read_fd, buffer, std::min(sizeof buffer, bytes - received.size()));
+            if (n <= 0)
+                break;
+            received.append(buffer, static_cast<std::size_t>(n));
+        }
+        return received;
+    }
     // Reads until `bytes` came or the writing side is closed.
     std::string read(std::size_t bytes) const
     {
@@ -107,6 +126,29 @@ TEST_F(RecordWriterTest, LinesReachTheirOwnFileInOrder)
     EXPECT_EQ(writer.counters(ia).lost(), 0u);
     EXPECT_EQ(writer.counters(ib).lost(), 0u);
     EXPECT_EQ(log.text(), "") << "nothing failed, nothing to say";
+}
+
+TEST_F(RecordWriterTest, EachLineWakesTheWriterWithoutAFlush)
+{
+    // The writer thread sleeps while the ring is empty; every line must
+    // wake it, or a kill would lose lines queued long before it. The pipe
+    // is read as the lines come, with no flush() and no stop(): each one
+    // must arrive on its own, also after the writer went back to sleep.
+    UnreadPipe pipe;
+    ASSERT_GE(pipe.read_fd, 0);
+    stemd::test::CapturedLog log;
+    RecordWriter writer(16, log.logger);
+    const std::size_t id = writer.add(pipe.file, "pipe");
+    writer.start();
+    for (int i = 0; i < 20; ++i) {
+        const std::string line = numbered("w", i);
+        ASSERT_TRUE(writer.write(id, line));
+        // Far longer than a wake-up takes; without one, nothing comes.
+        ASSERT_EQ(pipe.read_within(line.size(), 10'000), line) << "line " << i << " was not written";
+    }
+    writer.flush();   // the last line is read; its count may lag by the writer's last instructions
+    EXPECT_EQ(writer.counters(id).written, 20u);
+    writer.stop();
 }
 
 TEST_F(RecordWriterTest, AFileThatStopsTakingLinesHoldsUpOnlyTheWriter)

@@ -7,8 +7,9 @@
 //
 // What that costs, and how it is bounded:
 //   - a kill (SIGKILL, a crash) can also lose the lines still in the ring:
-//     the writer looks at it at least every kIdleSleepNs (1 ms), so those
-//     are the last millisecond's, plus what a stalled disk held back;
+//     each line wakes the writer thread (a futex wake, only when it waits),
+//     so on a healthy disk those are the lines of the moment, the ones
+//     being written; on a stalled disk, what it held back;
 //   - a disk stalled for longer than the ring's capacity lasts loses lines:
 //     each is counted (dropped) per file and logged once, never half written;
 //   - a failed write (ENOSPC, EFBIG) is logged once per file with its errno
@@ -46,7 +47,8 @@ class RecordWriter {
 public:
     static constexpr std::size_t kLineBytes = 1024;   // longest line: the plant map's, under 768
     static constexpr std::size_t kMaxFiles = 4;
-    static constexpr std::int64_t kIdleSleepNs = 1'000'000;
+    // How often flush() and stop() look at the writer thread's progress.
+    static constexpr std::int64_t kProgressPollNs = 250'000;
     // How long closing a file waits for its last lines at the end of a run
     // (a healthy disk takes the whole ring in milliseconds).
     static constexpr std::int64_t kCloseTimeoutNs = 3'000'000'000;
@@ -121,6 +123,8 @@ private:
     };
 
     void run();
+    // Wakes the writer thread if it waits for lines.
+    void wake() noexcept;
     // Consumer: writes every queued line; false if there was none.
     bool write_queued() noexcept;
     void report_drops() noexcept;
@@ -131,6 +135,10 @@ private:
     std::size_t n_files_ = 0;
     std::atomic<std::uint64_t> queued_{0};   // lines published (producer)
     std::atomic<std::uint64_t> done_{0};     // lines written or failed (consumer)
+    // Changed at every line and at stop(); the writer thread waits on it
+    // when the ring is empty. 32 bits: std::atomic waits on it with a
+    // futex, not a mutex.
+    std::atomic<std::uint32_t> wake_{0};
     std::atomic<bool> stop_{false};
     std::atomic<bool> stalled_{false};
     std::atomic<bool> finished_{false};   // run() returned
