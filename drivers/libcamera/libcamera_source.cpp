@@ -560,12 +560,9 @@ NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
         meta->status != libcamera::FrameMetadata::FrameSuccess) {
         SourceCounterCells::bump(counters_.corrupt);
         watchdog_.failed_request();
-        if (std::uint64_t left_out = 0; skipped_log_.allow(dequeued_ns, left_out))
-            log_->warn("{}: request {} {} (frame status {}); skipped ({} more skipped frames not logged since the "
-                       "last warning)",
-                       name_, index,
-                       request->status() == libcamera::Request::RequestCancelled ? "cancelled" : "not complete",
-                       meta ? static_cast<int>(meta->status) : -1, left_out);
+        skipped_log_.warn(*log_, dequeued_ns, "{}: request {} {} (frame status {})", name_, index,
+                          request->status() == libcamera::Request::RequestCancelled ? "cancelled" : "not complete",
+                          meta ? static_cast<int>(meta->status) : -1);
         deliver = false;
     } else {
         watchdog_.frame(dequeued_ns);  // the camera delivers, whether or not the slot fits
@@ -574,19 +571,12 @@ NextStatus LibcameraSource::next(Frame& into, std::chrono::nanoseconds timeout)
                               options_.size, order_, into.bgr);
         if (copied == PlaneStatus::bad_size) {
             SourceCounterCells::bump(counters_.bad_size);
-            if (std::uint64_t left_out = 0; skipped_log_.allow(dequeued_ns, left_out))
-                log_->warn("{}: frame is {}x{}, the slot is {}x{} type {}; skipped ({} more skipped frames not "
-                           "logged since the last warning)",
-                           name_, options_.size.width, options_.size.height, into.bgr.cols, into.bgr.rows,
-                           into.bgr.type(), left_out);
+            skipped_log_.wrong_size(*log_, dequeued_ns, name_, options_.size, into.bgr);
             deliver = false;
         } else if (copied == PlaneStatus::corrupt) {
             SourceCounterCells::bump(counters_.corrupt);
-            if (std::uint64_t left_out = 0; skipped_log_.allow(dequeued_ns, left_out))
-                log_->warn("{}: frame {} has {} bytes, {}x{} at stride {} needs more; skipped ({} more skipped "
-                           "frames not logged since the last warning)",
-                           name_, meta->sequence, bytesused, options_.size.width, options_.size.height, m.stride,
-                           left_out);
+            skipped_log_.warn(*log_, dequeued_ns, "{}: frame {} has {} bytes, {}x{} at stride {} needs more", name_,
+                              meta->sequence, bytesused, options_.size.width, options_.size.height, m.stride);
             deliver = false;
         }
     }

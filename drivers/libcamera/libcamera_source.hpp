@@ -80,7 +80,7 @@
 
 #include "stemd/drivers/frame_source.hpp"
 #include "stemd/drivers/reopen_backoff.hpp"
-#include "stemd/base/log_throttle.hpp"
+#include "stemd/drivers/skipped_frame_log.hpp"
 
 namespace stemd::drivers {
 
@@ -226,7 +226,7 @@ private:
     std::unique_ptr<Impl> impl_;
     ReopenBackoff backoff_;
     StreamWatchdog watchdog_;
-    base::LogThrottle skipped_log_;   // failed, corrupt and wrong-size frames: one warning a second
+    SkippedFrameLog skipped_log_;   // failed, corrupt and wrong-size frames
     bool reopening_ = false;        // open_camera() runs as a reopen attempt
     bool wedged_ = false;           // a vanished camera libcamera cannot release (left as is)
     std::string attempt_error_;     // why the current reopen attempt failed

@@ -308,7 +308,7 @@ bool ReplaySource::read_file(const std::filesystem::path& path)
     std::string why;
     if (io::read_whole_file(path, io::kMaxImageFileBytes, file_buffer_, why))
         return true;
-    log_->warn("{}: {}", path.string(), why);
+    log_->warn("{}: {}; skipped", path.string(), why);
     return false;
 }
 

@@ -397,21 +397,15 @@ NextStatus V4l2Source::next(Frame& into, std::chrono::nanoseconds timeout)
     if ((buf.flags & V4L2_BUF_FLAG_ERROR) || buf.bytesused != sizeimage_ ||
         buf.bytesused > buffers_[buf.index].length()) {
         SourceCounterCells::bump(counters_.corrupt);
-        if (std::uint64_t left_out = 0; skipped_log_.allow(dequeued_ns, left_out))
-            log_->warn("{}: frame {} corrupt (flags {:#x}, {} of {} bytes); skipped ({} more skipped frames not "
-                       "logged since the last warning)",
-                       name_, buf.sequence, buf.flags, buf.bytesused, sizeimage_, left_out);
+        skipped_log_.warn(*log_, dequeued_ns, "{}: frame {} corrupt (flags {:#x}, {} of {} bytes)", name_,
+                          buf.sequence, buf.flags, buf.bytesused, sizeimage_);
         deliver = false;
     } else {
         const ConvertStatus converted = convert_to_bgr(buffers_[buf.index].bytes(), buf.bytesused, bytesperline_,
                                                        options_.size, options_.pixel_format, into.bgr);
         if (converted == ConvertStatus::bad_size) {
             SourceCounterCells::bump(counters_.bad_size);
-            if (std::uint64_t left_out = 0; skipped_log_.allow(dequeued_ns, left_out))
-                log_->warn("{}: frame is {}x{}, the slot is {}x{} type {}; skipped ({} more skipped frames not "
-                           "logged since the last warning)",
-                           name_, options_.size.width, options_.size.height, into.bgr.cols, into.bgr.rows,
-                           into.bgr.type(), left_out);
+            skipped_log_.wrong_size(*log_, dequeued_ns, name_, options_.size, into.bgr);
             deliver = false;
         } else if (converted == ConvertStatus::corrupt) {
             SourceCounterCells::bump(counters_.corrupt);

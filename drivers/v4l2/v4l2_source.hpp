@@ -49,7 +49,7 @@
 
 #include "stemd/drivers/frame_source.hpp"
 #include "stemd/drivers/reopen_backoff.hpp"
-#include "stemd/base/log_throttle.hpp"
+#include "stemd/drivers/skipped_frame_log.hpp"
 #include "stemd/base/unique_fd.hpp"
 #include "stemd/base/mapped_memory.hpp"
 
@@ -138,7 +138,7 @@ private:
     std::size_t sizeimage_ = 0;
     double granted_fps_ = 0;
     ReopenBackoff backoff_;
-    base::LogThrottle skipped_log_;   // corrupt and wrong-size frames: one warning a second
+    SkippedFrameLog skipped_log_;   // corrupt and wrong-size frames
 
     SourceCounterCells counters_;
 };
