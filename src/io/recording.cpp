@@ -286,13 +286,15 @@ std::optional<cv::Size> bmp_size(std::span<const unsigned char> b, std::string& 
     return std::nullopt;
 }
 
-std::optional<cv::Size> pnm_size(std::span<const unsigned char> b, std::string& why)
+// A PNM header's decimal fields after the magic ("P1".."P6"): width,
+// height and, but for the bitmaps (P1, P4), the maximum value, separated by
+// whitespace and '#' comments. `end` is where the last one ends; false when
+// one is missing or longer than ten digits.
+bool pnm_fields(std::span<const unsigned char> b, std::span<long long> values, std::size_t& end)
 {
-    // "P1".."P6", then width and height as decimals, separated by
-    // whitespace and '#' comments.
     std::size_t i = 2;
-    long long values[2] = {0, 0};
     for (long long& v : values) {
+        v = 0;
         while (i < b.size() && (std::isspace(b[i]) || b[i] == '#')) {
             if (b[i] == '#')
                 while (i < b.size() && b[i] != '\n')
@@ -303,16 +305,52 @@ std::optional<cv::Size> pnm_size(std::span<const unsigned char> b, std::string& 
         int digits = 0;
         for (; i < b.size() && std::isdigit(b[i]) && digits < 10; ++i, ++digits)
             v = v * 10 + (b[i] - '0');
-        if (digits == 0 || (i < b.size() && std::isdigit(b[i]))) {
-            why = "PNM without a readable header";
-            return std::nullopt;
-        }
+        if (digits == 0 || (i < b.size() && std::isdigit(b[i])))
+            return false;
+    }
+    end = i;
+    return true;
+}
+
+std::optional<cv::Size> pnm_size(std::span<const unsigned char> b, std::string& why)
+{
+    long long values[2] = {0, 0};
+    std::size_t end = 0;
+    if (!pnm_fields(b, values, end)) {
+        why = "PNM without a readable header";
+        return std::nullopt;
     }
     if (values[0] <= 0 || values[1] <= 0 || values[0] > 0x7fffffff || values[1] > 0x7fffffff) {
         why = "PNM header declares " + std::to_string(values[0]) + "x" + std::to_string(values[1]);
         return std::nullopt;
     }
     return cv::Size(static_cast<int>(values[0]), static_cast<int>(values[1]));
+}
+
+// Whether a binary PNM (P4, P5, P6) holds all the pixels its header
+// declares, which start after one whitespace byte past the header. A plain
+// (ASCII) PNM's length says nothing: true.
+bool pnm_complete(std::span<const unsigned char> b, cv::Size size)
+{
+    const unsigned char kind = b[1];
+    if (kind < '4')
+        return true;
+    long long values[3] = {0, 0, 0};
+    std::size_t end = 0;
+    if (!pnm_fields(b, std::span(values).first(kind == '4' ? 2 : 3), end))
+        return false;
+    const auto w = static_cast<std::uint64_t>(size.width), h = static_cast<std::uint64_t>(size.height);
+    const std::uint64_t sample_bytes = values[2] > 255 ? 2 : 1;
+    const std::uint64_t pixels_bytes = kind == '4' ? (w + 7) / 8 * h : w * h * sample_bytes * (kind == '6' ? 3 : 1);
+    return end + 1 <= b.size() && b.size() - end - 1 >= pixels_bytes;
+}
+
+// Whether a BMP is as long as its file header says (bfSize; 0 in some
+// writers' files, which then cannot be checked).
+bool bmp_complete(std::span<const unsigned char> b)
+{
+    const auto declared = static_cast<std::uint32_t>(little_endian(b.data() + 2, 4));
+    return declared == 0 || b.size() >= declared;
 }
 
 }  // namespace
@@ -344,13 +382,21 @@ HeaderCheck check_image_header(std::span<const unsigned char> bytes, cv::Size ex
                           : ", more than " + std::to_string(kMaxImageSidePx) + " px a side");
         return HeaderCheck::bad_size;
     }
-    const bool png = bytes[0] == 0x89, jpeg = bytes[0] == 0xFF;   // declared_image_size() told them apart
-    if (png && !png_complete(bytes)) {
+    // declared_image_size() told the formats apart by their first bytes.
+    if (bytes[0] == 0x89 && !png_complete(bytes)) {
         why = "PNG cut off: its chunks end before the IEND chunk";
         return HeaderCheck::unreadable;
     }
-    if (jpeg && !jpeg_complete(bytes)) {
+    if (bytes[0] == 0xFF && !jpeg_complete(bytes)) {
         why = "JPEG cut off: its data ends before the end-of-image marker";
+        return HeaderCheck::unreadable;
+    }
+    if (bytes[0] == 'B' && !bmp_complete(bytes)) {
+        why = "BMP cut off: shorter than its header says";
+        return HeaderCheck::unreadable;
+    }
+    if (bytes[0] == 'P' && !pnm_complete(bytes, *size)) {
+        why = "PNM cut off: fewer pixels than its header declares";
         return HeaderCheck::unreadable;
     }
     return HeaderCheck::ok;

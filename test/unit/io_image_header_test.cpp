@@ -11,6 +11,7 @@
 #include <vector>
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "forged_png.hpp"
@@ -203,4 +204,36 @@ TEST(ImageHeader, LoadImageRefusesACutOffJpeg)
     EXPECT_EQ(error, path.string() + ": cannot decode: JPEG cut off: its data ends before the end-of-image marker");
     EXPECT_TRUE(out.empty());
     fs::remove(path);
+}
+
+TEST(ImageHeader, ABmpOrBinaryPnmCutOffAfterItsHeaderIsRefusedBeforeDecoding)
+{
+    const cv::Mat colour = noise({37, 21});
+    cv::Mat grey;
+    cv::extractChannel(colour, grey, 1);
+    const struct {
+        const char* ext;
+        const cv::Mat& image;
+        std::size_t header_bytes;
+        const char* why;
+    } cases[] = {{".bmp", colour, 54, "BMP cut off: shorter than its header says"},
+                 {".ppm", colour, 15, "PNM cut off: fewer pixels than its header declares"},
+                 {".pgm", grey, 15, "PNM cut off: fewer pixels than its header declares"}};
+    for (const auto& c : cases) {
+        SCOPED_TRACE(c.ext);
+        const auto bytes = encode_image(c.ext, c.image);
+        std::string why;
+        ASSERT_EQ(check_image_header(bytes, {37, 21}, why), HeaderCheck::ok) << why;
+        for (std::size_t cut = c.header_bytes; cut < bytes.size(); ++cut) {
+            ASSERT_EQ(check_image_header(std::span(bytes).first(cut), {37, 21}, why), HeaderCheck::unreadable)
+                << "cut at " << cut << " of " << bytes.size();
+            ASSERT_EQ(why, c.why);
+        }
+    }
+    // 16-bit samples take two bytes each.
+    const std::string pgm16 = "P5 2 1 65535\n" + std::string(4, '\x7f');
+    const std::span<const unsigned char> whole(reinterpret_cast<const unsigned char*>(pgm16.data()), pgm16.size());
+    std::string why;
+    EXPECT_EQ(check_image_header(whole, {}, why), HeaderCheck::ok) << why;
+    EXPECT_EQ(check_image_header(whole.first(whole.size() - 1), {}, why), HeaderCheck::unreadable);
 }

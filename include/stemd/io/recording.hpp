@@ -93,10 +93,11 @@ enum class HeaderCheck : std::uint8_t { ok, unreadable, bad_size };
 // Checks an encoded image before it is decoded: its declared size must be
 // `expected` (when not empty), and no side may exceed kMaxImageSidePx, so a
 // small file declaring a huge image is refused before it allocates
-// (bad_size). A PNG must run whole to its IEND chunk and a JPEG to its
-// end-of-image marker (else unreadable): libjpeg would decode a cut-off
-// JPEG without failing, its missing rows grey. `why` says what is wrong
-// (without the path).
+// (bad_size). A PNG must run whole to its IEND chunk, a JPEG to its
+// end-of-image marker, a BMP or binary PNM to the length its header gives
+// (else unreadable): libjpeg would decode a cut-off JPEG without failing,
+// its missing rows grey, and the other decoders fail only after printing
+// their own line on stderr. `why` says what is wrong (without the path).
 HeaderCheck check_image_header(std::span<const unsigned char> bytes, cv::Size expected, std::string& why);
 
 // The largest image file any reader reads: kMaxImageSidePx a side at eight
