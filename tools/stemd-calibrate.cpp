@@ -21,6 +21,7 @@
 #include "stemd/config/config.hpp"
 #include "stemd/geometry/calibration.hpp"
 #include "stemd/geometry/camera_model.hpp"
+#include "stemd/io/recording.hpp"
 #include "tool_cli.hpp"
 
 namespace fs = std::filesystem;
@@ -61,15 +62,13 @@ geometry::Board board_of(const std::string& board_text, double square_mm)
     return board;
 }
 
+// Through the readers' one checked loader: the size in the header, a file
+// cut off, errno.
 cv::Mat read_image(const std::string& path)
 {
     cv::Mat image;
-    try {
-        image = cv::imread(path, cv::IMREAD_GRAYSCALE);
-    } catch (const cv::Exception&) {
-    }
-    if (image.empty())
-        throw UsageError{path + ": cannot read the image"};
+    if (std::string error; !io::load_image(path, cv::IMREAD_GRAYSCALE, image, error))
+        throw UsageError{error};
     return image;
 }
 

@@ -80,8 +80,11 @@ expect_usage "no subcommand" "subcommand"
 expect_usage "bad board" "expected WxH" intrinsics --board 9 --square-mm 25 --out "$tmp/x.yaml" "$tmp/img/view_00.png"
 expect_usage "missing --square-mm" "square-mm" intrinsics --board 9x6 --out "$tmp/x.yaml" "$tmp/img/view_00.png"
 expect_usage "negative square" "square" intrinsics --board 9x6 --square-mm -2 --out "$tmp/x.yaml" "$tmp/img/view_00.png"
-expect_usage "unreadable image" "nope.png: cannot read the image" intrinsics --board 9x6 --square-mm 25 \
-  --out "$tmp/x.yaml" "$tmp/nope.png"
+expect_usage "unreadable image" "nope.png: cannot open: No such file or directory" intrinsics --board 9x6 \
+  --square-mm 25 --out "$tmp/x.yaml" "$tmp/nope.png"
+head -c 2000 "$tmp/img/view_00.png" > "$tmp/cut.png"
+expect_usage "cut-off image" "cut.png: cannot decode: PNG cut off" intrinsics --board 9x6 --square-mm 25 \
+  --out "$tmp/x.yaml" "$tmp/cut.png"
 expect_usage "unknown option" "--frobnicate" ground --board 11x8 --square-mm 25 --calibration "$tmp/camera.yaml" \
   --board-x-mm 0 --board-y-mm 0 --out "$tmp/f.yaml" --frobnicate "$tmp/img/ground.png"
 expect_usage "missing calibration" "missing.yaml" ground --board 11x8 --square-mm 25 --calibration "$tmp/missing.yaml" \
