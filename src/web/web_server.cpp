@@ -20,6 +20,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "stemd/base/clock.hpp"
+#include "stemd/base/log_throttle.hpp"
 #include "stemd/viz/overlay.hpp"
 #include "stemd/web/web_control.hpp"
 #include "stemd/web/web_json.hpp"
@@ -34,6 +35,15 @@ constexpr std::size_t kMaxTargetBytes = 2048;
 constexpr std::size_t kMaxHeaderCount = 64;
 constexpr int kNice = 10;
 constexpr int kWorkers = 2;
+// Accepted connections waiting for a worker. Each holds a descriptor, and
+// the descriptors are the process's: a camera's reopen, the CAN socket, the
+// replay's next frame and the output files need theirs. Beyond this many,
+// the listening thread serves the next connection itself and accepts no
+// other meanwhile; further clients wait in the kernel's listen backlog,
+// holding none of ours. The view then uses at most kWorkers +
+// kMaxWaitingConnections + 2 descriptors (the listening socket and the
+// connection served on it), whatever a client or a scanner does.
+constexpr std::size_t kMaxWaitingConnections = 16;
 
 // The server's threads run at nice 10 under SCHED_OTHER: on two cores the
 // real-time threads (and the rest of the machine) come first. Linux applies
@@ -47,7 +57,7 @@ void lower_priority(const char* name)
 // httplib's request queue, on threads this server starts and names.
 class WorkerQueue : public httplib::TaskQueue {
 public:
-    WorkerQueue(int threads, void (*thread_start)())
+    WorkerQueue(int threads, void (*thread_start)(), spdlog::logger& log) : log_(log)
     {
         for (int i = 0; i < threads; ++i)
             threads_.emplace_back([this, thread_start] {
@@ -57,13 +67,25 @@ public:
                 run();
             });
     }
+    // On the listening thread, once per accepted connection.
     void enqueue(std::function<void()> fn) override
     {
         {
             std::lock_guard lock(mutex_);
-            jobs_.push_back(std::move(fn));
+            if (jobs_.size() < kMaxWaitingConnections) {
+                jobs_.push_back(std::move(fn));
+                fn = nullptr;
+            }
         }
-        wake_.notify_one();
+        if (fn == nullptr) {
+            wake_.notify_one();
+            return;
+        }
+        if (std::uint64_t left_out = 0; full_log_.allow(base::monotonic_ns(), left_out))
+            log_.warn("web view: {} connections wait for its {} workers; new ones wait in the kernel until one is "
+                      "served ({} more times since the last warning)",
+                      kMaxWaitingConnections, kWorkers, left_out);
+        fn();
     }
     void shutdown() override
     {
@@ -92,6 +114,8 @@ private:
             job();
         }
     }
+    spdlog::logger& log_;
+    base::LogThrottle full_log_{60'000'000'000};   // the listening thread's
     std::mutex mutex_;
     std::condition_variable wake_;
     std::deque<std::function<void()>> jobs_;
@@ -440,7 +464,7 @@ struct WebServer::Impl {
         server.set_write_timeout(5, 0);
         server.set_keep_alive_timeout(2);
         server.set_keep_alive_max_count(100);
-        server.new_task_queue = [this] { return new WorkerQueue(kWorkers, thread_start); };
+        server.new_task_queue = [this] { return new WorkerQueue(kWorkers, thread_start, *log); };
         server.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
             requests.fetch_add(1, std::memory_order_relaxed);
             if (req.target.size() > kMaxTargetBytes) {
