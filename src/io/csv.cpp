@@ -65,7 +65,10 @@ std::optional<CsvTable> read_csv(const std::filesystem::path& path, std::string&
     const base::WholeFileResult read = base::read_whole_file(path.c_str(), kMaxCsvBytes, text);
     switch (read.status) {
     case base::WholeFileStatus::ok: break;
-    case base::WholeFileStatus::cannot_open: error = path.string() + ": cannot open"; return std::nullopt;
+    case base::WholeFileStatus::cannot_open:
+        error = path.string() + ": cannot open: " + std::strerror(read.error_number) + " (errno " +
+                std::to_string(read.error_number) + ")";
+        return std::nullopt;
     case base::WholeFileStatus::cannot_stat:
     case base::WholeFileStatus::read_error:
         error = path.string() + ": cannot read: " + std::strerror(read.error_number);

@@ -89,8 +89,8 @@ done
 if grep -qi nan "$tmp/out"; then fail "NaN in summary"; fi
 
 # --- errors ----------------------------------------------------------------------
-expect_error "stemd-eval: $tmp/missing.csv: cannot open" "$tmp/stems.csv" "$tmp/missing.csv"
-expect_error "stemd-eval: $tmp/missing.csv: cannot open" "$tmp/missing.csv" "$tmp/pred.csv" --json
+expect_error "stemd-eval: $tmp/missing.csv: cannot open: No such file or directory (errno 2)" "$tmp/stems.csv" "$tmp/missing.csv"
+expect_error "stemd-eval: $tmp/missing.csv: cannot open: No such file or directory (errno 2)" "$tmp/missing.csv" "$tmp/pred.csv" --json
 for bad in 0 -1 abc nan inf 5mm ""; do
   expect_error "stemd-eval: --tol-mm: '$bad' is not a number > 0 (see stemd-eval --help)" \
     "$tmp/stems.csv" "$tmp/pred.csv" --tol-mm "$bad"

@@ -310,7 +310,7 @@ TEST_F(EvalRead, WrongFieldCountAndMissingFile)
     EXPECT_EQ(error.rfind(path.string() + ":2: ", 0), 0u) << error;
 
     EXPECT_FALSE(read_stem_points(dir_ / "missing.csv", error));
-    EXPECT_EQ(error, (dir_ / "missing.csv").string() + ": cannot open");
+    EXPECT_EQ(error, (dir_ / "missing.csv").string() + ": cannot open: No such file or directory (errno 2)");
 }
 
 // --- mask_iou ----------------------------------------------------------------

@@ -141,7 +141,7 @@ TEST_F(RecordingTest, AFramesCsvThatIsNoFileIsRefusedAtOnce)
     EXPECT_EQ(error_, csv.string() + ": not a regular file");
     fs::remove(csv);
     EXPECT_FALSE(read_recording(dir_, error_));
-    EXPECT_EQ(error_, csv.string() + ": cannot open");
+    EXPECT_EQ(error_, csv.string() + ": cannot open: No such file or directory (errno 2)");
     // Lines end in \n or \r\n, the last one may have neither, blank ones
     // are skipped, and errors name the file's own line.
     std::ofstream(csv, std::ios::binary) << "t_ns,rgb,nir,mask\r\n\n0,a.png,,\r\n  \n1000,b.png,,";
