@@ -34,11 +34,6 @@ std::size_t csv_field(std::string_view value, char* out, std::size_t capacity)
 
 DetectionSink::DetectionSink(std::shared_ptr<spdlog::logger> log) : log_(log), csv_("detections CSV", log) {}
 
-DetectionSink::~DetectionSink()
-{
-    close();
-}
-
 bool DetectionSink::open_csv(const std::filesystem::path& path)
 {
     return csv_.open(path, std::string(kCsvHeader) + "\n");

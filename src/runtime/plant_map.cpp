@@ -76,11 +76,6 @@ std::string_view to_string(MapReason r)
 
 PlantMap::PlantMap(std::shared_ptr<spdlog::logger> log) : file_("plant map", std::move(log)) {}
 
-PlantMap::~PlantMap()
-{
-    close();
-}
-
 bool PlantMap::open(const std::filesystem::path& path)
 {
     return file_.open(path);

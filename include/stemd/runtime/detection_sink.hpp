@@ -41,7 +41,6 @@ struct FrameResult {
 class DetectionSink {
 public:
     explicit DetectionSink(std::shared_ptr<spdlog::logger> log);
-    ~DetectionSink();
     DetectionSink(const DetectionSink&) = delete;
     DetectionSink& operator=(const DetectionSink&) = delete;
 

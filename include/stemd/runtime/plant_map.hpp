@@ -84,7 +84,6 @@ struct MapEntry {
 class PlantMap {
 public:
     explicit PlantMap(std::shared_ptr<spdlog::logger> log);
-    ~PlantMap();
     PlantMap(const PlantMap&) = delete;
     PlantMap& operator=(const PlantMap&) = delete;
 

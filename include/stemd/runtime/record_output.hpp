@@ -35,7 +35,6 @@ public:
     // not empty); false, logged with the path and errno, if it cannot.
     bool open(const std::filesystem::path& path, std::string_view header = {});
     bool is_open() const { return file_.is_open(); }
-    const std::filesystem::path& path() const { return path_; }
 
     // After open(): lines go through `writer`, which must outlive close().
     void attach(RecordWriter& writer);
