@@ -18,7 +18,11 @@
 // its recording once. nir/ and mask/ are written when the source fills those
 // planes (replay of a recording that has them, with segment.method ndvi/mask);
 // the odom_mm and class columns (class/NNNNNN.png) when the replayed
-// recording has them.
+// recording has them. With odometry.source can, odom_mm is the drive's
+// odometer at each capture, from the ODOMETRY frames on can.interface
+// (runtime::OdometerTap, on a thread of its own); the writer thread asks
+// for it, so waiting for the sample after a capture never holds up the
+// capture loop.
 //
 // Exit: 0 after N frames, S seconds, SIGINT/SIGTERM or the end of a replayed
 // recording; 1 when the source or the disk fails; 2 on bad arguments or
@@ -32,6 +36,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -41,6 +46,7 @@
 
 #include "stemd/drivers/frame_source.hpp"
 #include "stemd/config/config.hpp"
+#include "stemd/runtime/actuation_factory.hpp"
 #include "stemd/runtime/daemon_config.hpp"
 #include "stemd/runtime/frame_pool.hpp"
 #include "stemd/runtime/logging.hpp"
@@ -153,6 +159,21 @@ io::FrameToWrite to_write(const drivers::Frame& frame)
             .plant_class = frame.has_class_map ? frame.plant_class : cv::Mat()};
 }
 
+// The odometer at a frame's capture from the drive's ODOMETRY, waiting a
+// millisecond at a time for the sample after it (the tap bounds the wait);
+// NaN when it cannot be known, an empty odom_mm cell.
+double odometer_at_capture(runtime::OdometerTap& odometer, std::int64_t t_sample_ns)
+{
+    for (;;) {
+        double odom_mm = 0;
+        switch (odometer.odometer_at(t_sample_ns, base::monotonic_ns(), odom_mm)) {
+        case runtime::OdometerTap::Reading::known: return odom_mm;
+        case runtime::OdometerTap::Reading::unknown: return std::numeric_limits<double>::quiet_NaN();
+        case runtime::OdometerTap::Reading::wait: std::this_thread::sleep_for(1ms); break;
+        }
+    }
+}
+
 }  // namespace
 
 int main(int argc, char** argv)
@@ -183,6 +204,21 @@ int main(int argc, char** argv)
     io::RecordingColumns columns;
     if (daemon_config.source_kind == "replay")
         columns = replayed_columns(daemon_config.replay_dir);
+    // The drive's odometer, recorded with each frame so that the recording
+    // replays with the distance really travelled.
+    const runtime::ActuationConfig& actuation = config.settings().actuation;
+    std::unique_ptr<runtime::OdometerTap> odometer;
+    if (actuation.odometry == runtime::OdometrySource::can) {
+        odometer = runtime::make_odometer_tap(actuation, error);
+        if (!odometer) {
+            std::cerr << "stemd-record: " << config.blame("odometry.source", "can: " + error) << "\n";
+            return kUsageError;
+        }
+        columns.odom_mm = true;
+    } else if (actuation.odometry == runtime::OdometrySource::encoder) {
+        std::cerr << "stemd-record: odometry.source encoder: the wheel encoder is not recorded (only CAN ODOMETRY "
+                     "is); the recording has no odom_mm from it\n";
+    }
     columns.nir = vision::uses_nir(planes);
     columns.mask = planes == vision::Segmentation::mask;
     // Level 1: lossless like every level, and fast enough to keep up with a camera.
@@ -218,6 +254,11 @@ int main(int argc, char** argv)
         return 1;
     const bool can_wait = !source->realtime();
     log->info("recording {} into {}", source->name(), out.string());
+    if (odometer) {
+        odometer->start();
+        log->info("odometer: ODOMETRY frames on {}", odometer->bus_name());
+    }
+    std::uint64_t without_odometer = 0;   // the writer's
 
     std::atomic<bool> capture_done{false};
     std::atomic<bool> writer_failed{false};
@@ -233,6 +274,10 @@ int main(int argc, char** argv)
                     std::this_thread::sleep_for(1ms);
                     continue;
                 }
+            }
+            if (odometer) {
+                frame->odom_mm = odometer_at_capture(*odometer, frame->t_sample_ns);
+                without_odometer += std::isnan(frame->odom_mm) ? 1 : 0;
             }
             std::string write_error;
             const bool ok = writer.append(to_write(*frame), write_error);
@@ -297,6 +342,13 @@ int main(int argc, char** argv)
     capture_done.store(true, std::memory_order_release);
     writer_thread.join();
     source->stop();
+    if (odometer) {
+        odometer->stop();
+        const runtime::OdometerTapCounters o = odometer->counters();
+        log->info("odometer: {} frames without a reading; ODOMETRY: {} taken, {} rejected, {} going backwards, {} "
+                  "dropped",
+                  without_odometer, o.samples, o.rejected, o.backwards, o.dropped);
+    }
     if (writer_failed.load(std::memory_order_acquire))
         exit_code = 1;
 

@@ -24,6 +24,7 @@
 #include "socketcan/socketcan_bus.hpp"
 #include "stemd/actuation/tool_simulator.hpp"
 #include "stemd/base/clock.hpp"
+#include "stemd/geometry/odometry.hpp"
 #include "stemd/protocol/e2e.hpp"
 #include "stemd/protocol/messages.hpp"
 #include "stemd/runtime/logging.hpp"
@@ -90,7 +91,7 @@ int main(int argc, char** argv)
     bool have_odometry = drive;
     double odom_at_rx = 0, speed = drive ? speed_mm_per_s : 0;
     std::int64_t t_odom_rx = t0;
-    std::uint32_t last_raw = 0;
+    geometry::OdometerUnwrap unwrap;
 
     const auto odometer_at = [&](std::int64_t t_ns) {
         return odom_at_rx + speed * static_cast<double>(t_ns - t_odom_rx) / 1e9;
@@ -103,24 +104,19 @@ int main(int argc, char** argv)
         const bool got = bus.receive(frame, 1'000'000, t_rx);
         const std::int64_t now = base::monotonic_ns();
         if (got) {
-            const std::span<const std::uint8_t, 8> data(frame.data.data(), 8);
             const auto kind = ids.kind_of(frame);
             if (kind == protocol::MessageKind::Target) {
                 protocol::TargetCommand t;
-                if (!protocol::e2e_accepted(target_checker.check(data)) || !protocol::decode(frame, ids, t))
+                if (!protocol::decode_checked(frame, target_checker, ids, t))
                     ++rejected;
                 else if (have_odometry)
                     sim.command(t, odometer_at(t_rx));
             } else if (kind == protocol::MessageKind::Odometry && !drive) {
                 protocol::Odometry o;
-                if (!protocol::e2e_accepted(odometry_checker.check(data)) || !protocol::decode(frame, ids, o)) {
+                if (!protocol::decode_checked(frame, odometry_checker, ids, o)) {
                     ++rejected;
                 } else {
-                    // Unwrap the 32-bit odometer.
-                    odom_at_rx = have_odometry ? odom_at_rx + static_cast<double>(
-                                                                 static_cast<std::int32_t>(o.odom_mm - last_raw))
-                                               : static_cast<double>(o.odom_mm);
-                    last_raw = o.odom_mm;
+                    odom_at_rx = unwrap.add(o.odom_mm);
                     speed = o.speed_mm_per_s;
                     t_odom_rx = t_rx;
                     have_odometry = true;

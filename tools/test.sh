@@ -48,7 +48,7 @@ if [ "${STEMD_TEST_SKIP_SANITIZE:-0}" != 1 ]; then
   cmake --build build/tsan -j "$jobs" --target stemd-runtime-tests stemd-drivers-tests
   step "TSan tests"
   TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$PWD/tools/tsan.supp" \
-    ctest --test-dir build/tsan --output-on-failure -j "$jobs" -L unit -R '^(SpscRing|TripleBuffer|Daemon|ReplayTest|ClassSlotTable|SocketClassProvider|StartupPriority|RecordWriterTest|RecordOutputTest|LiveFeed)'
+    ctest --test-dir build/tsan --output-on-failure -j "$jobs" -L unit -R '^(SpscRing|TripleBuffer|Daemon|ReplayTest|ClassSlotTable|SocketClassProvider|StartupPriority|RecordWriterTest|RecordOutputTest|LiveFeed|OdometerTapTest)'
 fi
 # --- libFuzzer: every parser of outside input (test/fuzz) -------------------
 # clang with ASan+UBSan; each fuzzer runs a fixed number of inputs from a

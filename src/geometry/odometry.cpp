@@ -101,7 +101,7 @@ OdomQuery OdometryRing::odom_at(std::int64_t t_ns) const noexcept
     const OdomSample& a = at(lo);
     const OdomSample& b = at(hi);
     const double f = static_cast<double>(t_ns - a.t_ns) / static_cast<double>(b.t_ns - a.t_ns);
-    return {OdomStatus::ok, a.odom_mm + f * (b.odom_mm - a.odom_mm)};
+    return {OdomStatus::ok, a.odom_mm + f * (b.odom_mm - a.odom_mm), b.t_ns - a.t_ns};
 }
 
 }  // namespace stemd::geometry

@@ -69,4 +69,27 @@ std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, co
     return ActuationStage::make(config, camera, frame_size, std::move(parts), log, error);
 }
 
+std::unique_ptr<OdometerTap> make_odometer_tap(const ActuationConfig& config, std::string& error)
+{
+    if (config.can_interface.empty()) {
+        error = "can.interface is none, and ODOMETRY frames need a CAN interface";
+        return nullptr;
+    }
+    const auto ids = protocol::CanIds::make(config.can_base_id);
+    if (!ids) {
+        error = "can.base_id " + std::to_string(config.can_base_id) + " is too large";
+        return nullptr;
+    }
+    const auto log = make_logger("odometer");
+    drivers::CanBusSpec can;
+    can.interface = config.can_interface;
+    can.rx_ids = {ids->id(protocol::MessageKind::Odometry)};
+    auto bus = drivers::make_can_bus(can, make_logger, *log, error);
+    if (!bus)
+        return nullptr;
+    return std::make_unique<OdometerTap>(std::move(bus), *ids,
+                                         OdometerTapParams{.timeout_ns = config.odometry_timeout_ns,
+                                                           .max_extrapolation_ns = config.max_extrapolation_ns});
+}
+
 }  // namespace stemd::runtime

@@ -1,7 +1,5 @@
 #include "stemd/runtime/can_link.hpp"
 
-#include <span>
-
 #include "stemd/runtime/status.hpp"
 
 namespace stemd::runtime {
@@ -72,8 +70,7 @@ void CanLink::receive() noexcept
 template <typename Message>
 bool CanLink::accepted(const protocol::CanFrame& frame, protocol::E2eChecker& checker, Message& out) noexcept
 {
-    const std::span<const std::uint8_t, 8> data(frame.data.data(), 8);
-    if (frame.dlc != 8 || !protocol::e2e_accepted(checker.check(data)) || !protocol::decode(frame, ids_, out)) {
+    if (!protocol::decode_checked(frame, checker, ids_, out)) {
         bump(counters_.rx_rejected);
         return false;
     }

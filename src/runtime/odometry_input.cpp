@@ -71,15 +71,7 @@ void OdometryInput::add_can(std::int64_t t_rx_ns, std::uint32_t odom_raw_mm) noe
 {
     if (source_ != OdometrySource::can)
         return;
-    // Unwrap the 32-bit odometer.
-    if (!have_can_odom_) {
-        can_odom_mm_ = odom_raw_mm;
-        have_can_odom_ = true;
-    } else {
-        can_odom_mm_ += static_cast<double>(static_cast<std::int32_t>(odom_raw_mm - last_can_odom_raw_mm_));
-    }
-    last_can_odom_raw_mm_ = odom_raw_mm;
-    push({t_rx_ns, can_odom_mm_});
+    push({t_rx_ns, can_odom_.add(odom_raw_mm)});
 }
 
 bool OdometryInput::odometer_at(std::int64_t t_ns, double& odom_mm) const noexcept

@@ -754,6 +754,52 @@ check_toolsim() {
 }
 extra_checks="$extra_checks toolsim"
 
+# --- record_odometry: stemd-record writes the drive's odometer from CAN ---
+# KEYs record (stemd-record), synth (stemd-synth), toolsim. stemd-toolsim is
+# the drive, at 1400 mm/s on vcan0 (ODOMETRY every 10 ms, from odometer 0);
+# stemd-record records a paced synthetic replay (20 frames at 10 fps) with
+# odometry.source can. Every frame must carry odom_mm, and from frame to
+# frame it must grow by 1400 mm/s times the step of t_ns: within 30 mm,
+# the travel of one ODOMETRY period and a margin for the emulated guest's
+# scheduling (the reading is interpolated between the samples around each
+# capture, stamped by the kernel on receipt).
+record=$(value_of record "$@")
+check_record_odometry() {
+  [ -n "$record" ] && [ -n "$synth" ] && [ -n "$toolsim" ] || skip "stemd-record, stemd-synth or stemd-toolsim not built"
+  vcan_up
+  rec=$out/record-odometry-in
+  got=$out/record-odometry-out
+  rm -rf "/host$rec" "/host$got"
+  hostrun "$synth" --out "$rec" --preset early --frames 20 --fps 10 --width 320 --height 240 > /dev/null ||
+    die "stemd-synth"
+  candump_start /tmp/record.candump /tmp/record.candump.err
+  hostrun "$toolsim" --interface vcan0 --speed-mm-per-s 1400 --duration-s 120 > /tmp/record_toolsim.out 2>&1 &
+  sim=$!
+  within 60 grep -q ' vcan0 300#' /tmp/record.candump || { kill $sim $dump; die "no ODOMETRY from stemd-toolsim"; }
+  kill -INT $dump; wait $dump
+  hostrun "$record" --replay "$rec" --out "$got" --set odometry.source=can --set can.interface=vcan0 \
+    --set source.width_px=320 --set source.height_px=240 > /tmp/record.out 2>&1
+  rc=$?
+  kill $sim; wait $sim
+  cat /tmp/record.out
+  [ $rc = 0 ] || die "stemd-record exited $rc"
+  grep -q 'odometer: 0 frames without a reading' /tmp/record.out || die "frames without an odometer reading"
+  head -n 4 "/host$got/frames.csv"
+  awk -F, 'NR == 1 { for (i = 1; i <= NF; ++i) if ($i == "odom_mm") c = i; next }
+    {
+      if (c == 0 || $c == "") { print "row " NR ": no odom_mm"; bad = 1; next }
+      if (n > 0) {
+        want = 1400 * ($1 - t) / 1e9; step = $c - o
+        printf "row %d: %.1f mm in %.1f ms (%.1f expected)\n", NR, step, ($1 - t) / 1e6, want
+        if (step - want > 30 || want - step > 30) bad = 1
+      }
+      t = $1; o = $c; ++n
+    }
+    END { if (n != 20) { print n " rows, not 20"; bad = 1 } exit bad }' "/host$got/frames.csv" ||
+    die "odom_mm does not follow the drive's 1400 mm/s"
+}
+extra_checks="$extra_checks record_odometry"
+
 # --- watchdog: systemd restarts a stemd whose processing thread is stuck ---
 # KEYs watchdog (the stemd binary) and synth (stemd-synth). The host's own
 # systemd runs as PID 1 of a PID and mount namespace chrooted into the host

@@ -37,6 +37,9 @@ struct OdomQuery {
     // ok/extrapolated: the odometer at the time asked for. stale: the newest
     // sample's; before_history: the oldest sample's; empty: 0.
     double odom_mm = 0;
+    // ok: how far apart the two samples it lies between are (0 at the
+    // newest), so that a caller can refuse to bridge a silence.
+    std::int64_t gap_ns = 0;
 };
 
 struct OdometryParams {
@@ -83,6 +86,28 @@ private:
     std::size_t size_ = 0;
     std::uint64_t rejected_ = 0;
     std::uint64_t overwritten_ = 0;
+};
+
+// A drive's 32-bit odometer (mm, wrapping at 2^32, as ODOMETRY carries it)
+// as a running total: each reading adds its step from the last one, taken
+// the shorter way round, so a wrap is not a jump of 4000 km and a machine
+// reversing counts down. The first reading is taken as it is.
+class OdometerUnwrap {
+public:
+    double add(std::uint32_t raw_mm) noexcept
+    {
+        total_mm_ = have_ ? total_mm_ + static_cast<double>(static_cast<std::int32_t>(raw_mm - last_raw_mm_))
+                          : static_cast<double>(raw_mm);
+        have_ = true;
+        last_raw_mm_ = raw_mm;
+        return total_mm_;
+    }
+    bool started() const { return have_; }
+
+private:
+    bool have_ = false;
+    std::uint32_t last_raw_mm_ = 0;
+    double total_mm_ = 0;
 };
 
 // An odometer moving at constant speed: for replays without odometry, the

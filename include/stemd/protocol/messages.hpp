@@ -87,6 +87,7 @@
 
 #include "stemd/base/plant_class.hpp"
 #include "stemd/protocol/can_frame.hpp"
+#include "stemd/protocol/e2e.hpp"
 
 namespace stemd::protocol {
 
@@ -285,5 +286,16 @@ CodecResult decode(const CanFrame& frame, const CanIds& ids, TargetCommand& out)
 CodecResult decode(const CanFrame& frame, const CanIds& ids, ToolStatus& out);
 CodecResult decode(const CanFrame& frame, const CanIds& ids, Heartbeat& out);
 CodecResult decode(const CanFrame& frame, const CanIds& ids, ToolFired& out);
+
+// A received frame taken as `Message` only if it has 8 bytes, `checker`
+// (the receiver's for this message's stream, which counts every outcome)
+// accepts its counter and CRC, and it decodes. What every receiver of
+// stemd's messages does with each frame.
+template <typename Message>
+bool decode_checked(const CanFrame& frame, E2eChecker& checker, const CanIds& ids, Message& out)
+{
+    const std::span<const std::uint8_t, 8> data(frame.data.data(), 8);
+    return frame.dlc == 8 && e2e_accepted(checker.check(data)) && static_cast<bool>(decode(frame, ids, out));
+}
 
 }  // namespace stemd::protocol

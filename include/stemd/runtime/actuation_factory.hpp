@@ -13,6 +13,7 @@
 #include "stemd/geometry/camera_model.hpp"
 #include "stemd/runtime/actuation_config.hpp"
 #include "stemd/runtime/actuation_stage.hpp"
+#include "stemd/runtime/odometer_tap.hpp"
 
 namespace stemd::runtime {
 
@@ -21,5 +22,12 @@ namespace stemd::runtime {
 // interface that is down is not an error: the bus reopens it with backoff.
 std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, const geometry::CameraModel& camera,
                                                cv::Size frame_size, std::string& error);
+
+// The drive's odometer from ODOMETRY frames on can.interface, for a program
+// that records without actuating (not started). nullptr with `error` set
+// when the configuration has no interface (odometry.source can needs one) or
+// the identifiers do not fit. A SocketCAN interface that is down is not an
+// error: the bus reopens it with backoff.
+std::unique_ptr<OdometerTap> make_odometer_tap(const ActuationConfig& config, std::string& error);
 
 }  // namespace stemd::runtime

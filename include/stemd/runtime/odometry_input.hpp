@@ -44,9 +44,7 @@ private:
     geometry::OdometryRing ring_;
     std::int64_t constant_t0_ns_ = -1;
     bool constant_now_ = false;       // the last frame's odometer came from the constant speed
-    bool have_can_odom_ = false;
-    std::uint32_t last_can_odom_raw_mm_ = 0;
-    double can_odom_mm_ = 0;          // unwrapped
+    geometry::OdometerUnwrap can_odom_;
 };
 
 }  // namespace stemd::runtime
