@@ -18,9 +18,10 @@
 // its recording once. nir/ and mask/ are written when the source fills those
 // planes (replay of a recording that has them, with segment.method ndvi/mask);
 // the odom_mm and class columns (class/NNNNNN.png) when the replayed
-// recording has them. With odometry.source can, odom_mm is the drive's
-// odometer at each capture, from the ODOMETRY frames on can.interface
-// (runtime::OdometerTap, on a thread of its own); the writer thread asks
+// recording has them. With odometry.source can or encoder, odom_mm is the
+// machine's odometer at each capture, from the ODOMETRY frames on
+// can.interface or the wheel encoder (runtime::OdometerTap, on a thread of
+// its own); the writer thread asks
 // for it, so waiting for the sample after a capture never holds up the
 // capture loop.
 //
@@ -208,16 +209,17 @@ int main(int argc, char** argv)
     // replays with the distance really travelled.
     const runtime::ActuationConfig& actuation = config.settings().actuation;
     std::unique_ptr<runtime::OdometerTap> odometer;
-    if (actuation.odometry == runtime::OdometrySource::can) {
+    if (actuation.odometry == runtime::OdometrySource::can || actuation.odometry == runtime::OdometrySource::encoder) {
+        if (const auto problem = runtime::check_actuation_config(actuation)) {
+            std::cerr << "stemd-record: " << config.blame(problem->key, problem->message) << "\n";
+            return kUsageError;
+        }
         odometer = runtime::make_odometer_tap(actuation, error);
         if (!odometer) {
-            std::cerr << "stemd-record: " << config.blame("odometry.source", "can: " + error) << "\n";
+            std::cerr << "stemd-record: " << config.blame("odometry.source", error) << "\n";
             return kUsageError;
         }
         columns.odom_mm = true;
-    } else if (actuation.odometry == runtime::OdometrySource::encoder) {
-        std::cerr << "stemd-record: odometry.source encoder: the wheel encoder is not recorded (only CAN ODOMETRY "
-                     "is); the recording has no odom_mm from it\n";
     }
     columns.nir = vision::uses_nir(planes);
     columns.mask = planes == vision::Segmentation::mask;
@@ -256,7 +258,8 @@ int main(int argc, char** argv)
     log->info("recording {} into {}", source->name(), out.string());
     if (odometer) {
         odometer->start();
-        log->info("odometer: ODOMETRY frames on {}", odometer->bus_name());
+        log->info("odometer: {} ({})", odometer->source_name(),
+                  actuation.odometry == runtime::OdometrySource::can ? "ODOMETRY frames" : "wheel encoder");
     }
     std::uint64_t without_odometer = 0;   // the writer's
 
@@ -345,7 +348,7 @@ int main(int argc, char** argv)
     if (odometer) {
         odometer->stop();
         const runtime::OdometerTapCounters o = odometer->counters();
-        log->info("odometer: {} frames without a reading; ODOMETRY: {} taken, {} rejected, {} going backwards, {} "
+        log->info("odometer: {} frames without a reading; samples: {} taken, {} rejected, {} going backwards, {} "
                   "dropped",
                   without_odometer, o.samples, o.rejected, o.backwards, o.dropped);
     }

@@ -8,6 +8,25 @@
 
 namespace stemd::runtime {
 
+namespace {
+
+drivers::GpioSpec gpio_spec(const ActuationConfig& config)
+{
+    drivers::GpioSpec gpio;
+    gpio.chip = config.gpio_chip;
+    gpio.enable_line = static_cast<unsigned>(config.enable_line);
+    gpio.enable_active_low = config.enable_active_low;
+    gpio.enable_debounce_ns = config.enable_debounce_ns;
+    gpio.trigger_line = config.trigger_line;
+    gpio.trigger_active_low = config.trigger_active_low;
+    gpio.encoder_mode = config.encoder_mode;
+    gpio.encoder_a_line = config.encoder_a_line;
+    gpio.encoder_b_line = config.encoder_b_line;
+    return gpio;
+}
+
+}  // namespace
+
 std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, const geometry::CameraModel& camera,
                                                cv::Size frame_size, std::string& error)
 {
@@ -32,17 +51,7 @@ std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, co
     if (!parts.bus)
         return nullptr;
     if (!config.gpio_chip.empty()) {
-        drivers::GpioSpec gpio;
-        gpio.chip = config.gpio_chip;
-        gpio.enable_line = static_cast<unsigned>(config.enable_line);
-        gpio.enable_active_low = config.enable_active_low;
-        gpio.enable_debounce_ns = config.enable_debounce_ns;
-        gpio.trigger_line = config.trigger_line;
-        gpio.trigger_active_low = config.trigger_active_low;
-        gpio.encoder_mode = config.encoder_mode;
-        gpio.encoder_a_line = config.encoder_a_line;
-        gpio.encoder_b_line = config.encoder_b_line;
-        parts.gpio = drivers::make_gpio_lines(gpio, make_logger, *log, error);
+        parts.gpio = drivers::make_gpio_lines(gpio_spec(config), make_logger, *log, error);
         if (!parts.gpio)
             return nullptr;
     } else {
@@ -71,8 +80,21 @@ std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, co
 
 std::unique_ptr<OdometerTap> make_odometer_tap(const ActuationConfig& config, std::string& error)
 {
+    const OdometerTapParams params{.timeout_ns = config.odometry_timeout_ns,
+                                   .max_extrapolation_ns = config.max_extrapolation_ns};
+    const auto log = make_logger("odometer");
+    if (config.odometry == OdometrySource::encoder) {
+        if (config.gpio_chip.empty() || config.encoder_mode == "none") {
+            error = "encoder, but gpio.chip or gpio.encoder is none (no wheel encoder configured)";
+            return nullptr;
+        }
+        auto lines = drivers::make_gpio_lines(gpio_spec(config), make_logger, *log, error);
+        if (!lines)
+            return nullptr;
+        return std::make_unique<OdometerTap>(std::move(lines), config.encoder_mm_per_tick, params);
+    }
     if (config.can_interface.empty()) {
-        error = "can.interface is none, and ODOMETRY frames need a CAN interface";
+        error = "can, but can.interface is none (ODOMETRY frames need a CAN interface)";
         return nullptr;
     }
     const auto ids = protocol::CanIds::make(config.can_base_id);
@@ -80,16 +102,13 @@ std::unique_ptr<OdometerTap> make_odometer_tap(const ActuationConfig& config, st
         error = "can.base_id " + std::to_string(config.can_base_id) + " is too large";
         return nullptr;
     }
-    const auto log = make_logger("odometer");
     drivers::CanBusSpec can;
     can.interface = config.can_interface;
     can.rx_ids = {ids->id(protocol::MessageKind::Odometry)};
     auto bus = drivers::make_can_bus(can, make_logger, *log, error);
     if (!bus)
         return nullptr;
-    return std::make_unique<OdometerTap>(std::move(bus), *ids,
-                                         OdometerTapParams{.timeout_ns = config.odometry_timeout_ns,
-                                                           .max_extrapolation_ns = config.max_extrapolation_ns});
+    return std::make_unique<OdometerTap>(std::move(bus), *ids, params);
 }
 
 }  // namespace stemd::runtime

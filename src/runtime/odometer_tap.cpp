@@ -1,7 +1,10 @@
 #include "stemd/runtime/odometer_tap.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <utility>
+
+#include "stemd/base/clock.hpp"
 
 namespace stemd::runtime {
 
@@ -11,16 +14,33 @@ namespace {
 constexpr std::uint8_t kMaxCounterStep = 3;
 // How long the thread waits for a frame before looking at stop().
 constexpr std::int64_t kReceiveSliceNs = 50'000'000;
+// The encoder is read as often as a drive sends ODOMETRY: interpolation
+// between readings 10 ms apart is exact at any steady speed.
+constexpr std::int64_t kEncoderPeriodNs = 10'000'000;
 
 }  // namespace
 
-OdometerTap::OdometerTap(std::unique_ptr<drivers::CanBus> bus, protocol::CanIds ids, const OdometerTapParams& params)
+OdometerTap::OdometerTap(std::unique_ptr<drivers::CanBus> bus, std::unique_ptr<drivers::GpioLines> lines,
+                         protocol::CanIds ids, double encoder_mm_per_tick, const OdometerTapParams& params)
     : bus_(std::move(bus)),
+      lines_(std::move(lines)),
       ids_(ids),
+      encoder_mm_per_tick_(encoder_mm_per_tick),
       params_(params),
       checker_(ids.id(protocol::MessageKind::Odometry), kMaxCounterStep),
       samples_(params.capacity),
       ring_({.capacity = params.capacity, .max_extrapolation_ns = params.max_extrapolation_ns})
+{
+}
+
+OdometerTap::OdometerTap(std::unique_ptr<drivers::CanBus> bus, protocol::CanIds ids, const OdometerTapParams& params)
+    : OdometerTap(std::move(bus), nullptr, ids, 0, params)
+{
+}
+
+OdometerTap::OdometerTap(std::unique_ptr<drivers::GpioLines> lines, double encoder_mm_per_tick,
+                         const OdometerTapParams& params)
+    : OdometerTap(nullptr, std::move(lines), protocol::CanIds(), encoder_mm_per_tick, params)
 {
 }
 
@@ -32,8 +52,14 @@ void OdometerTap::start()
         return;
     stop_.store(false, std::memory_order_relaxed);
     thread_ = std::thread([this] {
-        while (!stop_.load(std::memory_order_relaxed))
-            receive(kReceiveSliceNs);
+        while (!stop_.load(std::memory_order_relaxed)) {
+            if (bus_) {
+                receive(kReceiveSliceNs);
+            } else {
+                read_encoder(base::monotonic_ns());
+                std::this_thread::sleep_for(std::chrono::nanoseconds(kEncoderPeriodNs));
+            }
+        }
     });
 }
 
@@ -59,6 +85,12 @@ void OdometerTap::receive(std::int64_t timeout_ns) noexcept
         taken_.fetch_add(1, std::memory_order_relaxed);
         samples_.try_push({t_rx_ns, unwrap_.add(m.odom_mm)});   // a full ring counts the drop
     }
+}
+
+void OdometerTap::read_encoder(std::int64_t now_ns) noexcept
+{
+    taken_.fetch_add(1, std::memory_order_relaxed);
+    samples_.try_push({now_ns, static_cast<double>(lines_->encoder().ticks) * encoder_mm_per_tick_});
 }
 
 void OdometerTap::take_samples() noexcept

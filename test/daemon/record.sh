@@ -93,10 +93,18 @@ set +e
 "$record" --config "$tmp/bad.yaml" --replay "$tmp/src" --out "$tmp/bad" >/dev/null 2>"$tmp/e1"; rc=$?
 "$record" --replay "$tmp/nowhere" --out "$tmp/bad" >/dev/null 2>"$tmp/e2"; rc2=$?
 "$record" --replay "$tmp/src" >/dev/null 2>"$tmp/e3"; rc3=$?
+# An odometer source that is not configured: refused before anything is recorded.
+printf 'odometry:\n  source: can\n' >"$tmp/can.yaml"
+"$record" --config "$tmp/can.yaml" --replay "$tmp/src" --out "$tmp/bad" >/dev/null 2>"$tmp/e4"; rc4=$?
+"$record" --set odometry.source=encoder --replay "$tmp/src" --out "$tmp/bad" >/dev/null 2>"$tmp/e5"; rc5=$?
 set -e
 [ $rc -eq 2 ] || fail "bad key exited $rc"
 grep -q "^stemd-record: $tmp/bad.yaml:3: key 'source.replay_pacng': " "$tmp/e1" || fail "bad key message: $(cat "$tmp/e1")"
 [ $rc2 -eq 2 ] && grep -q "not a recording directory" "$tmp/e2" || fail "missing recording: $rc2 $(cat "$tmp/e2")"
 [ $rc3 -eq 2 ] && grep -q -- "--out DIR is required" "$tmp/e3" || fail "no --out: $rc3 $(cat "$tmp/e3")"
+[ $rc4 -eq 2 ] && grep -q "^stemd-record: $tmp/can.yaml:2: key 'odometry.source': can, but can.interface is none" "$tmp/e4" ||
+  fail "CAN odometry without an interface: $rc4 $(cat "$tmp/e4")"
+[ $rc5 -eq 2 ] && grep -q "^stemd-record: key 'odometry.source' (--set): encoder, but gpio.encoder is none" "$tmp/e5" ||
+  fail "encoder odometry without an encoder: $rc5 $(cat "$tmp/e5")"
 [ ! -e "$tmp/bad" ] || fail "a refused run created its DIR"
 echo "daemon record: ok"

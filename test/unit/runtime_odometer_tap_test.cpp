@@ -1,5 +1,5 @@
 // The recorder's odometer (runtime::OdometerTap) on ODOMETRY frames with
-// known receive times: interpolated at a capture between two samples,
+// known receive times and on encoder counts read at known times: interpolated at a capture between two samples,
 // waited for while the bus speaks, extrapolated only as far as the daemon
 // would, never across a silence or a reversal; bad frames refused. The
 // receiving thread on a real bus: vm.record_odometry (stemd-record on vcan0).
@@ -14,6 +14,7 @@
 #include "stemd/protocol/messages.hpp"
 #include "stemd/runtime/odometer_tap.hpp"
 #include "fake_can_bus.hpp"
+#include "fake_gpio_lines.hpp"
 
 namespace stemd::runtime {
 namespace {
@@ -202,6 +203,51 @@ TEST_F(OdometerTapTest, ItsThreadHandsTheSamplesToTheReader)
     ASSERT_EQ(r, Reading::known);
     EXPECT_DOUBLE_EQ(odom_mm_, 1021.0);
     EXPECT_EQ(tap_->counters().samples, 3u);
+}
+
+// The wheel encoder: its count read at known times, 0.1 mm a tick.
+class OdometerTapEncoderTest : public ::testing::Test {
+protected:
+    OdometerTapEncoderTest()
+    {
+        auto lines = std::make_unique<test::FakeGpioLines>();
+        lines_ = lines.get();
+        tap_ = std::make_unique<OdometerTap>(std::move(lines), 0.1,
+                                             OdometerTapParams{.timeout_ns = 500 * kMs,
+                                                               .max_extrapolation_ns = 100 * kMs,
+                                                               .capacity = 64});
+    }
+    void count_at(std::int64_t ticks, std::int64_t t_ns)
+    {
+        lines_->ticks.store(ticks);
+        tap_->read_encoder(t_ns);
+    }
+
+    test::FakeGpioLines* lines_ = nullptr;
+    std::unique_ptr<OdometerTap> tap_;
+    double odom_mm_ = 0;
+};
+
+TEST_F(OdometerTapEncoderTest, ACaptureBetweenTwoReadingsIsInterpolatedInMillimetres)
+{
+    count_at(10000, kT0);            // 1000 mm
+    count_at(10140, kT0 + 10 * kMs);  // 1014 mm
+    ASSERT_EQ(tap_->odometer_at(kT0 + 5 * kMs, kT0 + 11 * kMs, odom_mm_), OdometerTap::Reading::known);
+    EXPECT_NEAR(odom_mm_, 1007.0, 1e-9);
+    EXPECT_EQ(tap_->counters().samples, 2u);
+}
+
+TEST_F(OdometerTapEncoderTest, AnEncoderCountingBackIsNotUsedUntilItPassesItsHighestCountAgain)
+{
+    count_at(10000, kT0);
+    count_at(9900, kT0 + 10 * kMs);   // reversing
+    count_at(10100, kT0 + 20 * kMs);
+    count_at(10200, kT0 + 30 * kMs);
+    EXPECT_EQ(tap_->odometer_at(kT0 + 5 * kMs, kT0 + 31 * kMs, odom_mm_), OdometerTap::Reading::unknown);
+    EXPECT_EQ(tap_->odometer_at(kT0 + 15 * kMs, kT0 + 31 * kMs, odom_mm_), OdometerTap::Reading::unknown);
+    ASSERT_EQ(tap_->odometer_at(kT0 + 25 * kMs, kT0 + 31 * kMs, odom_mm_), OdometerTap::Reading::known);
+    EXPECT_NEAR(odom_mm_, 1015.0, 1e-9);
+    EXPECT_EQ(tap_->counters().backwards, 1u);
 }
 
 }  // namespace

@@ -800,6 +800,59 @@ check_record_odometry() {
 }
 extra_checks="$extra_checks record_odometry"
 
+# --- record_encoder: stemd-record writes a wheel encoder's count ---
+# KEYs record, synth, gpiod (only to know that stemd was built with
+# libgpiod). stemd-record records a paced synthetic replay (20 frames at 10
+# fps) with odometry.source encoder, 1 mm a tick, on a gpio-sim chip whose
+# lines 1 and 2 the check steps as a quadrature encoder going forward, one
+# edge every 20 ms, until stemd-record is done. Every frame must carry
+# odom_mm, never decreasing, rising by at least 20 mm over the recording
+# (the edges seen live, not one count), and none above the edges made.
+check_record_encoder() {
+  [ -n "$record" ] && [ -n "$synth" ] || skip "stemd-record or stemd-synth not built"
+  [ -n "$gpiod" ] || skip "stemd built without libgpiod (libgpiod-dev 1.x was missing when CMake configured)"
+  sim_chip stemd_record 3 stemd-record 0:enable 1:enc_a 2:enc_b
+  rec=$out/record-encoder-in
+  got=$out/record-encoder-out
+  rm -rf "/host$rec" "/host$got"
+  hostrun "$synth" --out "$rec" --preset early --frames 20 --fps 10 --width 320 --height 240 > /dev/null ||
+    die "stemd-synth"
+  echo pull-down > "$sim/sim_gpio1/pull"
+  echo pull-down > "$sim/sim_gpio2/pull"
+  hostrun "$record" --replay "$rec" --out "$got" --set odometry.source=encoder --set gpio.chip="$chip" \
+    --set gpio.enable_line=0 --set gpio.encoder=quadrature --set gpio.encoder_a_line=1 \
+    --set gpio.encoder_b_line=2 --set odometry.encoder_mm_per_tick=1 \
+    --set source.width_px=320 --set source.height_px=240 > /tmp/record_encoder.out 2>&1 &
+  rp=$!
+  # Forward: A rises before B, then falls before B (00 10 11 01 00).
+  edges=0
+  while kill -0 $rp 2>/dev/null; do
+    for step in 1:up 2:up 1:down 2:down; do
+      echo "pull-${step#*:}" > "$sim/sim_gpio${step%%:*}/pull"
+      edges=$((edges + 1))
+      sleep 0.02
+    done
+  done
+  wait $rp
+  rc=$?
+  cat /tmp/record_encoder.out
+  echo "$edges edges made"
+  [ $rc = 0 ] || die "stemd-record exited $rc"
+  grep -q 'odometer: 0 frames without a reading' /tmp/record_encoder.out || die "frames without an odometer reading"
+  awk -F, -v edges=$edges 'NR == 1 { for (i = 1; i <= NF; ++i) if ($i == "odom_mm") c = i; next }
+    {
+      if (c == 0 || $c == "") { print "row " NR ": no odom_mm"; bad = 1; next }
+      printf "row %d: %s mm\n", NR, $c
+      if (n > 0 && $c < o) bad = 1
+      if ($c > edges) bad = 1
+      if (n == 0) first = $c
+      o = $c; ++n
+    }
+    END { if (n != 20 || o - first < 20) { print n " rows, " o - first " mm in all"; bad = 1 } exit bad }' \
+    "/host$got/frames.csv" || die "odom_mm does not follow the encoder"
+}
+extra_checks="$extra_checks record_encoder"
+
 # --- watchdog: systemd restarts a stemd whose processing thread is stuck ---
 # KEYs watchdog (the stemd binary) and synth (stemd-synth). The host's own
 # systemd runs as PID 1 of a PID and mount namespace chrooted into the host

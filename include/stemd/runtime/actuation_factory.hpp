@@ -23,11 +23,12 @@ namespace stemd::runtime {
 std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, const geometry::CameraModel& camera,
                                                cv::Size frame_size, std::string& error);
 
-// The drive's odometer from ODOMETRY frames on can.interface, for a program
-// that records without actuating (not started). nullptr with `error` set
-// when the configuration has no interface (odometry.source can needs one) or
-// the identifiers do not fit. A SocketCAN interface that is down is not an
-// error: the bus reopens it with backoff.
+// The machine's odometer as odometry.source names it (can: ODOMETRY frames
+// on can.interface; encoder: the wheel encoder on the gpio.* lines), for a
+// program that records without actuating (not started). nullptr with
+// `error` set (worded to follow "odometry.source: ") when that source is not
+// configured or cannot be opened. A SocketCAN interface that is down, or a
+// GPIO chip not there yet, is not an error: they are reopened with backoff.
 std::unique_ptr<OdometerTap> make_odometer_tap(const ActuationConfig& config, std::string& error);
 
 }  // namespace stemd::runtime
