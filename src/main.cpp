@@ -165,6 +165,7 @@ int run(int argc, char** argv, Phase& phase)
     }
     if (!args.map.empty())
         actuation_config.map_file = args.map;
+    const std::string odometry_choice = runtime::resolve_auto_odometry(daemon_config, actuation_config);
     if (!args.map_geojson.empty() && actuation_config.map_file.empty()) {
         std::cerr << "stemd: --map-geojson is made from the plant map: give --map FILE (or map.file) too\n";
         return kUsageError;
@@ -256,6 +257,8 @@ int run(int argc, char** argv, Phase& phase)
     const auto status_log = runtime::make_logger("status");
     if (!segmentation_choice.empty())
         log->info("{}", segmentation_choice);
+    if (!odometry_choice.empty())
+        log->info("{}", odometry_choice);
 
     if (stop_came())
         return 0;

@@ -367,7 +367,7 @@ constexpr std::array kSchema{
         "at or below this speed the machine is standing: commands have no deadline pressure"),
 
     enum_key<STEMD_KEY(actuation.odometry), runtime::kOdometrySourceNames>("odometry.source", "auto",
-        "distance travelled from: the recording's odom_mm, a constant speed, CAN ODOMETRY frames, a wheel encoder; auto: recording if the frames carry it, else constant"),
+        "distance travelled from: the recording's odom_mm, a constant speed, CAN ODOMETRY frames, a wheel encoder; auto: recording if any replayed frame carries it (a frame without it is then not actuated), else constant"),
     real_key<STEMD_KEY(actuation.speed_mm_per_s)>("odometry.speed_mm_per_s", "mm/s", 0, 10000, "1388.9",
         "constant: the machine's speed (1388.9 mm/s = 5 km/h)"),
     real_key<STEMD_KEY(actuation.encoder_mm_per_tick)>("odometry.encoder_mm_per_tick", "mm", 0.0001, 1000, "0.1",

@@ -100,7 +100,7 @@ void ActuationStage::on_frame(const FrameResult& r, std::int64_t now_ns) noexcep
     last_frame_ns_ = now_ns;
     odometry_.add_frame(r.t_sample_ns, r.odom_mm);
     double odom_at_capture = 0;
-    if (!odometry_.odometer_at(r.t_sample_ns, odom_at_capture)) {
+    if (!odometry_.frame_odometer(r.t_sample_ns, r.odom_mm, odom_at_capture)) {
         bump(counters_.no_odometry);
         return;
     }

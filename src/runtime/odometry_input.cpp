@@ -37,10 +37,13 @@ void OdometryInput::add_frame(std::int64_t t_sample_ns, double odom_mm) noexcept
         sample.odom_mm = odom_mm;
         break;
     case OdometrySource::automatic:
+        frames_carry_odom_ = frames_carry_odom_ || frame_has_odom;
         if (frame_has_odom) {
             sample.odom_mm = odom_mm;
             break;
         }
+        if (frames_carry_odom_)
+            return;
         [[fallthrough]];
     case OdometrySource::constant:
         if (constant_t0_ns_ < 0)
@@ -86,6 +89,15 @@ bool OdometryInput::odometer_at(std::int64_t t_ns, double& odom_mm) const noexce
         return false;
     odom_mm = q.odom_mm;
     return true;
+}
+
+bool OdometryInput::frame_odometer(std::int64_t t_sample_ns, double frame_odom_mm, double& odom_mm) const noexcept
+{
+    const bool column_is_source =
+        source_ == OdometrySource::recording || (source_ == OdometrySource::automatic && frames_carry_odom_);
+    if (column_is_source && !std::isfinite(frame_odom_mm))
+        return false;
+    return odometer_at(t_sample_ns, odom_mm);
 }
 
 bool OdometryInput::covers(std::int64_t t_ns) const noexcept

@@ -66,6 +66,29 @@ std::string resolve_auto_segmentation(DaemonConfig& d)
     return "segment.method auto: " + std::string(vision::to_string(d.vision.segmentation)) + " (" + why + ")";
 }
 
+std::string resolve_auto_odometry(const DaemonConfig& d, ActuationConfig& actuation)
+{
+    if (actuation.odometry != OdometrySource::automatic)
+        return {};
+    std::string error;
+    const auto recording = d.source_kind == "replay" && !d.replay_dir.empty()
+                               ? io::read_recording(d.replay_dir, error)
+                               : std::nullopt;
+    const auto frames_with_odom =
+        recording ? std::count_if(recording->frames.begin(), recording->frames.end(),
+                                  [](const io::RecordingFrame& f) { return f.odom_mm.has_value(); })
+                  : 0;
+    if (frames_with_odom > 0) {
+        actuation.odometry = OdometrySource::recording;
+        return "odometry.source auto: recording (" + std::to_string(frames_with_odom) + " of " +
+               std::to_string(recording->frames.size()) + " replayed frames carry odom_mm; the others are not actuated)";
+    }
+    actuation.odometry = OdometrySource::constant;
+    return "odometry.source auto: constant at odometry.speed_mm_per_s (" +
+           std::string(d.source_kind == "replay" ? "the replayed frames carry no odom_mm" : "a camera has no odometer") +
+           ")";
+}
+
 std::unique_ptr<drivers::FrameSource> make_frame_source(const DaemonConfig& config, std::function<bool()> cancelled)
 {
     drivers::SourceSpec spec;

@@ -157,3 +157,43 @@ TEST(SourceFactory, AutoSegmentationFollowsTheSourcesNirPlane)
     EXPECT_EQ(runtime::resolve_auto_segmentation(d), "");
     EXPECT_EQ(d.vision.segmentation, Segmentation::ndvi);
 }
+
+TEST(SourceFactory, AutoOdometryIsTheRecordingsColumnWhenAnyReplayedFrameCarriesIt)
+{
+    using runtime::OdometrySource;
+    const auto dir = test::scratch_dir("source_factory_auto_odometry");
+    std::filesystem::create_directories(dir / "some_odom");
+    std::filesystem::create_directories(dir / "no_odom");
+    // What stemd-record leaves where the odometer was not known: an empty cell.
+    std::ofstream(dir / "some_odom" / "frames.csv") << "t_ns,rgb,nir,mask,odom_mm\n0,a.png,,,\n100,b.png,,,46.5\n";
+    std::ofstream(dir / "no_odom" / "frames.csv") << "t_ns,rgb,nir,mask\n0,a.png,,\n100,b.png,,\n";
+    const auto resolved = [](const std::string& yaml, std::string* line = nullptr) {
+        config::Config config;
+        EXPECT_FALSE(config.load_text(yaml, "auto.yaml"));
+        runtime::ActuationConfig a = config.settings().actuation;
+        EXPECT_EQ(a.odometry, OdometrySource::automatic);   // the default
+        const std::string choice = runtime::resolve_auto_odometry(config.settings().daemon, a);
+        if (line)
+            *line = choice;
+        return a.odometry;
+    };
+    std::string line;
+    EXPECT_EQ(resolved("source:\n  kind: replay\n  replay_dir: " + (dir / "some_odom").string() + "\n", &line),
+              OdometrySource::recording);
+    EXPECT_EQ(line, "odometry.source auto: recording (1 of 2 replayed frames carry odom_mm; the others are not "
+                    "actuated)");
+    EXPECT_EQ(resolved("source:\n  kind: replay\n  replay_dir: " + (dir / "no_odom").string() + "\n", &line),
+              OdometrySource::constant);
+    EXPECT_NE(line.find("carry no odom_mm"), std::string::npos) << line;
+    EXPECT_EQ(resolved("source:\n  kind: v4l2\n", &line), OdometrySource::constant);
+    EXPECT_NE(line.find("a camera has no odometer"), std::string::npos) << line;
+
+    // A source set by hand stays, and there is nothing to log.
+    config::Config config;
+    ASSERT_FALSE(config.load_text("odometry:\n  source: constant\nsource:\n  kind: replay\n  replay_dir: " +
+                                      (dir / "some_odom").string() + "\n",
+                                  "auto.yaml"));
+    runtime::ActuationConfig a = config.settings().actuation;
+    EXPECT_EQ(runtime::resolve_auto_odometry(config.settings().daemon, a), "");
+    EXPECT_EQ(a.odometry, OdometrySource::constant);
+}

@@ -1,7 +1,11 @@
 // The actuator's odometer, from the configured source (odometry.source): a
 // frame's own odom_mm (a recording's column), a constant speed from the
 // first frame on, ODOMETRY frames from the bus (at their receive time), or
-// a wheel encoder. Samples that would not advance the ring are refused
+// a wheel encoder. `auto` takes the frames' column once one frame has
+// carried it; from then on a frame without it has no odometer, as under
+// `recording` (a constant-speed odometer for it would place its plants,
+// and the commands for them, on another scale: the daemon resolves `auto`
+// per recording before it starts, resolve_auto_odometry()). Samples that would not advance the ring are refused
 // (counted: odometry_rejected). No allocation after construction; nothing
 // throws.
 #pragma once
@@ -29,6 +33,12 @@ public:
 
     // False without a usable reading (none yet, stale).
     bool odometer_at(std::int64_t t_ns, double& odom_mm) const noexcept;
+    // The odometer at a frame's capture, given the frame's own odom_mm:
+    // when that column is the source (recording, or auto once frames carry
+    // it), a frame without it has none. A recording leaves the cell empty
+    // where the odometer was not known (stemd-record), so the replay does
+    // not guess one either.
+    bool frame_odometer(std::int64_t t_sample_ns, double frame_odom_mm, double& odom_mm) const noexcept;
     double speed_mm_per_s() const noexcept;
     // True when t_ns is not past the newest sample (a constant speed covers
     // every instant): odometer_at(t_ns) then interpolates, it does not guess.
@@ -44,6 +54,7 @@ private:
     geometry::OdometryRing ring_;
     std::int64_t constant_t0_ns_ = -1;
     bool constant_now_ = false;       // the last frame's odometer came from the constant speed
+    bool frames_carry_odom_ = false;  // auto: a frame has carried odom_mm
     geometry::OdometerUnwrap can_odom_;
 };
 

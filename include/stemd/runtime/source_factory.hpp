@@ -10,6 +10,7 @@
 
 #include "stemd/drivers/frame_source.hpp"
 #include "stemd/config/config.hpp"
+#include "stemd/runtime/actuation_config.hpp"
 #include "stemd/runtime/daemon_config.hpp"
 
 namespace stemd::runtime {
@@ -30,6 +31,14 @@ std::optional<std::string> check_source_config(const DaemonConfig& d, const conf
 // when the method was not auto. A replay directory that cannot be read
 // resolves to chromatic_exg (the source then reports it).
 std::string resolve_auto_segmentation(DaemonConfig& d);
+
+// odometry.source auto made concrete for the configured source before the
+// actuator starts: recording when the replayed recording carries odom_mm in
+// any frame (its frames without it then have no odometer and are not
+// actuated), constant otherwise (cameras, recordings without the column).
+// Returns a line for the log naming the choice and why; empty when the
+// source was not auto.
+std::string resolve_auto_odometry(const DaemonConfig& d, ActuationConfig& actuation);
 
 // The source config.source_kind names, not yet opened. Loggers are named
 // after the backend ("v4l2", "libcamera", "replay"). `cancelled`, if set,
