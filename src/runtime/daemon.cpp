@@ -580,6 +580,10 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
         s.deadline_misses = get(a.deadline_misses) + get(a.bus_deadline);
         s.not_treated = get(a.policy) + get(a.no_tool) + get(a.disabled);
         s.no_odometry = get(a.no_odometry);
+        s.odometry_can = actuation_->odometry_source() == OdometrySource::can;
+        s.odometry_encoder = actuation_->odometry_source() == OdometrySource::encoder;
+        s.rx_odometry = get(a.rx_odometry);
+        s.odometry_going_back = get(a.odometry_going_back);
         s.bus_errors = get(a.bus_errors);
         s.heartbeat_errors = get(a.heartbeat_errors);
         s.heartbeat_misses = get(a.heartbeat_misses);

@@ -84,6 +84,8 @@ bool OdometryInput::odometer_at(std::int64_t t_ns, double& odom_mm) const noexce
         odom_mm = geometry::ConstantSpeedOdometer(speed_mm_per_s_, constant_t0_ns_).sample(t_ns).odom_mm;
         return true;
     }
+    if (going_back_since_ns_ >= 0 && t_ns >= going_back_since_ns_)
+        return false;
     const geometry::OdomQuery q = ring_.odom_at(t_ns);
     if (q.status != geometry::OdomStatus::ok && q.status != geometry::OdomStatus::extrapolated)
         return false;
@@ -112,8 +114,14 @@ double OdometryInput::speed_mm_per_s() const noexcept
 
 void OdometryInput::push(const geometry::OdomSample& sample) noexcept
 {
-    if (!ring_.push(sample))
-        bump(counters_.odometry_rejected);
+    const bool going_back = !ring_.empty() && sample.odom_mm < ring_.newest().odom_mm;
+    if (ring_.push(sample)) {
+        going_back_since_ns_ = -1;
+    } else if (going_back) {
+        bump(counters_.odometry_going_back);
+        if (going_back_since_ns_ < 0)
+            going_back_since_ns_ = sample.t_ns;
+    }
 }
 
 }  // namespace stemd::runtime

@@ -135,6 +135,8 @@ Metrics collect_metrics(runtime::Daemon& daemon)
         m.heartbeat_errors = get(a->heartbeat_errors);
         m.heartbeat_misses = get(a->heartbeat_misses);
         m.no_odometry = get(a->no_odometry);
+        m.rx_odometry = get(a->rx_odometry);
+        m.odometry_going_back = get(a->odometry_going_back);
         m.capture_to_send = histogram_of(a->send_latency);
     }
     return m;
@@ -173,6 +175,12 @@ std::string format_metrics(const Metrics& m)
                   "HEARTBEAT periods that passed without their HEARTBEAT (the actuator thread came over a period late).",
                   m.heartbeat_misses);
         t.counter("no_odometry_frames_total", "Frames not actuated: no usable odometer reading.", m.no_odometry);
+        t.counter("odometry_frames_total", "ODOMETRY frames taken from the CAN bus (odometry.source can).",
+                  m.rx_odometry);
+        t.counter("odometer_samples_going_back_total",
+                  "Odometer samples refused for going back (the machine reversing): frames are not actuated until "
+                  "it passes its highest reading again.",
+                  m.odometry_going_back);
     }
     t.counter("bad_class_plants_total", "Plants whose class-map window held values above 2 (taken as unknown).",
               m.bad_class);

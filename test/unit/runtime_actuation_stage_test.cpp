@@ -71,11 +71,11 @@ ActuationConfig base_config()
 // stems are inside the image, at their pixels (forward = up: a plant ahead
 // of the principal point is above the centre row; left of the machine is
 // image left).
-std::unique_ptr<FrameResult> frame(const std::vector<Plant>& plants, int k, bool class_map = false,
-                                   bool with_odom = true)
+// frame_at: the same for a frame taken at `odom` mm, whatever the speed.
+std::unique_ptr<FrameResult> frame_at(const std::vector<Plant>& plants, int k, double odom, bool class_map = false,
+                                      bool with_odom = true)
 {
     auto r = std::make_unique<FrameResult>();
-    const double odom = k * kSpeed / 30.0;
     r->seq = static_cast<std::uint64_t>(k);
     r->t_sample_ns = kT0 + k * kPeriodNs;
     r->odom_mm = with_odom ? odom : std::nan("");
@@ -95,6 +95,12 @@ std::unique_ptr<FrameResult> frame(const std::vector<Plant>& plants, int k, bool
         r->detections.plants.push_back(vp);
     }
     return r;
+}
+
+std::unique_ptr<FrameResult> frame(const std::vector<Plant>& plants, int k, bool class_map = false,
+                                   bool with_odom = true)
+{
+    return frame_at(plants, k, k * kSpeed / 30.0, class_map, with_odom);
 }
 
 struct Stage {
@@ -521,7 +527,7 @@ TEST(ActuationStage, CanOdometryIsStampedWhenReceivedNotWhenPolled)
     }
     run.stage->poll(kPollNs);
     EXPECT_EQ(run.stage->counters().rx_odometry.load(), 2u);
-    EXPECT_EQ(run.stage->counters().odometry_rejected.load(), 0u);
+    EXPECT_EQ(run.stage->counters().odometry_going_back.load(), 0u);
     double odom_mm = 0;
     ASSERT_TRUE(run.stage->odometry().odometer_at(kPollNs - 100'000'000, odom_mm));
     EXPECT_DOUBLE_EQ(odom_mm, 1000.0);
@@ -530,6 +536,87 @@ TEST(ActuationStage, CanOdometryIsStampedWhenReceivedNotWhenPolled)
     // At the poll, 50 ms after the newest sample: extrapolated at 2 m/s.
     ASSERT_TRUE(run.stage->odometry().odometer_at(kPollNs, odom_mm));
     EXPECT_NEAR(odom_mm, 1200.0, 1e-6);
+}
+
+// The drive reversing: its odometer counts down. Those samples are refused
+// and counted; the odometer holds its highest reading, and goes stale,
+// until the drive passes that reading again.
+TEST(ActuationStage, CanOdometryGoingBackIsCountedAndNotFollowed)
+{
+    ActuationConfig config = base_config();
+    config.odometry = OdometrySource::can;
+    config.max_extrapolation_ns = 100'000'000;
+    Stage run = make_stage(config);
+    const protocol::CanIds ids;
+    protocol::E2eCounter counter;
+    const auto drive_says = [&](std::uint32_t odom_mm, std::int64_t t_rx_ns) {
+        CanFrame f;
+        ASSERT_TRUE(protocol::encode(protocol::Odometry{odom_mm, 0}, counter.next(), ids, f));
+        run.bus->inbox.push_back(f);
+        run.bus->inbox_t_rx_ns.push_back(t_rx_ns);
+        run.stage->poll(t_rx_ns);
+    };
+    constexpr std::int64_t kMs = 1'000'000;
+    drive_says(1000, kT0);
+    drive_says(1010, kT0 + 10 * kMs);
+    for (int i = 1; i <= 30; ++i)   // 300 ms backing up 3 mm every 10 ms
+        drive_says(1010 - 3 * i, kT0 + (10 + 10 * i) * kMs);
+    EXPECT_EQ(run.stage->counters().rx_odometry.load(), 32u);
+    EXPECT_EQ(run.stage->counters().odometry_going_back.load(), 30u);
+    double odom_mm = 0;
+    EXPECT_FALSE(run.stage->odometry().odometer_at(kT0 + 310 * kMs, odom_mm)) << odom_mm;   // stale
+    drive_says(1020, kT0 + 320 * kMs);   // past 1010 again
+    ASSERT_TRUE(run.stage->odometry().odometer_at(kT0 + 320 * kMs, odom_mm));
+    EXPECT_DOUBLE_EQ(odom_mm, 1020.0);
+}
+
+// The machine drives over the strip, backs up 300 mm over plants it has
+// commanded, and drives on (CAN ODOMETRY, a frame at every sample): each
+// plant still gets exactly one TARGET. Frames taken while it reverses, and
+// until it passes its turning point, are not actuated; nor are they placed
+// at the speed it had before it turned.
+TEST(ActuationStage, BackingUpOverCommandedPlantsCommandsNoneTwice)
+{
+    ActuationConfig config = base_config();
+    config.odometry = OdometrySource::can;
+    Stage run = make_stage(config);
+    const protocol::CanIds ids;
+    protocol::E2eCounter counter;
+    const auto plants = strip(10);
+    const double step_mm = kSpeed / 30.0;
+    std::vector<double> path;   // the odometer at each frame
+    for (double odom = 0; odom < 650; odom += step_mm)
+        path.push_back(odom);
+    const double turn_mm = path.back();
+    for (int i = 1; i <= 10; ++i)
+        path.push_back(turn_mm - 30.0 * i);
+    for (double odom = path.back() + step_mm; odom < plants.back().s_mm + kSize.height * kGsd + 2 * step_mm;
+         odom += step_mm)
+        path.push_back(odom);
+    for (std::size_t k = 0; k < path.size(); ++k) {
+        const std::int64_t t_ns = kT0 + static_cast<std::int64_t>(k) * kPeriodNs;
+        CanFrame f;
+        ASSERT_TRUE(protocol::encode(protocol::Odometry{static_cast<std::uint32_t>(std::lround(path[k])), 0},
+                                     counter.next(), ids, f));
+        run.bus->inbox.push_back(f);
+        run.bus->inbox_t_rx_ns.push_back(t_ns);
+        run.stage->poll(t_ns);
+        const auto r = frame_at(plants, static_cast<int>(k), path[k], false, false);
+        run.stage->on_frame(*r, t_ns + 1'000'000);
+        run.stage->poll(t_ns + 2'000'000);
+    }
+    run.stage->finish();
+    const auto sent = targets(*run.bus);
+    EXPECT_EQ(sent.size(), plants.size());
+    std::set<std::size_t> hit;
+    for (const auto& t : sent)
+        for (std::size_t i = 0; i < plants.size(); ++i) {
+            if (std::abs(t.fire_odom_mm - (plants[i].s_mm + 600.0)) <= 2.0) {
+                EXPECT_TRUE(hit.insert(i).second) << "a second TARGET for plant " << i;
+            }
+        }
+    EXPECT_EQ(hit.size(), plants.size());
+    EXPECT_GT(run.stage->counters().no_odometry.load(), 10u);   // the reversal and its way back
 }
 
 TEST(ActuationStage, HeartbeatEveryIntervalWithState)

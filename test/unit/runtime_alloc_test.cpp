@@ -300,7 +300,7 @@ void run_actuation(bool with_web_view)
     EXPECT_GT(c.sent.load(), 0u) << "frames " << c.frames << ", targets " << c.targets << ", clipped " << c.clipped
                                  << ", off_ground " << c.off_ground << ", no_tool " << c.no_tool
                                  << ", deadline_misses " << c.deadline_misses << ", bus_deadline " << c.bus_deadline
-                                 << ", odometry_rejected " << c.odometry_rejected;
+                                 << ", odometry_going_back " << c.odometry_going_back;
     EXPECT_EQ(stage_view.counters().no_odometry.load(), 0u);
     EXPECT_GT(std::filesystem::file_size(dir / "map.jsonl"), 0u);
     ASSERT_NE(stage_view.gnss(), nullptr);

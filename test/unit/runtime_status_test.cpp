@@ -110,6 +110,27 @@ TEST(Status, TheFilesLinesWrittenAndLostAreShownOnlyWithFiles)
     EXPECT_EQ(format_status(now, before).find("files:"), std::string::npos);
 }
 
+// A live odometer's frames and the samples refused while the machine
+// reversed; nothing for a recording's or a constant-speed odometer.
+TEST(Status, ALiveOdometersFramesAndReversingAreShown)
+{
+    StatusSnapshot before = with_actuation();
+    before.t_ns = 1'000'000'000;
+    before.odometry_can = true;
+    before.rx_odometry = 500;
+    before.odometry_going_back = 20;
+    StatusSnapshot now = before;
+    now.t_ns = 2'000'000'000;
+    now.rx_odometry = 600;
+    now.odometry_going_back = 45;
+    expect_interval_and_total(now, before, "odometry: rx 100, going back 25", "odometry: rx 600, going back 45");
+    now.odometry_can = before.odometry_can = false;
+    now.odometry_encoder = true;
+    expect_interval_and_total(now, before, "odometry: going back 25", "odometry: going back 45");
+    now.odometry_encoder = false;
+    EXPECT_EQ(format_status(now, before).find("odometry:"), std::string::npos);
+}
+
 TEST(Status, ToolTimingPerToolThatFiredOrLeads)
 {
     StatusSnapshot s = with_actuation();

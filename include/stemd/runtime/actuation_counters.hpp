@@ -45,7 +45,7 @@ struct ActuationCounters {
     std::atomic<std::uint64_t> fired_unmatched{0};  // TOOL_FIRED for no TARGET sent (or reported twice)
     std::atomic<std::uint64_t> compensation_misses{0};  // deadline misses only because of a tool's latency lead
     std::atomic<std::uint64_t> rx_rejected{0};      // received frames rejected: E2E (CRC, counter) or decode
-    std::atomic<std::uint64_t> odometry_rejected{0};  // samples the odometry ring refused (not monotonic)
+    std::atomic<std::uint64_t> odometry_going_back{0};  // samples below the newest (reversing): refused
     std::atomic<std::uint64_t> map_errors{0};
     std::atomic<std::uint64_t> tools_ready_mask{0}; // the last TOOL_STATUS's
     // Capture (t_sample_ns of the frame that confirmed the plant) to the

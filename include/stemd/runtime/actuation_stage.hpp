@@ -108,6 +108,7 @@ public:
         return parts_.gpio && parts_.gpio->has_trigger() ? parts_.gpio.get() : nullptr;
     }
     std::uint32_t trigger_pulse_us() const { return config_.trigger_pulse_us; }
+    OdometrySource odometry_source() const { return config_.odometry; }
     // The view's along-track extent relative to the odometer at capture.
     double view_forward_min_mm() const { return projector_.view_forward_min_mm(); }
     double view_forward_max_mm() const { return projector_.view_forward_max_mm(); }

@@ -5,9 +5,12 @@
 // carried it; from then on a frame without it has no odometer, as under
 // `recording` (a constant-speed odometer for it would place its plants,
 // and the commands for them, on another scale: the daemon resolves `auto`
-// per recording before it starts, resolve_auto_odometry()). Samples that would not advance the ring are refused
-// (counted: odometry_rejected). No allocation after construction; nothing
-// throws.
+// per recording before it starts, resolve_auto_odometry()). Samples that
+// would not advance the ring are refused; those below the newest reading
+// (the machine reversing) are counted, odometry_going_back: from the first
+// of them until the odometer passes its highest reading again, frames have
+// no odometer (not even one extrapolated at the speed before the turn). No
+// allocation after construction; nothing throws.
 #pragma once
 
 #include <cstdint>
@@ -55,6 +58,10 @@ private:
     std::int64_t constant_t0_ns_ = -1;
     bool constant_now_ = false;       // the last frame's odometer came from the constant speed
     bool frames_carry_odom_ = false;  // auto: a frame has carried odom_mm
+    // The first refused sample below the newest reading (-1: none since the
+    // last accepted one): from then on the odometer is not extrapolated at
+    // the speed it had before the machine turned back.
+    std::int64_t going_back_since_ns_ = -1;
     geometry::OdometerUnwrap can_odom_;
 };
 

@@ -93,6 +93,12 @@ struct StatusSnapshot {
     bool actuation = false;
     std::uint64_t targets = 0, sent = 0, deadline_misses = 0, no_odometry = 0, not_treated = 0, bus_errors = 0,
                   heartbeat_errors = 0, heartbeat_misses = 0;
+    // A live odometer (odometry.source can or encoder): ODOMETRY frames
+    // taken (CAN), and samples refused for going back (the machine
+    // reversing: no frame is actuated until the odometer passes its highest
+    // reading again).
+    bool odometry_can = false, odometry_encoder = false;
+    std::uint64_t rx_odometry = 0, odometry_going_back = 0;
     DurationHistogram::Summary latency;    // interval, or whole run for the final line
     DurationHistogram::Summary pipeline;
     DurationHistogram::Summary send;       // actuation: capture -> TARGET on the bus

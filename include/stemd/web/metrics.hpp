@@ -5,7 +5,8 @@
 // Names (all prefixed stemd_): frames_in_total, frames_out_total,
 // stems_total, frames_late_total, frames_dropped_total{cause},
 // deadline_misses_total, targets_confirmed_total, targets_total{outcome},
-// bus_errors_total{frame}, no_odometry_frames_total, and the histograms
+// bus_errors_total{frame}, no_odometry_frames_total,
+// odometry_frames_total, odometer_samples_going_back_total, and the histograms
 // capture_to_result_seconds, capture_to_send_seconds, pipeline_seconds and
 // thread_cycle_seconds{thread}; live_* for the view itself.
 #pragma once
@@ -41,7 +42,7 @@ struct Metrics {
     bool actuation = false;   // the actuation's series are written only with it
     std::uint64_t targets = 0, sent = 0, policy = 0, no_tool = 0, disabled = 0, deadline_miss = 0,
                   bus_deadline = 0, bus_error = 0, heartbeat_errors = 0, heartbeat_misses = 0,
-                  no_odometry = 0;
+                  no_odometry = 0, rx_odometry = 0, odometry_going_back = 0;
     // Plants' classes: class-map windows with values above 2 (any provider);
     // the in-box model's weed targets beside the plants' stems and the cells
     // its budget left out; the socket provider's maps, late maps, bad
