@@ -14,6 +14,7 @@ namespace {
 constexpr std::uint8_t kMaxCounterStep = 3;
 // How long the thread waits for a frame before looking at stop().
 constexpr std::int64_t kReceiveSliceNs = 50'000'000;
+constexpr int kMaxFramesPerReceive = 64;
 // The encoder is read as often as a drive sends ODOMETRY: interpolation
 // between readings 10 ms apart is exact at any steady speed.
 constexpr std::int64_t kEncoderPeriodNs = 10'000'000;
@@ -74,7 +75,8 @@ void OdometerTap::receive(std::int64_t timeout_ns) noexcept
 {
     protocol::CanFrame frame;
     std::int64_t t_rx_ns = 0;
-    for (std::int64_t wait_ns = timeout_ns; bus_->receive(frame, wait_ns, t_rx_ns); wait_ns = 0) {
+    // Bounded, so that a flooded bus still lets the thread see stop().
+    for (int n = 0; n < kMaxFramesPerReceive && bus_->receive(frame, n == 0 ? timeout_ns : 0, t_rx_ns); ++n) {
         if (ids_.kind_of(frame) != protocol::MessageKind::Odometry)
             continue;   // the socket's filter normally keeps others out
         protocol::Odometry m;

@@ -72,7 +72,8 @@ public:
     void start();
     void stop();
     // What the thread does; called directly only while it is not running
-    // (tests). ODOMETRY: takes the frames that come within timeout_ns.
+    // (tests). ODOMETRY: takes the frames that come within timeout_ns (at
+    // most 64 a call).
     void receive(std::int64_t timeout_ns) noexcept;
     // The encoder: its count now, at now_ns.
     void read_encoder(std::int64_t now_ns) noexcept;
