@@ -29,6 +29,7 @@ std::unique_ptr<CanBus> make_can_bus(const CanBusSpec& spec, const MakeLogger& m
     SocketCanOptions options;
     options.interface = spec.interface;
     options.rx_ids = spec.rx_ids;
+    options.confirmed_tx_ids = spec.confirmed_tx_ids;
     auto bus = std::make_unique<SocketCanBus>(options, make_logger("socketcan"));
     if (!bus->open())
         log.warn("{}: not up yet; retrying in the background", bus->name());

@@ -42,6 +42,26 @@ std::int64_t receive_time_ns(msghdr& msg)
     return now_ns;
 }
 
+// One classic frame read with recvmsg(2), with room for its receive stamp.
+struct ReceivedFrame {
+    can_frame cf{};
+    iovec iov{&cf, sizeof cf};
+    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec))];
+    msghdr msg{};
+
+    ReceivedFrame()
+    {
+        msg.msg_iov = &iov;
+        msg.msg_iovlen = 1;
+        msg.msg_control = control;
+        msg.msg_controllen = sizeof control;
+    }
+    ReceivedFrame(const ReceivedFrame&) = delete;  // iov and msg point into it
+    ReceivedFrame& operator=(const ReceivedFrame&) = delete;
+
+    ssize_t read(int fd, int flags) { return ::recvmsg(fd, &msg, flags); }
+};
+
 timespec to_timespec(std::int64_t ns)
 {
     if (ns < 0)
@@ -74,6 +94,17 @@ constexpr std::int64_t kEnobufsPauseNs = 100'000;
 // While the transmit queue stays full, the caller's SendGate is checked
 // at least this often.
 constexpr std::int64_t kGateCheckNs = 1'000'000;
+
+// An error-active controller moves a frame within milliseconds even on a
+// busy bus at 125 kbit/s: an echo missing this long means the driver
+// dropped the frame without one.
+constexpr std::int64_t kEchoLostAfterNs = 1'000'000'000;
+
+// A can_filter passing exactly one 11-bit data frame identifier.
+can_filter exact_standard_id(std::uint32_t id)
+{
+    return {id & CAN_SFF_MASK, CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG};
+}
 
 }  // namespace
 
@@ -153,31 +184,115 @@ bool SocketCanBus::try_open()
         fail("setsockopt(CAN_RAW_ERR_FILTER)", errno);
         return false;
     }
-    if (!options_.rx_ids.empty()) {
+    if (!set_up_socket(sock, ifindex, options_.rx_ids, SocketRole::receive))
+        return false;
+    if (!options_.confirmed_tx_ids.empty()) {
+        // It hears only its own frames of these identifiers (MSG_CONFIRM); an
+        // error frame is left to the receiving socket (its error mask stays 0).
+        base::UniqueFd tx(::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW));
+        if (!tx.valid()) {
+            fail("socket(PF_CAN, SOCK_RAW, CAN_RAW) for sending", errno);
+            return false;
+        }
+        const int on = 1;
+        if (::setsockopt(tx.get(), SOL_CAN_RAW, CAN_RAW_RECV_OWN_MSGS, &on, sizeof on) < 0) {
+            fail("setsockopt(CAN_RAW_RECV_OWN_MSGS)", errno);
+            return false;
+        }
+        if (!set_up_socket(tx, ifindex, options_.confirmed_tx_ids, SocketRole::send))
+            return false;
+        tx_fd_ = std::move(tx);
+    }
+    fd_ = std::move(sock);
+    unconfirmed_ = {};  // an echo for a closed socket never comes
+    return true;
+}
+
+bool SocketCanBus::set_up_socket(const base::UniqueFd& sock, int ifindex, const std::vector<std::uint32_t>& ids,
+                                 SocketRole role)
+{
+    const char* const of = role == SocketRole::send ? " of the sending socket" : "";
+    // The receiving socket takes every data frame when no identifier is
+    // given; the sending one then hears nothing.
+    if (!ids.empty() || role == SocketRole::send) {
         std::vector<can_filter> filters;
-        filters.reserve(options_.rx_ids.size());
-        for (const std::uint32_t id : options_.rx_ids)
-            filters.push_back({id & CAN_SFF_MASK, CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG});
+        filters.reserve(ids.size());
+        for (const std::uint32_t id : ids)
+            filters.push_back(exact_standard_id(id));
         if (::setsockopt(sock.get(), SOL_CAN_RAW, CAN_RAW_FILTER, filters.data(),
                          static_cast<socklen_t>(filters.size() * sizeof(can_filter))) < 0) {
-            fail("setsockopt(CAN_RAW_FILTER)", errno);
+            fail(fmt::format("setsockopt(CAN_RAW_FILTER){}", of).c_str(), errno);
             return false;
         }
     }
     // Receive stamps are a nicety (the read time stands in): not an error.
     const int on = 1;
     if (::setsockopt(sock.get(), SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on) < 0)
-        log_->warn("{}: setsockopt(SO_TIMESTAMPNS): {} (errno {}); frames are stamped when read", name_,
+        log_->warn("{}: setsockopt(SO_TIMESTAMPNS){}: {} (errno {}); frames are stamped when read", name_, of,
                    std::strerror(errno), errno);
     sockaddr_can addr{};
     addr.can_family = AF_CAN;
     addr.can_ifindex = ifindex;
     if (::bind(sock.get(), reinterpret_cast<const sockaddr*>(&addr), sizeof addr) < 0) {
-        fail("bind", errno);
+        fail(fmt::format("bind{}", of).c_str(), errno);
         return false;
     }
-    fd_.reset(sock.release());
     return true;
+}
+
+bool SocketCanBus::is_confirmed(const protocol::CanFrame& frame) const
+{
+    if (!tx_fd_.valid() || frame.extended)
+        return false;
+    return std::find(options_.confirmed_tx_ids.begin(), options_.confirmed_tx_ids.end(), frame.id) !=
+           options_.confirmed_tx_ids.end();
+}
+
+bool SocketCanBus::take_echoes()
+{
+    for (;;) {
+        ReceivedFrame echo;
+        const ssize_t n = echo.read(tx_fd_.get(), MSG_DONTWAIT);
+        if (n < 0) {
+            const int e = errno;
+            if (e == EINTR)
+                continue;
+            if (e == EAGAIN || e == EWOULDBLOCK)
+                return true;
+            CanBusCounterCells::bump(counters_.errors);
+            if (is_down_errno(e))
+                go_down("read of the send socket's echoes", e);
+            else
+                fail("read of the send socket's echoes", e);
+            return false;
+        }
+        // Another node's frame with one of our identifiers is not an echo.
+        if ((echo.msg.msg_flags & MSG_CONFIRM) == 0 || !unconfirmed_.pending ||
+            (echo.cf.can_id & CAN_SFF_MASK) != unconfirmed_.id || (echo.cf.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG)) != 0)
+            continue;
+        const std::int64_t on_wire_ns = receive_time_ns(echo.msg);
+        if (on_wire_ns > unconfirmed_.deadline_ns) {
+            CanBusCounterCells::bump(counters_.tx_late);
+            std::uint64_t left_out = 0;
+            if (tx_late_log_.allow(on_wire_ns, left_out))
+                log_->warn("{}: frame 0x{:03X} reached the bus {:.1f} ms after its deadline ({:.1f} ms after it was "
+                           "written; {} more not logged since the last)",
+                           name_, unconfirmed_.id, static_cast<double>(on_wire_ns - unconfirmed_.deadline_ns) / 1e6,
+                           static_cast<double>(on_wire_ns - unconfirmed_.written_ns) / 1e6, left_out);
+        }
+        unconfirmed_.pending = false;
+    }
+}
+
+void SocketCanBus::forget_unconfirmed(const char* why)
+{
+    if (!unconfirmed_.pending)
+        return;
+    unconfirmed_.pending = false;
+    CanBusCounterCells::bump(counters_.tx_unconfirmed);
+    log_->warn("{}: frame 0x{:03X} written {:.0f} ms ago was never reported on the bus ({}); the next frame may go",
+               name_, unconfirmed_.id, static_cast<double>(base::monotonic_ns() - unconfirmed_.written_ns) / 1e6,
+               why);
 }
 
 bool SocketCanBus::open()
@@ -217,6 +332,7 @@ bool SocketCanBus::ensure_open(std::int64_t now_ns)
 void SocketCanBus::go_down(const char* what, int err)
 {
     fd_.reset();
+    tx_fd_.reset();
     fail(what, err);
     log_->warn("{}: interface down; reopening with backoff ({} ms .. {} ms)", name_, options_.reopen_min_ns / 1'000'000,
                options_.reopen_max_ns / 1'000'000);
@@ -237,6 +353,7 @@ SendResult SocketCanBus::send(const protocol::CanFrame& frame, std::int64_t dead
     cf.len = frame.dlc;
     std::memcpy(cf.data, frame.data.data(), frame.dlc);
 
+    bool waited_for_echo = false;
     for (;;) {
         const std::int64_t now = base::monotonic_ns();
         if (now >= deadline_ns) {
@@ -253,9 +370,32 @@ SendResult SocketCanBus::send(const protocol::CanFrame& frame, std::int64_t dead
             CanBusCounterCells::bump(counters_.errors);
             return SendResult::error;
         }
-        const ssize_t n = ::write(fd_.get(), &cf, sizeof cf);
+        if (unconfirmed_.pending) {
+            if (!take_echoes()) {
+                CanBusCounterCells::bump(counters_.errors);
+                return SendResult::error;
+            }
+            if (unconfirmed_.pending && state() == SocketCanState::up && now - unconfirmed_.written_ns > kEchoLostAfterNs)
+                forget_unconfirmed("no echo for 1 s from an error-active controller");
+            if (unconfirmed_.pending) {
+                if (!waited_for_echo)
+                    CanBusCounterCells::bump(counters_.tx_confirm_waits);
+                waited_for_echo = true;
+                const std::int64_t left = std::min(deadline_ns - now, kGateCheckNs);
+                if (wait_fd(tx_fd_.get(), POLLIN, left) < 0 && errno != EINTR) {
+                    CanBusCounterCells::bump(counters_.errors);
+                    fail("poll(POLLIN) for the echo", errno);
+                    return SendResult::error;
+                }
+                continue;  // the deadline and the gate are checked before the next look
+            }
+        }
+        const int out_fd = tx_fd_.valid() ? tx_fd_.get() : fd_.get();
+        const ssize_t n = ::write(out_fd, &cf, sizeof cf);
         if (n == static_cast<ssize_t>(sizeof cf)) {
             CanBusCounterCells::bump(counters_.sent);
+            if (is_confirmed(frame))
+                unconfirmed_ = {.pending = true, .id = frame.id, .written_ns = now, .deadline_ns = deadline_ns};
             return SendResult::sent;
         }
         if (n >= 0) {
@@ -273,7 +413,7 @@ SendResult SocketCanBus::send(const protocol::CanFrame& frame, std::int64_t dead
             const std::int64_t left = std::min(deadline_ns - base::monotonic_ns(), kGateCheckNs);
             if (e == ENOBUFS)
                 sleep_for_ns(std::min(left, kEnobufsPauseNs));
-            else if (left > 0 && wait_fd(fd_.get(), POLLOUT, left) < 0 && errno != EINTR) {
+            else if (left > 0 && wait_fd(out_fd, POLLOUT, left) < 0 && errno != EINTR) {
                 CanBusCounterCells::bump(counters_.errors);
                 fail("poll(POLLOUT)", errno);
                 return SendResult::error;
@@ -310,15 +450,9 @@ bool SocketCanBus::receive(protocol::CanFrame& out, std::int64_t timeout_ns, std
         }
         if (ready == 0)
             return false;
-        can_frame cf{};
-        iovec iov{&cf, sizeof cf};
-        alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec))];
-        msghdr msg{};
-        msg.msg_iov = &iov;
-        msg.msg_iovlen = 1;
-        msg.msg_control = control;
-        msg.msg_controllen = sizeof control;
-        const ssize_t n = ::recvmsg(fd_.get(), &msg, 0);
+        ReceivedFrame received;
+        const ssize_t n = received.read(fd_.get(), 0);
+        const can_frame& cf = received.cf;
         if (n < 0) {
             const int e = errno;
             if (e == EINTR || e == EAGAIN)
@@ -346,7 +480,7 @@ bool SocketCanBus::receive(protocol::CanFrame& out, std::int64_t timeout_ns, std
         out.dlc = cf.len;
         out.data.fill(0);
         std::memcpy(out.data.data(), cf.data, cf.len);
-        t_rx_ns = receive_time_ns(msg);
+        t_rx_ns = receive_time_ns(received.msg);
         CanBusCounterCells::bump(counters_.rx);
         return true;
     }
@@ -363,6 +497,7 @@ void SocketCanBus::handle_error_frame(std::uint32_t can_id, const std::uint8_t (
             log_->error("{}: controller is bus-off (error frame 0x{:X}; {} more not logged since the last)", name_,
                         can_id, left_out);
         set_state(SocketCanState::bus_off);
+        forget_unconfirmed("the controller went bus-off, which drops its frames");
     }
     if (info.error_passive) {
         CanBusCounterCells::bump(counters_.error_passive);
@@ -377,9 +512,12 @@ void SocketCanBus::handle_error_frame(std::uint32_t can_id, const std::uint8_t (
             log_->info("{}: controller is error-active again; sending resumes", name_);
         set_state(SocketCanState::up);
     }
-    if (info.tx_timeout && tx_timeout_log_.allow(now, left_out))
-        log_->warn("{}: transmit timeout reported by the controller ({} more not logged since the last)", name_,
-                   left_out);
+    if (info.tx_timeout) {
+        if (tx_timeout_log_.allow(now, left_out))
+            log_->warn("{}: transmit timeout reported by the controller ({} more not logged since the last)", name_,
+                       left_out);
+        forget_unconfirmed("the controller reported a transmit timeout");
+    }
 }
 
 CanBusCounters SocketCanBus::counters() const

@@ -47,6 +47,10 @@ std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, co
     can.log_monotonic = config.can_log_monotonic;
     can.rx_ids = {ids->id(protocol::MessageKind::Odometry), ids->id(protocol::MessageKind::ToolStatus),
                   ids->id(protocol::MessageKind::ToolFired)};
+    // A TARGET in the kernel's queue cannot be withdrawn when the enable
+    // input drops or its deadline passes: it is written only once the bus
+    // has taken the frame before it.
+    can.confirmed_tx_ids = {ids->id(protocol::MessageKind::Target), ids->id(protocol::MessageKind::Heartbeat)};
     parts.bus = drivers::make_can_bus(can, make_logger, *log, error);
     if (!parts.bus)
         return nullptr;

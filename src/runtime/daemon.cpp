@@ -584,6 +584,15 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
         s.odometry_encoder = actuation_->odometry_source() == OdometrySource::encoder;
         s.rx_odometry = get(a.rx_odometry);
         s.odometry_going_back = get(a.odometry_going_back);
+        if (actuation_->on_can_interface()) {
+            const drivers::CanBusCounters bus = actuation_->bus().counters();
+            s.can_interface = true;
+            s.can_tx_late = bus.tx_late;
+            s.can_tx_unconfirmed = bus.tx_unconfirmed;
+            s.can_tx_waits = bus.tx_confirm_waits;
+            s.can_bus_off = bus.bus_off;
+            s.can_error_passive = bus.error_passive;
+        }
         s.bus_errors = get(a.bus_errors);
         s.heartbeat_errors = get(a.heartbeat_errors);
         s.heartbeat_misses = get(a.heartbeat_misses);

@@ -73,6 +73,16 @@ std::string odometry(const StatusSnapshot& now, const StatusSnapshot& before)
     return "";
 }
 
+std::string can(const StatusSnapshot& now, const StatusSnapshot& before)
+{
+    if (!now.can_interface)
+        return "";
+    return fmt::format(" | can: late on the wire {}, unconfirmed {}, waited {}, bus_off {}, error_passive {}",
+                       now.can_tx_late - before.can_tx_late, now.can_tx_unconfirmed - before.can_tx_unconfirmed,
+                       now.can_tx_waits - before.can_tx_waits, now.can_bus_off - before.can_bus_off,
+                       now.can_error_passive - before.can_error_passive);
+}
+
 // Tool timing, whole run: per tool that fired or leads its commands, e.g.
 // " | tool 0: fired 12, lag 55.6 mm 40.0 ms (p95 56.0 mm 40.25 ms), strike p95 1.0 mm, latency 40.0 ms learned".
 std::string tool_timing(const StatusSnapshot& s)
@@ -146,7 +156,7 @@ std::string format_status(const StatusSnapshot& now, const StatusSnapshot& befor
                        static_cast<double>(now.frames_in - before.frames_in) / dt_s,
                        static_cast<double>(now.frames_out - before.frames_out) / dt_s,
                        now.no_vegetation - before.no_vegetation)
-           + behind(now, before) + " | " + drops(now, before) + source(now, before) + trigger(now, before) + files(now, before) + actuation(now, before) + odometry(now, before) + class_socket(now, before) + class_model(now, before) + " | "
+           + behind(now, before) + " | " + drops(now, before) + source(now, before) + trigger(now, before) + files(now, before) + actuation(now, before) + odometry(now, before) + can(now, before) + class_socket(now, before) + class_model(now, before) + " | "
            + durations(now) + tool_timing(now) + gnss(now);
 }
 
@@ -170,7 +180,7 @@ std::string format_summary(const StatusSnapshot& end, double run_s)
                        end.frames_out, end.stems_out, run_s,
                        run_s > 0 ? static_cast<double>(end.frames_out) / run_s : 0.0, end.no_vegetation)
            + behind(end, StatusSnapshot{}) + " | " + drops(end, StatusSnapshot{}) + source(end, StatusSnapshot{})
-           + trigger(end, StatusSnapshot{}) + files(end, StatusSnapshot{}) + actuation(end, StatusSnapshot{}) + odometry(end, StatusSnapshot{}) + class_socket(end, StatusSnapshot{}) + class_model(end, StatusSnapshot{}) + " | " + durations(end) + tool_timing(end) + gnss(end);
+           + trigger(end, StatusSnapshot{}) + files(end, StatusSnapshot{}) + actuation(end, StatusSnapshot{}) + odometry(end, StatusSnapshot{}) + can(end, StatusSnapshot{}) + class_socket(end, StatusSnapshot{}) + class_model(end, StatusSnapshot{}) + " | " + durations(end) + tool_timing(end) + gnss(end);
 }
 
 }  // namespace stemd::runtime

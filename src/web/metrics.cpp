@@ -109,6 +109,12 @@ Metrics collect_metrics(runtime::Daemon& daemon)
     m.class_timeouts = s.class_timeouts;
     m.class_bad_messages = s.class_bad_messages;
     m.class_peers = s.class_peers;
+    m.can_interface = s.can_interface;
+    m.can_tx_late = s.can_tx_late;
+    m.can_tx_unconfirmed = s.can_tx_unconfirmed;
+    m.can_tx_waits = s.can_tx_waits;
+    m.can_bus_off = s.can_bus_off;
+    m.can_error_passive = s.can_error_passive;
     m.trigger = s.trigger;
     m.trigger_pulses = s.trigger_pulses;
     m.trigger_late = s.trigger_late;
@@ -181,6 +187,17 @@ std::string format_metrics(const Metrics& m)
                   "Odometer samples refused for going back (the machine reversing): frames are not actuated until "
                   "it passes its highest reading again.",
                   m.odometry_going_back);
+    }
+    if (m.can_interface) {
+        t.counters("can_frames_total",
+                   "TARGET and HEARTBEAT frames by what the interface reported: on the wire after their deadline, or "
+                   "never reported on it.",
+                   "outcome", {{"late", m.can_tx_late}, {"unconfirmed", m.can_tx_unconfirmed}});
+        t.counter("can_send_waits_total",
+                  "Sends that waited for the frame before them to leave the interface (a busy or stalled bus).",
+                  m.can_tx_waits);
+        t.counters("can_controller_events_total", "The CAN controller's error states entered.", "state",
+                   {{"bus_off", m.can_bus_off}, {"error_passive", m.can_error_passive}});
     }
     t.counter("bad_class_plants_total", "Plants whose class-map window held values above 2 (taken as unknown).",
               m.bad_class);

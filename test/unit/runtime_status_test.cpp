@@ -131,6 +131,30 @@ TEST(Status, ALiveOdometersFramesAndReversingAreShown)
     EXPECT_EQ(format_status(now, before).find("odometry:"), std::string::npos);
 }
 
+// A SocketCAN interface's frames late on the wire or never reported on it,
+// the sends that waited, and the controller's error states; nothing for a
+// CAN log.
+TEST(Status, TheCanInterfacesWireAndControllerAreShown)
+{
+    StatusSnapshot before = with_actuation();
+    before.t_ns = 1'000'000'000;
+    before.can_interface = true;
+    before.can_tx_late = 1;
+    before.can_tx_waits = 10;
+    StatusSnapshot now = before;
+    now.t_ns = 2'000'000'000;
+    now.can_tx_late = 3;
+    now.can_tx_unconfirmed = 1;
+    now.can_tx_waits = 17;
+    now.can_bus_off = 1;
+    now.can_error_passive = 2;
+    expect_interval_and_total(now, before,
+                              "can: late on the wire 2, unconfirmed 1, waited 7, bus_off 1, error_passive 2",
+                              "can: late on the wire 3, unconfirmed 1, waited 17, bus_off 1, error_passive 2");
+    now.can_interface = false;
+    EXPECT_EQ(format_status(now, before).find("can:"), std::string::npos);
+}
+
 TEST(Status, ToolTimingPerToolThatFiredOrLeads)
 {
     StatusSnapshot s = with_actuation();

@@ -165,6 +165,29 @@ TEST(WebMetrics, TriggerAndFileSeriesOnlyWithATriggerAndFiles)
     EXPECT_EQ(value.at("stemd_file_lines_total{outcome=\"lost\"}"), 3);
 }
 
+TEST(WebMetrics, CanInterfaceSeriesOnlyWithAnInterface)
+{
+    web::Metrics m;
+    m.actuation = true;
+    EXPECT_EQ(web::format_metrics(m).find("stemd_can_"), std::string::npos);
+    m.can_interface = true;
+    m.can_tx_late = 2;
+    m.can_tx_unconfirmed = 1;
+    m.can_tx_waits = 40;
+    m.can_bus_off = 3;
+    m.can_error_passive = 4;
+    std::map<std::string, std::string> types;
+    std::string error;
+    const std::map<std::string, double> value = by_key(parse(web::format_metrics(m), types, error));
+    EXPECT_EQ(error, "");
+    EXPECT_EQ(types.at("stemd_can_frames_total"), "counter");
+    EXPECT_EQ(value.at("stemd_can_frames_total{outcome=\"late\"}"), 2);
+    EXPECT_EQ(value.at("stemd_can_frames_total{outcome=\"unconfirmed\"}"), 1);
+    EXPECT_EQ(value.at("stemd_can_send_waits_total{}"), 40);
+    EXPECT_EQ(value.at("stemd_can_controller_events_total{state=\"bus_off\"}"), 3);
+    EXPECT_EQ(value.at("stemd_can_controller_events_total{state=\"error_passive\"}"), 4);
+}
+
 TEST(WebMetrics, ClassProviderSeriesOnlyWithTheirProvider)
 {
     web::Metrics m;

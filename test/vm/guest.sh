@@ -252,6 +252,17 @@ check_socketcan() {
   echo "== vcan0 down while sending (errors, no crash), then up (sending resumes)"
   sc downup vcan0 -- sh -c 'ip link set "$1" "$2"' sh vcan0 || die "SocketCanBus down/up"
   ip link set vcan0 up
+
+  echo "== frames sent one at a time, each once the one before is on the wire: vcan echoing a frame when it"
+  echo "   leaves (echo=1, as a controller's driver does), behind a token bucket that lets a frame out every 400 ms"
+  ip link del vcan0 && rmmod vcan && modprobe vcan echo=1 || die "reloading vcan with echo=1"
+  [ "$(cat /sys/module/vcan/parameters/echo)" = Y ] || die "vcan's echo parameter is not set"
+  vcan_up
+  hostrun /sbin/tc qdisc replace dev vcan0 root tbf rate 320bit burst 32 limit 1600 || die "tbf on vcan0"
+  sc confirm vcan0 || die "SocketCanBus confirm"
+  # The later checks see vcan as loaded by vcan_up.
+  ip link del vcan0 && rmmod vcan || die "unloading vcan"
+  vcan_up
 }
 extra_checks="$extra_checks socketcan"
 

@@ -18,6 +18,14 @@
 //       frame whose SendGate closes after its first write was refused: the
 //       send must give it up (withdrawn) within milliseconds, long before
 //       its deadline, and count it; then runs "TRIGGER del".
+//   stemd-vm-socketcan-check confirm IFACE
+//       on an interface whose driver echoes a frame when it leaves (vcan
+//       loaded with echo=1) behind a token bucket that lets one frame out
+//       every 400 ms: TARGETs sent with confirmed_tx_ids go one at a time.
+//       A frame whose predecessor is still queued is never written: given
+//       up at its deadline (deadline_passed) or when its gate closes
+//       (withdrawn); a frame written in time but leaving after its deadline
+//       is counted in tx_late; a second bus sees exactly the frames sent.
 //   stemd-vm-socketcan-check downup IFACE -- TRIGGER...
 //       sends, runs "TRIGGER down", checks sends fail with errors reported (no
 //       crash, not sent), runs "TRIGGER up", checks sending resumes (the driver
@@ -94,11 +102,13 @@ std::shared_ptr<spdlog::logger> logger()
     return log;
 }
 
-SocketCanOptions options(const std::string& iface, std::vector<std::uint32_t> rx_ids = {})
+SocketCanOptions options(const std::string& iface, std::vector<std::uint32_t> rx_ids = {},
+                         std::vector<std::uint32_t> confirmed_tx_ids = {})
 {
     SocketCanOptions o;
     o.interface = iface;
     o.rx_ids = std::move(rx_ids);
+    o.confirmed_tx_ids = std::move(confirmed_tx_ids);
     o.reopen_min_ns = 10 * kMs;
     o.reopen_max_ns = 100 * kMs;
     return o;
@@ -114,13 +124,15 @@ void counters(const SocketCanBus& bus)
 {
     const auto c = bus.counters();
     std::printf("%.*s: state %.*s, sent %llu, retries %llu, deadline misses %llu, withdrawn %llu, errors %llu, rx %llu, "
-                "reopens %llu\n",
+                "reopens %llu, echo waits %llu, late %llu, unconfirmed %llu\n",
                 static_cast<int>(bus.name().size()), bus.name().data(),
                 static_cast<int>(to_string(bus.state()).size()), to_string(bus.state()).data(),
                 static_cast<unsigned long long>(c.sent), static_cast<unsigned long long>(c.tx_queue_full_retries),
                 static_cast<unsigned long long>(c.deadline_misses), static_cast<unsigned long long>(c.withdrawn),
                 static_cast<unsigned long long>(c.errors),
-                static_cast<unsigned long long>(c.rx), static_cast<unsigned long long>(bus.reopens()));
+                static_cast<unsigned long long>(c.rx), static_cast<unsigned long long>(bus.reopens()),
+                static_cast<unsigned long long>(c.tx_confirm_waits), static_cast<unsigned long long>(c.tx_late),
+                static_cast<unsigned long long>(c.tx_unconfirmed));
     std::fflush(stdout);
 }
 
@@ -234,6 +246,75 @@ void gate(const std::string& iface, const std::vector<std::string>& trigger)
         fail("the send waited " + std::to_string(waited_ns / kMs) + " ms for a closed gate");
 }
 
+void confirm(const std::string& iface)
+{
+    const std::uint16_t target_id = kIds.id(protocol::MessageKind::Target);
+    SocketCanBus watcher(options(iface, {target_id}), logger());
+    open_or_fail(watcher);
+    SocketCanBus bus(options(iface, {kIds.id(protocol::MessageKind::Odometry)},
+                             {target_id, kIds.id(protocol::MessageKind::Heartbeat)}),
+                     logger());
+    open_or_fail(bus);
+    const auto now = [] { return stemd::base::monotonic_ns(); };
+    const auto expect = [&](SendResult got, SendResult want, const std::string& what) {
+        if (got != want)
+            fail(what + ": " + std::string(to_string(got)) + ", expected " + std::string(to_string(want)));
+        info(what + ": " + std::string(to_string(got)));
+    };
+    std::vector<protocol::CanFrame> on_the_wire;
+    protocol::TargetCommand msg = kTarget;
+    const auto frame = [&](std::uint16_t id) {
+        msg.target_id = id;
+        return target_frame(static_cast<std::uint8_t>(id % 15), msg);
+    };
+    // The bucket holds two frames: the first two leave at once, the third
+    // 400 ms after it is written.
+    for (std::uint16_t id = 1; id <= 2; ++id) {
+        const auto f = frame(id);
+        expect(bus.send(f, now() + 5000 * kMs), SendResult::sent, "frame " + std::to_string(id) + " (bucket full)");
+        on_the_wire.push_back(f);
+    }
+    const auto late = frame(3);
+    expect(bus.send(late, now() + 100 * kMs), SendResult::sent, "frame 3, due in 100 ms (the bucket is empty)");
+    on_the_wire.push_back(late);
+    const std::int64_t t_missed = now();
+    expect(bus.send(frame(4), t_missed + 50 * kMs), SendResult::deadline_passed,
+           "frame 4, due in 50 ms while frame 3 is queued");
+    const std::int64_t missed_after_ns = now() - t_missed;
+    if (missed_after_ns < 50 * kMs)
+        fail("frame 4 was given up " + std::to_string(missed_after_ns / 1000) + " us after the send, before its deadline");
+    const OpenOnce once;
+    const std::int64_t t_gated = now();
+    expect(bus.send(frame(5), t_gated + 5000 * kMs, {.is_open = &OpenOnce::open, .context = &once}),
+           SendResult::withdrawn, "frame 5, its gate closing while frame 3 is queued");
+    if (now() - t_gated > 1000 * kMs)
+        fail("the gated frame waited " + std::to_string((now() - t_gated) / kMs) + " ms for a closed gate");
+    const auto last = frame(6);
+    expect(bus.send(last, now() + 5000 * kMs), SendResult::sent, "frame 6, once frame 3 has left");
+    on_the_wire.push_back(last);
+    counters(bus);
+    const auto c = bus.counters();
+    if (c.sent != 4 || c.deadline_misses != 1 || c.withdrawn != 1)
+        fail("sent / deadline misses / withdrawn are not 4 / 1 / 1");
+    if (c.tx_confirm_waits < 3)
+        fail("fewer than 3 sends (frames 4, 5, 6) waited for an echo");
+    if (c.tx_late != 1)
+        fail("frame 3's late arrival on the bus was not counted once in tx_late");
+    if (c.tx_unconfirmed != 0)
+        fail("an echo was presumed lost");
+    for (const auto& want : on_the_wire) {
+        protocol::CanFrame got;
+        if (!watcher.receive(got, 2000 * kMs))
+            fail("the second bus did not receive " + text(want));
+        info("second bus received " + text(got));
+        if (!(got == want))
+            fail("received " + text(got) + ", expected " + text(want) + " (a withdrawn or missed frame went out?)");
+    }
+    protocol::CanFrame extra;
+    if (watcher.receive(extra, 1000 * kMs))
+        fail("a frame that was never sent reached the bus: " + text(extra));
+}
+
 void downup(const std::string& iface, const std::vector<std::string>& trigger)
 {
     if (trigger.empty())
@@ -303,12 +384,13 @@ void downup(const std::string& iface, const std::vector<std::string>& trigger)
 int main(int argc, char** argv)
 {
     const std::string mode = argc > 1 ? argv[1] : "";
-    const bool ok = mode == "frames" || (argc >= 3 && (mode == "send" || mode == "downup" || mode == "gate")) ||
+    const bool ok = mode == "frames" ||
+                    (argc >= 3 && (mode == "send" || mode == "downup" || mode == "gate" || mode == "confirm")) ||
                     (argc >= 4 && mode == "receive");
     if (!ok) {
         std::fprintf(stderr,
                      "usage: %s frames | send IFACE | receive IFACE TIMEOUT_MS -- TRIGGER... | downup IFACE -- "
-                     "TRIGGER... | gate IFACE -- TRIGGER...\n",
+                     "TRIGGER... | gate IFACE -- TRIGGER... | confirm IFACE\n",
                      argv[0]);
         return 2;
     }
@@ -322,6 +404,8 @@ int main(int argc, char** argv)
             receive(argv[2], std::atoi(argv[3]), stemd::vmprobe::command_after_dashes(argc, argv));
         } else if (mode == "gate") {
             gate(argv[2], stemd::vmprobe::command_after_dashes(argc, argv));
+        } else if (mode == "confirm") {
+            confirm(argv[2]);
         } else {
             downup(argv[2], stemd::vmprobe::command_after_dashes(argc, argv));
         }

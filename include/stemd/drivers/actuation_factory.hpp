@@ -22,6 +22,9 @@ struct CanBusSpec {
     std::string log_file = "-";       // log sink: "-" = stdout
     bool log_monotonic = false;       // log sink timestamps: CLOCK_MONOTONIC, else CLOCK_REALTIME
     std::vector<std::uint32_t> rx_ids;  // SocketCAN: the ids to receive
+    // SocketCAN: the ids sent one at a time, each once the previous one is
+    // on the wire (SocketCanOptions::confirmed_tx_ids).
+    std::vector<std::uint32_t> confirmed_tx_ids;
 };
 
 // nullptr with `error` set when the log sink cannot be opened. A SocketCAN

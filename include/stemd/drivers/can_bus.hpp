@@ -55,6 +55,11 @@ struct CanBusCounters {
     std::uint64_t bus_off = 0;                // bus-off events reported by the controller
     std::uint64_t error_passive = 0;          // error-passive events reported by the controller
     std::uint64_t rx = 0;                     // data frames delivered by receive()
+    // Backends that hear their own frames on the wire (SocketCAN's
+    // confirmed_tx_ids):
+    std::uint64_t tx_confirm_waits = 0;  // sends that waited for the previous frame to reach the wire
+    std::uint64_t tx_late = 0;           // frames that reached the wire after their deadline
+    std::uint64_t tx_unconfirmed = 0;    // frames written whose arrival on the wire was never reported
 };
 
 // The counters as atomics, one set for every backend (a backend leaves the
@@ -69,6 +74,9 @@ struct CanBusCounterCells {
     std::atomic<std::uint64_t> bus_off{0};
     std::atomic<std::uint64_t> error_passive{0};
     std::atomic<std::uint64_t> rx{0};
+    std::atomic<std::uint64_t> tx_confirm_waits{0};
+    std::atomic<std::uint64_t> tx_late{0};
+    std::atomic<std::uint64_t> tx_unconfirmed{0};
 
     static void bump(std::atomic<std::uint64_t>& cell) { cell.fetch_add(1, std::memory_order_relaxed); }
 
@@ -82,7 +90,10 @@ struct CanBusCounterCells {
                 .errors = get(errors),
                 .bus_off = get(bus_off),
                 .error_passive = get(error_passive),
-                .rx = get(rx)};
+                .rx = get(rx),
+                .tx_confirm_waits = get(tx_confirm_waits),
+                .tx_late = get(tx_late),
+                .tx_unconfirmed = get(tx_unconfirmed)};
     }
 };
 

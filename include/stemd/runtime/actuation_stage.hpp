@@ -109,6 +109,8 @@ public:
     }
     std::uint32_t trigger_pulse_us() const { return config_.trigger_pulse_us; }
     OdometrySource odometry_source() const { return config_.odometry; }
+    // Commands go to a SocketCAN interface, not to a log.
+    bool on_can_interface() const { return !config_.can_interface.empty(); }
     // The view's along-track extent relative to the odometer at capture.
     double view_forward_min_mm() const { return projector_.view_forward_min_mm(); }
     double view_forward_max_mm() const { return projector_.view_forward_max_mm(); }

@@ -99,6 +99,12 @@ struct StatusSnapshot {
     // reading again).
     bool odometry_can = false, odometry_encoder = false;
     std::uint64_t rx_odometry = 0, odometry_going_back = 0;
+    // A SocketCAN interface (can.interface): TARGETs and HEARTBEATs that
+    // reached the wire after their deadline, written ones the interface
+    // never reported on the wire, sends that waited for the frame before to
+    // leave, and the controller's bus-off and error-passive events.
+    bool can_interface = false;
+    std::uint64_t can_tx_late = 0, can_tx_unconfirmed = 0, can_tx_waits = 0, can_bus_off = 0, can_error_passive = 0;
     DurationHistogram::Summary latency;    // interval, or whole run for the final line
     DurationHistogram::Summary pipeline;
     DurationHistogram::Summary send;       // actuation: capture -> TARGET on the bus

@@ -6,7 +6,8 @@
 // stems_total, frames_late_total, frames_dropped_total{cause},
 // deadline_misses_total, targets_confirmed_total, targets_total{outcome},
 // bus_errors_total{frame}, no_odometry_frames_total,
-// odometry_frames_total, odometer_samples_going_back_total, and the histograms
+// odometry_frames_total, odometer_samples_going_back_total, can_frames_total{outcome},
+// can_send_waits_total, can_controller_events_total{state}, and the histograms
 // capture_to_result_seconds, capture_to_send_seconds, pipeline_seconds and
 // thread_cycle_seconds{thread}; live_* for the view itself.
 #pragma once
@@ -43,6 +44,9 @@ struct Metrics {
     std::uint64_t targets = 0, sent = 0, policy = 0, no_tool = 0, disabled = 0, deadline_miss = 0,
                   bus_deadline = 0, bus_error = 0, heartbeat_errors = 0, heartbeat_misses = 0,
                   no_odometry = 0, rx_odometry = 0, odometry_going_back = 0;
+    // The SocketCAN interface's series, written only with one.
+    bool can_interface = false;
+    std::uint64_t can_tx_late = 0, can_tx_unconfirmed = 0, can_tx_waits = 0, can_bus_off = 0, can_error_passive = 0;
     // Plants' classes: class-map windows with values above 2 (any provider);
     // the in-box model's weed targets beside the plants' stems and the cells
     // its budget left out; the socket provider's maps, late maps, bad
