@@ -216,7 +216,7 @@ int main(int argc, char** argv)
         }
         odometer = runtime::make_odometer_tap(actuation, error);
         if (!odometer) {
-            std::cerr << "stemd-record: " << config.blame("odometry.source", error) << "\n";
+            std::cerr << "stemd-record: " << error << "\n";
             return kUsageError;
         }
         columns.odom_mm = true;

@@ -1,5 +1,6 @@
 #include "stemd/runtime/actuation_factory.hpp"
 
+#include <optional>
 #include <utility>
 
 #include "stemd/drivers/actuation_factory.hpp"
@@ -25,21 +26,29 @@ drivers::GpioSpec gpio_spec(const ActuationConfig& config)
     return gpio;
 }
 
+// The message identifiers, once the configuration holds together; else
+// nullopt with `error` naming the key.
+std::optional<protocol::CanIds> checked_ids(const ActuationConfig& config, std::string& error)
+{
+    if (const auto problem = check_actuation_config(config)) {
+        error = problem->key + ": " + problem->message;
+        return std::nullopt;
+    }
+    auto ids = protocol::CanIds::make(config.can_base_id);
+    if (!ids)
+        error = "can.base_id " + std::to_string(config.can_base_id) + " is too large";
+    return ids;
+}
+
 }  // namespace
 
 std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, const geometry::CameraModel& camera,
                                                cv::Size frame_size, std::string& error)
 {
-    if (const auto problem = check_actuation_config(config)) {
-        error = problem->key + ": " + problem->message;
+    const auto ids = checked_ids(config, error);
+    if (!ids)
         return nullptr;
-    }
     const auto log = make_logger("actuator");
-    const auto ids = protocol::CanIds::make(config.can_base_id);
-    if (!ids) {
-        error = "can.base_id " + std::to_string(config.can_base_id) + " is too large";
-        return nullptr;
-    }
     ActuationStage::Parts parts;
     drivers::CanBusSpec can;
     can.interface = config.can_interface;
@@ -84,27 +93,21 @@ std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, co
 
 std::unique_ptr<OdometerTap> make_odometer_tap(const ActuationConfig& config, std::string& error)
 {
+    const auto ids = checked_ids(config, error);
+    if (!ids)
+        return nullptr;
+    if (config.odometry != OdometrySource::encoder && config.odometry != OdometrySource::can) {
+        error = "odometry.source: neither can nor encoder (no odometer to record)";
+        return nullptr;
+    }
     const OdometerTapParams params{.timeout_ns = config.odometry_timeout_ns,
                                    .max_extrapolation_ns = config.max_extrapolation_ns};
     const auto log = make_logger("odometer");
     if (config.odometry == OdometrySource::encoder) {
-        if (config.gpio_chip.empty() || config.encoder_mode == "none") {
-            error = "encoder, but gpio.chip or gpio.encoder is none (no wheel encoder configured)";
-            return nullptr;
-        }
         auto lines = drivers::make_gpio_lines(gpio_spec(config), make_logger, *log, error);
         if (!lines)
             return nullptr;
         return std::make_unique<OdometerTap>(std::move(lines), config.encoder_mm_per_tick, params);
-    }
-    if (config.can_interface.empty()) {
-        error = "can, but can.interface is none (ODOMETRY frames need a CAN interface)";
-        return nullptr;
-    }
-    const auto ids = protocol::CanIds::make(config.can_base_id);
-    if (!ids) {
-        error = "can.base_id " + std::to_string(config.can_base_id) + " is too large";
-        return nullptr;
     }
     drivers::CanBusSpec can;
     can.interface = config.can_interface;

@@ -26,9 +26,11 @@ std::unique_ptr<ActuationStage> make_actuation(const ActuationConfig& config, co
 // The machine's odometer as odometry.source names it (can: ODOMETRY frames
 // on can.interface; encoder: the wheel encoder on the gpio.* lines), for a
 // program that records without actuating (not started). nullptr with
-// `error` set (worded to follow "odometry.source: ") when that source is not
-// configured or cannot be opened. A SocketCAN interface that is down, or a
-// GPIO chip not there yet, is not an error: they are reopened with backoff.
+// `error` set ("KEY: why", as make_actuation words it) when the
+// configuration does not hold together (check_actuation_config), names no
+// such source, or the source cannot be opened. A SocketCAN interface that
+// is down, or a GPIO chip not there yet, is not an error: they are reopened
+// with backoff.
 std::unique_ptr<OdometerTap> make_odometer_tap(const ActuationConfig& config, std::string& error);
 
 }  // namespace stemd::runtime
