@@ -14,7 +14,8 @@ namespace {
 constexpr base::EnumName<TreatPolicy> kTreatPolicies[]{{TreatPolicy::weeds_only, "weeds_only"}, {TreatPolicy::all, "all"}};
 constexpr base::EnumName<ScheduleOutcome> kScheduleOutcomes[]{
     {ScheduleOutcome::send, "send"}, {ScheduleOutcome::policy, "policy"}, {ScheduleOutcome::no_tool, "no_tool"},
-    {ScheduleOutcome::disabled, "disabled"}, {ScheduleOutcome::deadline_miss, "deadline_miss"}};
+    {ScheduleOutcome::disabled, "disabled"}, {ScheduleOutcome::not_ready, "not_ready"},
+    {ScheduleOutcome::deadline_miss, "deadline_miss"}};
 
 }  // namespace
 
@@ -137,13 +138,27 @@ ScheduleDecision Scheduler::schedule(const Target& target, const ScheduleNow& no
         return dec;
     }
 
-    // 4. Deadline: the first covering tool that can be on time.
+    // 4. A covering tool that is ready (the first in table order).
+    const auto usable = [&](const ToolSpec& t) {
+        return y >= t.y_min_mm && y <= t.y_max_mm && (now.tools_ready_mask >> t.id & 1U) != 0;
+    };
+    std::size_t first_ready = first;
+    while (first_ready < n_tools_ && !usable(tools_[first_ready]))
+        ++first_ready;
+    if (first_ready == n_tools_) {
+        dec.outcome = ScheduleOutcome::not_ready;
+        ++counters_.not_ready;
+        return dec;
+    }
+    first = first_ready;
+
+    // 5. Deadline: the first ready covering tool that can be on time.
     const double v = std::isfinite(now.speed_mm_per_s) ? now.speed_mm_per_s : 0.0;
     const bool standing = v <= params_.standing_speed_mm_per_s;
     const double need_ms = params_.lead_ms + params_.send_budget_ms;
     for (std::size_t i = first; i < n_tools_; ++i) {
         const ToolSpec& t = tools_[i];
-        if (!(y >= t.y_min_mm && y <= t.y_max_mm))
+        if (!usable(t))
             continue;
         fill(t);
         const double d = dec.fire_odom_mm - now.odom_mm;
@@ -169,7 +184,7 @@ ScheduleDecision Scheduler::schedule(const Target& target, const ScheduleNow& no
         ++counters_.sent;
         return dec;
     }
-    // No covering tool can be on time: report the first one.
+    // No ready covering tool can be on time: report the first one.
     fill(tools_[first]);
     {
         const double d = dec.fire_odom_mm - now.odom_mm;

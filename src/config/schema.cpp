@@ -388,6 +388,11 @@ constexpr std::array kSchema{
         "timestamps of the log lines: wall clock (realtime, as candump) or CLOCK_MONOTONIC"),
     real_key<STEMD_KEY(actuation.heartbeat_interval_ns), kNsPerMs>("can.heartbeat_ms", "ms", 10, 10000, "100",
         "period of the HEARTBEAT message the tool controllers watch"),
+    real_key<STEMD_KEY(actuation.tool_status_timeout_ns), kNsPerMs>("can.tool_status_timeout_ms", "ms", 0, 60000,
+        "1000",
+        "a tool whose bit in the tool controller's last TOOL_STATUS (tools_ready_mask) is clear gets no TARGET; "
+        "until the first TOOL_STATUS every tool counts as ready, once the last is older than this none does; "
+        "0: it holds until the next"),
 
     text_key<STEMD_KEY(actuation.gpio_chip)>("gpio.chip", "none",
         "GPIO chip of the lines below (e.g. gpiochip0 or /dev/gpiochip0); none: no GPIO, the enable input counts as active (warned)"),

@@ -46,7 +46,7 @@ constexpr std::array kToolErrorNames{
     ValueName{tool_error::kBadCommand, "BAD_COMMAND"},
     ValueName{tool_error::kOther, "OTHER"},
 };
-constexpr SignalDef kReadyMask{"tools_ready_mask", 16, 16, false, 0, 0xFFFF, "", "Bit n set: tool n is ready to fire."};
+constexpr SignalDef kReadyMask{"tools_ready_mask", 16, 16, false, 0, 0xFFFF, "", "Bit n set: tool n is ready to fire; stemd sends no TARGET to a tool whose bit is clear."};
 constexpr SignalDef kLastTargetId{"last_target_id", 32, 12, false, 0, kMaxTargetId, "",
                                   "target_id of the last executed TARGET; valid if last_target_valid."};
 constexpr SignalDef kLastTargetValid{"last_target_valid", 44, 1, false, 0, 1, "", "0 until the tool has executed a target."};
@@ -64,7 +64,8 @@ constexpr SignalDef kSent{"targets_sent", 16, 16, false, 0, 0xFFFF, "", "TARGET 
 constexpr SignalDef kDeadlineMisses{"deadline_misses", 32, 12, false, 0, 4095, "",
                                     "Targets that missed their deadline; saturates at 4095."};
 constexpr SignalDef kDropped{"targets_dropped", 44, 12, false, 0, 4095, "",
-                             "TARGETs not sent: no tool covers the plant, enable off, or the send failed; saturates at 4095."};
+                             "TARGETs not sent: no tool covers the plant or none covering it is ready, enable off, or the send failed; "
+                             "saturates at 4095."};
 constexpr SignalDef kRxRejected{"rx_rejected", 56, 8, false, 0, 255, "",
                                 "Received frames rejected (E2E, decode, or TOOL_FIRED for a tool not configured); saturates at 255."};
 constexpr std::array kHeartbeatSignals{kCrc, kCounter, kState, kSent, kDeadlineMisses, kDropped, kRxRejected};

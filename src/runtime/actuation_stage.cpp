@@ -67,7 +67,7 @@ ActuationStage::ActuationStage(const ActuationConfig& config, Parts parts, Plant
       odometry_(config, counters_),
       projector_(projector),
       tracker_(config.tracker),
-      sender_(scheduler, scheduler_all, *parts_.bus, ids, odometry_, counters_),
+      sender_(scheduler, scheduler_all, *parts_.bus, ids, odometry_, counters_, config.tool_status_timeout_ns),
       link_(*parts_.bus, ids, config.heartbeat_interval_ns, odometry_, sender_, counters_)
 {
     if (parts_.gnss)

@@ -51,6 +51,7 @@ void CanLink::receive() noexcept
                 continue;
             bump(counters_.rx_tool_status);
             counters_.tools_ready_mask.store(m.tools_ready_mask, std::memory_order_relaxed);
+            sender_.on_tool_status(m, t_rx_ns);
         } else if (*kind == protocol::MessageKind::ToolFired) {
             protocol::ToolFired m;
             if (!accepted(frame, tool_fired_checker_, m))
@@ -109,6 +110,7 @@ void CanLink::heartbeat(std::int64_t now_ns, bool frames_seen, bool camera_lost,
     hb.deadline_misses = misses;
     hb.targets_dropped = counters_.no_tool.load(std::memory_order_relaxed) +
                          counters_.disabled.load(std::memory_order_relaxed) +
+                         counters_.not_ready.load(std::memory_order_relaxed) +
                          counters_.bus_errors.load(std::memory_order_relaxed);
     hb.rx_rejected = counters_.rx_rejected.load(std::memory_order_relaxed);
     protocol::CanFrame frame;

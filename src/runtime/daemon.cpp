@@ -578,7 +578,8 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
         s.targets = get(a.targets);
         s.sent = get(a.sent);
         s.deadline_misses = get(a.deadline_misses) + get(a.bus_deadline);
-        s.not_treated = get(a.policy) + get(a.no_tool) + get(a.disabled);
+        s.not_treated = get(a.policy) + get(a.no_tool) + get(a.disabled) + get(a.not_ready);
+        s.not_ready = get(a.not_ready);
         s.no_odometry = get(a.no_odometry);
         s.odometry_can = actuation_->odometry_source() == OdometrySource::can;
         s.odometry_encoder = actuation_->odometry_source() == OdometrySource::encoder;

@@ -64,6 +64,7 @@ std::string_view to_string(MapReason r)
     case MapReason::policy: return "policy";
     case MapReason::no_tool: return "no_tool";
     case MapReason::disabled: return "disabled";
+    case MapReason::not_ready: return "not_ready";
     case MapReason::deadline_miss: return "deadline_miss";
     case MapReason::bus_deadline: return "bus_deadline";
     case MapReason::bus_error: return "bus_error";

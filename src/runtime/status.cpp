@@ -54,10 +54,11 @@ std::string actuation(const StatusSnapshot& now, const StatusSnapshot& before)
 {
     if (!now.actuation)
         return "";
-    return fmt::format(" | targets {}, sent {}, deadline_misses {}, not_treated {}, no_odometry {}, bus_errors {}, "
-                       "heartbeat_errors {}, heartbeat_misses {}, bad_class {}",
+    return fmt::format(" | targets {}, sent {}, deadline_misses {}, not_treated {} (tools not ready {}), no_odometry {}, "
+                       "bus_errors {}, heartbeat_errors {}, heartbeat_misses {}, bad_class {}",
                        now.targets - before.targets, now.sent - before.sent,
                        now.deadline_misses - before.deadline_misses, now.not_treated - before.not_treated,
+                       now.not_ready - before.not_ready,
                        now.no_odometry - before.no_odometry, now.bus_errors - before.bus_errors,
                        now.heartbeat_errors - before.heartbeat_errors, now.heartbeat_misses - before.heartbeat_misses,
                        now.bad_class - before.bad_class);

@@ -16,6 +16,7 @@ MapReason reason_of(actuation::ScheduleOutcome o)
     case ScheduleOutcome::policy: return MapReason::policy;
     case ScheduleOutcome::no_tool: return MapReason::no_tool;
     case ScheduleOutcome::disabled: return MapReason::disabled;
+    case ScheduleOutcome::not_ready: return MapReason::not_ready;
     case ScheduleOutcome::deadline_miss: return MapReason::deadline_miss;
     }
     return MapReason::pending;
@@ -25,13 +26,14 @@ MapReason reason_of(actuation::ScheduleOutcome o)
 
 TargetSender::TargetSender(actuation::Scheduler scheduler, std::optional<actuation::Scheduler> scheduler_all,
                            drivers::CanBus& bus, protocol::CanIds ids, const OdometryInput& odometry,
-                           ActuationCounters& counters)
+                           ActuationCounters& counters, std::int64_t tool_status_timeout_ns)
     : scheduler_(scheduler),
       scheduler_all_(scheduler_all),
       bus_(bus),
       ids_(ids),
       odometry_(odometry),
-      counters_(counters)
+      counters_(counters),
+      tool_status_timeout_ns_(tool_status_timeout_ns)
 {
     const auto tools = scheduler_.tools();
     for (std::size_t i = 0; i < tools.size(); ++i) {
@@ -85,6 +87,22 @@ TargetSender::Fired TargetSender::on_fired(const protocol::ToolFired& fired, dou
     return Fired::matched;
 }
 
+void TargetSender::on_tool_status(const protocol::ToolStatus& status, std::int64_t t_rx_ns) noexcept
+{
+    tool_status_seen_ = true;
+    tools_ready_mask_ = status.tools_ready_mask;
+    tool_status_rx_ns_ = t_rx_ns;
+}
+
+std::uint16_t TargetSender::tools_ready_mask(std::int64_t now_ns) const noexcept
+{
+    if (!tool_status_seen_)
+        return 0xFFFF;
+    if (tool_status_timeout_ns_ > 0 && now_ns - tool_status_rx_ns_ > tool_status_timeout_ns_)
+        return 0;
+    return tools_ready_mask_;
+}
+
 bool TargetSender::schedule(const actuation::Target& target, std::int64_t now_ns, bool class_map,
                             drivers::SendGate enable) noexcept
 {
@@ -103,6 +121,7 @@ bool TargetSender::schedule(const actuation::Target& target, std::int64_t now_ns
     now.odom_mm = odom_now;
     now.speed_mm_per_s = odometry_.speed_mm_per_s();
     now.enabled = enable.open();
+    now.tools_ready_mask = tools_ready_mask(now_ns);
     actuation::Scheduler& scheduler = (scheduler_all_ && !class_map) ? *scheduler_all_ : scheduler_;
     const actuation::ScheduleDecision d = scheduler.schedule(target, now);
     entry.reason = reason_of(d.outcome);
@@ -119,6 +138,7 @@ bool TargetSender::schedule(const actuation::Target& target, std::int64_t now_ns
     case actuation::ScheduleOutcome::policy: bump(counters_.policy); return false;
     case actuation::ScheduleOutcome::no_tool: bump(counters_.no_tool); return false;
     case actuation::ScheduleOutcome::disabled: bump(counters_.disabled); return false;
+    case actuation::ScheduleOutcome::not_ready: bump(counters_.not_ready); return false;
     case actuation::ScheduleOutcome::deadline_miss:
         bump(counters_.deadline_misses);
         if (d.compensation_miss)

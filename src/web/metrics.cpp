@@ -135,6 +135,7 @@ Metrics collect_metrics(runtime::Daemon& daemon)
         m.policy = get(a->policy);
         m.no_tool = get(a->no_tool);
         m.disabled = get(a->disabled);
+        m.not_ready = get(a->not_ready);
         m.deadline_miss = get(a->deadline_misses);
         m.bus_deadline = get(a->bus_deadline);
         m.bus_error = get(a->bus_errors);
@@ -174,7 +175,7 @@ std::string format_metrics(const Metrics& m)
         t.counter("targets_confirmed_total", "Plants confirmed by the tracker (one target each).", m.targets);
         t.counters("targets_total", "Targets by outcome.", "outcome",
                    {{"sent", m.sent}, {"policy", m.policy}, {"no_tool", m.no_tool}, {"disabled", m.disabled},
-                    {"deadline_miss", m.deadline_miss}, {"bus_deadline", m.bus_deadline}, {"bus_error", m.bus_error}});
+                    {"not_ready", m.not_ready}, {"deadline_miss", m.deadline_miss}, {"bus_deadline", m.bus_deadline}, {"bus_error", m.bus_error}});
         t.counters("bus_errors_total", "CAN frames the bus failed, by frame.", "frame",
                    {{"target", m.bus_error}, {"heartbeat", m.heartbeat_errors}});
         t.counter("heartbeat_misses_total",

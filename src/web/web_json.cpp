@@ -40,7 +40,8 @@ nlohmann::json status_json(const runtime::StatusSnapshot& s, const Metrics& m, d
     if (s.actuation)
         j["actuation"] = {{"targets", m.targets},       {"sent", m.sent},
                           {"policy", m.policy},         {"no_tool", m.no_tool},
-                          {"disabled", m.disabled},     {"deadline_miss", m.deadline_miss},
+                          {"disabled", m.disabled},     {"not_ready", m.not_ready},
+                          {"deadline_miss", m.deadline_miss},
                           {"bus_deadline", m.bus_deadline}, {"bus_errors", m.bus_error},
                           {"heartbeat_errors", m.heartbeat_errors}, {"heartbeat_misses", m.heartbeat_misses},
                           {"no_odometry", m.no_odometry}};

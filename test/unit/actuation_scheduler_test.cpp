@@ -190,6 +190,41 @@ TEST(ActuationScheduler, OverlappingToolsFallBackToOneThatIsOnTime)
     EXPECT_EQ(m.command.tool_id, 1);
 }
 
+// A tool whose TOOL_STATUS ready bit is clear is passed over for the next
+// covering tool; with none ready the target is not_ready, never sent, and
+// that comes after the enable input and before the deadline.
+TEST(ActuationScheduler, ToolsThatAreNotReadyGetNoTarget)
+{
+    const std::array<ToolSpec, 2> tools = {{{1, 100.0, -200.0, 200.0, 4}, {2, 900.0, -200.0, 200.0, 1}}};
+    auto s = Scheduler::make(tools, params());
+    ASSERT_TRUE(s);
+    ScheduleNow now = at(0, 1000);
+    now.tools_ready_mask = 1U << 2;   // tool 1 not ready
+    const auto d = s->schedule(weed(1000, 50), now);
+    ASSERT_TRUE(d.ok()) << to_string(d.outcome);
+    EXPECT_EQ(d.command.tool_id, 2);
+    EXPECT_EQ(d.command.fire_odom_mm, 1900u);
+
+    now.tools_ready_mask = 0xFFFF & ~(1U << 1) & ~(1U << 2);   // the other 14 tools ready, not these
+    const auto none = s->schedule(weed(1000, 50), now);
+    EXPECT_EQ(none.outcome, ScheduleOutcome::not_ready);
+    EXPECT_EQ(s->counters().not_ready, 1u);
+
+    // Not ready and too late: not_ready, since no ready tool could be tried.
+    const auto late = s->schedule(weed(1000, 50), {now.now_ns, 1890, 1000, true, now.tools_ready_mask});
+    EXPECT_EQ(late.outcome, ScheduleOutcome::not_ready);
+    // Disabled first.
+    const auto off = s->schedule(weed(1000, 50), {now.now_ns, 0, 1000, false, now.tools_ready_mask});
+    EXPECT_EQ(off.outcome, ScheduleOutcome::disabled);
+    // A ready tool that is too late is a deadline miss reported against it.
+    now.tools_ready_mask = 1U << 1;
+    const auto miss = s->schedule(weed(1000, 50), {now.now_ns, 1095, 1000, true, now.tools_ready_mask});
+    EXPECT_EQ(miss.outcome, ScheduleOutcome::deadline_miss);
+    EXPECT_EQ(miss.command.tool_id, 1);
+    EXPECT_EQ(s->counters().not_ready, 2u);
+    EXPECT_EQ(s->counters().sent, 1u);
+}
+
 TEST(ActuationScheduler, WeedsOnlyPolicy)
 {
     Scheduler weeds = make(params(TreatPolicy::weeds_only));

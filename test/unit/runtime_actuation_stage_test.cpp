@@ -508,6 +508,84 @@ TEST(ActuationStage, CanOdometryDrivesTheFramesAndCorruptFramesAreRejected)
     }
 }
 
+// The strip through a stage whose tool controller sends, before frame k,
+// the TOOL_STATUS mask status(k) returns (none when it returns -1), with
+// the TARGETs sent before each frame.
+struct ToolStatusRun {
+    Stage run;
+    std::vector<std::uint64_t> sent_before;
+    std::uint64_t heartbeat_dropped = 0;   // the last HEARTBEAT's targets_dropped
+};
+
+template <typename StatusOf>
+ToolStatusRun drive_with_tool_status(const std::vector<Plant>& plants, std::int64_t timeout_ns, StatusOf status)
+{
+    ActuationConfig config = base_config();
+    config.tool_status_timeout_ns = timeout_ns;
+    ToolStatusRun out{make_stage(config), {}, 0};
+    const protocol::CanIds ids;
+    protocol::E2eCounter counter;
+    for (int k = 0; k < frames_for(plants); ++k) {
+        const std::int64_t t = kT0 + k * kPeriodNs + 3'000'000;
+        if (const int mask = status(k); mask >= 0) {
+            CanFrame f;
+            EXPECT_TRUE(protocol::encode(protocol::ToolStatus{static_cast<std::uint16_t>(mask), 0, false, 0, 0},
+                                         counter.next(), ids, f));
+            out.run.bus->inbox.push_back(f);
+            out.run.bus->inbox_t_rx_ns.push_back(t);
+        }
+        out.run.stage->poll(t);
+        out.sent_before.push_back(out.run.stage->counters().sent.load());
+        const auto r = frame(plants, k);
+        out.run.stage->on_frame(*r, t);
+    }
+    out.run.stage->poll(kT0 + frames_for(plants) * kPeriodNs + 200'000'000);
+    protocol::Heartbeat last{};
+    for (const CanFrame& f : out.run.bus->sent) {
+        if (ids.kind_of(f) == MessageKind::Heartbeat) {
+            EXPECT_TRUE(protocol::decode(f, ids, last));
+        }
+    }
+    out.heartbeat_dropped = last.targets_dropped;
+    return out;
+}
+
+// The tool controller's TOOL_STATUS: until the first every tool counts as
+// ready; a clear ready bit stops its TARGETs (counted not_ready, and in the
+// HEARTBEAT's targets_dropped); a TOOL_STATUS older than
+// can.tool_status_timeout_ms counts as none ready, unless that is 0.
+TEST(ActuationStage, ToolsReportedNotReadyGetNoTargets)
+{
+    const auto plants = strip(40);   // 65 frames, 2.2 s
+    const std::uint16_t tool3_down = 0xFFFF & ~(1U << 3);   // the table's one tool is 3
+
+    const auto never = drive_with_tool_status(plants, 500'000'000, [](int) { return -1; });
+    EXPECT_EQ(never.run.stage->counters().sent.load(), plants.size()) << "no TOOL_STATUS: every tool is ready";
+
+    const auto down = drive_with_tool_status(plants, 500'000'000, [&](int k) { return k % 3 == 0 ? tool3_down : -1; });
+    EXPECT_EQ(down.run.stage->counters().sent.load(), 0u);
+    EXPECT_TRUE(targets(*down.run.bus).empty());
+    EXPECT_EQ(down.run.stage->counters().not_ready.load(), plants.size());
+    EXPECT_EQ(down.heartbeat_dropped, plants.size());
+
+    // Ready every 100 ms until frame 24 (0.8 s), then silent: nothing is
+    // sent from 500 ms after the last TOOL_STATUS on.
+    const int last_status = 24;
+    const auto silent =
+        drive_with_tool_status(plants, 500'000'000, [&](int k) { return k % 3 == 0 && k <= last_status ? 0xFFFF : -1; });
+    const auto& c = silent.run.stage->counters();
+    const int stale_from = last_status + 16;   // 16 frames: 533 ms after it
+    ASSERT_LT(stale_from, static_cast<int>(silent.sent_before.size()));
+    const std::uint64_t sent_in_time = silent.sent_before[stale_from];
+    EXPECT_GT(sent_in_time, 0u);
+    EXPECT_LT(sent_in_time, plants.size()) << "the strip must outlast the status for this test to say anything";
+    EXPECT_EQ(c.sent.load(), sent_in_time) << "a TARGET went out after the tool controller fell silent";
+    EXPECT_EQ(c.not_ready.load(), plants.size() - sent_in_time);
+
+    const auto held = drive_with_tool_status(plants, 0, [&](int k) { return k == 0 ? 0xFFFF : -1; });
+    EXPECT_EQ(held.run.stage->counters().sent.load(), plants.size()) << "timeout 0: the last TOOL_STATUS holds";
+}
+
 // ODOMETRY frames carry the time the bus received them, not the time a
 // later poll read them: a drive sample 100 ms old is the odometer 100 ms ago.
 TEST(ActuationStage, CanOdometryIsStampedWhenReceivedNotWhenPolled)

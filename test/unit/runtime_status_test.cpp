@@ -131,6 +131,20 @@ TEST(Status, ALiveOdometersFramesAndReversingAreShown)
     EXPECT_EQ(format_status(now, before).find("odometry:"), std::string::npos);
 }
 
+// Plants no ready tool covered are part of not_treated, and shown apart.
+TEST(Status, PlantsNoReadyToolCoveredAreShown)
+{
+    StatusSnapshot before = with_actuation();
+    before.t_ns = 1'000'000'000;
+    before.not_treated = 5;
+    before.not_ready = 2;
+    StatusSnapshot now = before;
+    now.t_ns = 2'000'000'000;
+    now.not_treated = 9;
+    now.not_ready = 5;
+    expect_interval_and_total(now, before, "not_treated 4 (tools not ready 3)", "not_treated 9 (tools not ready 5)");
+}
+
 // A SocketCAN interface's frames late on the wire or never reported on it,
 // the sends that waited, and the controller's error states; nothing for a
 // CAN log.

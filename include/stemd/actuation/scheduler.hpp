@@ -32,9 +32,11 @@
 //      (or y_mm is not finite, or the command would not encode: |lateral|
 //      beyond 2047 mm).
 //   3. disabled: the enable input is inactive.
-//   4. deadline: as above. When several tools cover y_mm they are tried in
-//      table order and the first that can be on time is chosen; a miss
-//      means none could. A miss that the first tool could have made without
+//   4. not ready: no tool covering y_mm is ready (its bit in the tool
+//      controller's TOOL_STATUS tools_ready_mask is clear).
+//   5. deadline: as above. When several ready tools cover y_mm they are
+//      tried in table order and the first that can be on time is chosen; a
+//      miss means none could. A miss that the first tool could have made without
 //      its compensation is also counted as compensation_misses: the
 //      compensation moved its point into the past or too close. Such a
 //      command is dropped, never sent late.
@@ -86,7 +88,7 @@ struct SchedulerParams {
     TreatPolicy policy = TreatPolicy::weeds_only;
 };
 
-enum class ScheduleOutcome : std::uint8_t { send, policy, no_tool, disabled, deadline_miss };
+enum class ScheduleOutcome : std::uint8_t { send, policy, no_tool, disabled, not_ready, deadline_miss };
 std::string_view to_string(ScheduleOutcome o);
 
 // What the actuator thread knows when it schedules.
@@ -95,6 +97,9 @@ struct ScheduleNow {
     double odom_mm = 0;             // the odometer now (geometry scale, monotonic)
     double speed_mm_per_s = 0;
     bool enabled = false;           // the enable input
+    // Bit n set: tool n may be commanded (the tool controller's
+    // TOOL_STATUS); every bit while its readiness is not known.
+    std::uint16_t tools_ready_mask = 0xFFFF;
 };
 
 struct ScheduleDecision {
@@ -117,6 +122,7 @@ struct SchedulerCounters {
     std::uint64_t policy = 0;
     std::uint64_t no_tool = 0;
     std::uint64_t disabled = 0;
+    std::uint64_t not_ready = 0;
     std::uint64_t deadline_misses = 0;
     std::uint64_t compensation_misses = 0;  // of deadline_misses: on time without the compensation
 };

@@ -78,6 +78,8 @@ struct ActuationConfig {
     std::string can_log_file = "-";           // log sink: "-" = stdout
     bool can_log_monotonic = false;           // can.log_clock: monotonic (true) or realtime
     std::int64_t heartbeat_interval_ns = 100'000'000;
+    // A tool controller's TOOL_STATUS holds this long (0: until the next).
+    std::int64_t tool_status_timeout_ns = 1'000'000'000;
 
     // gpio.* (chip empty: no GPIO; the enable input is then taken as active)
     std::string gpio_chip;

@@ -33,6 +33,7 @@ struct ActuationCounters {
     std::atomic<std::uint64_t> policy{0};           // targets not treated by policy (crops, unclassified)
     std::atomic<std::uint64_t> no_tool{0};          // no tool covers the plant's y
     std::atomic<std::uint64_t> disabled{0};         // the enable input was inactive
+    std::atomic<std::uint64_t> not_ready{0};        // no tool covering the plant was ready (TOOL_STATUS)
     std::atomic<std::uint64_t> deadline_misses{0};  // could not be on time: never sent
     std::atomic<std::uint64_t> bus_deadline{0};     // the bus could not take it before its deadline: never sent
     std::atomic<std::uint64_t> bus_errors{0};       // TARGETs that could not be encoded or sent

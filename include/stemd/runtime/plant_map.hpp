@@ -12,6 +12,7 @@
 // coordinates"), fused over every sighting. class: unknown|crop|weed.
 // first_frame/last_frame: the daemon's frame numbers. treated: a TARGET
 // went onto the bus. reason: sent, or why not: policy, no_tool, disabled,
+// not_ready (no tool covering it was ready: TOOL_STATUS),
 // deadline_miss (the scheduler: it could not be on time), bus_deadline (the
 // bus could not take it before its deadline), bus_error, no_odometry,
 // unconfirmed. tool, lane, fire_odom_mm: when a tool was chosen.
@@ -57,7 +58,7 @@
 namespace stemd::runtime {
 
 enum class MapReason : std::uint8_t {
-    sent, policy, no_tool, disabled, deadline_miss, bus_deadline, bus_error, no_odometry, unconfirmed, pending,
+    sent, policy, no_tool, disabled, not_ready, deadline_miss, bus_deadline, bus_error, no_odometry, unconfirmed, pending,
 };
 std::string_view to_string(MapReason r);
 

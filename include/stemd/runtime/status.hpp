@@ -91,6 +91,8 @@ struct StatusSnapshot {
     std::uint64_t file_lines_written = 0, file_lines_lost = 0;
     // Actuation (when a CAN side is configured).
     bool actuation = false;
+    // not_ready (of not_treated): no tool covering the plant was ready (TOOL_STATUS).
+    std::uint64_t not_ready = 0;
     std::uint64_t targets = 0, sent = 0, deadline_misses = 0, no_odometry = 0, not_treated = 0, bus_errors = 0,
                   heartbeat_errors = 0, heartbeat_misses = 0;
     // A live odometer (odometry.source can or encoder): ODOMETRY frames

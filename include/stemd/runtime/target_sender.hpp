@@ -8,7 +8,14 @@
 // Tool timing: on_fired() matches a TOOL_FIRED to its TARGET (target_id and
 // tool_id), records the lag per tool (fire_lag.hpp) and publishes it to the
 // counters; for a tool with learn_latency it learns the latency and gives it
-// to the schedulers, so that the next commands lead by it. No allocation,
+// to the schedulers, so that the next commands lead by it.
+//
+// Tool readiness: a tool whose bit in the tool controller's last TOOL_STATUS
+// tools_ready_mask is clear gets no TARGET (another ready tool covering the
+// plant may; else it is counted not_ready). Until the first TOOL_STATUS
+// every tool is taken as ready (a controller that never sends one); once
+// the last is older than tool_status_timeout_ns (0: never), none is: a
+// controller that fell silent cannot be counted on to strike. No allocation,
 // locks or exceptions after construction.
 #pragma once
 
@@ -33,7 +40,7 @@ public:
     // scheduler_all (policy auto): the scheduler for frames without a class map.
     TargetSender(actuation::Scheduler scheduler, std::optional<actuation::Scheduler> scheduler_all,
                  drivers::CanBus& bus, protocol::CanIds ids, const OdometryInput& odometry,
-                 ActuationCounters& counters);
+                 ActuationCounters& counters, std::int64_t tool_status_timeout_ns);
 
     // True when the bus took the TARGET frame. `enable` is open while the
     // enable input is on: the scheduler reads it, and the bus checks it again
@@ -47,6 +54,10 @@ public:
     enum class Fired : std::uint8_t { matched, unknown_tool, unmatched };
     // A TOOL_FIRED, with the odometry's speed now (the strike was moments ago).
     Fired on_fired(const protocol::ToolFired& fired, double speed_mm_per_s) noexcept;
+    // A TOOL_STATUS, received at t_rx_ns (CLOCK_MONOTONIC).
+    void on_tool_status(const protocol::ToolStatus& status, std::int64_t t_rx_ns) noexcept;
+    // Bit n set: tool n may be commanded at now_ns (above).
+    std::uint16_t tools_ready_mask(std::int64_t now_ns) const noexcept;
     // Whether the tool has reported a strike (TOOL_FIRED) in this run.
     bool reports_fired(std::uint8_t tool_id) const { return tool_id <= protocol::kMaxToolId && reports_fired_[tool_id]; }
 
@@ -63,6 +74,10 @@ private:
     std::array<actuation::LagStats, actuation::Scheduler::kMaxTools> lag_{};
     std::array<actuation::LatencyLearner, actuation::Scheduler::kMaxTools> learners_{};
     std::array<bool, protocol::kMaxToolId + 1> reports_fired_{};   // by tool id
+    const std::int64_t tool_status_timeout_ns_;
+    bool tool_status_seen_ = false;
+    std::uint16_t tools_ready_mask_ = 0xFFFF;
+    std::int64_t tool_status_rx_ns_ = 0;
 };
 
 }  // namespace stemd::runtime

@@ -41,7 +41,7 @@ struct Metrics {
     // frames_dropped_total{cause=...}
     std::uint64_t ring_full = 0, overwritten = 0, results_full = 0, corrupt = 0, bad_size = 0, failed = 0;
     bool actuation = false;   // the actuation's series are written only with it
-    std::uint64_t targets = 0, sent = 0, policy = 0, no_tool = 0, disabled = 0, deadline_miss = 0,
+    std::uint64_t targets = 0, sent = 0, policy = 0, no_tool = 0, disabled = 0, not_ready = 0, deadline_miss = 0,
                   bus_deadline = 0, bus_error = 0, heartbeat_errors = 0, heartbeat_misses = 0,
                   no_odometry = 0, rx_odometry = 0, odometry_going_back = 0;
     // The SocketCAN interface's series, written only with one.
