@@ -4,11 +4,15 @@
 // statistics, latency compensation) can be checked without a machine.
 //
 //   stemd-toolsim --interface vcan0 [--base-id 768] [--delay-ms 40]
-//                 [--speed-mm-per-s V] [--duration-s S]
+//                 [--speed-mm-per-s V] [--ready-mask M] [--duration-s S]
 //
 // The odometer: with --speed-mm-per-s it is also the drive, sending
 // ODOMETRY every 10 ms at that constant speed; without it, it follows the
 // ODOMETRY frames on the bus (extrapolated between them at their speed).
+// With --ready-mask it sends TOOL_STATUS every 100 ms with that
+// tools_ready_mask (bit n: tool n ready), as a tool controller reports
+// which tools can strike; without it, none (stemd then takes every tool
+// as ready).
 // Every strike is printed on standard output:
 //   fired tool 0 target 17 lane 0 fired_odom_mm 5056
 // It stops after --duration-s (0: at SIGINT or SIGTERM) and prints its counters;
@@ -45,6 +49,7 @@ int main(int argc, char** argv)
     std::string interface;
     unsigned base_id = protocol::kDefaultBaseId;
     double delay_ms = 40, speed_mm_per_s = 0, duration_s = 0;
+    int ready_mask = -1;
     app.add_option("--interface", interface, "SocketCAN interface (e.g. vcan0)")->required();
     app.add_option("--base-id", base_id, "first CAN identifier of stemd's messages")
         ->check(CLI::Range(0u, static_cast<unsigned>(protocol::CanIds::kMaxBaseId)));
@@ -53,6 +58,9 @@ int main(int argc, char** argv)
     app.add_option("--speed-mm-per-s", speed_mm_per_s,
                    "also be the drive: send ODOMETRY at this constant speed (0: follow ODOMETRY on the bus)")
         ->check(CLI::Range(0.0, 32767.0));
+    app.add_option("--ready-mask", ready_mask,
+                   "send TOOL_STATUS every 100 ms with this tools_ready_mask (bit n: tool n ready; -1: none)")
+        ->check(CLI::Range(-1, 0xFFFF));
     app.add_option("--duration-s", duration_s, "stop after this long (0: at SIGINT or SIGTERM)")
         ->check(CLI::Range(0.0, 86400.0));
     CLI11_PARSE(app, argc, argv);
@@ -72,7 +80,7 @@ int main(int argc, char** argv)
     const bool drive = speed_mm_per_s > 0;
     protocol::E2eChecker target_checker(ids.id(protocol::MessageKind::Target), 3);
     protocol::E2eChecker odometry_checker(ids.id(protocol::MessageKind::Odometry), 3);
-    protocol::E2eCounter odometry_counter, fired_counter;
+    protocol::E2eCounter odometry_counter, fired_counter, status_counter;
     // A send whose deadline passed before the bus took it (the process was
     // not scheduled in time) is counted apart from a failed one: the next
     // ODOMETRY carries the odometer of its own moment anyway.
@@ -86,7 +94,10 @@ int main(int argc, char** argv)
 
     const std::int64_t t0 = base::monotonic_ns();
     const std::int64_t end_ns = duration_s > 0 ? t0 + static_cast<std::int64_t>(duration_s * 1e9) : 0;
-    std::int64_t next_odometry_ns = t0;
+    std::int64_t next_odometry_ns = t0, next_status_ns = t0;
+    // For TOOL_STATUS: strikes made (wraps at 256), and the last one's target.
+    std::uint64_t executed = 0;
+    std::uint16_t last_target_id = 0;
     // Following the bus: the last ODOMETRY (unwrapped) and when it came.
     bool have_odometry = drive;
     double odom_at_rx = 0, speed = drive ? speed_mm_per_s : 0;
@@ -134,9 +145,24 @@ int main(int argc, char** argv)
                 count_send(bus.send(out, now + 10'000'000));
             next_odometry_ns += 10'000'000;
         }
+        if (ready_mask >= 0 && now >= next_status_ns) {
+            protocol::ToolStatus status;
+            status.tools_ready_mask = static_cast<std::uint16_t>(ready_mask);
+            status.targets_executed = static_cast<std::uint8_t>(executed % 256);
+            status.last_target_valid = executed > 0;
+            status.last_target_id = last_target_id;
+            protocol::CanFrame out;
+            if (!protocol::encode(status, status_counter.next(), ids, out))
+                ++send_errors;
+            else
+                count_send(bus.send(out, now + 100'000'000));
+            next_status_ns += 100'000'000;
+        }
         if (!have_odometry)
             continue;
         for (const protocol::ToolFired& f : sim.advance(now, odometer_at(now))) {
+            ++executed;
+            last_target_id = f.target_id;
             protocol::CanFrame out;
             if (!protocol::encode(f, fired_counter.next(), ids, out))
                 ++send_errors;

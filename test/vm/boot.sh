@@ -37,7 +37,7 @@ done
 # about five times what the checks take on an idle host: a loaded host slows
 # the emulated guest down that much.
 boots=(
-  "main can,v4l2,gpio,libcamera,v4l2_source,socketcan,libcamera_source,gpiod,libcamera_reopen,paired_nir,daemon,toolsim,record_odometry,record_encoder 1200"
+  "main can,v4l2,gpio,libcamera,v4l2_source,socketcan,libcamera_source,gpiod,libcamera_reopen,paired_nir,daemon,toolsim,record_odometry,record_encoder,tool_status 1200"
   "faults faults 600"
   "gpiod_lost gpiod_lost 300"
   "watchdog watchdog 900"

@@ -864,6 +864,57 @@ check_record_encoder() {
 }
 extra_checks="$extra_checks record_encoder"
 
+# --- tool_status: stemd honours the tool controller's TOOL_STATUS ---
+# KEYs stemd, synth, toolsim. stemd-toolsim is the tool controller on vcan0,
+# sending TOOL_STATUS every 100 ms; stemd replays a 1.5 m synthetic strip
+# (its recorded odometer, scheduler.policy all) onto vcan0. With every
+# tool reported not ready (mask 0) no TARGET may reach the bus and every
+# plant not treated is counted not ready (in the slow guest some plants
+# are also lost to no_odometry); with every tool ready (mask 65535) the same
+# strip's plants are commanded (the TARGETs on the bus are the ones stemd
+# counts as sent) and none is counted not ready.
+check_tool_status() {
+  [ -n "$stemd" ] && [ -n "$synth" ] && [ -n "$toolsim" ] || skip "stemd, stemd-synth or stemd-toolsim not built"
+  vcan_up
+  rec=$out/tool-status-strip
+  rm -rf "/host$rec"
+  hostrun "$synth" --strip --out "$rec" --preset early --seed 5 --fragment 0 --length-mm 1500 --fps 15 \
+    --speed-kmh 2.5 > /dev/null || die "stemd-synth"
+  for mask in 0 65535; do
+    echo "== stemd-toolsim reports tools_ready_mask $mask"
+    candump_start /tmp/tool_status.candump /tmp/tool_status.candump.err
+    hostrun "$toolsim" --interface vcan0 --ready-mask $mask --duration-s 300 > /tmp/tool_status_sim.out 2>&1 &
+    sim=$!
+    within 60 grep -q ' vcan0 302#' /tmp/tool_status.candump ||
+      { kill $sim $dump; die "no TOOL_STATUS from stemd-toolsim"; }
+    hostrun "$stemd" --set can.interface=vcan0 --set scheduler.policy=all --set source.replay_preload=true \
+      --replay "$rec" --once > /tmp/tool_status_stemd.out 2>&1
+    rc=$?
+    kill $sim; wait $sim
+    kill -INT $dump; wait $dump
+    grep 'targets ' /tmp/tool_status_stemd.out | tail -n 1
+    [ $rc = 0 ] || { tail -n 20 /tmp/tool_status_stemd.out; die "stemd exited $rc"; }
+    sent=$(grep -c ' vcan0 301#' /tmp/tool_status.candump)
+    summary=$(grep 'not_treated' /tmp/tool_status_stemd.out | tail -n 1)
+    targets=$(echo "$summary" | sed -n 's/.* targets \([0-9]*\),.*/\1/p')
+    stemd_sent=$(echo "$summary" | sed -n 's/.* targets [0-9]*, sent \([0-9]*\),.*/\1/p')
+    not_ready=$(echo "$summary" | sed -n 's/.*(tools not ready \([0-9]*\)).*/\1/p')
+    not_treated=$(echo "$summary" | sed -n 's/.* not_treated \([0-9]*\) (.*/\1/p')
+    echo "TARGETs on vcan0: $sent; stemd: targets $targets, sent $stemd_sent, tools not ready $not_ready"
+    [ -n "$targets" ] && [ "$targets" -gt 0 ] || die "stemd confirmed no plant"
+    if [ $mask = 0 ]; then
+      [ "$sent" = 0 ] || die "$sent TARGETs reached the bus while every tool was reported not ready"
+      [ -n "$not_ready" ] && [ "$not_ready" -gt 0 ] && [ "$not_ready" = "$not_treated" ] ||
+        die "tools not ready $not_ready, not treated $not_treated: each plant not treated must be one no ready tool covered"
+    else
+      [ "$sent" -gt 0 ] && [ "$sent" = "$stemd_sent" ] ||
+        die "$sent TARGETs on the bus, stemd sent $stemd_sent, with every tool ready"
+      [ "$not_ready" = 0 ] || die "$not_ready plants counted not ready with every tool ready"
+    fi
+  done
+}
+extra_checks="$extra_checks tool_status"
+
 # --- watchdog: systemd restarts a stemd whose processing thread is stuck ---
 # KEYs watchdog (the stemd binary) and synth (stemd-synth). The host's own
 # systemd runs as PID 1 of a PID and mount namespace chrooted into the host
