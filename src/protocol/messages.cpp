@@ -402,6 +402,14 @@ std::string_view protocol_comment() { return kProtocolComment; }
 
 std::string_view to_string(MessageKind kind) { return message_def(kind).name; }
 
+std::string_view tool_error_name(std::uint8_t code)
+{
+    for (const ValueName& v : kToolErrorNames)
+        if (v.value == code)
+            return v.name;
+    return "";
+}
+
 std::optional<CanIds> CanIds::make(std::uint32_t base_id)
 {
     if (base_id > kMaxBaseId)

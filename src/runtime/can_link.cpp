@@ -49,8 +49,11 @@ void CanLink::receive() noexcept
             protocol::ToolStatus m;
             if (!accepted(frame, tool_status_checker_, m))
                 continue;
-            bump(counters_.rx_tool_status);
             counters_.tools_ready_mask.store(m.tools_ready_mask, std::memory_order_relaxed);
+            counters_.tool_error_code.store(m.error_code, std::memory_order_relaxed);
+            counters_.tool_status_rx_ns.store(t_rx_ns, std::memory_order_relaxed);
+            // Last: a reader that sees the count sees the values above.
+            counters_.rx_tool_status.fetch_add(1, std::memory_order_release);
             sender_.on_tool_status(m, t_rx_ns);
         } else if (*kind == protocol::MessageKind::ToolFired) {
             protocol::ToolFired m;

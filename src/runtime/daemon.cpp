@@ -585,6 +585,13 @@ StatusSnapshot Daemon::snapshot(bool whole_run)
         s.odometry_encoder = actuation_->odometry_source() == OdometrySource::encoder;
         s.rx_odometry = get(a.rx_odometry);
         s.odometry_going_back = get(a.odometry_going_back);
+        if (a.rx_tool_status.load(std::memory_order_acquire) > 0) {
+            s.tool_status = true;
+            s.tools_ready_mask = static_cast<std::uint16_t>(get(a.tools_ready_mask));
+            s.tool_error_code = static_cast<std::uint8_t>(get(a.tool_error_code));
+            s.tool_status_age_ms =
+                static_cast<double>(s.t_ns - a.tool_status_rx_ns.load(std::memory_order_relaxed)) / 1e6;
+        }
         if (actuation_->on_can_interface()) {
             const drivers::CanBusCounters bus = actuation_->bus().counters();
             s.can_interface = true;

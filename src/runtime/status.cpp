@@ -7,6 +7,7 @@
 #include <spdlog/fmt/fmt.h>
 
 #include "stemd/geometry/georef.hpp"
+#include "stemd/protocol/messages.hpp"
 
 namespace stemd::runtime {
 
@@ -72,6 +73,18 @@ std::string odometry(const StatusSnapshot& now, const StatusSnapshot& before)
     if (now.odometry_encoder)
         return fmt::format(" | odometry: going back {}", going_back);
     return "";
+}
+
+// What the tool controller said last: a state, the same in the interval's
+// line and the summary.
+std::string tool_controller(const StatusSnapshot& s)
+{
+    if (!s.tool_status)
+        return "";
+    const std::string_view name = protocol::tool_error_name(s.tool_error_code);
+    return fmt::format(" | tool controller: ready 0x{:04X}, error {} ({}), TOOL_STATUS {:.0f} ms ago",
+                       s.tools_ready_mask, s.tool_error_code, name.empty() ? "unnamed" : name,
+                       s.tool_status_age_ms);
 }
 
 std::string can(const StatusSnapshot& now, const StatusSnapshot& before)
@@ -157,7 +170,7 @@ std::string format_status(const StatusSnapshot& now, const StatusSnapshot& befor
                        static_cast<double>(now.frames_in - before.frames_in) / dt_s,
                        static_cast<double>(now.frames_out - before.frames_out) / dt_s,
                        now.no_vegetation - before.no_vegetation)
-           + behind(now, before) + " | " + drops(now, before) + source(now, before) + trigger(now, before) + files(now, before) + actuation(now, before) + odometry(now, before) + can(now, before) + class_socket(now, before) + class_model(now, before) + " | "
+           + behind(now, before) + " | " + drops(now, before) + source(now, before) + trigger(now, before) + files(now, before) + actuation(now, before) + odometry(now, before) + tool_controller(now) + can(now, before) + class_socket(now, before) + class_model(now, before) + " | "
            + durations(now) + tool_timing(now) + gnss(now);
 }
 
@@ -181,7 +194,7 @@ std::string format_summary(const StatusSnapshot& end, double run_s)
                        end.frames_out, end.stems_out, run_s,
                        run_s > 0 ? static_cast<double>(end.frames_out) / run_s : 0.0, end.no_vegetation)
            + behind(end, StatusSnapshot{}) + " | " + drops(end, StatusSnapshot{}) + source(end, StatusSnapshot{})
-           + trigger(end, StatusSnapshot{}) + files(end, StatusSnapshot{}) + actuation(end, StatusSnapshot{}) + odometry(end, StatusSnapshot{}) + can(end, StatusSnapshot{}) + class_socket(end, StatusSnapshot{}) + class_model(end, StatusSnapshot{}) + " | " + durations(end) + tool_timing(end) + gnss(end);
+           + trigger(end, StatusSnapshot{}) + files(end, StatusSnapshot{}) + actuation(end, StatusSnapshot{}) + odometry(end, StatusSnapshot{}) + tool_controller(end) + can(end, StatusSnapshot{}) + class_socket(end, StatusSnapshot{}) + class_model(end, StatusSnapshot{}) + " | " + durations(end) + tool_timing(end) + gnss(end);
 }
 
 }  // namespace stemd::runtime

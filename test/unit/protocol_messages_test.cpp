@@ -365,3 +365,12 @@ TEST(Messages, Names)
     EXPECT_EQ(to_string(MessageKind::ToolStatus), "TOOL_STATUS");
     EXPECT_EQ(to_string(CodecError::WrongCrc), "wrong CRC");
 }
+
+TEST(Messages, ToolErrorCodesAreNamedAsInTheDbc)
+{
+    EXPECT_EQ(tool_error_name(tool_error::kNone), "NONE");
+    EXPECT_EQ(tool_error_name(tool_error::kNotReady), "NOT_READY");
+    EXPECT_EQ(tool_error_name(tool_error::kActuatorFault), "ACTUATOR_FAULT");
+    EXPECT_EQ(tool_error_name(tool_error::kOther), "OTHER");
+    EXPECT_EQ(tool_error_name(77), "");
+}

@@ -145,6 +145,22 @@ TEST(Status, PlantsNoReadyToolCoveredAreShown)
     expect_interval_and_total(now, before, "not_treated 4 (tools not ready 3)", "not_treated 9 (tools not ready 5)");
 }
 
+// The tool controller's last TOOL_STATUS, once one came: a state, the same
+// in the interval's line and the summary.
+TEST(Status, TheToolControllersLastStatusIsShownOnceItSpoke)
+{
+    StatusSnapshot s = with_actuation();
+    EXPECT_EQ(format_status(s, StatusSnapshot{}).find("tool controller:"), std::string::npos);
+    s.tool_status = true;
+    s.tools_ready_mask = 0x0008;
+    s.tool_error_code = 4;
+    s.tool_status_age_ms = 42.4;
+    expect_interval_and_total(s, StatusSnapshot{}, "tool controller: ready 0x0008, error 4 (ACTUATOR_FAULT), TOOL_STATUS 42 ms ago",
+                              "tool controller: ready 0x0008, error 4 (ACTUATOR_FAULT), TOOL_STATUS 42 ms ago");
+    s.tool_error_code = 77;
+    EXPECT_NE(format_status(s, StatusSnapshot{}).find("error 77 (unnamed)"), std::string::npos);
+}
+
 // A SocketCAN interface's frames late on the wire or never reported on it,
 // the sends that waited, and the controller's error states; nothing for a
 // CAN log.

@@ -901,6 +901,8 @@ check_tool_status() {
     not_ready=$(echo "$summary" | sed -n 's/.*(tools not ready \([0-9]*\)).*/\1/p')
     not_treated=$(echo "$summary" | sed -n 's/.* not_treated \([0-9]*\) (.*/\1/p')
     echo "TARGETs on vcan0: $sent; stemd: targets $targets, sent $stemd_sent, tools not ready $not_ready"
+    want=$(printf 'tool controller: ready 0x%04X, error 0 (NONE)' $mask)
+    echo "$summary" | grep -q "$want" || die "the summary does not say '$want'"
     [ -n "$targets" ] && [ "$targets" -gt 0 ] || die "stemd confirmed no plant"
     if [ $mask = 0 ]; then
       [ "$sent" = 0 ] || die "$sent TARGETs reached the bus while every tool was reported not ready"

@@ -139,6 +139,9 @@ inline constexpr std::string_view kProtocolVersion = "stemd-can-1";  // the DBC'
 
 const MessageDef& message_def(MessageKind kind);
 std::string_view to_string(MessageKind kind);
+// TOOL_STATUS error_code as the DBC names it ("NONE", "NOT_READY", ...); ""
+// for a value it does not name.
+std::string_view tool_error_name(std::uint8_t code);
 std::span<const NodeDef> node_defs();
 // The whole protocol in a paragraph (the DBC's network comment).
 std::string_view protocol_comment();

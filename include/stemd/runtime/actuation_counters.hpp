@@ -48,7 +48,11 @@ struct ActuationCounters {
     std::atomic<std::uint64_t> rx_rejected{0};      // received frames rejected: E2E (CRC, counter) or decode
     std::atomic<std::uint64_t> odometry_going_back{0};  // samples below the newest (reversing): refused
     std::atomic<std::uint64_t> map_errors{0};
-    std::atomic<std::uint64_t> tools_ready_mask{0}; // the last TOOL_STATUS's
+    // The last TOOL_STATUS: its tools_ready_mask and error_code, and when it
+    // came (CLOCK_MONOTONIC; rx_tool_status says whether one did).
+    std::atomic<std::uint64_t> tools_ready_mask{0};
+    std::atomic<std::uint64_t> tool_error_code{0};
+    std::atomic<std::int64_t> tool_status_rx_ns{0};
     // Capture (t_sample_ns of the frame that confirmed the plant) to the
     // moment its TARGET was decided and handed to the bus (the now_ns the
     // deadline was checked against): the whole chain's latency.

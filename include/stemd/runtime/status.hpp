@@ -101,6 +101,12 @@ struct StatusSnapshot {
     // reading again).
     bool odometry_can = false, odometry_encoder = false;
     std::uint64_t rx_odometry = 0, odometry_going_back = 0;
+    // The tool controller's last TOOL_STATUS, once one came: its
+    // tools_ready_mask, error_code, and how long ago it came.
+    bool tool_status = false;
+    std::uint16_t tools_ready_mask = 0;
+    std::uint8_t tool_error_code = 0;
+    double tool_status_age_ms = 0;
     // A SocketCAN interface (can.interface): TARGETs and HEARTBEATs that
     // reached the wire after their deadline, written ones the interface
     // never reported on the wire, sends that waited for the frame before to
